@@ -1,0 +1,309 @@
+/*
+ * isomend.h - hole-free isosurface extraction from volumes (public API)
+ *
+ * isomend turns a scalar volume (CT, MRI, microscopy, simulation fields)
+ * into an indexed triangle mesh with the marching cubes family of methods:
+ *
+ *   ISOMEND_METHOD_MC     Lorensen & Cline (1987), with the 256-case table
+ *                         generated from the 15 elementary cases by the 24
+ *                         cube rotations and inversion.  Leaves holes where
+ *                         two cubes disagree on a shared ambiguous face.
+ *   ISOMEND_METHOD_DURST  Durst (1988): MC plus a quadrilateral on every
+ *                         ambiguous face shared by two cubes.  Closes every
+ *                         hole but adds extraneous polygons (edges used 3x).
+ *   ISOMEND_METHOD_DMC    The thesis method (after Roll, Haase & von Kienlin
+ *                         1995): MC plus a quadrilateral only on ambiguous
+ *                         faces shared by an *inverted combination* (exactly
+ *                         one of the two cubes has 5+ positive corners),
+ *                         which is exactly where MC leaves a hole.  Default.
+ *
+ * Conventions (applied identically by every cube, so neighbours agree):
+ *   - a sample is *positive* (inside) when  sample >= iso;
+ *   - NaN samples and the optional padding layer are *outside*; an edge with
+ *     such an endpoint is cut at its midpoint and its vertex normal is the
+ *     edge direction (towards the outside endpoint);
+ *   - one vertex per intersected grid edge, shared by every cube around it;
+ *     the vertex is at  p0 + t (p1 - p0),  t = (iso - f0) / (f1 - f0),
+ *     p0 the endpoint with the lower index;
+ *   - positions are float32 world coordinates: origin + index * spacing;
+ *   - normals are unit vectors from central-difference gradients (one-sided
+ *     at the border and next to NaN/padding), interpolated along the edge,
+ *     pointing towards *lower* values; ISOMEND_FLAG_FLIP reverses both the
+ *     normals and the winding, which always agree with each other;
+ *   - triangles are wound counter-clockwise seen from the side the normals
+ *     point to.
+ *
+ * Thread safety: every function is reentrant; a volume may be read by
+ * several extractions at once.  A mesh object may be read from several
+ * threads but must not be destroyed while being read.  There is no global
+ * mutable state.
+ *
+ * The library never prints, never exits and never aborts on bad input:
+ * every function that can fail returns an isomend_status.
+ */
+#ifndef ISOMEND_H
+#define ISOMEND_H
+
+#include <stddef.h>
+#include <stdint.h>
+
+#define ISOMEND_VERSION_MAJOR 0
+#define ISOMEND_VERSION_MINOR 1
+#define ISOMEND_VERSION_PATCH 0
+#define ISOMEND_VERSION_STRING "0.1.0"
+
+#if defined(_WIN32)
+#  if defined(ISOMEND_BUILDING_SHARED)
+#    define ISOMEND_API __declspec(dllexport)
+#  elif defined(ISOMEND_USING_SHARED)
+#    define ISOMEND_API __declspec(dllimport)
+#  else
+#    define ISOMEND_API
+#  endif
+#elif defined(__GNUC__) && __GNUC__ >= 4
+#  define ISOMEND_API __attribute__((visibility("default")))
+#else
+#  define ISOMEND_API
+#endif
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+/* ------------------------------------------------------------------ status */
+
+typedef enum isomend_status {
+    ISOMEND_OK = 0,
+    ISOMEND_ERR_INVALID_ARGUMENT = 1, /* NULL pointer, bad enum, bad flag    */
+    ISOMEND_ERR_BAD_DIMENSIONS = 2,   /* a dimension < 2 (or < 1 with pad)    */
+    ISOMEND_ERR_BAD_SPACING = 3,      /* spacing <= 0 or not finite          */
+    ISOMEND_ERR_BAD_ISO = 4,          /* iso level NaN or infinite            */
+    ISOMEND_ERR_OUT_OF_MEMORY = 5,
+    ISOMEND_ERR_TOO_LARGE = 6,        /* more than 2^32-1 vertices            */
+    ISOMEND_ERR_CANCELLED = 7,        /* the progress callback asked to stop  */
+    ISOMEND_ERR_THREAD = 8,           /* a worker thread could not start      */
+    ISOMEND_ERR_UNSUPPORTED = 9       /* method/option combination not built  */
+} isomend_status;
+
+/* A static, human-readable description of a status ("out of memory"). */
+ISOMEND_API const char *isomend_status_string(isomend_status status);
+
+/* The library's version string, e.g. "0.1.0". */
+ISOMEND_API const char *isomend_version(void);
+
+/* ------------------------------------------------------------ voxel types */
+
+typedef enum isomend_type {
+    ISOMEND_U8 = 0,
+    ISOMEND_I8 = 1,
+    ISOMEND_U16 = 2,
+    ISOMEND_I16 = 3,
+    ISOMEND_I32 = 4,
+    ISOMEND_F32 = 5,
+    ISOMEND_F64 = 6
+} isomend_type;
+#define ISOMEND_TYPE_COUNT 7
+
+/* Size in bytes of one sample, 0 for an invalid type. */
+ISOMEND_API size_t isomend_type_size(isomend_type type);
+/* "u8", "i8", "u16", "i16", "i32", "f32", "f64"; NULL for an invalid type. */
+ISOMEND_API const char *isomend_type_name(isomend_type type);
+/* Parses a name as above; returns ISOMEND_ERR_INVALID_ARGUMENT if unknown. */
+ISOMEND_API isomend_status isomend_type_from_name(const char *name, isomend_type *type);
+
+/* ----------------------------------------------------------------- volume */
+
+/*
+ * A volume is read in place, never copied.  Sample (i, j, k) lives at
+ *     (const char *)data + i*strides[0] + j*strides[1] + k*strides[2]
+ * (strides in bytes, may be negative).  strides all 0 means contiguous with
+ * x fastest: strides = {size, size*dims[0], size*dims[0]*dims[1]}.
+ * Multi-byte samples are in the machine's byte order.
+ * x = index 0 (image column), y = index 1 (image row), z = index 2 (slice).
+ */
+typedef struct isomend_volume {
+    const void *data;
+    isomend_type type;
+    int64_t dims[3];
+    int64_t strides[3];
+    double spacing[3]; /* world distance between samples, > 0 */
+    double origin[3];  /* world position of sample (0, 0, 0)  */
+} isomend_volume;
+
+/* Fills a contiguous x-fastest volume description with spacing 1, origin 0. */
+ISOMEND_API void isomend_volume_init(isomend_volume *vol, const void *data, isomend_type type,
+                                     int64_t nx, int64_t ny, int64_t nz);
+
+/* ---------------------------------------------------------------- methods */
+
+typedef enum isomend_method {
+    ISOMEND_METHOD_MC = 0,
+    ISOMEND_METHOD_DURST = 1,
+    ISOMEND_METHOD_DMC = 2,
+    ISOMEND_METHOD_FACIAL = 3,     /* reserved: face average (Wyvill 1986)        */
+    ISOMEND_METHOD_GRADIENT = 4,   /* reserved: centre-pointing gradient (1990)   */
+    ISOMEND_METHOD_ASYMPTOTIC = 5, /* reserved: asymptotic decider (1991)         */
+    ISOMEND_METHOD_TETRA = 6,      /* reserved: 5 mirrored tetrahedra (1990)      */
+    ISOMEND_METHOD_MC33 = 7        /* reserved: Marching Cubes 33 (Chernyaev 1995) */
+} isomend_method;
+#define ISOMEND_METHOD_COUNT 8
+
+/* "mc", "durst", "dmc", "facial", "gradient", "asymptotic", "tetra", "mc33". */
+ISOMEND_API const char *isomend_method_name(isomend_method method);
+ISOMEND_API isomend_status isomend_method_from_name(const char *name, isomend_method *method);
+/* 1 if this build implements the method, else 0. */
+ISOMEND_API int isomend_method_available(isomend_method method);
+
+/* ---------------------------------------------------------------- options */
+
+enum {
+    ISOMEND_FLAG_NO_NORMALS = 1u << 0, /* do not compute normals                */
+    ISOMEND_FLAG_FLIP = 1u << 1,       /* normals towards higher values,       */
+                                       /* winding reversed to match            */
+    ISOMEND_FLAG_PAD = 1u << 2,        /* surround the volume with one layer   */
+                                       /* of outside samples: closed surfaces  */
+    ISOMEND_FLAG_NO_ORIGINS = 1u << 3  /* do not record triangle origins       */
+};
+#define ISOMEND_FLAGS_ALL 0xFu
+
+/*
+ * Progress: called from the thread that called isomend_extract(), with a
+ * fraction in [0, 1], a few times per second at most for large volumes.
+ * Return non-zero to cancel: the extraction then returns
+ * ISOMEND_ERR_CANCELLED and no mesh.
+ */
+typedef int (*isomend_progress_fn)(void *user, double fraction);
+
+typedef struct isomend_options {
+    double iso;                   /* iso level (finite)                          */
+    isomend_method method;        /* default ISOMEND_METHOD_DMC                  */
+    unsigned flags;               /* ISOMEND_FLAG_*                              */
+    int threads;                  /* 0 = all cores; the mesh does not depend on it */
+    isomend_progress_fn progress; /* may be NULL                                 */
+    void *progress_user;
+} isomend_options;
+
+/* iso 0, DMC, no flags, all cores, no progress callback. */
+ISOMEND_API void isomend_options_init(isomend_options *opts);
+
+/* -------------------------------------------------------------- statistics */
+
+/* Where a triangle comes from. */
+typedef enum isomend_origin {
+    ISOMEND_ORIGIN_TABLE = 0, /* the 256-case table                             */
+    ISOMEND_ORIGIN_DURST = 1, /* Durst's quad on an ambiguous face              */
+    ISOMEND_ORIGIN_MEND = 2   /* DMC's quad on an inverted combination          */
+} isomend_origin;
+#define ISOMEND_ORIGIN_COUNT 3
+
+typedef struct isomend_stats {
+    uint64_t cubes;                 /* cubes marched (including padding)         */
+    uint64_t case_histogram[15];    /* cubes per elementary case 0..14 (Table-2) */
+    uint64_t ambiguous_faces;       /* distinct ambiguous faces shared by 2 cubes */
+    uint64_t inverted_combinations; /* ... of those, shared by an inverted combination */
+    uint64_t triangles_by_origin[ISOMEND_ORIGIN_COUNT];
+    uint64_t nan_samples;           /* NaN samples in the input                  */
+    uint64_t vertices;
+    uint64_t triangles;
+} isomend_stats;
+
+/* ------------------------------------------------------------------- mesh */
+
+/* An extracted mesh; owns its arrays.  Destroy with isomend_mesh_destroy(). */
+typedef struct isomend_mesh isomend_mesh;
+
+/*
+ * Extracts the isosurface of `vol` at `opts->iso`.
+ * On success *out_mesh receives a new mesh (possibly with zero triangles) and
+ * `stats` (may be NULL) is filled.  On failure *out_mesh is NULL.
+ * `opts` may be NULL for the defaults (which means iso 0).
+ */
+ISOMEND_API isomend_status isomend_extract(const isomend_volume *vol, const isomend_options *opts,
+                                           isomend_mesh **out_mesh, isomend_stats *stats);
+
+/* Accepts NULL. */
+ISOMEND_API void isomend_mesh_destroy(isomend_mesh *mesh);
+
+ISOMEND_API size_t isomend_mesh_vertex_count(const isomend_mesh *mesh);
+ISOMEND_API size_t isomend_mesh_triangle_count(const isomend_mesh *mesh);
+/* 3 floats (x, y, z) per vertex. */
+ISOMEND_API const float *isomend_mesh_positions(const isomend_mesh *mesh);
+/* 3 floats per vertex, unit length; NULL with ISOMEND_FLAG_NO_NORMALS. */
+ISOMEND_API const float *isomend_mesh_normals(const isomend_mesh *mesh);
+/* 3 vertex indices per triangle. */
+ISOMEND_API const uint32_t *isomend_mesh_triangles(const isomend_mesh *mesh);
+/* One isomend_origin per triangle; NULL with ISOMEND_FLAG_NO_ORIGINS. */
+ISOMEND_API const uint8_t *isomend_mesh_triangle_origins(const isomend_mesh *mesh);
+/*
+ * The world-space box of the (padded, if ISOMEND_FLAG_PAD) sample grid the
+ * mesh was extracted from: min[3] then max[3].  Once-used edges lying in one
+ * of its faces are the volume's legitimate border (see isomend_check).
+ */
+ISOMEND_API void isomend_mesh_grid_box(const isomend_mesh *mesh, double box[6]);
+
+/*
+ * Copies the mesh into caller-owned arrays (count-then-fill, for bindings).
+ * Any pointer may be NULL to skip that array.  positions/normals hold
+ * 3*vertex_count floats, triangles 3*triangle_count indices, origins
+ * triangle_count bytes.
+ */
+ISOMEND_API isomend_status isomend_mesh_copy(const isomend_mesh *mesh, float *positions,
+                                             float *normals, uint32_t *triangles,
+                                             uint8_t *origins);
+
+/* ---------------------------------------------------------- continuity check */
+
+/*
+ * The continuity checker (thesis chapter 2.3.2, after Udupa et al. 1982):
+ * a mesh is a continuous surface iff every edge is used by exactly two
+ * triangles, except edges on the volume's outer faces, used once.
+ */
+typedef struct isomend_check_report {
+    uint64_t vertices;             /* vertices referenced by triangles           */
+    uint64_t triangles;
+    uint64_t edges;                /* distinct undirected edges                  */
+    uint64_t border_edges;         /* used once, lying in a face of the box      */
+    uint64_t hole_edges;           /* used once, elsewhere: holes                */
+    uint64_t hole_loops;           /* connected groups of hole edges             */
+    uint64_t nonmanifold_edges;    /* used 3+ times: extraneous pieces           */
+    uint64_t misoriented_edges;    /* used twice in the same direction           */
+    uint64_t nonmanifold_vertices; /* triangles around it form 2+ fans           */
+    uint64_t degenerate_triangles; /* repeated index or zero area                */
+    uint64_t components;           /* connected components (through edges)       */
+    int64_t euler;                 /* V - E + F                                  */
+} isomend_check_report;
+
+/*
+ * Checks a triangle mesh.  `box` (min[3], max[3]) is the volume's box: a
+ * once-used edge whose two endpoints lie in the same face plane of the box
+ * (within 1e-6 of the box size) is a border edge, any other is a hole edge.
+ * `box` NULL means the mesh's own bounding box.  Returns
+ * ISOMEND_ERR_INVALID_ARGUMENT for an index >= vertex_count.
+ */
+ISOMEND_API isomend_status isomend_check(const float *positions, size_t vertex_count,
+                                         const uint32_t *triangles, size_t triangle_count,
+                                         const double *box, isomend_check_report *report);
+
+/* Runs isomend_check on an extracted mesh with its grid box. */
+ISOMEND_API isomend_status isomend_mesh_check(const isomend_mesh *mesh,
+                                              isomend_check_report *report);
+
+/* ------------------------------------------------------------ case tables */
+
+/*
+ * Read-only access to the generated tables (for tests, tools and teaching).
+ * Cube corner c (0..7) sits at (c & 1, (c >> 1) & 1, (c >> 2) & 1); bit c of
+ * a configuration is set when corner c is positive.  See libcore/src/tables.h
+ * for the edge and face numbering.
+ */
+/* Elementary case 0..14 of a configuration 0..255 (-1 for an invalid one). */
+ISOMEND_API int isomend_case_of(unsigned config);
+/* Number of triangles of the MC table for a configuration; fills up to
+ * 3*5 edge indices (0..11) into `edges` if not NULL. */
+ISOMEND_API int isomend_case_triangles(unsigned config, int *edges);
+
+#ifdef __cplusplus
+}
+#endif
+
+#endif /* ISOMEND_H */

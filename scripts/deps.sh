@@ -1,0 +1,27 @@
+#!/usr/bin/env bash
+# Installs, with apt-get, the Debian 12 packages isomend needs and that are missing.
+# Usage: scripts/deps.sh [build|test|all]   (default all)
+#   build: compilers, CMake, zlib, OpenImageIO, Qt/MeshLab headers' needs
+#   test:  build + the peers and hosts the tests drive (VTK, scikit-image,
+#          MeshLab, Blender, Xvfb, pytest)
+set -euo pipefail
+what="${1:-all}"
+BUILD_PKGS=(build-essential cmake pkg-config zlib1g-dev
+  libopenimageio-dev openimageio-tools
+  qtbase5-dev libqt5opengl5-dev libglew-dev libeigen3-dev dpkg-dev meshlab
+  python3-numpy)
+TEST_PKGS=(python3-pytest python3-vtk9 python3-skimage python3-openimageio python3-tifffile
+  xvfb xauth blender libtiff-tools libopenvdb-dev python3-openvdb)
+pkgs=("${BUILD_PKGS[@]}")
+[ "$what" = build ] || pkgs+=("${TEST_PKGS[@]}")
+missing=()
+for p in "${pkgs[@]}"; do
+  dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
+done
+if [ ${#missing[@]} -gt 0 ]; then
+  echo "[deps] installing: ${missing[*]}" >&2
+  SUDO=""; [ "$(id -u)" = 0 ] || SUDO=sudo
+  $SUDO apt-get -o DPkg::Lock::Timeout=600 update -qq
+  DEBIAN_FRONTEND=noninteractive $SUDO apt-get -o DPkg::Lock::Timeout=600 install -y -qq \
+    --no-install-recommends "${missing[@]}" >/dev/null
+fi

@@ -1,0 +1,37 @@
+/* Assertions for the C tests that stay active in release builds. */
+#ifndef ISOMEND_TESTUTIL_H
+#define ISOMEND_TESTUTIL_H
+#include <stdio.h>
+#include <stdlib.h>
+
+static int tu_failures;
+
+#define CHECK(cond)                                                                      \
+    do {                                                                                 \
+        if (!(cond)) {                                                                   \
+            fprintf(stderr, "%s:%d: CHECK failed: %s\n", __FILE__, __LINE__, #cond);     \
+            if (++tu_failures > 20) exit(1);                                             \
+        }                                                                                \
+    } while (0)
+
+#define CHECK_EQ_INT(a, b)                                                               \
+    do {                                                                                 \
+        long long tu_a_ = (long long)(a), tu_b_ = (long long)(b);                        \
+        if (tu_a_ != tu_b_) {                                                            \
+            fprintf(stderr, "%s:%d: CHECK failed: %s == %s (%lld vs %lld)\n", __FILE__,  \
+                    __LINE__, #a, #b, tu_a_, tu_b_);                                     \
+            if (++tu_failures > 20) exit(1);                                             \
+        }                                                                                \
+    } while (0)
+
+#define TEST_EXIT()                                                                      \
+    do {                                                                                 \
+        if (tu_failures) {                                                               \
+            fprintf(stderr, "%d check(s) failed\n", tu_failures);                        \
+            return 1;                                                                    \
+        }                                                                                \
+        printf("ok\n");                                                                  \
+        return 0;                                                                        \
+    } while (0)
+
+#endif
