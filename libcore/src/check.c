@@ -1,0 +1,305 @@
+/*
+ * check.c - the continuity checker (thesis chapter 2.3.2, after Udupa,
+ * Srihari & Herman 1982): a triangle mesh is a continuous surface iff every
+ * edge is used by exactly two triangles, except edges on the outer faces of
+ * the volume, used once.  Beyond that theorem it reports orientation flips
+ * (an edge used twice in the same direction), non-manifold vertices (the
+ * triangles around a vertex form two or more fans), degenerate triangles,
+ * connected components (triangles joined through shared edges) and the Euler
+ * characteristic V - E + F.
+ *
+ * Method.  Every directed triangle edge is filed under its lower vertex in a
+ * compressed row table (counting sort, no hashing), each vertex's short list
+ * is sorted by the other vertex, and equal neighbours form one undirected
+ * edge.  Union-find joins triangles across edges (components) and the
+ * endpoints of hole edges (hole loops).  Memory is linear in the mesh.
+ */
+#include "isomend.h"
+
+#include <float.h>
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+typedef struct half {
+    uint32_t other; /* the higher vertex of the edge                  */
+    uint32_t tri;   /* triangle using it                               */
+    uint8_t fwd;    /* 1 when the triangle runs lower -> higher        */
+} half;
+
+static uint32_t uf_find(uint32_t *parent, uint32_t x)
+{
+    while (parent[x] != x) {
+        parent[x] = parent[parent[x]];
+        x = parent[x];
+    }
+    return x;
+}
+
+static void uf_union(uint32_t *parent, uint32_t a, uint32_t b)
+{
+    a = uf_find(parent, a);
+    b = uf_find(parent, b);
+    if (a != b) {
+        if (a < b)
+            parent[b] = a;
+        else
+            parent[a] = b;
+    }
+}
+
+static void sort_halves(half *h, size_t n)
+{
+    for (size_t i = 1; i < n; i++) { /* lists are short: insertion sort */
+        half x = h[i];
+        size_t j = i;
+        while (j > 0 && h[j - 1].other > x.other) {
+            h[j] = h[j - 1];
+            j--;
+        }
+        h[j] = x;
+    }
+}
+
+static int on_box_face(const float *p, const float *q, const double *box, double extent)
+{
+    for (int a = 0; a < 3; a++)
+        for (int side = 0; side < 2; side++) {
+            double plane = box[3 * side + a];
+            double tol = 1e-6 * extent + 4.0 * FLT_EPSILON * fabs(plane);
+            if (fabs((double)p[a] - plane) <= tol && fabs((double)q[a] - plane) <= tol)
+                return 1;
+        }
+    return 0;
+}
+
+static int degenerate(const float *pos, const uint32_t *t)
+{
+    if (t[0] == t[1] || t[1] == t[2] || t[0] == t[2])
+        return 1;
+    const float *a = pos + 3 * (size_t)t[0], *b = pos + 3 * (size_t)t[1],
+                *c = pos + 3 * (size_t)t[2];
+    double u[3], v[3];
+    for (int i = 0; i < 3; i++) {
+        u[i] = (double)b[i] - a[i];
+        v[i] = (double)c[i] - a[i];
+    }
+    double x = u[1] * v[2] - u[2] * v[1], y = u[2] * v[0] - u[0] * v[2],
+           z = u[0] * v[1] - u[1] * v[0];
+    return x == 0.0 && y == 0.0 && z == 0.0;
+}
+
+/* Number of fans the triangles `tris[0..n)` around vertex v form. */
+static uint64_t count_fans(const uint32_t *triangles, uint32_t v, const uint32_t *tris, size_t n,
+                           uint32_t *parent, half *scratch)
+{
+    for (size_t i = 0; i < n; i++)
+        parent[i] = (uint32_t)i;
+    size_t m = 0;
+    for (size_t i = 0; i < n; i++) {
+        const uint32_t *t = triangles + 3 * (size_t)tris[i];
+        for (int c = 0; c < 3; c++)
+            if (t[c] != v) {
+                scratch[m].other = t[c];
+                scratch[m].tri = (uint32_t)i;
+                m++;
+            }
+    }
+    sort_halves(scratch, m);
+    for (size_t i = 1; i < m; i++)
+        if (scratch[i].other == scratch[i - 1].other)
+            uf_union(parent, scratch[i].tri, scratch[i - 1].tri);
+    uint64_t fans = 0;
+    for (size_t i = 0; i < n; i++)
+        fans += uf_find(parent, (uint32_t)i) == i;
+    return fans;
+}
+
+isomend_status isomend_check(const float *positions, size_t vertex_count,
+                             const uint32_t *triangles, size_t triangle_count, const double *box,
+                             isomend_check_report *report)
+{
+    if (!report || (triangle_count && (!positions || !triangles)) || vertex_count > UINT32_MAX ||
+        triangle_count > UINT32_MAX / 3)
+        return ISOMEND_ERR_INVALID_ARGUMENT;
+    memset(report, 0, sizeof(*report));
+    for (size_t i = 0; i < 3 * triangle_count; i++)
+        if (triangles[i] >= vertex_count)
+            return ISOMEND_ERR_INVALID_ARGUMENT;
+    if (triangle_count == 0)
+        return ISOMEND_OK;
+
+    const size_t nv = vertex_count, nt = triangle_count;
+    size_t *row = calloc(nv + 1, sizeof(size_t));     /* halves by lower vertex */
+    size_t *vrow = calloc(nv + 1, sizeof(size_t));    /* triangles by vertex    */
+    half *halves = malloc(sizeof(half) * 3 * nt);
+    uint32_t *vtris = malloc(sizeof(uint32_t) * 3 * nt);
+    uint32_t *tparent = malloc(sizeof(uint32_t) * nt);
+    uint32_t *vparent = malloc(sizeof(uint32_t) * nv);
+    size_t maxdeg = 0;
+    isomend_status status = ISOMEND_ERR_OUT_OF_MEMORY;
+    uint32_t *lparent = NULL;
+    half *scratch = NULL;
+    if (!row || !vrow || !halves || !vtris || !tparent || !vparent)
+        goto done;
+
+    for (size_t t = 0; t < nt; t++) {
+        const uint32_t *v = triangles + 3 * t;
+        for (int c = 0; c < 3; c++) {
+            uint32_t a = v[c], b = v[(c + 1) % 3];
+            row[(a < b ? a : b) + 1]++;
+            vrow[a + 1]++;
+        }
+    }
+    for (size_t i = 0; i < nv; i++) {
+        row[i + 1] += row[i];
+        size_t deg = vrow[i + 1];
+        if (deg > maxdeg)
+            maxdeg = deg;
+        vrow[i + 1] += vrow[i];
+        if (deg)
+            report->vertices++;
+    }
+    {
+        size_t *fill = malloc(sizeof(size_t) * (nv + 1));
+        size_t *vfill = malloc(sizeof(size_t) * (nv + 1));
+        if (!fill || !vfill) {
+            free(fill);
+            free(vfill);
+            goto done;
+        }
+        memcpy(fill, row, sizeof(size_t) * (nv + 1));
+        memcpy(vfill, vrow, sizeof(size_t) * (nv + 1));
+        for (size_t t = 0; t < nt; t++) {
+            const uint32_t *v = triangles + 3 * t;
+            for (int c = 0; c < 3; c++) {
+                uint32_t a = v[c], b = v[(c + 1) % 3];
+                half h;
+                h.other = a < b ? b : a;
+                h.tri = (uint32_t)t;
+                h.fwd = a < b;
+                halves[fill[a < b ? a : b]++] = h;
+                vtris[vfill[a]++] = (uint32_t)t;
+            }
+        }
+        free(fill);
+        free(vfill);
+    }
+
+    double bb[6];
+    if (box) {
+        memcpy(bb, box, sizeof(bb));
+    } else {
+        for (int a = 0; a < 3; a++) {
+            bb[a] = INFINITY;
+            bb[3 + a] = -INFINITY;
+        }
+        for (size_t i = 0; i < nv; i++) {
+            if (vrow[i + 1] == vrow[i])
+                continue;
+            for (int a = 0; a < 3; a++) {
+                double x = positions[3 * i + a];
+                if (x < bb[a])
+                    bb[a] = x;
+                if (x > bb[3 + a])
+                    bb[3 + a] = x;
+            }
+        }
+    }
+    double extent = 0.0;
+    for (int a = 0; a < 3; a++)
+        if (bb[3 + a] - bb[a] > extent)
+            extent = bb[3 + a] - bb[a];
+
+    for (size_t t = 0; t < nt; t++)
+        tparent[t] = (uint32_t)t;
+    for (size_t i = 0; i < nv; i++)
+        vparent[i] = (uint32_t)i;
+
+    for (size_t v = 0; v < nv; v++) {
+        half *h = halves + row[v];
+        size_t n = row[v + 1] - row[v];
+        sort_halves(h, n);
+        for (size_t i = 0; i < n;) {
+            size_t j = i + 1;
+            unsigned fwd = h[i].fwd;
+            while (j < n && h[j].other == h[i].other) {
+                fwd += h[j].fwd;
+                uf_union(tparent, h[i].tri, h[j].tri);
+                j++;
+            }
+            size_t uses = j - i;
+            report->edges++;
+            if (uses == 1) {
+                const float *p = positions + 3 * v, *q = positions + 3 * (size_t)h[i].other;
+                if (on_box_face(p, q, bb, extent)) {
+                    report->border_edges++;
+                } else {
+                    report->hole_edges++;
+                    uf_union(vparent, (uint32_t)v, h[i].other);
+                }
+            } else if (uses == 2) {
+                if (fwd != 1)
+                    report->misoriented_edges++;
+            } else {
+                report->nonmanifold_edges++;
+            }
+            i = j;
+        }
+    }
+
+    /* Hole loops: groups of vertices joined by hole edges, one mark per group. */
+    if (report->hole_edges) {
+        unsigned char *mark = calloc(nv, 1);
+        if (!mark)
+            goto done;
+        for (size_t v = 0; v < nv; v++) {
+            const half *h = halves + row[v];
+            size_t n = row[v + 1] - row[v];
+            for (size_t i = 0; i < n;) {
+                size_t j = i + 1;
+                while (j < n && h[j].other == h[i].other)
+                    j++;
+                if (j - i == 1 && !on_box_face(positions + 3 * v,
+                                               positions + 3 * (size_t)h[i].other, bb, extent))
+                    mark[uf_find(vparent, (uint32_t)v)] = 1;
+                i = j;
+            }
+        }
+        for (size_t v = 0; v < nv; v++)
+            report->hole_loops += mark[v];
+        free(mark);
+    }
+
+    for (size_t t = 0; t < nt; t++) {
+        report->components += uf_find(tparent, (uint32_t)t) == t;
+        report->degenerate_triangles += (uint64_t)degenerate(positions, triangles + 3 * t);
+    }
+
+    lparent = malloc(sizeof(uint32_t) * (maxdeg ? maxdeg : 1));
+    scratch = malloc(sizeof(half) * 2 * (maxdeg ? maxdeg : 1));
+    if (!lparent || !scratch)
+        goto done;
+    for (size_t v = 0; v < nv; v++) {
+        size_t n = vrow[v + 1] - vrow[v];
+        if (n > 1 && count_fans(triangles, (uint32_t)v, vtris + vrow[v], n, lparent, scratch) > 1)
+            report->nonmanifold_vertices++;
+    }
+
+    report->triangles = nt;
+    report->euler = (int64_t)report->vertices - (int64_t)report->edges + (int64_t)nt;
+    status = ISOMEND_OK;
+
+done:
+    free(row);
+    free(vrow);
+    free(halves);
+    free(vtris);
+    free(tparent);
+    free(vparent);
+    free(lparent);
+    free(scratch);
+    if (status != ISOMEND_OK)
+        memset(report, 0, sizeof(*report));
+    return status;
+}

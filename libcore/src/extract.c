@@ -1,0 +1,901 @@
+/*
+ * extract.c - marching cubes, Durst's fix and the thesis's disambiguated
+ * marching cubes over a volume read in place.
+ *
+ * Passes.  The grid is cut into chunks of consecutive cube layers (a layer is
+ * the cubes between sample slices k and k+1).  Threads take chunks from an
+ * atomic counter; everything a chunk writes goes to places fixed in advance,
+ * so the mesh is the same, vertex order included, for every thread count.
+ *
+ *   1. Count.  For each slice k: the intersected grid edges whose lower end
+ *      is in slice k (x and y edges in the slice, z edges to slice k+1); for
+ *      each layer: the triangles, including mending/Durst quadrilaterals, and
+ *      the statistics (Table-2 histogram, ambiguous faces, inverted
+ *      combinations).
+ *   2. Prefix sums give every slice's first vertex and every layer's first
+ *      triangle; the output arrays are allocated once, at their exact size.
+ *   3. Fill.  Each chunk numbers the intersected edges of its slices in a
+ *      fixed order (slice, row, column, axis x/y/z), computes those vertices
+ *      (position, normal) once, and writes its layers' triangles.
+ *
+ * Each pass classifies samples row by row into sign bytes (sample >= iso,
+ * with a threshold chosen per voxel type so the comparison is exact and the
+ * loop vectorises) and skips every row of cubes whose four sample rows are
+ * uniformly inside or uniformly outside.  Only samples around emitted
+ * vertices are read as numbers.
+ *
+ * Mending (thesis chapter 4.2.2).  Each face of the grid is judged once, by
+ * the cube for which it is the +x, +y or +z face.  If the face is ambiguous
+ * and the neighbour exists, DURST always adds a quadrilateral, DMC only when
+ * exactly one of the two cubes is inverted (5+ positive corners).  The table
+ * records this cube's two directed segments on the face in loop order
+ * p->q, r->s; the neighbour, pairing the points the other way, supplies
+ * q->r and s->p, so the hole is the loop p q r s and the quadrilateral
+ * (s, r, q, p) uses each of its edges in the opposite direction.  Its
+ * diagonal s-q joins points on opposite edges of the face, which no other
+ * triangle can contain, so the surface stays a 2-manifold.
+ *
+ * Padding and NaN.  With ISOMEND_FLAG_PAD the marched grid is the volume
+ * plus one layer of samples on every side; padding samples, like NaN
+ * samples, are outside, and an edge with such an endpoint is cut at its
+ * midpoint.
+ */
+#include "isomend.h"
+#include "tables.h"
+
+#include <math.h>
+#include <pthread.h>
+#include <stdatomic.h>
+#include <stdint.h>
+#include <stdlib.h>
+#include <string.h>
+#include <unistd.h>
+
+struct isomend_mesh {
+    size_t nv, nt;
+    float *pos;
+    float *nrm;
+    uint32_t *tri;
+    uint8_t *org;
+    double box[6];
+};
+
+/* ------------------------------------------------------------ the grid */
+
+typedef struct grid {
+    const char *data;
+    isomend_type type;
+    int64_t n[3];  /* the volume's dimensions                      */
+    int64_t st[3]; /* byte strides                                  */
+    int64_t pad;   /* 0 or 1                                        */
+    int64_t N[3];  /* marched grid: n + 2 pad                      */
+    double iso;
+    double h[3];   /* spacing                                       */
+    double o[3];   /* world position of marched sample (0, 0, 0)   */
+    int constant;  /* integer types: -1 none, 0 all out, 1 all in */
+    int64_t ithr;  /* integer types: inside iff v >= ithr           */
+    float fthr;    /* f32: the smallest float >= iso               */
+} grid;
+
+/* Sample (i, j, k) of the marched grid as a double; NaN for padding. */
+static double fetch(const grid *g, int64_t i, int64_t j, int64_t k)
+{
+    i -= g->pad;
+    j -= g->pad;
+    k -= g->pad;
+    if ((uint64_t)i >= (uint64_t)g->n[0] || (uint64_t)j >= (uint64_t)g->n[1] ||
+        (uint64_t)k >= (uint64_t)g->n[2])
+        return NAN;
+    const char *p = g->data + i * g->st[0] + j * g->st[1] + k * g->st[2];
+    switch (g->type) {
+    case ISOMEND_U8: { uint8_t v; memcpy(&v, p, sizeof v); return v; }
+    case ISOMEND_I8: { int8_t v; memcpy(&v, p, sizeof v); return v; }
+    case ISOMEND_U16: { uint16_t v; memcpy(&v, p, sizeof v); return v; }
+    case ISOMEND_I16: { int16_t v; memcpy(&v, p, sizeof v); return v; }
+    case ISOMEND_I32: { int32_t v; memcpy(&v, p, sizeof v); return v; }
+    case ISOMEND_F32: { float v; memcpy(&v, p, sizeof v); return v; }
+    case ISOMEND_F64: { double v; memcpy(&v, p, sizeof v); return v; }
+    }
+    return NAN;
+}
+
+/*
+ * Classifies row (j, k) of the marched grid into sign bytes s[0..N0-1]
+ * (1 = inside).  Returns the number of inside samples; adds NaNs to *nans.
+ */
+#define CLASSIFY_LOOP(T, INSIDE)                                                       \
+    do {                                                                               \
+        if (st == (int64_t)sizeof(T) && (uintptr_t)row % _Alignof(T) == 0) {           \
+            const T *r = (const T *)(const void *)row;                                 \
+            for (int64_t i = 0; i < n; i++) {                                          \
+                T v = r[i];                                                            \
+                uint8_t b = (uint8_t)(INSIDE);                                         \
+                o[i] = b;                                                              \
+                cnt += b;                                                              \
+            }                                                                          \
+        } else {                                                                       \
+            for (int64_t i = 0; i < n; i++) {                                          \
+                T v;                                                                   \
+                memcpy(&v, row + i * st, sizeof v);                                    \
+                uint8_t b = (uint8_t)(INSIDE);                                         \
+                o[i] = b;                                                              \
+                cnt += b;                                                              \
+            }                                                                          \
+        }                                                                              \
+    } while (0)
+
+#define COUNT_NANS(T)                                                                  \
+    do {                                                                               \
+        for (int64_t i = 0; i < n; i++) {                                              \
+            T v;                                                                       \
+            memcpy(&v, row + i * st, sizeof v);                                        \
+            nn += v != v;                                                              \
+        }                                                                              \
+    } while (0)
+
+static int64_t classify_row(const grid *g, int64_t j, int64_t k, uint8_t *s, uint64_t *nans)
+{
+    const int64_t N0 = g->N[0], p = g->pad;
+    const int64_t rj = j - p, rk = k - p;
+    if (rj < 0 || rj >= g->n[1] || rk < 0 || rk >= g->n[2]) {
+        memset(s, 0, (size_t)N0);
+        return 0;
+    }
+    if (p) {
+        s[0] = 0;
+        s[N0 - 1] = 0;
+    }
+    uint8_t *o = s + p;
+    const int64_t n = g->n[0], st = g->st[0];
+    const char *row = g->data + rj * g->st[1] + rk * g->st[2];
+    int64_t cnt = 0;
+    if (g->constant >= 0) {
+        memset(o, g->constant, (size_t)n);
+        return g->constant ? n : 0;
+    }
+    switch (g->type) {
+    case ISOMEND_U8: {
+        const uint8_t t = (uint8_t)g->ithr;
+        CLASSIFY_LOOP(uint8_t, v >= t);
+        break;
+    }
+    case ISOMEND_I8: {
+        const int8_t t = (int8_t)g->ithr;
+        CLASSIFY_LOOP(int8_t, v >= t);
+        break;
+    }
+    case ISOMEND_U16: {
+        const uint16_t t = (uint16_t)g->ithr;
+        CLASSIFY_LOOP(uint16_t, v >= t);
+        break;
+    }
+    case ISOMEND_I16: {
+        const int16_t t = (int16_t)g->ithr;
+        CLASSIFY_LOOP(int16_t, v >= t);
+        break;
+    }
+    case ISOMEND_I32: {
+        const int32_t t = (int32_t)g->ithr;
+        CLASSIFY_LOOP(int32_t, v >= t);
+        break;
+    }
+    case ISOMEND_F32: {
+        const float t = g->fthr;
+        CLASSIFY_LOOP(float, v >= t);
+        if (cnt < n) {
+            uint64_t nn = 0;
+            COUNT_NANS(float);
+            *nans += nn;
+        }
+        break;
+    }
+    case ISOMEND_F64: {
+        const double t = g->iso;
+        CLASSIFY_LOOP(double, v >= t);
+        if (cnt < n) {
+            uint64_t nn = 0;
+            COUNT_NANS(double);
+            *nans += nn;
+        }
+        break;
+    }
+    }
+    return cnt;
+}
+
+/* Sets the exact per-type threshold: inside iff sample >= iso. */
+static void grid_threshold(grid *g)
+{
+    static const double lo[] = {0, -128, 0, -32768, -2147483648.0};
+    static const double hi[] = {255, 127, 65535, 32767, 2147483647.0};
+    g->constant = -1;
+    if (g->type == ISOMEND_F32) {
+        float f = (float)g->iso;
+        if ((double)f < g->iso)
+            f = nextafterf(f, INFINITY);
+        g->fthr = f;
+    } else if (g->type != ISOMEND_F64) {
+        double t = ceil(g->iso);
+        if (t > hi[g->type])
+            g->constant = 0;
+        else if (t <= lo[g->type])
+            g->constant = 1;
+        else
+            g->ithr = (int64_t)t;
+    }
+}
+
+/* ------------------------------------------------------------- vertices */
+
+/* World-space gradient component along axis a at marched sample (i, j, k). */
+static double gradient_component(const grid *g, const int64_t p[3], int a, double f0)
+{
+    int64_t q[3] = {p[0], p[1], p[2]}, r[3] = {p[0], p[1], p[2]};
+    q[a]++;
+    r[a]--;
+    double fp = fetch(g, q[0], q[1], q[2]);
+    double fm = fetch(g, r[0], r[1], r[2]);
+    int vp = !isnan(fp), vm = !isnan(fm);
+    if (vp && vm)
+        return (fp - fm) / (2.0 * g->h[a]);
+    if (vp)
+        return (fp - f0) / g->h[a];
+    if (vm)
+        return (f0 - fm) / g->h[a];
+    return 0.0;
+}
+
+/* Computes the vertex on the edge along axis a from marched sample (i, j, k). */
+static void make_vertex(const grid *g, int flip, int64_t i, int64_t j, int64_t k, int a,
+                        float *pos, float *nrm)
+{
+    int64_t p0[3] = {i, j, k}, p1[3] = {i, j, k};
+    p1[a]++;
+    const double f0 = fetch(g, p0[0], p0[1], p0[2]);
+    const double f1 = fetch(g, p1[0], p1[1], p1[2]);
+    const int valid = !isnan(f0) && !isnan(f1);
+    const int inside0 = f0 >= g->iso; /* NaN: outside */
+    const double t = valid ? (g->iso - f0) / (f1 - f0) : 0.5;
+    for (int c = 0; c < 3; c++) {
+        double x = (double)p0[c] + (c == a ? t : 0.0);
+        pos[c] = (float)(g->o[c] + x * g->h[c]);
+    }
+    if (!nrm)
+        return;
+    double n[3] = {0, 0, 0}, len = 0.0;
+    if (valid) {
+        for (int c = 0; c < 3; c++) {
+            double g0 = gradient_component(g, p0, c, f0);
+            double g1 = gradient_component(g, p1, c, f1);
+            n[c] = -((1.0 - t) * g0 + t * g1);
+        }
+        len = sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
+    }
+    if (!(len > 0.0) || !isfinite(len)) {
+        /* Edge direction, from the inside endpoint towards the outside one. */
+        n[0] = n[1] = n[2] = 0.0;
+        n[a] = inside0 ? 1.0 : -1.0;
+        len = 1.0;
+    }
+    const double sgn = flip ? -1.0 : 1.0;
+    for (int c = 0; c < 3; c++)
+        nrm[c] = (float)(sgn * n[c] / len);
+}
+
+/* ------------------------------------------------------- the extraction */
+
+typedef struct ctx {
+    grid g;
+    isomend_method method;
+    int flip;
+    int want_normals;
+    int want_origins;
+    int64_t nchunks;
+    int64_t chunk_layers;
+    uint64_t *slice_first; /* [N2 + 1]: vertex count, then first vertex */
+    uint64_t *layer_first; /* [N2]: triangle count, then first triangle */
+    float *pos, *nrm;
+    uint32_t *tri;
+    uint8_t *org;
+    atomic_llong next_chunk;
+    atomic_llong done_chunks;
+    atomic_int cancel;
+    int pass;
+    isomend_progress_fn progress;
+    void *progress_user;
+} ctx;
+
+typedef struct worker {
+    ctx *c;
+    uint8_t *sg[3];   /* sign slices, ring indexed by k % 3 */
+    int64_t *rp[3];   /* inside samples per row             */
+    uint64_t nan[3];  /* NaN samples of the slice           */
+    int64_t sk[3];    /* slice held, -1 none                */
+    uint32_t *map[2]; /* vertex ids of edges x, y, z; ring k % 2 */
+    int64_t mk[2];
+    isomend_stats stats;
+    int is_main;
+} worker;
+
+static const uint8_t *signs(worker *w, int64_t k, const int64_t **rowpos)
+{
+    const grid *g = &w->c->g;
+    int r = (int)(k % 3);
+    if (w->sk[r] != k) {
+        uint64_t nans = 0;
+        for (int64_t j = 0; j < g->N[1]; j++)
+            w->rp[r][j] = classify_row(g, j, k, w->sg[r] + j * g->N[0], &nans);
+        w->nan[r] = nans;
+        w->sk[r] = k;
+    }
+    *rowpos = w->rp[r];
+    return w->sg[r];
+}
+
+/* -1 mixed row, else its uniform sign. */
+static inline int row_uniform(int64_t inside, int64_t n)
+{
+    return inside == 0 ? 0 : inside == n ? 1 : -1;
+}
+
+/*
+ * Numbers the intersected edges whose lower end is in slice m.  mode 0
+ * counts them; mode 1 fills the id map (ids from `first`) and, if `write`,
+ * the vertices.  Returns the count.
+ */
+static uint64_t scan_slice(worker *w, int64_t m, int mode, uint64_t first, int write)
+{
+    const ctx *c = w->c;
+    const grid *g = &c->g;
+    const int64_t N0 = g->N[0], N1 = g->N[1], N2 = g->N[2];
+    const int64_t *rp, *rq = NULL;
+    const uint8_t *s = signs(w, m, &rp);
+    const uint8_t *t = NULL;
+    if (m + 1 < N2)
+        t = signs(w, m + 1, &rq);
+    s = signs(w, m, &rp); /* the ring keeps both */
+    uint32_t *mx = NULL, *my = NULL, *mz = NULL;
+    if (mode) {
+        uint32_t *mp = w->map[m % 2];
+        w->mk[m % 2] = m;
+        mx = mp;
+        my = mp + N0 * N1;
+        mz = mp + 2 * N0 * N1;
+    }
+    uint64_t id = first, count = 0;
+    for (int64_t j = 0; j < N1; j++) {
+        const uint8_t *a = s + j * N0;
+        const int ua = row_uniform(rp[j], N0);
+        const int has_y = j + 1 < N1 && !(ua >= 0 && ua == row_uniform(rp[j + 1], N0));
+        const int has_z = t && !(ua >= 0 && ua == row_uniform(rq[j], N0));
+        const int has_x = ua < 0;
+        if (!has_x && !has_y && !has_z)
+            continue;
+        const uint8_t *b = has_y ? a + N0 : NULL;
+        const uint8_t *d = has_z ? t + j * N0 : NULL;
+        if (!mode) {
+            uint64_t n = 0;
+            if (has_x)
+                for (int64_t i = 0; i + 1 < N0; i++)
+                    n += a[i] != a[i + 1];
+            if (has_y)
+                for (int64_t i = 0; i < N0; i++)
+                    n += a[i] != b[i];
+            if (has_z)
+                for (int64_t i = 0; i < N0; i++)
+                    n += a[i] != d[i];
+            count += n;
+            continue;
+        }
+        for (int64_t i = 0; i < N0; i++) {
+            const int64_t at = j * N0 + i;
+            if (has_x && i + 1 < N0 && a[i] != a[i + 1]) {
+                if (write)
+                    make_vertex(g, c->flip, i, j, m, 0, c->pos + 3 * id,
+                                c->nrm ? c->nrm + 3 * id : NULL);
+                mx[at] = (uint32_t)id++;
+            }
+            if (has_y && a[i] != b[i]) {
+                if (write)
+                    make_vertex(g, c->flip, i, j, m, 1, c->pos + 3 * id,
+                                c->nrm ? c->nrm + 3 * id : NULL);
+                my[at] = (uint32_t)id++;
+            }
+            if (has_z && a[i] != d[i]) {
+                if (write)
+                    make_vertex(g, c->flip, i, j, m, 2, c->pos + 3 * id,
+                                c->nrm ? c->nrm + 3 * id : NULL);
+                mz[at] = (uint32_t)id++;
+            }
+        }
+    }
+    return mode ? id - first : count;
+}
+
+#define CUBE_CASE(r0, r1, r2, r3, i)                                                   \
+    ((unsigned)(r0)[i] | (unsigned)(r0)[(i) + 1] << 1 | (unsigned)(r1)[i] << 2 |       \
+     (unsigned)(r1)[(i) + 1] << 3 | (unsigned)(r2)[i] << 4 | (unsigned)(r2)[(i) + 1] << 5 | \
+     (unsigned)(r3)[i] << 6 | (unsigned)(r3)[(i) + 1] << 7)
+
+/*
+ * Marches layer k.  mode 0 counts triangles and statistics; mode 1 writes
+ * the triangles from index `first`.  Returns the number of triangles.
+ */
+static uint64_t march_layer(worker *w, int64_t k, int mode, uint64_t first)
+{
+    ctx *c = w->c;
+    const grid *g = &c->g;
+    const int64_t N0 = g->N[0], N1 = g->N[1], N2 = g->N[2];
+    const int64_t *r0, *r1, *r2 = NULL;
+    const uint8_t *S2 = k + 2 < N2 ? signs(w, k + 2, &r2) : NULL;
+    const uint8_t *S1 = signs(w, k + 1, &r1);
+    const uint8_t *S0 = signs(w, k, &r0);
+    const int quads = c->method == ISOMEND_METHOD_DMC || c->method == ISOMEND_METHOD_DURST;
+    const int durst = c->method == ISOMEND_METHOD_DURST;
+    isomend_stats *st = &w->stats;
+    const uint32_t *mk0 = NULL, *mk1 = NULL;
+    if (mode) {
+        mk0 = w->map[k % 2];
+        mk1 = w->map[(k + 1) % 2];
+    }
+    const int64_t plane = N0 * N1;
+    uint64_t ntri = 0;
+    uint32_t *out = mode ? c->tri + 3 * first : NULL;
+    uint8_t *org = mode && c->org ? c->org + first : NULL;
+
+    for (int64_t j = 0; j + 1 < N1; j++) {
+        const int u = row_uniform(r0[j], N0);
+        if (u >= 0 && u == row_uniform(r0[j + 1], N0) && u == row_uniform(r1[j], N0) &&
+            u == row_uniform(r1[j + 1], N0)) {
+            if (!mode)
+                st->case_histogram[0] += (uint64_t)(N0 - 1);
+            continue;
+        }
+        const uint8_t *a = S0 + j * N0, *b = a + N0, *cc = S1 + j * N0, *d = cc + N0;
+        const uint32_t *ep[12] = {NULL};
+        if (mode) {
+            const int64_t o = j * N0;
+            ep[0] = mk0 + o;                      /* x edges */
+            ep[1] = mk0 + o + N0;
+            ep[2] = mk1 + o;
+            ep[3] = mk1 + o + N0;
+            ep[4] = mk0 + plane + o;              /* y edges */
+            ep[5] = mk0 + plane + o + 1;
+            ep[6] = mk1 + plane + o;
+            ep[7] = mk1 + plane + o + 1;
+            ep[8] = mk0 + 2 * plane + o;          /* z edges */
+            ep[9] = mk0 + 2 * plane + o + 1;
+            ep[10] = mk0 + 2 * plane + o + N0;
+            ep[11] = mk0 + 2 * plane + o + N0 + 1;
+        }
+        for (int64_t i = 0; i + 1 < N0; i++) {
+            const unsigned cfg = CUBE_CASE(a, b, cc, d, i);
+            if (cfg == 0 || cfg == 255) {
+                if (!mode)
+                    st->case_histogram[0]++;
+                continue;
+            }
+            const unsigned nt = isomend_mc_tri_count[cfg];
+            if (!mode) {
+                st->case_histogram[isomend_mc_case_of[cfg]]++;
+                st->triangles_by_origin[ISOMEND_ORIGIN_TABLE] += nt;
+            } else {
+                const signed char *te = isomend_mc_tri_edges[cfg];
+                for (unsigned q = 0; q < nt; q++, te += 3) {
+                    uint32_t v0 = ep[te[0]][i], v1 = ep[te[1]][i], v2 = ep[te[2]][i];
+                    out[0] = v0;
+                    out[1] = c->flip ? v2 : v1;
+                    out[2] = c->flip ? v1 : v2;
+                    out += 3;
+                    if (org)
+                        *org++ = ISOMEND_ORIGIN_TABLE;
+                }
+            }
+            ntri += nt;
+
+            const unsigned amb = isomend_mc_ambiguous_faces[cfg] & 0x2A; /* +x, +y, +z */
+            if (!amb)
+                continue;
+            for (int axis = 0; axis < 3; axis++) {
+                const int f = 2 * axis + 1;
+                if (!(amb & (1u << f)))
+                    continue;
+                unsigned nb;
+                if (axis == 0) {
+                    if (i + 2 >= N0)
+                        continue;
+                    nb = CUBE_CASE(a, b, cc, d, i + 1);
+                } else if (axis == 1) {
+                    if (j + 2 >= N1)
+                        continue;
+                    nb = CUBE_CASE(b, b + N0, d, d + N0, i);
+                } else {
+                    if (!S2)
+                        continue;
+                    const uint8_t *e2 = S2 + j * N0;
+                    nb = CUBE_CASE(cc, d, e2, e2 + N0, i);
+                }
+                const int inverted = mc_is_inverted(cfg) != mc_is_inverted(nb);
+                if (!mode) {
+                    st->ambiguous_faces++;
+                    st->inverted_combinations += (uint64_t)inverted;
+                }
+                if (!quads || !(inverted || durst))
+                    continue;
+                if (!mode) {
+                    st->triangles_by_origin[durst ? ISOMEND_ORIGIN_DURST : ISOMEND_ORIGIN_MEND] += 2;
+                } else {
+                    const signed char *l = isomend_mc_face_loop[cfg][f];
+                    const uint32_t p = ep[l[0]][i], q = ep[l[1]][i], r = ep[l[2]][i],
+                                   s = ep[l[3]][i];
+                    /* The quadrilateral (s, r, q, p): triangles (s, r, q) and (s, q, p). */
+                    const uint32_t quad[6] = {s, r, q, s, q, p};
+                    for (int h = 0; h < 6; h += 3) {
+                        out[0] = quad[h];
+                        out[1] = c->flip ? quad[h + 2] : quad[h + 1];
+                        out[2] = c->flip ? quad[h + 1] : quad[h + 2];
+                        out += 3;
+                        if (org)
+                            *org++ = durst ? ISOMEND_ORIGIN_DURST : ISOMEND_ORIGIN_MEND;
+                    }
+                }
+                ntri += 2;
+            }
+        }
+    }
+    return ntri;
+}
+
+/* Runs one chunk of the current pass. */
+static void run_chunk(worker *w, int64_t chunk)
+{
+    ctx *c = w->c;
+    const int64_t N2 = c->g.N[2];
+    const int64_t k0 = chunk * c->chunk_layers;
+    int64_t k1 = k0 + c->chunk_layers;
+    if (k1 > N2 - 1)
+        k1 = N2 - 1;
+    if (c->pass == 1) {
+        for (int64_t k = k0; k < k1; k++) {
+            c->slice_first[k] = scan_slice(w, k, 0, 0, 0);
+            w->stats.nan_samples += w->nan[k % 3];
+            if (k == N2 - 2) {
+                c->slice_first[N2 - 1] = scan_slice(w, N2 - 1, 0, 0, 0);
+                w->stats.nan_samples += w->nan[(N2 - 1) % 3];
+            }
+            c->layer_first[k] = march_layer(w, k, 0, 0);
+        }
+    } else {
+        scan_slice(w, k0, 1, c->slice_first[k0], 1);
+        for (int64_t k = k0; k < k1; k++) {
+            const int64_t m = k + 1;
+            scan_slice(w, m, 1, c->slice_first[m], m < k1 || m == N2 - 1);
+            march_layer(w, k, 1, c->layer_first[k]);
+        }
+    }
+}
+
+static void run_chunks(worker *w)
+{
+    ctx *c = w->c;
+    for (;;) {
+        if (atomic_load(&c->cancel))
+            return;
+        long long chunk = atomic_fetch_add(&c->next_chunk, 1);
+        if (chunk >= c->nchunks)
+            return;
+        run_chunk(w, chunk);
+        long long done = atomic_fetch_add(&c->done_chunks, 1) + 1;
+        if (w->is_main && c->progress) {
+            double f = (double)done / (double)(2 * c->nchunks);
+            if (c->progress(c->progress_user, f))
+                atomic_store(&c->cancel, 1);
+        }
+    }
+}
+
+static void *worker_thread(void *arg)
+{
+    run_chunks((worker *)arg);
+    return NULL;
+}
+
+/* Runs the current pass on `nw` workers (worker 0 is this thread). */
+static isomend_status run_pass(ctx *c, worker *ws, int nw)
+{
+    pthread_t tid[64];
+    int started = 0;
+    isomend_status status = ISOMEND_OK;
+    atomic_store(&c->next_chunk, 0);
+    for (int t = 1; t < nw; t++) {
+        if (pthread_create(&tid[t], NULL, worker_thread, &ws[t]) != 0) {
+            status = ISOMEND_ERR_THREAD;
+            atomic_store(&c->cancel, 1);
+            break;
+        }
+        started = t;
+    }
+    if (status == ISOMEND_OK)
+        run_chunks(&ws[0]);
+    for (int t = 1; t <= started; t++)
+        pthread_join(tid[t], NULL);
+    if (status == ISOMEND_OK && atomic_load(&c->cancel))
+        status = ISOMEND_ERR_CANCELLED;
+    return status;
+}
+
+static void worker_free(worker *w)
+{
+    for (int r = 0; r < 3; r++) {
+        free(w->sg[r]);
+        free(w->rp[r]);
+    }
+    for (int r = 0; r < 2; r++)
+        free(w->map[r]);
+}
+
+static int worker_init(worker *w, ctx *c)
+{
+    const int64_t N0 = c->g.N[0], N1 = c->g.N[1];
+    memset(w, 0, sizeof(*w));
+    w->c = c;
+    for (int r = 0; r < 3; r++) {
+        w->sg[r] = malloc((size_t)(N0 * N1));
+        w->rp[r] = malloc(sizeof(int64_t) * (size_t)N1);
+        w->sk[r] = -1;
+        if (!w->sg[r] || !w->rp[r])
+            return 0;
+    }
+    for (int r = 0; r < 2; r++) {
+        w->map[r] = malloc(sizeof(uint32_t) * 3 * (size_t)(N0 * N1));
+        w->mk[r] = -1;
+        if (!w->map[r])
+            return 0;
+    }
+    return 1;
+}
+
+static int default_threads(void)
+{
+    long n = sysconf(_SC_NPROCESSORS_ONLN);
+    return n < 1 ? 1 : n > 64 ? 64 : (int)n;
+}
+
+static isomend_status validate(const isomend_volume *vol, const isomend_options *o)
+{
+    if (!vol || !vol->data || isomend_type_size(vol->type) == 0)
+        return ISOMEND_ERR_INVALID_ARGUMENT;
+    if ((unsigned)o->method >= ISOMEND_METHOD_COUNT || (o->flags & ~ISOMEND_FLAGS_ALL))
+        return ISOMEND_ERR_INVALID_ARGUMENT;
+    if (!isomend_method_available(o->method))
+        return ISOMEND_ERR_UNSUPPORTED;
+    const int64_t min = (o->flags & ISOMEND_FLAG_PAD) ? 1 : 2;
+    for (int a = 0; a < 3; a++) {
+        if (vol->dims[a] < min || vol->dims[a] > ((int64_t)1 << 31))
+            return ISOMEND_ERR_BAD_DIMENSIONS;
+        if (!(vol->spacing[a] > 0.0) || !isfinite(vol->spacing[a]))
+            return ISOMEND_ERR_BAD_SPACING;
+        if (!isfinite(vol->origin[a]))
+            return ISOMEND_ERR_INVALID_ARGUMENT;
+    }
+    if (!isfinite(o->iso))
+        return ISOMEND_ERR_BAD_ISO;
+    return ISOMEND_OK;
+}
+
+isomend_status isomend_extract(const isomend_volume *vol, const isomend_options *opts,
+                               isomend_mesh **out_mesh, isomend_stats *stats)
+{
+    if (!out_mesh)
+        return ISOMEND_ERR_INVALID_ARGUMENT;
+    *out_mesh = NULL;
+    isomend_options defaults;
+    isomend_options_init(&defaults);
+    const isomend_options *o = opts ? opts : &defaults;
+    isomend_status status = validate(vol, o);
+    if (status != ISOMEND_OK)
+        return status;
+
+    ctx *c = calloc(1, sizeof(*c));
+    if (!c)
+        return ISOMEND_ERR_OUT_OF_MEMORY;
+    grid *g = &c->g;
+    const size_t size = isomend_type_size(vol->type);
+    g->data = vol->data;
+    g->type = vol->type;
+    g->pad = (o->flags & ISOMEND_FLAG_PAD) ? 1 : 0;
+    g->iso = o->iso;
+    for (int a = 0; a < 3; a++) {
+        g->n[a] = vol->dims[a];
+        g->N[a] = vol->dims[a] + 2 * g->pad;
+        g->h[a] = vol->spacing[a];
+        g->o[a] = vol->origin[a] - (double)g->pad * vol->spacing[a];
+    }
+    if (vol->strides[0] == 0 && vol->strides[1] == 0 && vol->strides[2] == 0) {
+        g->st[0] = (int64_t)size;
+        g->st[1] = g->st[0] * g->n[0];
+        g->st[2] = g->st[1] * g->n[1];
+    } else {
+        for (int a = 0; a < 3; a++)
+            g->st[a] = vol->strides[a];
+    }
+    grid_threshold(g);
+    c->method = o->method;
+    c->flip = (o->flags & ISOMEND_FLAG_FLIP) != 0;
+    c->want_normals = !(o->flags & ISOMEND_FLAG_NO_NORMALS);
+    c->want_origins = !(o->flags & ISOMEND_FLAG_NO_ORIGINS);
+    c->progress = o->progress;
+    c->progress_user = o->progress_user;
+
+    const int64_t N0 = g->N[0], N1 = g->N[1], N2 = g->N[2];
+    const int64_t layers = N2 - 1;
+    int nthreads = o->threads > 0 ? (o->threads > 64 ? 64 : o->threads) : default_threads();
+    /* Chunks: small enough to balance threads, large enough that the slices a
+     * chunk re-classifies at its start (2 of them) are a small overhead. */
+    int64_t chunk = layers / (8 * (int64_t)nthreads);
+    if (chunk < 4)
+        chunk = 4;
+    c->chunk_layers = chunk;
+    c->nchunks = (layers + chunk - 1) / chunk;
+    if (nthreads > c->nchunks)
+        nthreads = (int)c->nchunks;
+
+    isomend_mesh *mesh = NULL;
+    worker *ws = calloc((size_t)nthreads, sizeof(*ws));
+    c->slice_first = calloc((size_t)N2 + 1, sizeof(uint64_t));
+    c->layer_first = calloc((size_t)N2, sizeof(uint64_t));
+    status = ISOMEND_ERR_OUT_OF_MEMORY;
+    if (!ws || !c->slice_first || !c->layer_first ||
+        (uint64_t)N0 * (uint64_t)N1 > (uint64_t)SIZE_MAX / 16)
+        goto done;
+    for (int t = 0; t < nthreads; t++)
+        if (!worker_init(&ws[t], c)) {
+            nthreads = t + 1; /* free what was allocated */
+            goto done;
+        }
+    ws[0].is_main = 1;
+
+    c->pass = 1;
+    status = run_pass(c, ws, nthreads);
+    if (status != ISOMEND_OK)
+        goto done;
+
+    /* Prefix sums: first vertex of each slice, first triangle of each layer. */
+    uint64_t nv = 0, nt = 0;
+    for (int64_t k = 0; k < N2; k++) {
+        uint64_t n = c->slice_first[k];
+        c->slice_first[k] = nv;
+        nv += n;
+    }
+    c->slice_first[N2] = nv;
+    for (int64_t k = 0; k < layers; k++) {
+        uint64_t n = c->layer_first[k];
+        c->layer_first[k] = nt;
+        nt += n;
+    }
+    c->layer_first[layers] = nt;
+    if (nv > UINT32_MAX) {
+        status = ISOMEND_ERR_TOO_LARGE;
+        goto done;
+    }
+
+    status = ISOMEND_ERR_OUT_OF_MEMORY;
+    mesh = calloc(1, sizeof(*mesh));
+    if (!mesh)
+        goto done;
+    mesh->nv = (size_t)nv;
+    mesh->nt = (size_t)nt;
+    mesh->pos = malloc(sizeof(float) * 3 * (nv ? nv : 1));
+    mesh->tri = malloc(sizeof(uint32_t) * 3 * (nt ? nt : 1));
+    if (c->want_normals)
+        mesh->nrm = malloc(sizeof(float) * 3 * (nv ? nv : 1));
+    if (c->want_origins)
+        mesh->org = malloc(nt ? nt : 1);
+    if (!mesh->pos || !mesh->tri || (c->want_normals && !mesh->nrm) ||
+        (c->want_origins && !mesh->org))
+        goto done;
+    for (int a = 0; a < 3; a++) {
+        mesh->box[a] = g->o[a];
+        mesh->box[3 + a] = g->o[a] + (double)(g->N[a] - 1) * g->h[a];
+    }
+    c->pos = mesh->pos;
+    c->nrm = mesh->nrm;
+    c->tri = mesh->tri;
+    c->org = mesh->org;
+
+    c->pass = 2;
+    for (int t = 0; t < nthreads; t++)
+        for (int r = 0; r < 3; r++)
+            ws[t].sk[r] = -1; /* keep buffers, forget contents */
+    status = run_pass(c, ws, nthreads);
+    if (status != ISOMEND_OK)
+        goto done;
+
+    if (c->progress)
+        (void)c->progress(c->progress_user, 1.0);
+    if (stats) {
+        memset(stats, 0, sizeof(*stats));
+        for (int t = 0; t < nthreads; t++) {
+            const isomend_stats *s = &ws[t].stats;
+            for (int q = 0; q < 15; q++)
+                stats->case_histogram[q] += s->case_histogram[q];
+            for (int q = 0; q < ISOMEND_ORIGIN_COUNT; q++)
+                stats->triangles_by_origin[q] += s->triangles_by_origin[q];
+            stats->ambiguous_faces += s->ambiguous_faces;
+            stats->inverted_combinations += s->inverted_combinations;
+            stats->nan_samples += s->nan_samples;
+        }
+        stats->cubes = (uint64_t)(N0 - 1) * (uint64_t)(N1 - 1) * (uint64_t)layers;
+        stats->vertices = nv;
+        stats->triangles = nt;
+    }
+    *out_mesh = mesh;
+    mesh = NULL;
+    status = ISOMEND_OK;
+
+done:
+    isomend_mesh_destroy(mesh);
+    if (ws)
+        for (int t = 0; t < nthreads; t++)
+            worker_free(&ws[t]);
+    free(ws);
+    free(c->slice_first);
+    free(c->layer_first);
+    free(c);
+    return status;
+}
+
+/* ------------------------------------------------------------ accessors */
+
+void isomend_mesh_destroy(isomend_mesh *mesh)
+{
+    if (!mesh)
+        return;
+    free(mesh->pos);
+    free(mesh->nrm);
+    free(mesh->tri);
+    free(mesh->org);
+    free(mesh);
+}
+
+size_t isomend_mesh_vertex_count(const isomend_mesh *mesh) { return mesh ? mesh->nv : 0; }
+size_t isomend_mesh_triangle_count(const isomend_mesh *mesh) { return mesh ? mesh->nt : 0; }
+const float *isomend_mesh_positions(const isomend_mesh *mesh) { return mesh ? mesh->pos : NULL; }
+const float *isomend_mesh_normals(const isomend_mesh *mesh) { return mesh ? mesh->nrm : NULL; }
+const uint32_t *isomend_mesh_triangles(const isomend_mesh *mesh) { return mesh ? mesh->tri : NULL; }
+const uint8_t *isomend_mesh_triangle_origins(const isomend_mesh *mesh)
+{
+    return mesh ? mesh->org : NULL;
+}
+
+void isomend_mesh_grid_box(const isomend_mesh *mesh, double box[6])
+{
+    if (!mesh || !box)
+        return;
+    memcpy(box, mesh->box, sizeof(mesh->box));
+}
+
+isomend_status isomend_mesh_copy(const isomend_mesh *mesh, float *positions, float *normals,
+                                 uint32_t *triangles, uint8_t *origins)
+{
+    if (!mesh)
+        return ISOMEND_ERR_INVALID_ARGUMENT;
+    if ((normals && !mesh->nrm) || (origins && !mesh->org))
+        return ISOMEND_ERR_INVALID_ARGUMENT;
+    if (positions)
+        memcpy(positions, mesh->pos, sizeof(float) * 3 * mesh->nv);
+    if (normals)
+        memcpy(normals, mesh->nrm, sizeof(float) * 3 * mesh->nv);
+    if (triangles)
+        memcpy(triangles, mesh->tri, sizeof(uint32_t) * 3 * mesh->nt);
+    if (origins)
+        memcpy(origins, mesh->org, mesh->nt);
+    return ISOMEND_OK;
+}
+
+isomend_status isomend_mesh_check(const isomend_mesh *mesh, isomend_check_report *report)
+{
+    if (!mesh)
+        return ISOMEND_ERR_INVALID_ARGUMENT;
+    return isomend_check(mesh->pos, mesh->nv, mesh->tri, mesh->nt, mesh->box, report);
+}
