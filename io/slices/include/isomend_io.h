@@ -1,0 +1,325 @@
+/*
+ * isomend_io.h - slice-stack importer for isomend (public C API)
+ *
+ * Opens a volume given as a stack of 2D images (read with OpenImageIO) or as
+ * a raw/NRRD file (read with isomend's own readers), validates it completely,
+ * and delivers it to the caller: into a caller's buffer, into a
+ * library-owned buffer described as an isomend_volume, one slice at a time,
+ * or straight to a mesh with isomend_extract().
+ *
+ * This library is separate from the core (libisomend) so that the core never
+ * loads OpenImageIO (~260 shared libraries).  It is C++17 inside; every
+ * exported function catches all exceptions and returns a status.
+ *
+ * Sources (one `isomend_io_open()` call, `paths` / `path_count`):
+ *   - a folder:          every image file whose extension is the folder's most
+ *                        common image extension, in natural order (s_2 before
+ *                        s_10; case-insensitive, digits compared as numbers);
+ *   - a glob:            'scan/slice_*.tif' (a path with * ? or [ ), natural
+ *                        order of the matches;
+ *   - a printf pattern:  'slice_%04d.tif' (a path containing one %d / %0Nd /
+ *                        %Nd / %i / %u conversion; "%%" is a literal '%'):
+ *                        indices first, first+step, ... (options.first,
+ *                        options.count, options.step); count 0 means "until
+ *                        the first missing file";
+ *   - a list of files:   path_count >= 2; the order given is kept;
+ *   - one multi-page TIFF (pages are slices) or one multi-part OpenEXR (parts
+ *     are slices) or any other multi-subimage 2D file;
+ *   - one raw file (options.raw_dims / raw_type set) or NRRD file (.nrrd /
+ *     .nhdr): read by io/common's readers, see isomend_io_options.
+ * Every 2D format OpenImageIO reads is accepted.  Tested: TIFF u8, u16, i16
+ * (negative values kept), f32, packed 12-bit (restored to its real 0..4095
+ * values, not OIIO's bit-replicated 16-bit ones), OpenEXR half and float, PNG.
+ *
+ * Sample types are kept as stored (no normalisation to 0..1): u8, i8, u16,
+ * i16, i32 (also u32 that fits), f32, f64; half becomes f32.
+ *
+ * Axes: x = image column (left to right as displayed), y = image row (top
+ * row first: row 0 is y = 0, as stored, no flip), z = slice order (first
+ * slice is z = 0).  Sample (x, y, z) is at index x + nx*(y + ny*z) of a
+ * contiguous volume.  (column, row, slice) with x right, y down and slices
+ * stacked away from the viewer is a right-handed frame, and so is (x, y, z):
+ * the mesh is the stack as the user sees it, moved, never mirrored.  Looking
+ * at the mesh from its z < 0 side with +y pointing down shows each slice as
+ * an image viewer shows it (an "L" stays an "L", never a "J"); in a y-up
+ * viewer that is the default view turned 180 degrees about the x axis.
+ * tests/io checks this with an asymmetric "L" phantom.
+ *
+ * Validation (isomend_io_open() opens every slice's header; the reads check
+ * every decode): a missing, unreadable or unknown file; truncated or corrupt
+ * data (has_error() after every read, and per-scanline decoding so that
+ * broken compressed strips are reported); a slice whose size, data window,
+ * channel count or sample type differs from the first slice's; a 3D image
+ * (depth > 1); an empty folder or a pattern/glob with no match; fewer than
+ * two slices; a volume larger than the memory available (refused with its
+ * size before anything is allocated).  Every message names the slice file
+ * and the reason.
+ *
+ * Spacing: options.spacing if set (all three > 0), else the files' metadata
+ * (ImageJ's "spacing=" in ImageDescription for z, TIFF XResolution /
+ * YResolution with ResolutionUnit for x/y; NRRD "spacings"/"space
+ * directions"), else 1.  isomend_io_spacing() says where each value came from.
+ *
+ * Thread safety: a source handle must be used by one thread at a time;
+ * different handles are independent.  Functions that read may start worker
+ * threads internally; the progress callback is always called from the
+ * calling thread.  There is no global mutable state visible to the caller
+ * (OpenImageIO's own global attributes are set once, idempotently).
+ *
+ * Bindings (ctypes, MeshLab): opaque handle, plain C types, status codes,
+ * message retrieval from the handle, caller-sized or library-owned buffers.
+ */
+#ifndef ISOMEND_IO_H
+#define ISOMEND_IO_H
+
+#include <stddef.h>
+#include <stdint.h>
+
+#include "isomend.h"
+
+#if defined(__GNUC__) && __GNUC__ >= 4
+#  define ISOMEND_IO_API __attribute__((visibility("default")))
+#else
+#  define ISOMEND_IO_API
+#endif
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+/* ------------------------------------------------------------------ status */
+
+typedef enum isomend_io_status {
+    ISOMEND_IO_OK = 0,
+    ISOMEND_IO_ERR_INVALID_ARGUMENT = 1, /* NULL, bad option, call out of order   */
+    ISOMEND_IO_ERR_NOT_FOUND = 2,        /* missing file/folder, nothing matched  */
+    ISOMEND_IO_ERR_UNREADABLE = 3,       /* cannot open, unknown format           */
+    ISOMEND_IO_ERR_CORRUPT = 4,          /* truncated or corrupt data             */
+    ISOMEND_IO_ERR_MISMATCH = 5,         /* slice differs from the first slice    */
+    ISOMEND_IO_ERR_UNSUPPORTED = 6,      /* 3D image, sample type, channel        */
+    ISOMEND_IO_ERR_TOO_FEW_SLICES = 7,   /* fewer than two slices                 */
+    ISOMEND_IO_ERR_TOO_LARGE = 8,        /* larger than the memory available      */
+    ISOMEND_IO_ERR_OUT_OF_MEMORY = 9,
+    ISOMEND_IO_ERR_CANCELLED = 10,       /* the progress callback asked to stop   */
+    ISOMEND_IO_ERR_EXTRACT = 11,         /* the core's isomend_extract() failed   */
+    ISOMEND_IO_ERR_INTERNAL = 12         /* unexpected exception (a bug)          */
+} isomend_io_status;
+
+/* A static description of a status ("corrupt or truncated data"). */
+ISOMEND_IO_API const char *isomend_io_status_string(isomend_io_status status);
+
+/* The library's version string (same as the core's, e.g. "0.1.0"). */
+ISOMEND_IO_API const char *isomend_io_version(void);
+
+/* ------------------------------------------------------------------ options */
+
+/* Progress stages passed to the callback. */
+typedef enum isomend_io_stage {
+    ISOMEND_IO_STAGE_OPEN = 0,    /* scanning slice headers            */
+    ISOMEND_IO_STAGE_READ = 1,    /* decoding slices                   */
+    ISOMEND_IO_STAGE_ANALYSE = 2, /* value range, histogram, Otsu      */
+    ISOMEND_IO_STAGE_EXTRACT = 3  /* the core's isomend_extract()      */
+} isomend_io_stage;
+
+/*
+ * Progress: called from the thread that called the isomend_io function, with
+ * the stage and a fraction in [0, 1] of that stage, at most ~20 times per
+ * second.  Return non-zero to cancel: the call returns ISOMEND_IO_ERR_CANCELLED.
+ */
+typedef int (*isomend_io_progress_fn)(void *user, int stage, double fraction);
+
+#define ISOMEND_IO_CHANNEL_AUTO (-1) /* the only channel; error if several  */
+#define ISOMEND_IO_CHANNEL_LUMA (-2) /* Rec.709 luma of channels 0..2, f32  */
+
+typedef struct isomend_io_options {
+    /* printf pattern range: indices first, first+step, ..., count of them;
+     * count 0 = until the first missing index.  Defaults 0, 0, 1. */
+    int64_t first;
+    int64_t count;
+    int64_t step;
+    /* channel index >= 0, or ISOMEND_IO_CHANNEL_AUTO / ISOMEND_IO_CHANNEL_LUMA */
+    int channel;
+    /* spacing override: used when all three are > 0 (default all 0) */
+    double spacing[3];
+    /* world position of sample (0, 0, 0) (default 0, 0, 0) */
+    double origin[3];
+    /* reader threads, 0 = one per core (max 8) */
+    int threads;
+    /* refuse volumes larger than this many bytes; 0 = MemAvailable from
+     * /proc/meminfo (or no limit where unknown) */
+    uint64_t memory_limit;
+    /* raw source: set raw_dims (all > 0) and raw_type to read a headerless
+     * file; raw_header bytes are skipped; raw_big_endian != 0 for big-endian */
+    int64_t raw_dims[3];
+    isomend_type raw_type;
+    uint64_t raw_header;
+    int raw_big_endian;
+    /* may be NULL */
+    isomend_io_progress_fn progress;
+    void *progress_user;
+} isomend_io_options;
+
+/* Fills the defaults described above. */
+ISOMEND_IO_API void isomend_io_options_init(isomend_io_options *opts);
+
+/* ------------------------------------------------------------------ source */
+
+/* An opened, validated source.  Create, open, query/read, destroy. */
+typedef struct isomend_io_source isomend_io_source;
+
+/* Allocates an empty source (*out NULL on failure). */
+ISOMEND_IO_API isomend_io_status isomend_io_create(isomend_io_source **out);
+
+/* Accepts NULL. Frees the loaded volume too. */
+ISOMEND_IO_API void isomend_io_destroy(isomend_io_source *src);
+
+/*
+ * The message of the last failed call on this handle, naming the file and
+ * the reason, e.g. "slice_0003.tif: 256x200 differs from the first slice's
+ * 256x256 (scan/slice_0000.tif)".  "" if the last call succeeded.  Owned by
+ * the handle, valid until the next call on it.  NULL src gives "".
+ */
+ISOMEND_IO_API const char *isomend_io_message(const isomend_io_source *src);
+
+/*
+ * Resolves the source (see the top of this file), opens every slice's header
+ * and checks that all agree.  Reads no pixel data (except for raw/NRRD,
+ * whose header is parsed).  `opts` may be NULL for the defaults.  May be
+ * called once per handle.
+ */
+ISOMEND_IO_API isomend_io_status isomend_io_open(isomend_io_source *src, const char *const *paths,
+                                                 size_t path_count,
+                                                 const isomend_io_options *opts);
+
+/* ---- queries (after a successful open) ---- */
+
+/* dims[0] = columns (x), dims[1] = rows (y), dims[2] = slices (z). */
+ISOMEND_IO_API isomend_io_status isomend_io_dims(const isomend_io_source *src, int64_t dims[3]);
+/* The sample type delivered (half -> f32, luma -> f32, 12-bit -> u16). */
+ISOMEND_IO_API isomend_io_status isomend_io_type(const isomend_io_source *src, isomend_type *type);
+/* Bytes of the whole volume (nx*ny*nz*sample size) and of one slice. */
+ISOMEND_IO_API uint64_t isomend_io_volume_bytes(const isomend_io_source *src);
+ISOMEND_IO_API uint64_t isomend_io_slice_bytes(const isomend_io_source *src);
+
+/* Where a spacing value came from. */
+typedef enum isomend_io_spacing_source {
+    ISOMEND_IO_SPACING_DEFAULT = 0,  /* nothing known: 1                      */
+    ISOMEND_IO_SPACING_OPTION = 1,   /* options.spacing                       */
+    ISOMEND_IO_SPACING_TIFF = 2,     /* TIFF XResolution/YResolution          */
+    ISOMEND_IO_SPACING_IMAGEJ = 3,   /* ImageJ "spacing=" (z)                 */
+    ISOMEND_IO_SPACING_HEADER = 4    /* NRRD header                           */
+} isomend_io_spacing_source;
+/* "default", "option", "tiff", "imagej", "header"; NULL if invalid. */
+ISOMEND_IO_API const char *isomend_io_spacing_source_name(int source);
+
+/* spacing[3]; `sources` (may be NULL) receives an isomend_io_spacing_source per axis. */
+ISOMEND_IO_API isomend_io_status isomend_io_spacing(const isomend_io_source *src, double spacing[3],
+                                                    int sources[3]);
+ISOMEND_IO_API isomend_io_status isomend_io_origin(const isomend_io_source *src, double origin[3]);
+
+/* The kind of source resolved. */
+typedef enum isomend_io_kind {
+    ISOMEND_IO_KIND_FOLDER = 0,
+    ISOMEND_IO_KIND_GLOB = 1,
+    ISOMEND_IO_KIND_PATTERN = 2,
+    ISOMEND_IO_KIND_LIST = 3,
+    ISOMEND_IO_KIND_MULTIPAGE = 4, /* pages/parts of one file */
+    ISOMEND_IO_KIND_RAW = 5,
+    ISOMEND_IO_KIND_NRRD = 6
+} isomend_io_kind;
+/* "folder", "glob", "pattern", "list", "multipage", "raw", "nrrd"; NULL if invalid. */
+ISOMEND_IO_API const char *isomend_io_kind_name(int kind);
+ISOMEND_IO_API int isomend_io_source_kind(const isomend_io_source *src); /* -1 before open */
+
+/* The OpenImageIO format name of the first slice ("tiff", "openexr", ...),
+ * "raw" or "nrrd"; "" before open. Owned by the handle. */
+ISOMEND_IO_API const char *isomend_io_format(const isomend_io_source *src);
+
+/* Path of slice k (for a multi-page file: the file's path for every k);
+ * NULL if k is out of range.  Owned by the handle. */
+ISOMEND_IO_API const char *isomend_io_slice_path(const isomend_io_source *src, int64_t k);
+
+/* ---- reading ---- */
+
+/*
+ * Reads the whole volume into `buffer` (contiguous, x fastest, machine byte
+ * order, isomend_io_volume_bytes() bytes; `buffer_size` must be at least
+ * that).  Worker threads decode slices; progress (stage READ) and
+ * cancellation run on the calling thread.  No memory check (the caller owns
+ * the buffer).  On failure the buffer content is unspecified.
+ */
+ISOMEND_IO_API isomend_io_status isomend_io_read(isomend_io_source *src, void *buffer,
+                                                 size_t buffer_size);
+
+/*
+ * Reads slice k (0-based) into `buffer` (isomend_io_slice_bytes() bytes,
+ * x fastest): opens, decodes and closes the file, so memory stays flat when
+ * marching through a stack larger than memory.  No progress callback.
+ */
+ISOMEND_IO_API isomend_io_status isomend_io_read_slice(isomend_io_source *src, int64_t k,
+                                                       void *buffer, size_t buffer_size);
+
+/*
+ * Reads the whole volume into a buffer owned by the handle (after checking
+ * that isomend_io_volume_bytes() fits options.memory_limit / the available
+ * memory: ISOMEND_IO_ERR_TOO_LARGE with the size in the message otherwise)
+ * and describes it in `vol` (data, type, dims, contiguous strides, spacing,
+ * origin).  Loading twice reuses the buffer.  `vol->data` stays valid until
+ * the handle is destroyed.  `seconds` (may be NULL) receives the read time.
+ */
+ISOMEND_IO_API isomend_io_status isomend_io_load(isomend_io_source *src, isomend_volume *vol,
+                                                 double *seconds);
+
+/* ---- analysis ---- */
+
+#define ISOMEND_IO_HISTOGRAM_BINS 16
+
+typedef struct isomend_io_summary {
+    double min, max;        /* finite sample range (0, 0 if none is finite)   */
+    uint64_t samples;       /* nx*ny*nz                                       */
+    uint64_t nan_samples;   /* NaN or infinite samples (not in the histogram) */
+    /* coarse histogram: bin b covers [min + b*w, min + (b+1)*w), w =
+     * (max-min)/ISOMEND_IO_HISTOGRAM_BINS, the last bin includes max */
+    uint64_t histogram[ISOMEND_IO_HISTOGRAM_BINS];
+    double suggested_iso;   /* see isomend_io_analyse()                       */
+    double read_seconds;    /* time spent reading slices                      */
+} isomend_io_summary;
+
+/*
+ * Computes the value range, a coarse histogram and the suggested iso level.
+ * Uses the loaded volume if isomend_io_load() was called, else streams the
+ * slices one at a time (flat memory).
+ *
+ * Suggested iso rule (Otsu 1979): a 256-bin histogram of the finite samples
+ * over [min, max]; t = the upper edge of the bin that maximises the
+ * between-class variance w0*w1*(m0 - m1)^2.  For integer types t is then
+ * moved to floor(t) + 0.5, so that no sample equals the level.  If all
+ * samples are equal the suggestion is that value (no surface exists).
+ */
+ISOMEND_IO_API isomend_io_status isomend_io_analyse(isomend_io_source *src,
+                                                    isomend_io_summary *summary);
+
+/* ---- one call from source to mesh ---- */
+
+/*
+ * Loads the volume (isomend_io_load) and extracts its isosurface with the
+ * core.  If `use_suggested_iso` is non-zero, the iso level is the suggested
+ * one (isomend_io_analyse) instead of opts->iso.  `opts` may be NULL for the
+ * core's defaults.  If opts->progress is NULL, the extraction reports through
+ * the source's progress callback with stage EXTRACT (and can be cancelled
+ * there).  `iso_used` (may be NULL) receives the level used; `stats` (may
+ * be NULL) the core's statistics.  On failure *out_mesh is NULL; a core
+ * failure gives ISOMEND_IO_ERR_EXTRACT and its status text in the message.
+ * Destroy the mesh with isomend_mesh_destroy().
+ */
+ISOMEND_IO_API isomend_io_status isomend_io_extract(isomend_io_source *src,
+                                                    const isomend_options *opts,
+                                                    int use_suggested_iso, double *iso_used,
+                                                    isomend_mesh **out_mesh,
+                                                    isomend_stats *stats);
+
+#ifdef __cplusplus
+}
+#endif
+
+#endif /* ISOMEND_IO_H */
