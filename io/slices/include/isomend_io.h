@@ -32,7 +32,9 @@
  * values, not OIIO's bit-replicated 16-bit ones), OpenEXR half and float, PNG.
  *
  * Sample types are kept as stored (no normalisation to 0..1): u8, i8, u16,
- * i16, i32 (also u32 that fits), f32, f64; half becomes f32.
+ * i16, i32, f32, f64; half becomes f32 and u32 becomes f64 (both exact);
+ * --channel luma gives f32 (Rec. 709: 0.2126 R + 0.7152 G + 0.0722 B of the
+ * stored values).
  *
  * Axes: x = image column (left to right as displayed), y = image row (top
  * row first: row 0 is y = 0, as stored, no flip), z = slice order (first

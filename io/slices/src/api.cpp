@@ -1,0 +1,708 @@
+// api.cpp - the C API of isomend_io: handle, exception barrier, analysis and
+// the one-call extraction.
+//
+// Every exported function runs its body inside guard(): IoError becomes its
+// status and message, std::bad_alloc becomes ISOMEND_IO_ERR_OUT_OF_MEMORY,
+// anything else ISOMEND_IO_ERR_INTERNAL.  No exception crosses the C
+// boundary, so ctypes and MeshLab callers only ever see status codes.
+//
+// Raw and NRRD sources are delegated to io/common's readers
+// (volume_readers.h), so the command line, this library and the plug-ins
+// read them with the same code and give the same messages.
+#include "internal.hpp"
+
+#include <algorithm>
+#include <chrono>
+#include <cinttypes>
+#include <cmath>
+#include <cstdio>
+#include <cstring>
+#include <fstream>
+#include <memory>
+#include <mutex>
+#include <new>
+
+#include "volume_readers.h"
+
+using namespace isomend_io;
+
+struct isomend_io_source {
+    std::string message;
+    bool opened = false;
+    bool open_attempted = false;
+    int kind = -1;
+    isomend_io_options opts{};
+    std::vector<Slice> slices;
+    StackInfo info;
+    bool is_file_volume = false; // raw or NRRD through io/common
+    isomend_fileio_info file_info{};
+    double origin[3] = {0, 0, 0};
+    std::unique_ptr<char[]> volume;
+    bool loaded = false;
+    double load_seconds = 0;
+    bool analysed = false;
+    isomend_io_summary summary{};
+};
+
+namespace {
+
+template <typename F> isomend_io_status guard(isomend_io_source *src, F &&body) {
+    try {
+        if (src) src->message.clear();
+        body();
+        return ISOMEND_IO_OK;
+    } catch (const IoError &e) {
+        if (src) src->message = e.what();
+        return e.status;
+    } catch (const std::bad_alloc &) {
+        if (src) src->message = "out of memory";
+        return ISOMEND_IO_ERR_OUT_OF_MEMORY;
+    } catch (const std::exception &e) {
+        if (src) src->message = std::string("internal error: ") + e.what();
+        return ISOMEND_IO_ERR_INTERNAL;
+    } catch (...) {
+        if (src) src->message = "internal error: unknown exception";
+        return ISOMEND_IO_ERR_INTERNAL;
+    }
+}
+
+void require_open(const isomend_io_source *src) {
+    if (!src->opened)
+        throw IoError(ISOMEND_IO_ERR_INVALID_ARGUMENT, "the source is not open (call isomend_io_open first)");
+}
+
+isomend_io_status from_fileio(isomend_fileio_status s) {
+    switch (s) {
+    case ISOMEND_FILEIO_OK: return ISOMEND_IO_OK;
+    case ISOMEND_FILEIO_ERR_INVALID_ARGUMENT: return ISOMEND_IO_ERR_INVALID_ARGUMENT;
+    case ISOMEND_FILEIO_ERR_NOT_FOUND: return ISOMEND_IO_ERR_NOT_FOUND;
+    case ISOMEND_FILEIO_ERR_UNREADABLE: return ISOMEND_IO_ERR_UNREADABLE;
+    case ISOMEND_FILEIO_ERR_FORMAT: return ISOMEND_IO_ERR_UNREADABLE;
+    case ISOMEND_FILEIO_ERR_UNSUPPORTED: return ISOMEND_IO_ERR_UNSUPPORTED;
+    case ISOMEND_FILEIO_ERR_SIZE: return ISOMEND_IO_ERR_CORRUPT;
+    case ISOMEND_FILEIO_ERR_CORRUPT: return ISOMEND_IO_ERR_CORRUPT;
+    case ISOMEND_FILEIO_ERR_OUT_OF_MEMORY: return ISOMEND_IO_ERR_OUT_OF_MEMORY;
+    case ISOMEND_FILEIO_ERR_CANCELLED: return ISOMEND_IO_ERR_CANCELLED;
+    default: return ISOMEND_IO_ERR_INTERNAL;
+    }
+}
+
+void check_fileio(isomend_fileio_status s, const char *msg) {
+    if (s != ISOMEND_FILEIO_OK) throw IoError(from_fileio(s), msg);
+}
+
+struct FileProgress {
+    isomend_io_progress_fn fn;
+    void *user;
+    int stage;
+};
+
+int file_progress(void *user, double f) {
+    auto *p = (FileProgress *)user;
+    return p->fn ? p->fn(p->user, p->stage, f) : 0;
+}
+
+std::string human_bytes(uint64_t b) {
+    char buf[64];
+    if (b >= (1ull << 30)) std::snprintf(buf, sizeof buf, "%.2f GiB", (double)b / (double)(1ull << 30));
+    else if (b >= (1ull << 20)) std::snprintf(buf, sizeof buf, "%.1f MiB", (double)b / (double)(1ull << 20));
+    else std::snprintf(buf, sizeof buf, "%" PRIu64 " bytes", b);
+    return buf;
+}
+
+// MemAvailable from /proc/meminfo, 0 if unknown.
+uint64_t memory_available() {
+    std::ifstream f("/proc/meminfo");
+    std::string key;
+    uint64_t kb = 0;
+    std::string unit;
+    while (f >> key >> kb >> unit) {
+        if (key == "MemAvailable:") return kb * 1024;
+    }
+    return 0;
+}
+
+int64_t dim(const isomend_io_source *s, int a) {
+    if (s->is_file_volume) return s->file_info.dims[a];
+    if (a == 0) return s->info.width;
+    if (a == 1) return s->info.height;
+    return (int64_t)s->slices.size();
+}
+
+isomend_type src_type(const isomend_io_source *s) {
+    return s->is_file_volume ? s->file_info.type : s->info.type;
+}
+
+uint64_t slice_bytes(const isomend_io_source *s) {
+    return (uint64_t)dim(s, 0) * (uint64_t)dim(s, 1) * isomend_type_size(src_type(s));
+}
+
+uint64_t volume_bytes(const isomend_io_source *s) {
+    uint64_t sb = slice_bytes(s);
+    uint64_t nz = (uint64_t)dim(s, 2);
+    if (sb && nz > UINT64_MAX / sb) return UINT64_MAX;
+    return sb * nz;
+}
+
+std::string dims_text(const isomend_io_source *s) {
+    return std::to_string(dim(s, 0)) + "x" + std::to_string(dim(s, 1)) + "x" + std::to_string(dim(s, 2)) +
+           " " + isomend_type_name(src_type(s));
+}
+
+void check_memory(const isomend_io_source *s) {
+    uint64_t need = volume_bytes(s);
+    uint64_t limit = s->opts.memory_limit;
+    const char *what = "the memory limit";
+    if (limit == 0) {
+        limit = memory_available();
+        what = "the memory available (MemAvailable)";
+    }
+    if ((limit && need > limit) || need > (uint64_t)SIZE_MAX / 2)
+        throw IoError(ISOMEND_IO_ERR_TOO_LARGE,
+                      "volume " + dims_text(s) + " needs " + human_bytes(need) + ", more than " + what +
+                          " of " + human_bytes(limit) +
+                          "; crop the stack (--first/--count/--step) or free memory");
+}
+
+void read_file_slices(isomend_io_source *s, int64_t first, int64_t count, void *buf, size_t size,
+                      isomend_io_progress_fn fn, void *user) {
+    char msg[ISOMEND_FILEIO_MSG_SIZE];
+    msg[0] = 0;
+    FileProgress p{fn, user, ISOMEND_IO_STAGE_READ};
+    check_fileio(isomend_fileio_read(&s->file_info, first, count, buf, size, fn ? file_progress : nullptr,
+                                     &p, msg, sizeof msg),
+                 msg);
+}
+
+void do_read(isomend_io_source *s, void *buffer, size_t size, isomend_io_progress_fn fn, void *user) {
+    uint64_t need = volume_bytes(s);
+    if (!buffer || size < need)
+        throw IoError(ISOMEND_IO_ERR_INVALID_ARGUMENT,
+                      "buffer of " + std::to_string(size) + " bytes is too small for " + dims_text(s) +
+                          " (" + std::to_string(need) + " bytes)");
+    if (s->is_file_volume) {
+        read_file_slices(s, 0, dim(s, 2), buffer, size, fn, user);
+        return;
+    }
+    const size_t sb = (size_t)slice_bytes(s);
+    read_parallel(
+        s->slices, s->info, s->opts.threads,
+        [&](int64_t k) -> void * { return (char *)buffer + (size_t)k * sb; }, nullptr,
+        [&](double f) -> bool { return fn ? fn(user, ISOMEND_IO_STAGE_READ, f) != 0 : false; });
+}
+
+// ---- analysis ----
+
+template <typename T> void range_of(const void *p, size_t n, double &mn, double &mx, uint64_t &bad) {
+    const T *v = (const T *)p;
+    for (size_t i = 0; i < n; i++) {
+        double d = (double)v[i];
+        if (!std::isfinite(d)) {
+            bad++;
+            continue;
+        }
+        if (d < mn) mn = d;
+        if (d > mx) mx = d;
+    }
+}
+
+void range_any(isomend_type t, const void *p, size_t n, double &mn, double &mx, uint64_t &bad) {
+    switch (t) {
+    case ISOMEND_U8: range_of<uint8_t>(p, n, mn, mx, bad); break;
+    case ISOMEND_I8: range_of<int8_t>(p, n, mn, mx, bad); break;
+    case ISOMEND_U16: range_of<uint16_t>(p, n, mn, mx, bad); break;
+    case ISOMEND_I16: range_of<int16_t>(p, n, mn, mx, bad); break;
+    case ISOMEND_I32: range_of<int32_t>(p, n, mn, mx, bad); break;
+    case ISOMEND_F32: range_of<float>(p, n, mn, mx, bad); break;
+    case ISOMEND_F64: range_of<double>(p, n, mn, mx, bad); break;
+    }
+}
+
+constexpr int kOtsuBins = 256;
+
+struct Hist {
+    uint64_t coarse[ISOMEND_IO_HISTOGRAM_BINS] = {};
+    uint64_t fine[kOtsuBins] = {};
+};
+
+int bin_of(double d, double mn, double mx, int bins) {
+    if (!(mx > mn)) return 0;
+    int b = (int)((d - mn) / (mx - mn) * bins);
+    return b < 0 ? 0 : (b >= bins ? bins - 1 : b);
+}
+
+template <typename T> void hist_of(const void *p, size_t n, double mn, double mx, Hist &h) {
+    const T *v = (const T *)p;
+    for (size_t i = 0; i < n; i++) {
+        double d = (double)v[i];
+        if (!std::isfinite(d)) continue;
+        h.coarse[bin_of(d, mn, mx, ISOMEND_IO_HISTOGRAM_BINS)]++;
+        h.fine[bin_of(d, mn, mx, kOtsuBins)]++;
+    }
+}
+
+void hist_any(isomend_type t, const void *p, size_t n, double mn, double mx, Hist &h) {
+    switch (t) {
+    case ISOMEND_U8: hist_of<uint8_t>(p, n, mn, mx, h); break;
+    case ISOMEND_I8: hist_of<int8_t>(p, n, mn, mx, h); break;
+    case ISOMEND_U16: hist_of<uint16_t>(p, n, mn, mx, h); break;
+    case ISOMEND_I16: hist_of<int16_t>(p, n, mn, mx, h); break;
+    case ISOMEND_I32: hist_of<int32_t>(p, n, mn, mx, h); break;
+    case ISOMEND_F32: hist_of<float>(p, n, mn, mx, h); break;
+    case ISOMEND_F64: hist_of<double>(p, n, mn, mx, h); break;
+    }
+}
+
+bool is_integer_type(isomend_type t) { return t != ISOMEND_F32 && t != ISOMEND_F64; }
+
+// Otsu (1979) on the fine histogram; see isomend_io_analyse() in the header.
+double otsu(const uint64_t *h, int bins, double mn, double mx, bool integer) {
+    if (!(mx > mn)) return mn;
+    const double w = (mx - mn) / bins;
+    double total = 0, total_mass = 0;
+    for (int i = 0; i < bins; i++) {
+        total += (double)h[i];
+        total_mass += (double)h[i] * (mn + (i + 0.5) * w);
+    }
+    double w0 = 0, m0 = 0, best = -1;
+    int best_i = 0;
+    for (int i = 0; i < bins - 1; i++) {
+        w0 += (double)h[i];
+        m0 += (double)h[i] * (mn + (i + 0.5) * w);
+        double w1 = total - w0;
+        if (w0 <= 0 || w1 <= 0) continue;
+        double d = m0 / w0 - (total_mass - m0) / w1;
+        double between = w0 * w1 * d * d;
+        if (between > best) {
+            best = between;
+            best_i = i;
+        }
+    }
+    double t = mn + (best_i + 1) * w;
+    if (integer) t = std::floor(t) + 0.5;
+    return t;
+}
+
+// Calls f(data, samples) for every slice: from the loaded volume, else
+// streamed (worker threads for image stacks, flat memory).
+template <typename F> void for_each_slice(isomend_io_source *s, F &&f, double base, double part) {
+    const size_t n = (size_t)dim(s, 0) * (size_t)dim(s, 1);
+    const size_t sb = (size_t)slice_bytes(s);
+    isomend_io_progress_fn fn = s->opts.progress;
+    void *user = s->opts.progress_user;
+    if (s->loaded) {
+        for (int64_t k = 0; k < dim(s, 2); k++) f(s->volume.get() + (size_t)k * sb, n);
+        return;
+    }
+    std::mutex mu;
+    if (s->is_file_volume) {
+        std::vector<char> buf(sb);
+        for (int64_t k = 0; k < dim(s, 2); k++) {
+            read_file_slices(s, k, 1, buf.data(), buf.size(), nullptr, nullptr);
+            f(buf.data(), n);
+            if (fn && fn(user, ISOMEND_IO_STAGE_ANALYSE, base + part * (double)(k + 1) / (double)dim(s, 2)))
+                throw IoError(ISOMEND_IO_ERR_CANCELLED, "cancelled while analysing");
+        }
+        return;
+    }
+    read_parallel(
+        s->slices, s->info, s->opts.threads, nullptr,
+        [&](int64_t, const void *p) {
+            std::lock_guard<std::mutex> lock(mu);
+            f(p, n);
+        },
+        [&](double fr) -> bool { return fn ? fn(user, ISOMEND_IO_STAGE_ANALYSE, base + part * fr) != 0 : false; });
+}
+
+void do_analyse(isomend_io_source *s) {
+    if (s->analysed) return;
+    auto t0 = std::chrono::steady_clock::now();
+    const isomend_type t = src_type(s);
+    double mn = INFINITY, mx = -INFINITY;
+    uint64_t bad = 0;
+    for_each_slice(s, [&](const void *p, size_t n) { range_any(t, p, n, mn, mx, bad); }, 0.0, 0.5);
+    if (!(mn <= mx)) mn = mx = 0;
+    Hist h;
+    for_each_slice(s, [&](const void *p, size_t n) { hist_any(t, p, n, mn, mx, h); }, 0.5, 0.5);
+    isomend_io_summary &sum = s->summary;
+    sum = isomend_io_summary{};
+    sum.min = mn;
+    sum.max = mx;
+    sum.samples = (uint64_t)dim(s, 0) * (uint64_t)dim(s, 1) * (uint64_t)dim(s, 2);
+    sum.nan_samples = bad;
+    std::memcpy(sum.histogram, h.coarse, sizeof h.coarse);
+    sum.suggested_iso = otsu(h.fine, kOtsuBins, mn, mx, is_integer_type(t));
+    sum.read_seconds = s->loaded ? s->load_seconds
+                                 : std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    s->analysed = true;
+}
+
+void do_load(isomend_io_source *s, isomend_volume *vol, double *seconds) {
+    require_open(s);
+    if (!s->loaded) {
+        check_memory(s);
+        uint64_t need = volume_bytes(s);
+        s->volume.reset(new (std::nothrow) char[(size_t)need]);
+        if (!s->volume)
+            throw IoError(ISOMEND_IO_ERR_OUT_OF_MEMORY,
+                          "cannot allocate " + human_bytes(need) + " for volume " + dims_text(s));
+        auto t0 = std::chrono::steady_clock::now();
+        try {
+            do_read(s, s->volume.get(), (size_t)need, s->opts.progress, s->opts.progress_user);
+        } catch (...) {
+            s->volume.reset();
+            throw;
+        }
+        s->load_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+        s->loaded = true;
+    }
+    if (vol) {
+        isomend_volume_init(vol, s->volume.get(), src_type(s), dim(s, 0), dim(s, 1), dim(s, 2));
+        double sp[3];
+        for (int a = 0; a < 3; a++) sp[a] = s->is_file_volume ? s->file_info.spacing[a] : s->info.spacing[a];
+        for (int a = 0; a < 3; a++) {
+            vol->spacing[a] = sp[a];
+            vol->origin[a] = s->origin[a];
+        }
+    }
+    if (seconds) *seconds = s->load_seconds;
+}
+
+void apply_overrides(isomend_io_source *s) {
+    const isomend_io_options &o = s->opts;
+    bool sp_given = o.spacing[0] > 0 && o.spacing[1] > 0 && o.spacing[2] > 0;
+    bool sp_any = o.spacing[0] != 0 || o.spacing[1] != 0 || o.spacing[2] != 0;
+    if (sp_any && !sp_given)
+        throw IoError(ISOMEND_IO_ERR_INVALID_ARGUMENT, "spacing must be three values > 0");
+    for (int a = 0; a < 3; a++) {
+        if (!std::isfinite(o.spacing[a]) || !std::isfinite(o.origin[a]))
+            throw IoError(ISOMEND_IO_ERR_INVALID_ARGUMENT, "spacing and origin must be finite");
+    }
+    if (sp_given) {
+        for (int a = 0; a < 3; a++) {
+            s->info.spacing[a] = o.spacing[a];
+            s->info.spacing_source[a] = ISOMEND_IO_SPACING_OPTION;
+            s->file_info.spacing[a] = o.spacing[a];
+        }
+    }
+    bool origin_given = o.origin[0] != 0 || o.origin[1] != 0 || o.origin[2] != 0;
+    for (int a = 0; a < 3; a++)
+        s->origin[a] = origin_given || !s->is_file_volume ? o.origin[a] : s->file_info.origin[a];
+}
+
+void open_file_volume(isomend_io_source *s, const std::string &path, bool nrrd) {
+    char msg[ISOMEND_FILEIO_MSG_SIZE];
+    msg[0] = 0;
+    isomend_fileio_status st;
+    if (nrrd) {
+        st = isomend_fileio_probe_nrrd(path.c_str(), &s->file_info, msg, sizeof msg);
+    } else {
+        st = isomend_fileio_probe_raw(path.c_str(), s->opts.raw_dims, s->opts.raw_type,
+                                      s->opts.raw_big_endian, s->opts.raw_header, &s->file_info, msg,
+                                      sizeof msg);
+    }
+    check_fileio(st, msg);
+    s->is_file_volume = true;
+    s->kind = nrrd ? ISOMEND_IO_KIND_NRRD : ISOMEND_IO_KIND_RAW;
+    int src = nrrd && s->file_info.spacing_known ? ISOMEND_IO_SPACING_HEADER : ISOMEND_IO_SPACING_DEFAULT;
+    for (int a = 0; a < 3; a++) s->info.spacing_source[a] = src;
+    s->info.format = nrrd ? "nrrd" : "raw";
+    if (s->file_info.dims[0] < 2 || s->file_info.dims[1] < 2 || s->file_info.dims[2] < 2)
+        throw IoError(ISOMEND_IO_ERR_TOO_FEW_SLICES,
+                      path + ": dimensions " + dims_text(s) + "; every dimension must be at least 2");
+}
+
+void do_open(isomend_io_source *s, const char *const *paths, size_t count, const isomend_io_options *opts) {
+    if (s->open_attempted)
+        throw IoError(ISOMEND_IO_ERR_INVALID_ARGUMENT, "isomend_io_open may be called once per handle");
+    s->open_attempted = true;
+    if (!paths || count == 0) throw IoError(ISOMEND_IO_ERR_INVALID_ARGUMENT, "no source given");
+    for (size_t i = 0; i < count; i++)
+        if (!paths[i] || !paths[i][0]) throw IoError(ISOMEND_IO_ERR_INVALID_ARGUMENT, "empty source path");
+    if (opts) s->opts = *opts;
+    else isomend_io_options_init(&s->opts);
+    const isomend_io_options &o = s->opts;
+    if (o.channel < ISOMEND_IO_CHANNEL_LUMA)
+        throw IoError(ISOMEND_IO_ERR_INVALID_ARGUMENT, "invalid channel " + std::to_string(o.channel));
+    if (o.step == 0) throw IoError(ISOMEND_IO_ERR_INVALID_ARGUMENT, "step must not be 0");
+    if (o.count < 0) throw IoError(ISOMEND_IO_ERR_INVALID_ARGUMENT, "count must be >= 0");
+    init_oiio();
+
+    std::vector<std::string> files;
+    bool raw_requested = o.raw_dims[0] > 0 || o.raw_dims[1] > 0 || o.raw_dims[2] > 0;
+    if (count >= 2) {
+        s->kind = ISOMEND_IO_KIND_LIST;
+        files.assign(paths, paths + count);
+        for (const auto &f : files)
+            if (!is_regular_file(f))
+                throw IoError(ISOMEND_IO_ERR_NOT_FOUND,
+                              f + (is_directory(f) ? ": is a folder, not an image file" : ": file not found"));
+    } else {
+        std::string p = paths[0];
+        if (is_directory(p)) {
+            s->kind = ISOMEND_IO_KIND_FOLDER;
+            files = list_folder(p);
+        } else if (is_regular_file(p)) {
+            if (isomend_fileio_is_nrrd_path(p.c_str()) || raw_requested) {
+                open_file_volume(s, p, !raw_requested);
+                apply_overrides(s);
+                s->opened = true;
+                return;
+            }
+            int pages = count_subimages(p);
+            if (pages < 2)
+                throw IoError(ISOMEND_IO_ERR_TOO_FEW_SLICES,
+                              p + ": a single 2D image; a stack needs at least two slices (give a "
+                                  "folder, a glob, a pattern, a list or a multi-page file)");
+            s->kind = ISOMEND_IO_KIND_MULTIPAGE;
+            for (int k = 0; k < pages; k++) s->slices.push_back(Slice{p, k, true});
+        } else if (is_printf_pattern(p)) {
+            s->kind = ISOMEND_IO_KIND_PATTERN;
+            files = expand_pattern(p, o.first, o.count, o.step);
+        } else if (has_glob_chars(p)) {
+            s->kind = ISOMEND_IO_KIND_GLOB;
+            files = expand_glob(p);
+        } else {
+            throw IoError(ISOMEND_IO_ERR_NOT_FOUND, p + ": no such file or folder");
+        }
+    }
+    if (raw_requested && s->kind != ISOMEND_IO_KIND_MULTIPAGE && !files.empty())
+        throw IoError(ISOMEND_IO_ERR_INVALID_ARGUMENT, "raw dimensions apply to a single raw file only");
+    for (const auto &f : files) s->slices.push_back(Slice{f, 0, false});
+    if (s->slices.size() < 2)
+        throw IoError(ISOMEND_IO_ERR_TOO_FEW_SLICES,
+                      (s->slices.empty() ? std::string(paths[0]) : s->slices[0].path) +
+                          ": only " + std::to_string(s->slices.size()) +
+                          " slice found; a stack needs at least two");
+    isomend_io_progress_fn fn = o.progress;
+    void *user = o.progress_user;
+    scan_stack(s->slices, o.channel, s->info, [&](double f) {
+        if (fn && fn(user, ISOMEND_IO_STAGE_OPEN, f))
+            throw IoError(ISOMEND_IO_ERR_CANCELLED, "cancelled while opening slices");
+    });
+    apply_overrides(s);
+    s->opened = true;
+}
+
+struct ExtractProgress {
+    isomend_io_progress_fn fn;
+    void *user;
+};
+
+int extract_progress(void *user, double f) {
+    auto *p = (ExtractProgress *)user;
+    return p->fn(p->user, ISOMEND_IO_STAGE_EXTRACT, f);
+}
+
+} // namespace
+
+// ======================================================================= C API
+
+extern "C" {
+
+ISOMEND_IO_API const char *isomend_io_status_string(isomend_io_status status) {
+    switch (status) {
+    case ISOMEND_IO_OK: return "success";
+    case ISOMEND_IO_ERR_INVALID_ARGUMENT: return "invalid argument";
+    case ISOMEND_IO_ERR_NOT_FOUND: return "not found";
+    case ISOMEND_IO_ERR_UNREADABLE: return "unreadable or unknown file";
+    case ISOMEND_IO_ERR_CORRUPT: return "corrupt or truncated data";
+    case ISOMEND_IO_ERR_MISMATCH: return "slice differs from the first slice";
+    case ISOMEND_IO_ERR_UNSUPPORTED: return "unsupported image";
+    case ISOMEND_IO_ERR_TOO_FEW_SLICES: return "fewer than two slices";
+    case ISOMEND_IO_ERR_TOO_LARGE: return "volume larger than the memory available";
+    case ISOMEND_IO_ERR_OUT_OF_MEMORY: return "out of memory";
+    case ISOMEND_IO_ERR_CANCELLED: return "cancelled";
+    case ISOMEND_IO_ERR_EXTRACT: return "extraction failed";
+    case ISOMEND_IO_ERR_INTERNAL: return "internal error";
+    }
+    return "unknown status";
+}
+
+ISOMEND_IO_API const char *isomend_io_version(void) { return isomend_version(); }
+
+ISOMEND_IO_API void isomend_io_options_init(isomend_io_options *opts) {
+    if (!opts) return;
+    std::memset(opts, 0, sizeof *opts);
+    opts->first = 0;
+    opts->count = 0;
+    opts->step = 1;
+    opts->channel = ISOMEND_IO_CHANNEL_AUTO;
+    opts->raw_type = ISOMEND_U8;
+}
+
+ISOMEND_IO_API isomend_io_status isomend_io_create(isomend_io_source **out) {
+    if (!out) return ISOMEND_IO_ERR_INVALID_ARGUMENT;
+    *out = nullptr;
+    try {
+        *out = new isomend_io_source();
+        isomend_io_options_init(&(*out)->opts);
+        return ISOMEND_IO_OK;
+    } catch (...) {
+        return ISOMEND_IO_ERR_OUT_OF_MEMORY;
+    }
+}
+
+ISOMEND_IO_API void isomend_io_destroy(isomend_io_source *src) { delete src; }
+
+ISOMEND_IO_API const char *isomend_io_message(const isomend_io_source *src) {
+    return src ? src->message.c_str() : "";
+}
+
+ISOMEND_IO_API isomend_io_status isomend_io_open(isomend_io_source *src, const char *const *paths,
+                                                 size_t path_count, const isomend_io_options *opts) {
+    if (!src) return ISOMEND_IO_ERR_INVALID_ARGUMENT;
+    isomend_io_status st = guard(src, [&] { do_open(src, paths, path_count, opts); });
+    if (st != ISOMEND_IO_OK) {
+        src->opened = false;
+        src->slices.clear();
+    }
+    return st;
+}
+
+ISOMEND_IO_API isomend_io_status isomend_io_dims(const isomend_io_source *src, int64_t dims[3]) {
+    if (!src || !dims || !src->opened) return ISOMEND_IO_ERR_INVALID_ARGUMENT;
+    for (int a = 0; a < 3; a++) dims[a] = dim(src, a);
+    return ISOMEND_IO_OK;
+}
+
+ISOMEND_IO_API isomend_io_status isomend_io_type(const isomend_io_source *src, isomend_type *type) {
+    if (!src || !type || !src->opened) return ISOMEND_IO_ERR_INVALID_ARGUMENT;
+    *type = src_type(src);
+    return ISOMEND_IO_OK;
+}
+
+ISOMEND_IO_API uint64_t isomend_io_volume_bytes(const isomend_io_source *src) {
+    return src && src->opened ? volume_bytes(src) : 0;
+}
+
+ISOMEND_IO_API uint64_t isomend_io_slice_bytes(const isomend_io_source *src) {
+    return src && src->opened ? slice_bytes(src) : 0;
+}
+
+ISOMEND_IO_API const char *isomend_io_spacing_source_name(int source) {
+    switch (source) {
+    case ISOMEND_IO_SPACING_DEFAULT: return "default";
+    case ISOMEND_IO_SPACING_OPTION: return "option";
+    case ISOMEND_IO_SPACING_TIFF: return "tiff";
+    case ISOMEND_IO_SPACING_IMAGEJ: return "imagej";
+    case ISOMEND_IO_SPACING_HEADER: return "header";
+    default: return nullptr;
+    }
+}
+
+ISOMEND_IO_API isomend_io_status isomend_io_spacing(const isomend_io_source *src, double spacing[3],
+                                                    int sources[3]) {
+    if (!src || !spacing || !src->opened) return ISOMEND_IO_ERR_INVALID_ARGUMENT;
+    for (int a = 0; a < 3; a++) {
+        spacing[a] = src->is_file_volume ? src->file_info.spacing[a] : src->info.spacing[a];
+        if (sources) sources[a] = src->info.spacing_source[a];
+    }
+    return ISOMEND_IO_OK;
+}
+
+ISOMEND_IO_API isomend_io_status isomend_io_origin(const isomend_io_source *src, double origin[3]) {
+    if (!src || !origin || !src->opened) return ISOMEND_IO_ERR_INVALID_ARGUMENT;
+    for (int a = 0; a < 3; a++) origin[a] = src->origin[a];
+    return ISOMEND_IO_OK;
+}
+
+ISOMEND_IO_API const char *isomend_io_kind_name(int kind) {
+    switch (kind) {
+    case ISOMEND_IO_KIND_FOLDER: return "folder";
+    case ISOMEND_IO_KIND_GLOB: return "glob";
+    case ISOMEND_IO_KIND_PATTERN: return "pattern";
+    case ISOMEND_IO_KIND_LIST: return "list";
+    case ISOMEND_IO_KIND_MULTIPAGE: return "multipage";
+    case ISOMEND_IO_KIND_RAW: return "raw";
+    case ISOMEND_IO_KIND_NRRD: return "nrrd";
+    default: return nullptr;
+    }
+}
+
+ISOMEND_IO_API int isomend_io_source_kind(const isomend_io_source *src) {
+    return src && src->opened ? src->kind : -1;
+}
+
+ISOMEND_IO_API const char *isomend_io_format(const isomend_io_source *src) {
+    return src && src->opened ? src->info.format.c_str() : "";
+}
+
+ISOMEND_IO_API const char *isomend_io_slice_path(const isomend_io_source *src, int64_t k) {
+    if (!src || !src->opened || k < 0 || k >= dim(src, 2)) return nullptr;
+    if (src->is_file_volume) return src->file_info.path;
+    return src->slices[(size_t)k].path.c_str();
+}
+
+ISOMEND_IO_API isomend_io_status isomend_io_read(isomend_io_source *src, void *buffer, size_t buffer_size) {
+    if (!src) return ISOMEND_IO_ERR_INVALID_ARGUMENT;
+    return guard(src, [&] {
+        require_open(src);
+        do_read(src, buffer, buffer_size, src->opts.progress, src->opts.progress_user);
+    });
+}
+
+ISOMEND_IO_API isomend_io_status isomend_io_read_slice(isomend_io_source *src, int64_t k, void *buffer,
+                                                       size_t buffer_size) {
+    if (!src) return ISOMEND_IO_ERR_INVALID_ARGUMENT;
+    return guard(src, [&] {
+        require_open(src);
+        if (k < 0 || k >= dim(src, 2))
+            throw IoError(ISOMEND_IO_ERR_INVALID_ARGUMENT,
+                          "slice " + std::to_string(k) + " out of range 0.." + std::to_string(dim(src, 2) - 1));
+        if (!buffer || buffer_size < slice_bytes(src))
+            throw IoError(ISOMEND_IO_ERR_INVALID_ARGUMENT,
+                          "buffer of " + std::to_string(buffer_size) + " bytes is too small for one slice (" +
+                              std::to_string(slice_bytes(src)) + " bytes)");
+        if (src->is_file_volume) read_file_slices(src, k, 1, buffer, buffer_size, nullptr, nullptr);
+        else read_slice(src->slices[(size_t)k], src->info, buffer);
+    });
+}
+
+ISOMEND_IO_API isomend_io_status isomend_io_load(isomend_io_source *src, isomend_volume *vol, double *seconds) {
+    if (!src) return ISOMEND_IO_ERR_INVALID_ARGUMENT;
+    return guard(src, [&] { do_load(src, vol, seconds); });
+}
+
+ISOMEND_IO_API isomend_io_status isomend_io_analyse(isomend_io_source *src, isomend_io_summary *summary) {
+    if (!src) return ISOMEND_IO_ERR_INVALID_ARGUMENT;
+    return guard(src, [&] {
+        require_open(src);
+        if (!summary) throw IoError(ISOMEND_IO_ERR_INVALID_ARGUMENT, "summary is NULL");
+        do_analyse(src);
+        *summary = src->summary;
+    });
+}
+
+ISOMEND_IO_API isomend_io_status isomend_io_extract(isomend_io_source *src, const isomend_options *opts,
+                                                    int use_suggested_iso, double *iso_used,
+                                                    isomend_mesh **out_mesh, isomend_stats *stats) {
+    if (out_mesh) *out_mesh = nullptr;
+    if (!src) return ISOMEND_IO_ERR_INVALID_ARGUMENT;
+    return guard(src, [&] {
+        require_open(src);
+        if (!out_mesh) throw IoError(ISOMEND_IO_ERR_INVALID_ARGUMENT, "out_mesh is NULL");
+        isomend_volume vol;
+        do_load(src, &vol, nullptr);
+        isomend_options o;
+        if (opts) o = *opts;
+        else isomend_options_init(&o);
+        if (use_suggested_iso) {
+            do_analyse(src);
+            o.iso = src->summary.suggested_iso;
+        }
+        ExtractProgress ep{src->opts.progress, src->opts.progress_user};
+        if (!o.progress && ep.fn) {
+            o.progress = extract_progress;
+            o.progress_user = &ep;
+        }
+        if (iso_used) *iso_used = o.iso;
+        isomend_status st = isomend_extract(&vol, &o, out_mesh, stats);
+        if (st == ISOMEND_ERR_CANCELLED) throw IoError(ISOMEND_IO_ERR_CANCELLED, "cancelled during extraction");
+        if (st != ISOMEND_OK)
+            throw IoError(ISOMEND_IO_ERR_EXTRACT,
+                          std::string("extraction failed: ") + isomend_status_string(st));
+    });
+}
+
+} // extern "C"

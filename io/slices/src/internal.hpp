@@ -1,0 +1,109 @@
+// internal.hpp - the slice-stack importer's private declarations.
+//
+// The importer is in three parts:
+//   resolve.cpp  turns what the user typed (folder, glob, printf pattern,
+//                list, one multi-page file) into an ordered list of slices;
+//   stack.cpp    opens every slice's header with OpenImageIO and checks that
+//                they agree (size, data window, channels, type, depth), reads
+//                slices (checking every decode), and reads whole stacks with
+//                worker threads while the calling thread reports progress;
+//   api.cpp      the C API: the handle, exception barriers, analysis (range,
+//                histogram, Otsu) and the one-call extraction.
+// Errors travel as IoError (status + message naming the file); only api.cpp
+// turns them into status codes, so no exception ever crosses the C boundary.
+#ifndef ISOMEND_IO_INTERNAL_HPP
+#define ISOMEND_IO_INTERNAL_HPP
+
+#include <atomic>
+#include <cstdint>
+#include <functional>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include "isomend_io.h"
+
+namespace isomend_io {
+
+struct IoError : std::runtime_error {
+    isomend_io_status status;
+    IoError(isomend_io_status s, const std::string &msg) : std::runtime_error(msg), status(s) {}
+};
+
+// One slice: a file and the subimage (page / part) in it.
+struct Slice {
+    std::string path;
+    int subimage = 0;
+    bool multipage = false; // pages of one file: messages name the page
+};
+
+// ---- resolve.cpp ----
+// Natural "less than": digit runs compare as numbers, the rest case-insensitively.
+bool natural_less(const std::string &a, const std::string &b);
+// True if `path` contains one printf integer conversion (%d, %05d, %i, %u).
+bool is_printf_pattern(const std::string &path);
+// Formats a printf pattern with one integer (our own formatter: the user's
+// string is never passed to the C library's printf).
+std::string format_pattern(const std::string &pattern, int64_t index);
+bool has_glob_chars(const std::string &path);
+bool is_directory(const std::string &path);
+bool is_regular_file(const std::string &path);
+// Lists a folder's images with the most common image extension, naturally sorted.
+std::vector<std::string> list_folder(const std::string &dir);
+// Expands a glob (files only), naturally sorted.
+std::vector<std::string> expand_glob(const std::string &pattern);
+// Expands a printf pattern with first/count/step (count 0 = until missing).
+std::vector<std::string> expand_pattern(const std::string &pattern, int64_t first, int64_t count,
+                                        int64_t step);
+std::string lower_extension(const std::string &path);
+
+// ---- stack.cpp ----
+struct StackInfo {
+    int width = 0, height = 0;        // data window size
+    int xorigin = 0, yorigin = 0;     // data window origin
+    int file_channels = 0;            // channels in the file
+    int channel = 0;                  // channel read (or first of R,G,B for luma)
+    int luma_channels[3] = {0, 1, 2}; // R, G, B for luma
+    bool luma = false;
+    unsigned file_type = 0;           // OIIO TypeDesc::BASETYPE of the channel read
+    int bits = 0;                     // oiio:BitsPerSample (12 for packed 12-bit)
+    int shift = 0;                    // right shift restoring the real values
+    bool u32_to_f64 = false;          // uint32 delivered as f64
+    isomend_type type = ISOMEND_U8;   // delivered type
+    std::string format;               // OIIO format name of the first slice
+    double spacing[3] = {1, 1, 1};
+    int spacing_source[3] = {0, 0, 0};
+    size_t sample_size() const;
+    size_t slice_bytes() const { return (size_t)width * (size_t)height * sample_size(); }
+};
+
+// Opens every slice's header and checks that it agrees with the first;
+// fills `info` (spacing from the first slice's metadata).  `channel` is the
+// option (ISOMEND_IO_CHANNEL_*).  `progress` is called with 0..1, may throw.
+void scan_stack(const std::vector<Slice> &slices, int channel, StackInfo &info,
+                const std::function<void(double)> &progress);
+
+// Counts the subimages of one file (1 for an ordinary image).
+int count_subimages(const std::string &path);
+
+// Reads one slice into `out` (info.slice_bytes()), checking it against info.
+void read_slice(const Slice &slice, const StackInfo &info, void *out);
+
+// Reads slices [0, n) with `threads` workers; each decoded slice is handed to
+// `sink(k, data)` on the worker thread (sink must be thread-safe for distinct
+// k).  The calling thread calls `progress(fraction)` and stops everything when
+// it returns true (then throws IoError CANCELLED).  The first error (lowest
+// slice index) is rethrown after all workers stopped.
+// `target(k)` (may be empty, or return nullptr) gives where slice k is decoded
+// directly; otherwise it is decoded into a per-worker buffer.
+void read_parallel(const std::vector<Slice> &slices, const StackInfo &info, int threads,
+                   const std::function<void *(int64_t)> &target,
+                   const std::function<void(int64_t, const void *)> &sink,
+                   const std::function<bool(double)> &progress);
+
+// OpenImageIO's global attributes, set once.
+void init_oiio();
+
+} // namespace isomend_io
+
+#endif

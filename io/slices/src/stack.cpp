@@ -1,0 +1,506 @@
+// stack.cpp - opening, validating and decoding slices with OpenImageIO 2.4.
+//
+// What this file guards against (each checked by tests/io):
+//   - OIIO's read_image() on a truncated TIFF returns *true* with has_error()
+//     set, and a corrupt deflate strip can decode to zeros without any error
+//     when the whole image is read at once.  We read scanline files row 0
+//     first and the rest second, which forces OIIO's per-scanline path (that
+//     path reports decode errors), and test has_error() after every call.
+//   - Converting integers to float normalises (u16 23 -> 23/65535) and
+//     int16 -> uint16 clamps negatives: we always ask for the *native* type
+//     (half is widened to float, which is exact) and convert nothing else.
+//   - Packed 12-bit TIFF (and other depths below the container's) comes back
+//     scaled up to 16 bits; oiio:BitsPerSample tells the real depth and a
+//     right shift restores the stored values (exact whether OIIO shifted or
+//     replicated the bits).
+//   - A slice whose data window is offset passes a width/height test: we
+//     compare the whole data window, the channel count, the channel's type,
+//     the bit depth and the depth with the first slice's.
+//   - Multi-page TIFFs do not set oiio:subimages: pages are counted with
+//     seek_subimage() until it fails, and the pending error is cleared.
+#include "internal.hpp"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <condition_variable>
+#include <cstdlib>
+#include <cstring>
+#include <memory>
+#include <mutex>
+#include <thread>
+
+#include <OpenImageIO/imageio.h>
+
+namespace isomend_io {
+
+using OIIO::ImageInput;
+using OIIO::ImageSpec;
+using OIIO::TypeDesc;
+
+void init_oiio() {
+    static std::once_flag once;
+    std::call_once(once, [] {
+        // We run our own slice workers; OIIO's strip threads would only compete.
+        OIIO::attribute("tiff:multithread", 0);
+    });
+}
+
+size_t StackInfo::sample_size() const { return isomend_type_size(type); }
+
+static std::string slice_name(const Slice &s) {
+    if (!s.multipage) return s.path;
+    return s.path + " (page " + std::to_string(s.subimage + 1) + ")";
+}
+
+static std::string take_oiio_error(ImageInput *in) {
+    std::string e = in ? in->geterror() : std::string();
+    std::string g = OIIO::geterror();
+    if (e.empty()) e = g;
+    while (!e.empty() && (e.back() == '\n' || e.back() == ' ')) e.pop_back();
+    return e.empty() ? std::string("unknown OpenImageIO error") : e;
+}
+
+static std::unique_ptr<ImageInput> open_input(const std::string &path) {
+    init_oiio();
+    if (!is_regular_file(path))
+        throw IoError(ISOMEND_IO_ERR_NOT_FOUND, path + ": file not found");
+    auto in = ImageInput::open(path);
+    if (!in) {
+        std::string why = take_oiio_error(nullptr);
+        throw IoError(ISOMEND_IO_ERR_UNREADABLE, path + ": cannot read this file: " + why);
+    }
+    return in;
+}
+
+int count_subimages(const std::string &path) {
+    auto in = open_input(path);
+    int n = 1;
+    while (n < (1 << 24) && in->seek_subimage(n, 0)) n++;
+    (void)in->geterror(); // the failed seek leaves an error pending
+    (void)OIIO::geterror();
+    in->close();
+    return n;
+}
+
+static bool map_type(unsigned basetype, isomend_type *t, bool *u32_to_f64) {
+    *u32_to_f64 = false;
+    switch (basetype) {
+    case TypeDesc::UINT8: *t = ISOMEND_U8; return true;
+    case TypeDesc::INT8: *t = ISOMEND_I8; return true;
+    case TypeDesc::UINT16: *t = ISOMEND_U16; return true;
+    case TypeDesc::INT16: *t = ISOMEND_I16; return true;
+    case TypeDesc::INT32: *t = ISOMEND_I32; return true;
+    case TypeDesc::UINT32: *t = ISOMEND_F64; *u32_to_f64 = true; return true;
+    case TypeDesc::HALF: *t = ISOMEND_F32; return true;
+    case TypeDesc::FLOAT: *t = ISOMEND_F32; return true;
+    case TypeDesc::DOUBLE: *t = ISOMEND_F64; return true;
+    default: return false;
+    }
+}
+
+// The type we ask OIIO for: the native one, except half (read as float).
+static TypeDesc read_type(unsigned basetype) {
+    if (basetype == TypeDesc::HALF) return TypeDesc::FLOAT;
+    return TypeDesc((TypeDesc::BASETYPE)basetype);
+}
+
+static unsigned channel_basetype(const ImageSpec &spec, int c) {
+    return spec.channelformat(c).basetype;
+}
+
+static std::string size_text(const ImageSpec &s) {
+    std::string t = std::to_string(s.width) + "x" + std::to_string(s.height);
+    if (s.x != 0 || s.y != 0) t += " at (" + std::to_string(s.x) + "," + std::to_string(s.y) + ")";
+    return t;
+}
+
+static std::string info_size_text(const StackInfo &i) {
+    std::string t = std::to_string(i.width) + "x" + std::to_string(i.height);
+    if (i.xorigin != 0 || i.yorigin != 0)
+        t += " at (" + std::to_string(i.xorigin) + "," + std::to_string(i.yorigin) + ")";
+    return t;
+}
+
+static std::string channel_names(const ImageSpec &s) {
+    std::string t;
+    for (int c = 0; c < s.nchannels; c++) {
+        if (c) t += ",";
+        t += c < (int)s.channelnames.size() && !s.channelnames[c].empty() ? s.channelnames[c]
+                                                                           : std::to_string(c);
+    }
+    return t;
+}
+
+// Spacing from the first slice's metadata.
+//   ImageJ: ImageDescription "ImageJ=...\nspacing=Z\nunit=U"; XResolution and
+//     YResolution are pixels per unit U -> x, y spacing = 1/resolution.
+//   TIFF: XResolution/YResolution with ResolutionUnit inch or cm -> mm.  72 and
+//     96 pixels per inch are the defaults image programs write when nothing is
+//     known (screen resolutions), so they are treated as "no information".
+static void spacing_from_metadata(const ImageSpec &spec, StackInfo &info) {
+    std::string desc = spec.get_string_attribute("ImageDescription");
+    bool imagej = desc.rfind("ImageJ=", 0) == 0;
+    float xres = spec.get_float_attribute("XResolution", 0.0f);
+    float yres = spec.get_float_attribute("YResolution", 0.0f);
+    std::string unit = spec.get_string_attribute("ResolutionUnit");
+    for (char &c : unit) c = (char)std::tolower((unsigned char)c);
+    if (imagej) {
+        size_t p = desc.find("\nspacing=");
+        if (p != std::string::npos) {
+            double z = std::strtod(desc.c_str() + p + 9, nullptr);
+            if (std::isfinite(z) && z > 0) {
+                info.spacing[2] = z;
+                info.spacing_source[2] = ISOMEND_IO_SPACING_IMAGEJ;
+            }
+        }
+        if (xres > 0 && yres > 0 && std::isfinite(xres) && std::isfinite(yres) &&
+            !(xres == 1 && yres == 1 && info.spacing_source[2] == 0)) {
+            info.spacing[0] = 1.0 / xres;
+            info.spacing[1] = 1.0 / yres;
+            info.spacing_source[0] = info.spacing_source[1] = ISOMEND_IO_SPACING_IMAGEJ;
+        }
+        return;
+    }
+    double per_unit_mm = 0;
+    if (unit == "in" || unit == "inch") per_unit_mm = 25.4;
+    else if (unit == "cm") per_unit_mm = 10.0;
+    else if (unit == "mm") per_unit_mm = 1.0;
+    if (per_unit_mm > 0 && xres > 0 && yres > 0 && std::isfinite(xres) && std::isfinite(yres)) {
+        bool screen_default = per_unit_mm == 25.4 && xres == yres && (xres == 72.0f || xres == 96.0f);
+        if (!screen_default) {
+            info.spacing[0] = per_unit_mm / xres;
+            info.spacing[1] = per_unit_mm / yres;
+            info.spacing_source[0] = info.spacing_source[1] = ISOMEND_IO_SPACING_TIFF;
+        }
+    }
+}
+
+static void describe_first(const Slice &s, const ImageSpec &spec, int channel,
+                           StackInfo &info) {
+    std::string name = slice_name(s);
+    if (spec.depth > 1)
+        throw IoError(ISOMEND_IO_ERR_UNSUPPORTED,
+                      name + ": is a 3D image (depth " + std::to_string(spec.depth) +
+                          "); only 2D slices can be stacked");
+    if (spec.width < 1 || spec.height < 1 || spec.nchannels < 1)
+        throw IoError(ISOMEND_IO_ERR_CORRUPT, name + ": empty image");
+    info.width = spec.width;
+    info.height = spec.height;
+    info.xorigin = spec.x;
+    info.yorigin = spec.y;
+    info.file_channels = spec.nchannels;
+    info.bits = spec.get_int_attribute("oiio:BitsPerSample", 0);
+    info.luma = false;
+    if (channel == ISOMEND_IO_CHANNEL_AUTO) {
+        if (spec.nchannels != 1)
+            throw IoError(ISOMEND_IO_ERR_UNSUPPORTED,
+                          name + ": has " + std::to_string(spec.nchannels) + " channels (" +
+                              channel_names(spec) +
+                              "); choose one with --channel N (0-based) or --channel luma");
+        info.channel = 0;
+    } else if (channel == ISOMEND_IO_CHANNEL_LUMA) {
+        if (spec.nchannels < 3)
+            throw IoError(ISOMEND_IO_ERR_UNSUPPORTED,
+                          name + ": --channel luma needs 3 channels (R,G,B), the image has " +
+                              std::to_string(spec.nchannels) + " (" + channel_names(spec) + ")");
+        int r = spec.channelindex("R"), g = spec.channelindex("G"), b = spec.channelindex("B");
+        if (r < 0 || g < 0 || b < 0) {
+            r = 0;
+            g = 1;
+            b = 2;
+        }
+        info.luma = true;
+        info.luma_channels[0] = r;
+        info.luma_channels[1] = g;
+        info.luma_channels[2] = b;
+        info.channel = r;
+    } else if (channel >= 0) {
+        if (channel >= spec.nchannels)
+            throw IoError(ISOMEND_IO_ERR_UNSUPPORTED,
+                          name + ": no channel " + std::to_string(channel) + "; the image has " +
+                              std::to_string(spec.nchannels) + " (" + channel_names(spec) + ")");
+        info.channel = channel;
+    } else {
+        throw IoError(ISOMEND_IO_ERR_INVALID_ARGUMENT, "invalid channel option " + std::to_string(channel));
+    }
+    info.file_type = channel_basetype(spec, info.channel);
+    if (info.luma) {
+        for (int k = 0; k < 3; k++)
+            if (channel_basetype(spec, info.luma_channels[k]) != info.file_type)
+                throw IoError(ISOMEND_IO_ERR_UNSUPPORTED,
+                              name + ": --channel luma needs R, G and B of one sample type");
+    }
+    isomend_type t;
+    bool u32 = false;
+    if (!map_type(info.file_type, &t, &u32))
+        throw IoError(ISOMEND_IO_ERR_UNSUPPORTED,
+                      name + ": sample type " + std::string(TypeDesc((TypeDesc::BASETYPE)info.file_type).c_str()) +
+                          " is not supported (u8, i8, u16, i16, i32, u32, half, float, double are)");
+    info.type = info.luma ? ISOMEND_F32 : t;
+    info.u32_to_f64 = u32 && !info.luma;
+    info.shift = 0;
+    int container_bits = (int)TypeDesc((TypeDesc::BASETYPE)info.file_type).size() * 8;
+    bool unsigned_int = info.file_type == TypeDesc::UINT8 || info.file_type == TypeDesc::UINT16;
+    if (unsigned_int && info.bits > 0 && info.bits < container_bits)
+        info.shift = container_bits - info.bits;
+    spacing_from_metadata(spec, info);
+}
+
+static void check_against_first(const Slice &s, const ImageSpec &spec,
+                                const StackInfo &info, const std::string &first_name) {
+    std::string name = slice_name(s);
+    std::string ref = " differs from the first slice's ";
+    std::string tail = " (" + first_name + ")";
+    if (spec.depth > 1)
+        throw IoError(ISOMEND_IO_ERR_UNSUPPORTED,
+                      name + ": is a 3D image (depth " + std::to_string(spec.depth) +
+                          "); only 2D slices can be stacked");
+    if (spec.width != info.width || spec.height != info.height || spec.x != info.xorigin ||
+        spec.y != info.yorigin)
+        throw IoError(ISOMEND_IO_ERR_MISMATCH,
+                      name + ": size " + size_text(spec) + ref + info_size_text(info) + tail);
+    if (spec.nchannels != info.file_channels)
+        throw IoError(ISOMEND_IO_ERR_MISMATCH,
+                      name + ": " + std::to_string(spec.nchannels) + " channels" + ref +
+                          std::to_string(info.file_channels) + tail);
+    unsigned bt = channel_basetype(spec, info.channel);
+    if (bt != info.file_type)
+        throw IoError(ISOMEND_IO_ERR_MISMATCH,
+                      name + ": sample type " + std::string(TypeDesc((TypeDesc::BASETYPE)bt).c_str()) + ref +
+                          std::string(TypeDesc((TypeDesc::BASETYPE)info.file_type).c_str()) + tail);
+    int bits = spec.get_int_attribute("oiio:BitsPerSample", 0);
+    if (bits != info.bits)
+        throw IoError(ISOMEND_IO_ERR_MISMATCH,
+                      name + ": " + std::to_string(bits) + " bits per sample" + ref +
+                          std::to_string(info.bits) + tail);
+}
+
+void scan_stack(const std::vector<Slice> &slices, int channel, StackInfo &info,
+                const std::function<void(double)> &progress) {
+    bool multipage = !slices.empty() && slices[0].multipage;
+    std::string first_name;
+    std::unique_ptr<ImageInput> in;
+    std::string open_path;
+    for (size_t k = 0; k < slices.size(); k++) {
+        const Slice &s = slices[k];
+        if (!in || open_path != s.path) {
+            if (in) in->close();
+            in = open_input(s.path);
+            open_path = s.path;
+            if (!multipage) {
+                // A multi-page file inside a folder/list would lose its pages silently.
+                if (in->seek_subimage(1, 0)) {
+                    int pages = 2;
+                    while (pages < (1 << 24) && in->seek_subimage(pages, 0)) pages++;
+                    (void)in->geterror();
+                    (void)OIIO::geterror();
+                    throw IoError(ISOMEND_IO_ERR_UNSUPPORTED,
+                                  s.path + ": has " + std::to_string(pages) +
+                                      " pages/parts; a stack of files needs one image per file "
+                                      "(open a multi-page file on its own)");
+                }
+                (void)in->geterror();
+                (void)OIIO::geterror();
+            }
+        }
+        ImageSpec spec;
+        if (!in->seek_subimage(s.subimage, 0, spec))
+            throw IoError(ISOMEND_IO_ERR_CORRUPT,
+                          slice_name(s) + ": cannot read the header: " + take_oiio_error(in.get()));
+        if (k == 0) {
+            describe_first(s, spec, channel, info);
+            info.format = in->format_name();
+            first_name = slice_name(s);
+        } else {
+            check_against_first(s, spec, info, first_name);
+        }
+        if (progress && (k & 31) == 31) progress((double)(k + 1) / (double)slices.size());
+    }
+    if (in) in->close();
+}
+
+// Reads channels [cb, ce) of one slice in type `t` into `dst` (packed).
+static void decode(ImageInput *in, const Slice &s, const ImageSpec &spec, int cb,
+                   int ce, TypeDesc t, void *dst) {
+    bool ok;
+    if (spec.tile_width == 0) {
+        // Row 0 alone, then the rest: forces OIIO's per-scanline decoding,
+        // the path that reports errors in compressed strips.
+        size_t row = (size_t)spec.width * (size_t)(ce - cb) * t.size();
+        ok = in->read_scanlines(s.subimage, 0, spec.y, spec.y + 1, spec.z, cb, ce, t, dst);
+        if (ok && spec.height > 1)
+            ok = in->read_scanlines(s.subimage, 0, spec.y + 1, spec.y + spec.height, spec.z, cb, ce, t,
+                                    (char *)dst + row);
+    } else {
+        ok = in->read_image(s.subimage, 0, cb, ce, t, dst);
+    }
+    if (!ok || in->has_error())
+        throw IoError(ISOMEND_IO_ERR_CORRUPT,
+                      slice_name(s) + ": corrupt or truncated image data: " + take_oiio_error(in));
+}
+
+template <typename T> static double as_double(const void *p, size_t i) {
+    return (double)((const T *)p)[i];
+}
+
+static double sample_as_double(unsigned bt, const void *p, size_t i) {
+    switch (bt) {
+    case TypeDesc::UINT8: return as_double<uint8_t>(p, i);
+    case TypeDesc::INT8: return as_double<int8_t>(p, i);
+    case TypeDesc::UINT16: return as_double<uint16_t>(p, i);
+    case TypeDesc::INT16: return as_double<int16_t>(p, i);
+    case TypeDesc::INT32: return as_double<int32_t>(p, i);
+    case TypeDesc::UINT32: return as_double<uint32_t>(p, i);
+    case TypeDesc::DOUBLE: return as_double<double>(p, i);
+    default: return as_double<float>(p, i); // float, and half read as float
+    }
+}
+
+void read_slice(const Slice &s, const StackInfo &info, void *out) {
+    auto in = open_input(s.path);
+    ImageSpec spec;
+    if (!in->seek_subimage(s.subimage, 0, spec))
+        throw IoError(ISOMEND_IO_ERR_CORRUPT,
+                      slice_name(s) + ": cannot read the header: " + take_oiio_error(in.get()));
+    // The file may have changed since isomend_io_open(): check again (cheap).
+    check_against_first(s, spec, info, "as opened");
+    size_t n = (size_t)info.width * (size_t)info.height;
+    TypeDesc t = read_type(info.file_type);
+    if (info.luma) {
+        std::vector<char> tmp(n * (size_t)info.file_channels * t.size());
+        decode(in.get(), s, spec, 0, info.file_channels, t, tmp.data());
+        float *o = (float *)out;
+        size_t nc = (size_t)info.file_channels;
+        for (size_t i = 0; i < n; i++) {
+            double r = sample_as_double(t.basetype, tmp.data(), i * nc + (size_t)info.luma_channels[0]);
+            double g = sample_as_double(t.basetype, tmp.data(), i * nc + (size_t)info.luma_channels[1]);
+            double b = sample_as_double(t.basetype, tmp.data(), i * nc + (size_t)info.luma_channels[2]);
+            o[i] = (float)(0.2126 * r + 0.7152 * g + 0.0722 * b); // Rec. 709
+        }
+    } else if (info.u32_to_f64) {
+        std::vector<uint32_t> tmp(n);
+        decode(in.get(), s, spec, info.channel, info.channel + 1, t, tmp.data());
+        double *o = (double *)out;
+        for (size_t i = 0; i < n; i++) o[i] = (double)tmp[i];
+    } else {
+        decode(in.get(), s, spec, info.channel, info.channel + 1, t, out);
+        if (info.shift > 0) {
+            if (info.file_type == TypeDesc::UINT16) {
+                uint16_t *o = (uint16_t *)out;
+                for (size_t i = 0; i < n; i++) o[i] = (uint16_t)(o[i] >> info.shift);
+            } else {
+                uint8_t *o = (uint8_t *)out;
+                for (size_t i = 0; i < n; i++) o[i] = (uint8_t)(o[i] >> info.shift);
+            }
+        }
+    }
+    in->close();
+    if (in->has_error())
+        throw IoError(ISOMEND_IO_ERR_CORRUPT,
+                      slice_name(s) + ": error while closing: " + take_oiio_error(in.get()));
+}
+
+void read_parallel(const std::vector<Slice> &slices, const StackInfo &info, int threads,
+                   const std::function<void *(int64_t)> &target,
+                   const std::function<void(int64_t, const void *)> &sink,
+                   const std::function<bool(double)> &progress) {
+    const int64_t n = (int64_t)slices.size();
+    if (threads <= 0) {
+        unsigned hc = std::thread::hardware_concurrency();
+        threads = hc ? (int)std::min(hc, 8u) : 2;
+    }
+    threads = (int)std::min<int64_t>(threads, std::max<int64_t>(n, 1));
+
+    std::atomic<int64_t> next{0};
+    std::atomic<int64_t> done{0};
+    std::atomic<bool> stop{false};
+    std::mutex mu;
+    std::condition_variable cv;
+    int64_t error_index = -1;
+    isomend_io_status error_status = ISOMEND_IO_OK;
+    std::string error_message;
+
+    auto worker = [&]() {
+        std::vector<char> buf;
+        try {
+            while (!stop.load()) {
+                int64_t k = next.fetch_add(1);
+                if (k >= n) break;
+                void *dst = target ? target(k) : nullptr;
+                if (!dst) {
+                    if (buf.empty()) buf.resize(info.slice_bytes());
+                    dst = buf.data();
+                }
+                try {
+                    read_slice(slices[(size_t)k], info, dst);
+                    if (sink) sink(k, dst);
+                } catch (const IoError &e) {
+                    std::lock_guard<std::mutex> lock(mu);
+                    if (error_index < 0 || k < error_index) {
+                        error_index = k;
+                        error_status = e.status;
+                        error_message = e.what();
+                    }
+                    stop.store(true);
+                }
+                done.fetch_add(1);
+                cv.notify_one();
+            }
+        } catch (const std::bad_alloc &) {
+            std::lock_guard<std::mutex> lock(mu);
+            if (error_index < 0) {
+                error_index = n;
+                error_status = ISOMEND_IO_ERR_OUT_OF_MEMORY;
+                error_message = "out of memory while reading slices";
+            }
+            stop.store(true);
+        } catch (const std::exception &e) {
+            std::lock_guard<std::mutex> lock(mu);
+            if (error_index < 0) {
+                error_index = n;
+                error_status = ISOMEND_IO_ERR_INTERNAL;
+                error_message = std::string("internal error while reading slices: ") + e.what();
+            }
+            stop.store(true);
+        }
+        done.fetch_add(0);
+        cv.notify_one();
+    };
+
+    std::vector<std::thread> pool;
+    bool cancelled = false;
+    try {
+        for (int t = 0; t < threads; t++) pool.emplace_back(worker);
+    } catch (const std::system_error &) {
+        stop.store(true);
+        for (auto &th : pool) th.join();
+        throw IoError(ISOMEND_IO_ERR_INTERNAL, "cannot start reader threads");
+    }
+    auto last = std::chrono::steady_clock::now();
+    {
+        std::unique_lock<std::mutex> lock(mu);
+        while (done.load() < n && !stop.load()) {
+            cv.wait_for(lock, std::chrono::milliseconds(50));
+            auto now = std::chrono::steady_clock::now();
+            if (progress && now - last >= std::chrono::milliseconds(50)) {
+                last = now;
+                double f = (double)done.load() / (double)n;
+                lock.unlock();
+                bool cancel = progress(f); // calling thread, lock not held
+                lock.lock();
+                if (cancel) {
+                    cancelled = true;
+                    stop.store(true);
+                }
+            }
+        }
+    }
+    for (auto &th : pool) th.join();
+    if (error_index >= 0) throw IoError(error_status, error_message);
+    if (cancelled) throw IoError(ISOMEND_IO_ERR_CANCELLED, "cancelled while reading slices");
+    if (progress && progress(1.0))
+        throw IoError(ISOMEND_IO_ERR_CANCELLED, "cancelled while reading slices");
+}
+
+} // namespace isomend_io
