@@ -1,0 +1,500 @@
+/*
+ * isomend_filter_job.cpp - parameters to isomend_io/isomend calls, no MeshLab
+ *
+ * The run, in order:
+ *   1. validate the parameters that need no file (spacing, rawDims, method),
+ *      each error naming the parameter;
+ *   2. isomend_io_open(): resolve the source (folder, pattern, glob,
+ *      multi-page file, NRRD, raw) and check every slice header.  With
+ *      channel -1 the source is opened with ISOMEND_IO_CHANNEL_AUTO (a
+ *      single-channel image is its own luminance); if the images have several
+ *      channels that is refused as unsupported and the source is reopened
+ *      with ISOMEND_IO_CHANNEL_LUMA (Rec.709 luma);
+ *   3. the spacing of each axis: the parameter if > 0, else what
+ *      isomend_io_spacing() found (file metadata or 1);
+ *   4. isomend_io_load() reads the volume into the handle's buffer;
+ *   5. isomend_extract() with the chosen method and flags; a result without a
+ *      triangle is an error (no empty layer), reported with the value range.
+ * Progress: open 0-5 %, read 5-45 %, extract 45-95 %; the adapter's copy
+ * into the host's mesh is the rest.
+ */
+#include "isomend_filter_job.h"
+
+#include <algorithm>
+#include <cctype>
+#include <cerrno>
+#include <cstdarg>
+#include <chrono>
+#include <cinttypes>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <cstring>
+#include <exception>
+#include <new>
+
+#include "isomend_io.h"
+
+namespace isomend_filter {
+
+const char *const kFilterName = "Isosurface from Slice Stack (isomend)";
+const char *const kFilterInfo =
+    "Builds a triangle mesh of the isosurface of a volume given as a stack of 2D images "
+    "(a folder, a printf pattern such as <i>slice_%04d.tif</i>, a glob, a multi-page TIFF), "
+    "an NRRD file or a raw file, with <b>isomend</b>.<br>"
+    "The default method, <b>Disambiguated MC</b> (Roll, Haase &amp; von Kienlin 1995; "
+    "thesis 1996), is marching cubes plus a quadrilateral on every ambiguous face shared by an "
+    "<i>inverted combination</i> of cubes, exactly where the original marching cubes "
+    "(Lorensen &amp; Cline 1987) leaves holes; Durst (1988) puts a quadrilateral on every "
+    "ambiguous face and so adds extraneous polygons.<br>"
+    "Samples &gt;= iso are inside. With <i>pad</i> the volume is surrounded by one layer of "
+    "outside samples, so the surface is closed. Normals are unit gradient normals pointing "
+    "to lower values (outwards for bright objects).<br>"
+    "The log lists vertices, triangles (from the table, Durst quads, mending quads) and the "
+    "number of cubes in each of the 15 elementary cases.";
+
+const char *const kParamSource = "source";
+const char *const kParamIso = "iso";
+const char *const kParamMethod = "method";
+const char *const kParamSpacing[3] = {"spacingX", "spacingY", "spacingZ"};
+const char *const kParamChannel = "channel";
+const char *const kParamPad = "pad";
+const char *const kParamFlip = "flipNormals";
+const char *const kParamRawDims = "rawDims";
+const char *const kParamRawType = "rawType";
+
+namespace {
+
+/* Display names of the methods; the first three are fixed by the spec. */
+const char *method_display_name(isomend_method m)
+{
+    switch (m) {
+    case ISOMEND_METHOD_DMC: return "Disambiguated MC";
+    case ISOMEND_METHOD_MC: return "Original MC";
+    case ISOMEND_METHOD_DURST: return "Durst";
+    case ISOMEND_METHOD_FACIAL: return "Facial average";
+    case ISOMEND_METHOD_GRADIENT: return "Center-pointing gradient";
+    case ISOMEND_METHOD_ASYMPTOTIC: return "Asymptotic decider";
+    case ISOMEND_METHOD_TETRA: return "Tetrahedra";
+    case ISOMEND_METHOD_MC33: return "Marching Cubes 33";
+    }
+    return nullptr;
+}
+
+std::string format(const char *fmt, ...) __attribute__((format(printf, 1, 2)));
+std::string format(const char *fmt, ...)
+{
+    char buf[1024];
+    va_list ap;
+    va_start(ap, fmt);
+    std::vsnprintf(buf, sizeof buf, fmt, ap);
+    va_end(ap);
+    return buf;
+}
+
+/* Shared by the io and core progress callbacks. */
+struct ProgressState {
+    const ProgressFn *sink;
+    int last = -1;
+    bool cancelled = false;
+    bool report(int percent, const char *stage)
+    {
+        if (!*sink)
+            return true;
+        percent = std::max(0, std::min(100, percent));
+        if (percent == last)
+            return true;
+        last = percent;
+        if (!(*sink)(percent, stage))
+            cancelled = true;
+        return !cancelled;
+    }
+};
+
+int io_progress(void *user, int stage, double fraction)
+{
+    auto *state = static_cast<ProgressState *>(user);
+    if (!(fraction >= 0.0))
+        fraction = 0.0;
+    if (fraction > 1.0)
+        fraction = 1.0;
+    switch (stage) {
+    case ISOMEND_IO_STAGE_OPEN:
+        return state->report(static_cast<int>(5.0 * fraction), "isomend: opening slices") ? 0 : 1;
+    case ISOMEND_IO_STAGE_READ:
+        return state->report(5 + static_cast<int>(40.0 * fraction), "isomend: reading slices")
+                   ? 0
+                   : 1;
+    default:
+        return state->cancelled ? 1 : 0;
+    }
+}
+
+int core_progress(void *user, double fraction)
+{
+    auto *state = static_cast<ProgressState *>(user);
+    if (!(fraction >= 0.0))
+        fraction = 0.0;
+    if (fraction > 1.0)
+        fraction = 1.0;
+    return state->report(45 + static_cast<int>(50.0 * fraction), "isomend: extracting") ? 0 : 1;
+}
+
+/* Owns an isomend_io_source. */
+struct SourceHandle {
+    isomend_io_source *src = nullptr;
+    ~SourceHandle() { isomend_io_destroy(src); }
+    void reset()
+    {
+        isomend_io_destroy(src);
+        src = nullptr;
+    }
+};
+
+double seconds_since(std::chrono::steady_clock::time_point t0)
+{
+    return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+}
+
+} // namespace
+
+std::vector<MethodChoice> method_choices()
+{
+    std::vector<MethodChoice> out;
+    const isomend_method first[3] = {ISOMEND_METHOD_DMC, ISOMEND_METHOD_MC, ISOMEND_METHOD_DURST};
+    for (isomend_method m : first)
+        out.push_back({method_display_name(m), m});
+    for (int i = 0; i < ISOMEND_METHOD_COUNT; ++i) {
+        auto m = static_cast<isomend_method>(i);
+        if (m == ISOMEND_METHOD_DMC || m == ISOMEND_METHOD_MC || m == ISOMEND_METHOD_DURST)
+            continue;
+        if (!isomend_method_available(m))
+            continue;
+        const char *name = method_display_name(m);
+        if (!name)
+            name = isomend_method_name(m);
+        if (!name)
+            continue;
+        out.push_back({name, m});
+    }
+    return out;
+}
+
+std::vector<std::string> raw_type_choices()
+{
+    std::vector<std::string> out;
+    for (int i = 0; i < ISOMEND_TYPE_COUNT; ++i)
+        out.push_back(isomend_type_name(static_cast<isomend_type>(i)));
+    return out;
+}
+
+ParamText param_text(const char *name)
+{
+    const std::string n = name;
+    if (n == kParamSource)
+        return {"Source",
+                "The volume: a folder of slice images (natural order, the folder's most common "
+                "image extension), a printf pattern (/data/slice_%04d.tif), a glob "
+                "(/data/slice_*.png), a multi-page TIFF, an NRRD file (.nrrd/.nhdr), or a raw "
+                "file (then set rawDims and rawType)."};
+    if (n == kParamIso)
+        return {"Iso level",
+                "The isosurface level, in the samples' own units (no normalisation: 0..255 for "
+                "8-bit, 0..65535 for 16-bit). Samples >= iso are inside."};
+    if (n == kParamMethod)
+        return {"Method",
+                "Disambiguated MC: marching cubes plus a mending quad only on ambiguous faces "
+                "shared by an inverted combination (hole-free, no extraneous polygons). "
+                "Original MC: Lorensen & Cline's table only (can leave holes). Durst: a quad on "
+                "every ambiguous face (hole-free, with extraneous polygons)."};
+    if (n == kParamSpacing[0])
+        return {"Spacing X", "World distance between columns. 0 = from the files' metadata "
+                             "(TIFF resolution, NRRD header), else 1."};
+    if (n == kParamSpacing[1])
+        return {"Spacing Y", "World distance between rows. 0 = from the files' metadata "
+                             "(TIFF resolution, NRRD header), else 1."};
+    if (n == kParamSpacing[2])
+        return {"Spacing Z", "World distance between slices. 0 = from the files' metadata "
+                             "(ImageJ spacing=, NRRD header), else 1."};
+    if (n == kParamChannel)
+        return {"Channel", "Image channel to use (0 = first). -1 = luminance: the only channel "
+                           "of a grey image, the Rec.709 luma of an RGB(A) image."};
+    if (n == kParamPad)
+        return {"Pad (closed surface)",
+                "Surround the volume with one layer of outside samples so that the surface is "
+                "closed where the object touches the volume's border."};
+    if (n == kParamFlip)
+        return {"Flip normals", "Point the normals towards higher values (inwards for bright "
+                                "objects); the triangle winding is reversed to match."};
+    if (n == kParamRawDims)
+        return {"Raw dimensions",
+                "Only for a raw (headerless) file: the volume's size as \"nx ny nz\" (x "
+                "fastest). Leave empty for images and NRRD files."};
+    if (n == kParamRawType)
+        return {"Raw sample type",
+                "Only for a raw file: the sample type (little-endian). Ignored when rawDims is "
+                "empty."};
+    return {name, ""};
+}
+
+Params default_params()
+{
+    return Params();
+}
+
+std::string layer_name_for(const std::string &source)
+{
+    std::string s = source;
+    while (s.size() > 1 && s.back() == '/')
+        s.pop_back();
+    const size_t slash = s.find_last_of('/');
+    std::string base = slash == std::string::npos ? s : s.substr(slash + 1);
+    return base.empty() ? std::string("isosurface") : base;
+}
+
+bool parse_raw_dims(const std::string &text, int64_t dims[3], std::string *message)
+{
+    std::string t = text;
+    for (char &c : t)
+        if (c == ',' || c == 'x' || c == 'X' || c == ';' || c == '\t')
+            c = ' ';
+    int n = 0;
+    const char *p = t.c_str();
+    while (*p) {
+        while (*p == ' ')
+            ++p;
+        if (!*p)
+            break;
+        if (n == 3) {
+            *message = "rawDims: more than three numbers in \"" + text + "\"";
+            return false;
+        }
+        char *end = nullptr;
+        errno = 0;
+        long long v = std::strtoll(p, &end, 10);
+        if (end == p || (*end && *end != ' ') || errno != 0 || v <= 0) {
+            *message = "rawDims: \"" + text + "\" is not three positive integers (\"nx ny nz\")";
+            return false;
+        }
+        dims[n++] = v;
+        p = end;
+    }
+    if (n != 3) {
+        *message = "rawDims: \"" + text + "\" is not three positive integers (\"nx ny nz\")";
+        return false;
+    }
+    return true;
+}
+
+Job::~Job()
+{
+    isomend_mesh_destroy(mesh_);
+}
+
+bool Job::fail(const std::string &message)
+{
+    error_ = message;
+    isomend_mesh_destroy(mesh_);
+    mesh_ = nullptr;
+    return false;
+}
+
+bool Job::run(const Params &params, const ProgressFn &progress)
+{
+    isomend_mesh_destroy(mesh_);
+    mesh_ = nullptr;
+    stats_ = isomend_stats{};
+    log_.clear();
+    error_.clear();
+    layer_name_.clear();
+    try {
+        return run_unguarded(params, progress);
+    } catch (const std::bad_alloc &) {
+        return fail("out of memory");
+    } catch (const std::exception &e) {
+        return fail(std::string("unexpected error: ") + e.what());
+    } catch (...) {
+        return fail("unexpected error");
+    }
+}
+
+bool Job::run_unguarded(const Params &params, const ProgressFn &progress)
+{
+    const auto t_start = std::chrono::steady_clock::now();
+
+    /* 1. parameters that need no file */
+    std::string source = params.source;
+    while (!source.empty() && std::isspace(static_cast<unsigned char>(source.back())))
+        source.pop_back();
+    while (!source.empty() && std::isspace(static_cast<unsigned char>(source.front())))
+        source.erase(source.begin());
+    if (source.empty())
+        return fail("source: no folder, pattern or file given");
+    if (!std::isfinite(params.iso))
+        return fail("iso: the level must be a finite number");
+    const std::vector<MethodChoice> methods = method_choices();
+    if (params.method_index < 0 || params.method_index >= static_cast<int>(methods.size()))
+        return fail(format("method: index %d is not one of the %zu methods of this build",
+                           params.method_index, methods.size()));
+    const MethodChoice method = methods[static_cast<size_t>(params.method_index)];
+    for (int a = 0; a < 3; ++a)
+        if (!std::isfinite(params.spacing[a]) || params.spacing[a] < 0.0)
+            return fail(format("%s: %g is not a spacing (0 = from the files, or > 0)",
+                               kParamSpacing[a], params.spacing[a]));
+    if (params.channel < -1)
+        return fail(format("channel: %d is not a channel (-1 = luminance, 0, 1, ...)",
+                           params.channel));
+
+    isomend_io_options io_opts;
+    isomend_io_options_init(&io_opts);
+    std::string raw_dims = params.raw_dims;
+    raw_dims.erase(std::remove_if(raw_dims.begin(), raw_dims.end(),
+                                  [](unsigned char c) { return std::isspace(c) != 0; }),
+                   raw_dims.end());
+    const bool raw = !raw_dims.empty();
+    if (raw) {
+        std::string message;
+        if (!parse_raw_dims(params.raw_dims, io_opts.raw_dims, &message))
+            return fail(message);
+        if (params.raw_type_index < 0 || params.raw_type_index >= ISOMEND_TYPE_COUNT)
+            return fail(format("rawType: index %d is not a sample type", params.raw_type_index));
+        io_opts.raw_type = static_cast<isomend_type>(params.raw_type_index);
+    }
+
+    ProgressState state{&progress};
+    io_opts.progress = io_progress;
+    io_opts.progress_user = &state;
+    io_opts.channel = params.channel >= 0 ? params.channel : ISOMEND_IO_CHANNEL_AUTO;
+    layer_name_ = layer_name_for(source);
+
+    /* 2. open */
+    const char *path = source.c_str();
+    SourceHandle handle;
+    if (isomend_io_create(&handle.src) != ISOMEND_IO_OK)
+        return fail("out of memory");
+    isomend_io_status st = isomend_io_open(handle.src, &path, 1, &io_opts);
+    bool luma = false;
+    if (st == ISOMEND_IO_ERR_UNSUPPORTED && params.channel == -1 && !raw) {
+        /* Several channels: retry with their luminance; keep the first message
+         * if that fails too (the reason may be something else). */
+        const std::string first_message = isomend_io_message(handle.src);
+        SourceHandle retry;
+        if (isomend_io_create(&retry.src) != ISOMEND_IO_OK)
+            return fail("out of memory");
+        io_opts.channel = ISOMEND_IO_CHANNEL_LUMA;
+        if (isomend_io_open(retry.src, &path, 1, &io_opts) == ISOMEND_IO_OK) {
+            std::swap(handle.src, retry.src);
+            st = ISOMEND_IO_OK;
+            luma = true;
+        } else {
+            return fail(std::string("source: ") + first_message);
+        }
+    }
+    if (state.cancelled)
+        return fail("cancelled");
+    if (st != ISOMEND_IO_OK) {
+        const char *m = isomend_io_message(handle.src);
+        return fail(std::string("source: ") +
+                    (m && *m ? m : isomend_io_status_string(st)));
+    }
+
+    int64_t dims[3] = {0, 0, 0};
+    isomend_type type = ISOMEND_U8;
+    double spacing[3] = {1, 1, 1};
+    int spacing_src[3] = {0, 0, 0};
+    if (isomend_io_dims(handle.src, dims) != ISOMEND_IO_OK ||
+        isomend_io_type(handle.src, &type) != ISOMEND_IO_OK ||
+        isomend_io_spacing(handle.src, spacing, spacing_src) != ISOMEND_IO_OK)
+        return fail(std::string("source: ") + isomend_io_message(handle.src));
+
+    /* 3. spacing: the parameter where set, else the source's */
+    std::string spacing_from[3];
+    for (int a = 0; a < 3; ++a) {
+        if (params.spacing[a] > 0.0) {
+            spacing[a] = params.spacing[a];
+            spacing_from[a] = "parameter";
+        } else {
+            const char *n = isomend_io_spacing_source_name(spacing_src[a]);
+            spacing_from[a] = n ? n : "?";
+        }
+    }
+
+    const char *kind = isomend_io_kind_name(isomend_io_source_kind(handle.src));
+    log_.push_back(format("isomend %s: %s (%s, %s), %" PRId64 " x %" PRId64 " x %" PRId64
+                          " %s%s",
+                          isomend_version(), source.c_str(), kind ? kind : "?",
+                          isomend_io_format(handle.src), dims[0], dims[1], dims[2],
+                          isomend_type_name(type), luma ? ", luminance of the channels" : ""));
+    log_.push_back(format("spacing %g %g %g (from %s, %s, %s)", spacing[0], spacing[1],
+                          spacing[2], spacing_from[0].c_str(), spacing_from[1].c_str(),
+                          spacing_from[2].c_str()));
+
+    /* 4. read */
+    isomend_volume vol;
+    double read_seconds = 0.0;
+    st = isomend_io_load(handle.src, &vol, &read_seconds);
+    if (state.cancelled)
+        return fail("cancelled");
+    if (st != ISOMEND_IO_OK)
+        return fail(std::string("source: ") + isomend_io_message(handle.src));
+    for (int a = 0; a < 3; ++a)
+        vol.spacing[a] = spacing[a];
+
+    /* 5. extract */
+    isomend_options opts;
+    isomend_options_init(&opts);
+    opts.iso = params.iso;
+    opts.method = method.method;
+    opts.flags = 0;
+    if (params.pad)
+        opts.flags |= ISOMEND_FLAG_PAD;
+    if (params.flip_normals)
+        opts.flags |= ISOMEND_FLAG_FLIP;
+    opts.threads = 0;
+    opts.progress = core_progress;
+    opts.progress_user = &state;
+    log_.push_back(format("method %s (%s), iso %g%s%s", method.display.c_str(),
+                          isomend_method_name(method.method), params.iso,
+                          params.pad ? ", padded" : "", params.flip_normals ? ", normals flipped" : ""));
+    const auto t_extract = std::chrono::steady_clock::now();
+    isomend_mesh *mesh = nullptr;
+    const isomend_status cst = isomend_extract(&vol, &opts, &mesh, &stats_);
+    const double extract_seconds = seconds_since(t_extract);
+    if (cst != ISOMEND_OK) {
+        isomend_mesh_destroy(mesh);
+        if (cst == ISOMEND_ERR_CANCELLED)
+            return fail("cancelled");
+        return fail(std::string("extraction failed: ") + isomend_status_string(cst));
+    }
+    mesh_ = mesh;
+
+    if (isomend_mesh_triangle_count(mesh_) == 0) {
+        isomend_io_summary summary;
+        if (isomend_io_analyse(handle.src, &summary) == ISOMEND_IO_OK)
+            return fail(format("iso: no surface at level %g: the samples range from %g to %g "
+                               "(suggested level %g); nothing was created",
+                               params.iso, summary.min, summary.max, summary.suggested_iso));
+        return fail(format("iso: no surface at level %g; nothing was created", params.iso));
+    }
+
+    log_.push_back(format("vertices %" PRIu64 ", triangles %" PRIu64 " (table %" PRIu64
+                          ", Durst %" PRIu64 ", mending %" PRIu64 ")",
+                          stats_.vertices, stats_.triangles,
+                          stats_.triangles_by_origin[ISOMEND_ORIGIN_TABLE],
+                          stats_.triangles_by_origin[ISOMEND_ORIGIN_DURST],
+                          stats_.triangles_by_origin[ISOMEND_ORIGIN_MEND]));
+    log_.push_back(format("ambiguous faces %" PRIu64 ", inverted combinations %" PRIu64
+                          ", NaN samples %" PRIu64,
+                          stats_.ambiguous_faces, stats_.inverted_combinations,
+                          stats_.nan_samples));
+    std::string histogram = format("cases (cubes per elementary case 0..14 of %" PRIu64 "):",
+                                   stats_.cubes);
+    for (int c = 0; c < 15; ++c)
+        histogram += format(" %d:%" PRIu64, c, stats_.case_histogram[c]);
+    log_.push_back(histogram);
+    log_.push_back(format("time: read %.3f s, extract %.3f s, total %.3f s", read_seconds,
+                          extract_seconds, seconds_since(t_start)));
+    return true;
+}
+
+} // namespace isomend_filter

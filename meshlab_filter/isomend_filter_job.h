@@ -1,0 +1,137 @@
+/*
+ * isomend_filter_job.h - the host-independent half of the MeshLab filter
+ *
+ * The filter "Isosurface from Slice Stack (isomend)" is split in two:
+ *
+ *   isomend_filter_job.{h,cpp}   (this file)  No MeshLab, no Qt.  Knows the
+ *        parameter names, defaults and tooltips, the method and sample-type
+ *        lists, turns parameter values into isomend_io / isomend calls, maps
+ *        progress to 0..100, and produces the log lines and the error text.
+ *        All extraction goes through the C APIs (isomend_io.h, isomend.h).
+ *   filter_isomend.{h,cpp}       MeshLab 2020.09's MeshFilterInterface: the
+ *        RichParameter list, the progress callback, Log(), and copying the
+ *        isomend_mesh into a new CMeshO layer.
+ *
+ * An adapter for MeshLab 2021.05+ (FilterPlugin, see the guide) is a sibling
+ * of filter_isomend.cpp that reuses this file unchanged.
+ *
+ * Thread safety: a job object is used by one thread at a time.
+ */
+#ifndef ISOMEND_FILTER_JOB_H
+#define ISOMEND_FILTER_JOB_H
+
+#include <functional>
+#include <string>
+#include <vector>
+
+#include "isomend.h"
+
+namespace isomend_filter {
+
+/* The filter's name, exactly as MeshLab shows it and as .mlx scripts call it. */
+extern const char *const kFilterName;
+/* The HTML description shown at the top of the dialog. */
+extern const char *const kFilterInfo;
+
+/* Parameter names (public: scripts use them) */
+extern const char *const kParamSource;
+extern const char *const kParamIso;
+extern const char *const kParamMethod;
+extern const char *const kParamSpacing[3]; /* spacingX, spacingY, spacingZ */
+extern const char *const kParamChannel;
+extern const char *const kParamPad;
+extern const char *const kParamFlip;
+extern const char *const kParamRawDims;
+extern const char *const kParamRawType;
+
+/* One choice of the "method" enum: display name and core method. */
+struct MethodChoice {
+    std::string display;
+    isomend_method method;
+};
+
+/*
+ * The methods this build of the core implements, in menu order: "Disambiguated
+ * MC", "Original MC", "Durst" first (their indices 0, 1, 2 are stable for
+ * scripts), then every other available method in isomend_method order, so a
+ * method added to the core appears without editing the adapter.
+ */
+std::vector<MethodChoice> method_choices();
+
+/* The "rawType" enum: isomend_type_name() of every type, index = isomend_type. */
+std::vector<std::string> raw_type_choices();
+
+/* Label, tooltip and default of each parameter (for the dialog). */
+struct ParamText {
+    const char *label;
+    const char *tooltip;
+};
+ParamText param_text(const char *name);
+
+/* Parameter values, as read from the host. */
+struct Params {
+    std::string source;
+    double iso = 0.5;
+    int method_index = 0;          /* index into method_choices()            */
+    double spacing[3] = {0, 0, 0}; /* 0 = from the files' metadata, else 1   */
+    int channel = -1;              /* -1 = the only channel, or luminance    */
+    bool pad = true;
+    bool flip_normals = false;
+    std::string raw_dims;          /* "nx ny nz" (or "nx,ny,nz", "nxXnyXnz"); "" = not raw */
+    int raw_type_index = 0;        /* isomend_type                           */
+};
+/* The defaults above, also the dialog's defaults. */
+Params default_params();
+
+/*
+ * Progress sink: percent 0..100 and a short stage text.  Return false to ask
+ * for cancellation (MeshLab 2020.09's callback never does).
+ */
+using ProgressFn = std::function<bool(int percent, const char *stage)>;
+
+/* The result of a run.  Owns the mesh. */
+class Job {
+public:
+    Job() = default;
+    ~Job();
+    Job(const Job &) = delete;
+    Job &operator=(const Job &) = delete;
+
+    /*
+     * Validates the parameters, opens the source, reads it, extracts the
+     * surface.  Returns true on success (mesh() non-NULL with at least one
+     * triangle).  On failure returns false and error() names the parameter or
+     * the file and the reason; log_lines() then holds what was learnt before.
+     * Never throws.
+     */
+    bool run(const Params &params, const ProgressFn &progress);
+
+    const isomend_mesh *mesh() const { return mesh_; }
+    const isomend_stats &stats() const { return stats_; }
+    /* The new layer's name: the source's base name ("stack", "ct.nrrd"). */
+    const std::string &layer_name() const { return layer_name_; }
+    /* Lines for the host's log, in order (source, volume, options, counts,
+     * histogram, times). */
+    const std::vector<std::string> &log_lines() const { return log_; }
+    const std::string &error() const { return error_; }
+
+private:
+    bool fail(const std::string &message);
+    bool run_unguarded(const Params &params, const ProgressFn &progress);
+
+    isomend_mesh *mesh_ = nullptr;
+    isomend_stats stats_{};
+    std::string layer_name_;
+    std::vector<std::string> log_;
+    std::string error_;
+};
+
+/* The layer name for a source path (exposed for tests). */
+std::string layer_name_for(const std::string &source);
+
+/* Parses rawDims; returns false (and a message) on a malformed value. */
+bool parse_raw_dims(const std::string &text, int64_t dims[3], std::string *message);
+
+} // namespace isomend_filter
+
+#endif /* ISOMEND_FILTER_JOB_H */
