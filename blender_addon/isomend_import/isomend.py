@@ -1,0 +1,969 @@
+"""isomend: hole-free isosurface meshes from volumes (Python/ctypes binding).
+
+This module is plain Python (ctypes + numpy, no bpy): the Blender add-on uses
+it, and so can any script::
+
+    import numpy as np, isomend
+    vol = np.load("ct.npy")                    # array[z, y, x]: x varies fastest
+    mesh = isomend.extract(vol, 300.0, spacing=(0.5, 0.5, 1.2), pad=True)
+    mesh.positions   # (V, 3) float32, world x, y, z
+    mesh.normals     # (V, 3) float32 unit gradient normals (None if normals=False)
+    mesh.triangles   # (T, 3) uint32 vertex indices, counter-clockwise seen from outside
+    mesh.origins     # (T,) uint8: 0 table, 1 Durst quad, 2 DMC mending quad
+    mesh.stats       # dict: cubes, case_histogram, ambiguous_faces, ...
+    mesh.check()     # dict: the continuity checker's report (holes, non-manifold edges)
+
+    with isomend.open_source("scan/") as src:  # folder, glob, pattern, file list, multi-page TIFF
+        print(src.dims, src.dtype, src.spacing, src.analyse()["suggested_iso"])
+        mesh = src.extract()                   # iso: the importer's suggestion (Otsu)
+    mesh = isomend.extract_source("scan/", iso=None, method="dmc")   # the same in one call
+
+Axes.  A numpy volume is indexed ``array[z, y, x]`` by default (C order, x
+fastest), which is the core's contiguous layout and how image stacks load
+(slice, row, column).  ``axes="xyz"`` says the array is ``array[x, y, z]``
+(e.g. a Fortran-order array from nibabel); any permutation of "xyz" names
+which world axis each array axis is.  ``spacing`` and ``origin`` are always
+given in world order (x, y, z), whatever ``axes`` is, and ``positions`` are
+world (x, y, z).  No copy is made for any stride pattern, including
+Fortran-order, sliced (``vol[::2]``) and reversed (``vol[:, ::-1]``) views:
+the numpy strides are passed to the core.  Supported dtypes: uint8, int8,
+uint16, int16, int32, float32, float64 are read in place; bool is read as
+uint8; float16 is converted to float32 and uint32/int64/uint64 to float64 (a
+copy); non-native byte order is converted (a copy).
+
+Library lookup (done once, on first use):
+  1. the folder in the environment variable ISOMEND_LIB_DIR (an error if the
+     library is not there: no silent fallback);
+  2. ``lib/`` next to this file: the add-on zip, and the staged copy the
+     build makes in ``<build>/blender_addon/isomend_import/`` (so
+     ``sys.path.insert(0, "<build>/blender_addon/isomend_import")`` then
+     ``import isomend`` works straight from a build tree);
+  3. the dynamic linker's search path (LD_LIBRARY_PATH, an installed
+     ``libisomend.so.0``).
+The core (libisomend) is loaded at the first call; the slice importer
+(libisomend_io, which pulls in OpenImageIO) only when a source is opened.
+
+Errors.  A failed call raises ``IsomendError`` (a RuntimeError) carrying
+``.status`` (the C status code), ``.status_name`` and a message that names the
+parameter or, for sources, the file and the reason.  ``Cancelled`` (a subclass)
+is raised when a progress callback asked to stop.  Bad Python arguments raise
+ValueError/TypeError before anything reaches C.  An exception raised inside a
+progress callback cancels the C call and is re-raised after it returns.
+
+Progress callbacks are called as ``progress(stage, fraction)`` with stage one
+of "open", "read", "analyse", "extract" and fraction in [0, 1], always from
+the thread that made the call.  Return True to cancel.
+
+Thread safety: the functions may be called from several threads at once
+(ctypes releases the GIL during the C calls); a Source must be used by one
+thread at a time.
+"""
+
+import ctypes
+import math
+import os
+import threading
+
+import numpy as np
+
+__all__ = [
+    "IsomendError", "Cancelled", "LibraryNotFound", "Mesh", "Source",
+    "extract", "check", "open_source", "extract_source",
+    "methods", "available_methods", "version", "io_version", "library_path", "io_library_path",
+    "METHODS", "ORIGIN_TABLE", "ORIGIN_DURST", "ORIGIN_MEND",
+]
+
+# ------------------------------------------------------------ constants
+# These mirror libcore/include/isomend.h and io/slices/include/isomend_io.h;
+# tests/blender/test_wrapper.py compares them and the struct layouts with a
+# program compiled against the headers.
+
+STATUS_NAMES = {
+    0: "OK", 1: "INVALID_ARGUMENT", 2: "BAD_DIMENSIONS", 3: "BAD_SPACING", 4: "BAD_ISO",
+    5: "OUT_OF_MEMORY", 6: "TOO_LARGE", 7: "CANCELLED", 8: "THREAD", 9: "UNSUPPORTED",
+}
+ERR_CANCELLED = 7
+
+IO_STATUS_NAMES = {
+    0: "OK", 1: "INVALID_ARGUMENT", 2: "NOT_FOUND", 3: "UNREADABLE", 4: "CORRUPT",
+    5: "MISMATCH", 6: "UNSUPPORTED", 7: "TOO_FEW_SLICES", 8: "TOO_LARGE",
+    9: "OUT_OF_MEMORY", 10: "CANCELLED", 11: "EXTRACT", 12: "INTERNAL",
+}
+IO_ERR_CANCELLED = 10
+
+TYPE_U8, TYPE_I8, TYPE_U16, TYPE_I16, TYPE_I32, TYPE_F32, TYPE_F64 = range(7)
+_DTYPE_TO_TYPE = {
+    np.dtype(np.uint8): TYPE_U8, np.dtype(np.int8): TYPE_I8,
+    np.dtype(np.uint16): TYPE_U16, np.dtype(np.int16): TYPE_I16,
+    np.dtype(np.int32): TYPE_I32, np.dtype(np.float32): TYPE_F32,
+    np.dtype(np.float64): TYPE_F64,
+}
+_TYPE_TO_DTYPE = {v: k for k, v in _DTYPE_TO_TYPE.items()}
+
+# Method ids as in isomend.h; the names come from the library itself.
+METHODS = {"mc": 0, "durst": 1, "dmc": 2, "facial": 3, "gradient": 4,
+           "asymptotic": 5, "tetra": 6, "mc33": 7}
+METHOD_COUNT = 8
+
+FLAG_NO_NORMALS = 1 << 0
+FLAG_FLIP = 1 << 1
+FLAG_PAD = 1 << 2
+FLAG_NO_ORIGINS = 1 << 3
+
+ORIGIN_TABLE, ORIGIN_DURST, ORIGIN_MEND = 0, 1, 2
+ORIGIN_NAMES = ("table", "durst", "mend")
+
+IO_CHANNEL_AUTO = -1
+IO_CHANNEL_LUMA = -2
+IO_STAGES = ("open", "read", "analyse", "extract")
+IO_KIND_NAMES = ("folder", "glob", "pattern", "list", "multipage", "raw", "nrrd")
+IO_HISTOGRAM_BINS = 16
+
+
+# ------------------------------------------------------------ errors
+
+class IsomendError(RuntimeError):
+    """A C call failed: ``status`` is the code, ``status_name`` its name."""
+
+    def __init__(self, message, status=None, status_name=None):
+        super().__init__(message)
+        self.status = status
+        self.status_name = status_name
+
+
+class Cancelled(IsomendError):
+    """A progress callback asked to stop (returned True)."""
+
+
+class LibraryNotFound(IsomendError, OSError):
+    """libisomend or libisomend_io could not be loaded (the message lists where it looked)."""
+
+
+# ------------------------------------------------------------ C structures
+
+class Volume(ctypes.Structure):
+    _fields_ = [
+        ("data", ctypes.c_void_p),
+        ("type", ctypes.c_int),
+        ("dims", ctypes.c_int64 * 3),
+        ("strides", ctypes.c_int64 * 3),
+        ("spacing", ctypes.c_double * 3),
+        ("origin", ctypes.c_double * 3),
+    ]
+
+
+PROGRESS_FN = ctypes.CFUNCTYPE(ctypes.c_int, ctypes.c_void_p, ctypes.c_double)
+IO_PROGRESS_FN = ctypes.CFUNCTYPE(ctypes.c_int, ctypes.c_void_p, ctypes.c_int, ctypes.c_double)
+
+
+class Options(ctypes.Structure):
+    _fields_ = [
+        ("iso", ctypes.c_double),
+        ("method", ctypes.c_int),
+        ("flags", ctypes.c_uint),
+        ("threads", ctypes.c_int),
+        ("progress", PROGRESS_FN),
+        ("progress_user", ctypes.c_void_p),
+    ]
+
+
+class Stats(ctypes.Structure):
+    _fields_ = [
+        ("cubes", ctypes.c_uint64),
+        ("case_histogram", ctypes.c_uint64 * 15),
+        ("ambiguous_faces", ctypes.c_uint64),
+        ("inverted_combinations", ctypes.c_uint64),
+        ("triangles_by_origin", ctypes.c_uint64 * 3),
+        ("nan_samples", ctypes.c_uint64),
+        ("vertices", ctypes.c_uint64),
+        ("triangles", ctypes.c_uint64),
+    ]
+
+
+class CheckReport(ctypes.Structure):
+    _fields_ = [
+        ("vertices", ctypes.c_uint64),
+        ("triangles", ctypes.c_uint64),
+        ("edges", ctypes.c_uint64),
+        ("border_edges", ctypes.c_uint64),
+        ("hole_edges", ctypes.c_uint64),
+        ("hole_loops", ctypes.c_uint64),
+        ("nonmanifold_edges", ctypes.c_uint64),
+        ("misoriented_edges", ctypes.c_uint64),
+        ("nonmanifold_vertices", ctypes.c_uint64),
+        ("degenerate_triangles", ctypes.c_uint64),
+        ("components", ctypes.c_uint64),
+        ("euler", ctypes.c_int64),
+    ]
+
+
+class IOOptions(ctypes.Structure):
+    _fields_ = [
+        ("first", ctypes.c_int64),
+        ("count", ctypes.c_int64),
+        ("step", ctypes.c_int64),
+        ("channel", ctypes.c_int),
+        ("spacing", ctypes.c_double * 3),
+        ("origin", ctypes.c_double * 3),
+        ("threads", ctypes.c_int),
+        ("memory_limit", ctypes.c_uint64),
+        ("raw_dims", ctypes.c_int64 * 3),
+        ("raw_type", ctypes.c_int),
+        ("raw_header", ctypes.c_uint64),
+        ("raw_big_endian", ctypes.c_int),
+        ("progress", IO_PROGRESS_FN),
+        ("progress_user", ctypes.c_void_p),
+    ]
+
+
+class IOSummary(ctypes.Structure):
+    _fields_ = [
+        ("min", ctypes.c_double),
+        ("max", ctypes.c_double),
+        ("samples", ctypes.c_uint64),
+        ("nan_samples", ctypes.c_uint64),
+        ("histogram", ctypes.c_uint64 * IO_HISTOGRAM_BINS),
+        ("suggested_iso", ctypes.c_double),
+        ("read_seconds", ctypes.c_double),
+    ]
+
+
+# ------------------------------------------------------------ library loading
+
+_HERE = os.path.dirname(os.path.abspath(__file__))
+_lock = threading.Lock()
+_core = None
+_core_path = None
+_io = None
+_io_path = None
+
+# File names tried in each folder, the SONAME first (it is what the add-on zip holds).
+_CORE_NAMES = ("libisomend.so.0", "libisomend.so", "libisomend.dylib", "isomend.dll")
+_IO_NAMES = ("libisomend_io.so.0", "libisomend_io.so", "libisomend_io.dylib", "isomend_io.dll")
+
+
+def _search_dirs():
+    env = os.environ.get("ISOMEND_LIB_DIR")
+    if env:
+        return [("ISOMEND_LIB_DIR", env)], True
+    return [("next to the module", os.path.join(_HERE, "lib"))], False
+
+
+def _load(names, what):
+    dirs, exclusive = _search_dirs()
+    tried = []
+    for label, folder in dirs:
+        for name in names:
+            path = os.path.join(folder, name)
+            if os.path.exists(path):
+                try:
+                    # RTLD_GLOBAL: libisomend_io finds the already loaded core by its SONAME.
+                    return ctypes.CDLL(path, mode=ctypes.RTLD_GLOBAL), path
+                except OSError as exc:
+                    raise LibraryNotFound("cannot load %s %s: %s" % (what, path, exc)) from exc
+        tried.append("%s (%s)" % (folder, label))
+    if exclusive:
+        raise LibraryNotFound("%s: none of %s found in ISOMEND_LIB_DIR=%s"
+                              % (what, ", ".join(names[:2]), dirs[0][1]))
+    for name in names[:2]:
+        try:
+            return ctypes.CDLL(name, mode=ctypes.RTLD_GLOBAL), name
+        except OSError as exc:
+            tried.append("%s via the dynamic linker (%s)" % (name, exc))
+    raise LibraryNotFound("%s not found; looked in: %s. Set ISOMEND_LIB_DIR to the folder holding %s."
+                          % (what, "; ".join(tried), names[0]))
+
+
+def _declare(lib, name, restype, argtypes):
+    fn = getattr(lib, name)
+    fn.restype = restype
+    fn.argtypes = argtypes
+    return fn
+
+
+def _core_lib():
+    global _core, _core_path
+    if _core is not None:
+        return _core
+    with _lock:
+        if _core is not None:
+            return _core
+        lib, path = _load(_CORE_NAMES, "the isomend core library")
+        P = ctypes.POINTER
+        c_int, c_size, c_double, c_char_p = ctypes.c_int, ctypes.c_size_t, ctypes.c_double, ctypes.c_char_p
+        _declare(lib, "isomend_status_string", c_char_p, [c_int])
+        _declare(lib, "isomend_version", c_char_p, [])
+        _declare(lib, "isomend_type_size", c_size, [c_int])
+        _declare(lib, "isomend_type_name", c_char_p, [c_int])
+        _declare(lib, "isomend_type_from_name", c_int, [c_char_p, P(c_int)])
+        _declare(lib, "isomend_volume_init", None,
+                 [P(Volume), ctypes.c_void_p, c_int, ctypes.c_int64, ctypes.c_int64, ctypes.c_int64])
+        _declare(lib, "isomend_method_name", c_char_p, [c_int])
+        _declare(lib, "isomend_method_from_name", c_int, [c_char_p, P(c_int)])
+        _declare(lib, "isomend_method_available", c_int, [c_int])
+        _declare(lib, "isomend_options_init", None, [P(Options)])
+        _declare(lib, "isomend_extract", c_int,
+                 [P(Volume), P(Options), P(ctypes.c_void_p), P(Stats)])
+        _declare(lib, "isomend_mesh_destroy", None, [ctypes.c_void_p])
+        _declare(lib, "isomend_mesh_vertex_count", c_size, [ctypes.c_void_p])
+        _declare(lib, "isomend_mesh_triangle_count", c_size, [ctypes.c_void_p])
+        _declare(lib, "isomend_mesh_positions", P(ctypes.c_float), [ctypes.c_void_p])
+        _declare(lib, "isomend_mesh_normals", P(ctypes.c_float), [ctypes.c_void_p])
+        _declare(lib, "isomend_mesh_triangles", P(ctypes.c_uint32), [ctypes.c_void_p])
+        _declare(lib, "isomend_mesh_triangle_origins", P(ctypes.c_uint8), [ctypes.c_void_p])
+        _declare(lib, "isomend_mesh_grid_box", None, [ctypes.c_void_p, P(c_double)])
+        _declare(lib, "isomend_mesh_copy", c_int,
+                 [ctypes.c_void_p, ctypes.c_void_p, ctypes.c_void_p, ctypes.c_void_p, ctypes.c_void_p])
+        _declare(lib, "isomend_check", c_int,
+                 [ctypes.c_void_p, c_size, ctypes.c_void_p, c_size, P(c_double), P(CheckReport)])
+        _declare(lib, "isomend_mesh_check", c_int, [ctypes.c_void_p, P(CheckReport)])
+        _declare(lib, "isomend_case_of", c_int, [ctypes.c_uint])
+        _declare(lib, "isomend_case_triangles", c_int, [ctypes.c_uint, P(c_int)])
+        _core, _core_path = lib, path
+        return lib
+
+
+def _io_lib():
+    global _io, _io_path
+    if _io is not None:
+        return _io
+    _core_lib()  # first: libisomend_io needs the core, found by its SONAME once loaded
+    with _lock:
+        if _io is not None:
+            return _io
+        lib, path = _load(_IO_NAMES, "the isomend slice importer library")
+        P = ctypes.POINTER
+        c_int, c_char_p, c_void_p = ctypes.c_int, ctypes.c_char_p, ctypes.c_void_p
+        _declare(lib, "isomend_io_status_string", c_char_p, [c_int])
+        _declare(lib, "isomend_io_version", c_char_p, [])
+        _declare(lib, "isomend_io_options_init", None, [P(IOOptions)])
+        _declare(lib, "isomend_io_create", c_int, [P(c_void_p)])
+        _declare(lib, "isomend_io_destroy", None, [c_void_p])
+        _declare(lib, "isomend_io_message", c_char_p, [c_void_p])
+        _declare(lib, "isomend_io_open", c_int, [c_void_p, P(c_char_p), ctypes.c_size_t, P(IOOptions)])
+        _declare(lib, "isomend_io_dims", c_int, [c_void_p, P(ctypes.c_int64)])
+        _declare(lib, "isomend_io_type", c_int, [c_void_p, P(c_int)])
+        _declare(lib, "isomend_io_volume_bytes", ctypes.c_uint64, [c_void_p])
+        _declare(lib, "isomend_io_slice_bytes", ctypes.c_uint64, [c_void_p])
+        _declare(lib, "isomend_io_spacing_source_name", c_char_p, [c_int])
+        _declare(lib, "isomend_io_spacing", c_int, [c_void_p, P(ctypes.c_double), P(c_int)])
+        _declare(lib, "isomend_io_origin", c_int, [c_void_p, P(ctypes.c_double)])
+        _declare(lib, "isomend_io_kind_name", c_char_p, [c_int])
+        _declare(lib, "isomend_io_source_kind", c_int, [c_void_p])
+        _declare(lib, "isomend_io_format", c_char_p, [c_void_p])
+        _declare(lib, "isomend_io_slice_path", c_char_p, [c_void_p, ctypes.c_int64])
+        _declare(lib, "isomend_io_read", c_int, [c_void_p, c_void_p, ctypes.c_size_t])
+        _declare(lib, "isomend_io_read_slice", c_int, [c_void_p, ctypes.c_int64, c_void_p, ctypes.c_size_t])
+        _declare(lib, "isomend_io_load", c_int, [c_void_p, P(Volume), P(ctypes.c_double)])
+        _declare(lib, "isomend_io_analyse", c_int, [c_void_p, P(IOSummary)])
+        _declare(lib, "isomend_io_extract", c_int,
+                 [c_void_p, P(Options), c_int, P(ctypes.c_double), P(c_void_p), P(Stats)])
+        _io, _io_path = lib, path
+        return lib
+
+
+def library_path():
+    """Path of the loaded core library (loads it)."""
+    _core_lib()
+    return _core_path
+
+
+def io_library_path():
+    """Path of the loaded slice importer library (loads it and OpenImageIO)."""
+    _io_lib()
+    return _io_path
+
+
+def version():
+    """The core library's version string, e.g. "0.1.0"."""
+    return _core_lib().isomend_version().decode()
+
+
+def io_version():
+    """The slice importer's version string."""
+    return _io_lib().isomend_io_version().decode()
+
+
+def _status_text(status):
+    text = _core_lib().isomend_status_string(status)
+    return text.decode() if text else "unknown status %d" % status
+
+
+def _raise_core(status, what):
+    name = STATUS_NAMES.get(status, str(status))
+    cls = Cancelled if status == ERR_CANCELLED else IsomendError
+    raise cls("%s: %s" % (what, _status_text(status)), status, name)
+
+
+# ------------------------------------------------------------ methods
+
+def methods():
+    """All method names the C API knows, in id order, with availability:
+    [("mc", True), ("durst", True), ("dmc", True), ("facial", False), ...]."""
+    lib = _core_lib()
+    out = []
+    for m in range(METHOD_COUNT):
+        name = lib.isomend_method_name(m)
+        if name:
+            out.append((name.decode(), bool(lib.isomend_method_available(m))))
+    return out
+
+
+def available_methods():
+    """Names of the methods this build implements."""
+    return [name for name, ok in methods() if ok]
+
+
+def _method_id(method):
+    lib = _core_lib()
+    if isinstance(method, (int, np.integer)) and not isinstance(method, bool):
+        m = int(method)
+        if not lib.isomend_method_name(m):
+            raise ValueError("method: %d is not a method id (0..%d)" % (m, METHOD_COUNT - 1))
+    elif isinstance(method, str):
+        out = ctypes.c_int()
+        if lib.isomend_method_from_name(method.lower().encode(), ctypes.byref(out)) != 0:
+            raise ValueError("method: unknown method %r; known: %s"
+                             % (method, ", ".join(n for n, _ in methods())))
+        m = out.value
+    else:
+        raise TypeError("method: expected a name such as 'dmc' or an id, got %r" % (method,))
+    if not lib.isomend_method_available(m):
+        raise IsomendError("method: %r is not implemented in this build (available: %s)"
+                           % (lib.isomend_method_name(m).decode(), ", ".join(available_methods())),
+                           9, "UNSUPPORTED")
+    return m
+
+
+# ------------------------------------------------------------ progress
+
+class _Progress:
+    """Turns a Python progress callable into a C callback that never lets an
+    exception escape (ctypes would swallow it): the exception cancels the C call
+    and is re-raised by ``reraise()`` afterwards."""
+
+    def __init__(self, fn, io=False):
+        self.fn = fn
+        self.error = None
+        self.cancelled = False
+        if io:
+            self.c_fn = IO_PROGRESS_FN(self._io_call)
+        else:
+            self.c_fn = PROGRESS_FN(self._core_call)
+
+    def _invoke(self, stage, fraction):
+        if self.fn is None or self.error is not None:
+            return 1 if self.error is not None else 0
+        try:
+            if self.fn(stage, float(fraction)):
+                self.cancelled = True
+                return 1
+            return 0
+        except BaseException as exc:  # KeyboardInterrupt too: cancel, re-raise later
+            self.error = exc
+            return 1
+
+    def _core_call(self, _user, fraction):
+        return self._invoke("extract", fraction)
+
+    def _io_call(self, _user, stage, fraction):
+        name = IO_STAGES[stage] if 0 <= stage < len(IO_STAGES) else str(stage)
+        return self._invoke(name, fraction)
+
+    def reraise(self):
+        if self.error is not None:
+            err, self.error = self.error, None
+            raise err
+
+
+# ------------------------------------------------------------ volumes
+
+def _as_volume(array, axes, spacing, origin):
+    """Describes a numpy array as an isomend_volume without copying when possible.
+    Returns (Volume, the array kept alive)."""
+    if not isinstance(array, np.ndarray):
+        array = np.asarray(array)
+    if array.ndim != 3:
+        raise ValueError("volume: expected a 3D array, got shape %s" % (array.shape,))
+    if array.dtype == np.bool_:
+        array = array.view(np.uint8)
+    elif array.dtype == np.float16:
+        array = array.astype(np.float32)
+    elif array.dtype in (np.dtype(np.uint32), np.dtype(np.int64), np.dtype(np.uint64)):
+        array = array.astype(np.float64)
+    if array.dtype.kind in "iuf" and not array.dtype.isnative:
+        array = array.astype(array.dtype.newbyteorder("="))
+    vtype = _DTYPE_TO_TYPE.get(np.dtype(array.dtype))
+    if vtype is None:
+        raise TypeError("volume: unsupported dtype %s (use uint8, int8, uint16, int16, int32, "
+                        "float32 or float64)" % array.dtype)
+    axes = axes.lower()
+    if sorted(axes) != ["x", "y", "z"]:
+        raise ValueError("axes: expected a permutation of 'xyz' naming the array's axes, got %r" % axes)
+    vol = Volume()
+    vol.data = array.ctypes.data
+    vol.type = vtype
+    for array_axis, name in enumerate(axes):
+        world = "xyz".index(name)
+        vol.dims[world] = array.shape[array_axis]
+        vol.strides[world] = array.strides[array_axis]
+    if all(vol.strides[i] == 0 for i in range(3)):
+        # The C API reads all-zero strides as "contiguous": only possible here for a
+        # fully broadcast array, whose samples are all equal; make it explicit.
+        array = np.ascontiguousarray(array)
+        return _as_volume(array, axes, spacing, origin)
+    sp = _triple(spacing, "spacing", 1.0)
+    for i, s in enumerate(sp):
+        if not (math.isfinite(s) and s > 0):
+            raise ValueError("spacing: %s component must be finite and > 0, got %r" % ("xyz"[i], s))
+    org = _triple(origin, "origin", 0.0)
+    for i, o in enumerate(org):
+        if not math.isfinite(o):
+            raise ValueError("origin: %s component must be finite, got %r" % ("xyz"[i], o))
+    vol.spacing[:] = sp
+    vol.origin[:] = org
+    return vol, array
+
+
+def _triple(value, name, default):
+    if value is None:
+        return (default, default, default)
+    if np.isscalar(value):
+        return (float(value),) * 3
+    vals = tuple(float(v) for v in value)
+    if len(vals) != 3:
+        raise ValueError("%s: expected 3 numbers (x, y, z) or one, got %d" % (name, len(vals)))
+    return vals
+
+
+def _options(iso, method, pad, flip, normals, origins, threads, progress):
+    opts = Options()
+    _core_lib().isomend_options_init(ctypes.byref(opts))
+    if iso is not None:
+        iso = float(iso)
+        if not math.isfinite(iso):
+            raise ValueError("iso: must be finite, got %r" % iso)
+        opts.iso = iso
+    opts.method = _method_id(method)
+    flags = 0
+    if pad:
+        flags |= FLAG_PAD
+    if flip:
+        flags |= FLAG_FLIP
+    if not normals:
+        flags |= FLAG_NO_NORMALS
+    if not origins:
+        flags |= FLAG_NO_ORIGINS
+    opts.flags = flags
+    if threads is None:
+        threads = 0
+    threads = int(threads)
+    if threads < 0:
+        raise ValueError("threads: must be >= 0 (0 = all cores), got %d" % threads)
+    opts.threads = threads
+    if progress is not None:
+        opts.progress = progress.c_fn
+    return opts
+
+
+# ------------------------------------------------------------ meshes
+
+def _stats_dict(st):
+    return {
+        "cubes": st.cubes,
+        "case_histogram": list(st.case_histogram),
+        "ambiguous_faces": st.ambiguous_faces,
+        "inverted_combinations": st.inverted_combinations,
+        "triangles_by_origin": dict(zip(ORIGIN_NAMES, st.triangles_by_origin)),
+        "mending_triangles": st.triangles_by_origin[ORIGIN_MEND],
+        "durst_triangles": st.triangles_by_origin[ORIGIN_DURST],
+        "nan_samples": st.nan_samples,
+        "vertices": st.vertices,
+        "triangles": st.triangles,
+    }
+
+
+def _report_dict(rep):
+    return {name: getattr(rep, name) for name, _ in CheckReport._fields_}
+
+
+class Mesh:
+    """An extracted mesh held in numpy arrays (the C mesh is freed at once).
+
+    positions (V, 3) float32; normals (V, 3) float32 or None; triangles (T, 3)
+    uint32; origins (T,) uint8 or None (ORIGIN_TABLE/DURST/MEND); grid_box
+    (min x, y, z, max x, y, z) of the sampled grid (padded if pad=True); stats
+    dict; iso and method used.
+    """
+
+    def __init__(self, positions, normals, triangles, origins, grid_box, stats, iso, method):
+        self.positions = positions
+        self.normals = normals
+        self.triangles = triangles
+        self.origins = origins
+        self.grid_box = grid_box
+        self.stats = stats
+        self.iso = iso
+        self.method = method
+
+    @property
+    def vertex_count(self):
+        return len(self.positions)
+
+    @property
+    def triangle_count(self):
+        return len(self.triangles)
+
+    def check(self):
+        """Runs the continuity checker against the grid box: a dict with
+        hole_edges, nonmanifold_edges, misoriented_edges, border_edges, ...,
+        euler (V - E + F)."""
+        return check(self.positions, self.triangles, box=self.grid_box)
+
+    def __repr__(self):
+        return "<isomend.Mesh %s iso=%g: %d vertices, %d triangles (%d mending)>" % (
+            self.method, self.iso, self.vertex_count, self.triangle_count,
+            self.stats.get("mending_triangles", 0))
+
+
+def _take_mesh(handle, stats, iso, method_id, want_normals, want_origins):
+    """Copies a C mesh into numpy arrays and destroys it (always)."""
+    lib = _core_lib()
+    try:
+        nv = lib.isomend_mesh_vertex_count(handle)
+        nt = lib.isomend_mesh_triangle_count(handle)
+        positions = np.empty((nv, 3), np.float32)
+        triangles = np.empty((nt, 3), np.uint32)
+        normals = np.empty((nv, 3), np.float32) if want_normals else None
+        origins = np.empty(nt, np.uint8) if want_origins else None
+        status = lib.isomend_mesh_copy(
+            handle, positions.ctypes.data,
+            normals.ctypes.data if normals is not None else None,
+            triangles.ctypes.data,
+            origins.ctypes.data if origins is not None else None)
+        if status != 0:
+            _raise_core(status, "isomend_mesh_copy")
+        box = (ctypes.c_double * 6)()
+        lib.isomend_mesh_grid_box(handle, box)
+    finally:
+        lib.isomend_mesh_destroy(handle)
+    name = lib.isomend_method_name(method_id).decode()
+    return Mesh(positions, normals, triangles, origins, tuple(box), _stats_dict(stats), iso, name)
+
+
+def extract(volume, iso, method="dmc", spacing=None, origin=None, pad=False, flip=False,
+            normals=True, origins=True, threads=0, axes="zyx", progress=None):
+    """Extracts the isosurface of a 3D numpy array at level ``iso``.
+
+    volume:  3D array, ``array[z, y, x]`` unless ``axes`` says otherwise (see the module doc).
+    iso:     finite level; a sample >= iso is inside.
+    method:  "dmc" (default, the thesis's mended MC), "mc", "durst", ... or an id.
+    spacing: (x, y, z) world distance between samples, or one number (default 1).
+    origin:  (x, y, z) world position of sample (0, 0, 0) (default 0).
+    pad:     surround with an outside layer: closed surfaces.
+    flip:    normals towards higher values, winding reversed to match.
+    normals: compute gradient normals (else mesh.normals is None).
+    origins: record each triangle's origin (else mesh.origins is None).
+    threads: worker threads, 0 = all cores (the mesh does not depend on it).
+    progress: callable(stage, fraction) -> True to cancel.
+    Returns a Mesh.  Raises IsomendError (Cancelled when cancelled), ValueError, TypeError.
+    """
+    if iso is None:
+        raise ValueError("iso: required for a numpy volume (a Source can suggest one)")
+    vol, keep = _as_volume(volume, axes, spacing, origin)
+    prog = _Progress(progress) if progress is not None else None
+    opts = _options(iso, method, pad, flip, normals, origins, threads, prog)
+    handle = ctypes.c_void_p()
+    stats = Stats()
+    status = _core_lib().isomend_extract(ctypes.byref(vol), ctypes.byref(opts),
+                                         ctypes.byref(handle), ctypes.byref(stats))
+    del keep
+    if prog is not None:
+        prog.reraise()
+    if status != 0:
+        if handle.value:
+            _core_lib().isomend_mesh_destroy(handle)
+        _raise_core(status, "isomend_extract")
+    return _take_mesh(handle, stats, opts.iso, opts.method, normals, origins)
+
+
+def check(positions, triangles, box=None):
+    """Continuity check of any triangle mesh: positions (V, 3) float, triangles
+    (T, 3) int.  ``box`` (min x, y, z, max x, y, z) is the volume's box: once-used
+    edges in its faces are border edges, others hole edges (None: the mesh's own
+    bounding box).  Returns a dict (see CheckReport)."""
+    pos = np.ascontiguousarray(positions, dtype=np.float32)
+    tri = np.asarray(triangles)
+    if pos.ndim != 2 or pos.shape[1] != 3:
+        raise ValueError("positions: expected shape (V, 3), got %s" % (pos.shape,))
+    if tri.ndim != 2 or tri.shape[1] != 3:
+        raise ValueError("triangles: expected shape (T, 3), got %s" % (tri.shape,))
+    if tri.size and (tri.min() < 0 or tri.max() >= len(pos)):
+        raise ValueError("triangles: index out of range 0..%d" % (len(pos) - 1))
+    tri = np.ascontiguousarray(tri, dtype=np.uint32)
+    cbox = None
+    if box is not None:
+        b = [float(v) for v in box]
+        if len(b) != 6:
+            raise ValueError("box: expected 6 numbers (min x, y, z, max x, y, z)")
+        cbox = (ctypes.c_double * 6)(*b)
+    rep = CheckReport()
+    status = _core_lib().isomend_check(pos.ctypes.data, len(pos), tri.ctypes.data, len(tri),
+                                       cbox, ctypes.byref(rep))
+    if status != 0:
+        _raise_core(status, "isomend_check")
+    return _report_dict(rep)
+
+
+# ------------------------------------------------------------ slice sources
+
+def _paths_list(paths):
+    if isinstance(paths, (str, bytes, os.PathLike)):
+        paths = [paths]
+    out = []
+    for p in paths:
+        p = os.fsencode(p)
+        if not p:
+            raise ValueError("paths: empty path")
+        out.append(p)
+    if not out:
+        raise ValueError("paths: no path given")
+    return out
+
+
+class Source:
+    """An opened, validated slice stack / raw / NRRD source (wraps isomend_io_source).
+
+    Use as a context manager or call close(); the handle is also released when
+    the object is garbage-collected.  Attributes after opening: dims (nx, ny,
+    nz), dtype, spacing (x, y, z), spacing_sources, origin, kind, format,
+    volume_bytes, slice_bytes.
+    """
+
+    def __init__(self, paths, channel=None, spacing=None, origin=None, first=0, count=0, step=1,
+                 threads=0, memory_limit=0, raw_dims=None, raw_type=None, raw_header=0,
+                 raw_big_endian=False, progress=None):
+        self._handle = None
+        lib = _io_lib()
+        self._lib = lib
+        self._progress = _Progress(None, io=True)
+        self._progress.fn = progress
+        opts = IOOptions()
+        lib.isomend_io_options_init(ctypes.byref(opts))
+        opts.first, opts.count, opts.step = int(first), int(count), int(step)
+        if channel is not None:
+            if isinstance(channel, str):
+                names = {"auto": IO_CHANNEL_AUTO, "luma": IO_CHANNEL_LUMA}
+                if channel.lower() not in names:
+                    raise ValueError("channel: expected an index >= 0, 'auto' or 'luma', got %r" % channel)
+                channel = names[channel.lower()]
+            channel = int(channel)
+            if channel < IO_CHANNEL_LUMA:
+                raise ValueError("channel: expected an index >= 0, -1 (auto) or -2 (luma), got %d" % channel)
+            opts.channel = channel
+        if spacing is not None:
+            sp = _triple(spacing, "spacing", 1.0)
+            for i, s in enumerate(sp):
+                if not (math.isfinite(s) and s > 0):
+                    raise ValueError("spacing: %s component must be finite and > 0, got %r" % ("xyz"[i], s))
+            opts.spacing[:] = sp
+        if origin is not None:
+            org = _triple(origin, "origin", 0.0)
+            if not all(math.isfinite(o) for o in org):
+                raise ValueError("origin: components must be finite, got %r" % (org,))
+            opts.origin[:] = org
+        if int(threads) < 0:
+            raise ValueError("threads: must be >= 0 (0 = one per core)")
+        opts.threads = int(threads)
+        opts.memory_limit = int(memory_limit)
+        if raw_dims is not None:
+            dims = [int(d) for d in raw_dims]
+            if len(dims) != 3 or min(dims) <= 0:
+                raise ValueError("raw_dims: expected 3 sizes > 0 (nx, ny, nz), got %r" % (raw_dims,))
+            opts.raw_dims[:] = dims
+            if raw_type is None:
+                raise ValueError("raw_type: required with raw_dims (e.g. 'u16' or numpy.uint16)")
+            opts.raw_type = _type_id(raw_type)
+        opts.raw_header = int(raw_header)
+        opts.raw_big_endian = 1 if raw_big_endian else 0
+        opts.progress = self._progress.c_fn
+        handle = ctypes.c_void_p()
+        status = lib.isomend_io_create(ctypes.byref(handle))
+        if status != 0 or not handle.value:
+            self._raise(status or 9, "isomend_io_create")
+        self._handle = handle
+        encoded = _paths_list(paths)
+        self.paths = [os.fsdecode(p) for p in encoded]
+        arr = (ctypes.c_char_p * len(encoded))(*encoded)
+        status = lib.isomend_io_open(handle, arr, len(encoded), ctypes.byref(opts))
+        self._check(status, "open")
+        self._query()
+
+    # -- internals
+    def _raise(self, status, what):
+        msg = ""
+        if self._handle is not None:
+            raw = self._lib.isomend_io_message(self._handle)
+            msg = raw.decode(errors="replace") if raw else ""
+        if not msg:
+            raw = self._lib.isomend_io_status_string(status)
+            msg = raw.decode() if raw else "status %d" % status
+        name = IO_STATUS_NAMES.get(status, str(status))
+        cls = Cancelled if status == IO_ERR_CANCELLED else IsomendError
+        raise cls(msg if what is None else "%s: %s" % (what, msg), status, name)
+
+    def _check(self, status, what):
+        self._progress.reraise()
+        if status != 0:
+            if self._progress.cancelled and status == IO_ERR_CANCELLED:
+                self._progress.cancelled = False
+            self._raise(status, what)
+
+    def _require_open(self):
+        if self._handle is None:
+            raise ValueError("source is closed")
+        return self._handle
+
+    def _query(self):
+        lib, h = self._lib, self._handle
+        dims = (ctypes.c_int64 * 3)()
+        self._check(lib.isomend_io_dims(h, dims), "dims")
+        self.dims = tuple(dims)
+        t = ctypes.c_int()
+        self._check(lib.isomend_io_type(h, ctypes.byref(t)), "type")
+        self.dtype = _TYPE_TO_DTYPE[t.value]
+        sp = (ctypes.c_double * 3)()
+        src = (ctypes.c_int * 3)()
+        self._check(lib.isomend_io_spacing(h, sp, src), "spacing")
+        self.spacing = tuple(sp)
+        self.spacing_sources = tuple((lib.isomend_io_spacing_source_name(s) or b"?").decode() for s in src)
+        org = (ctypes.c_double * 3)()
+        self._check(lib.isomend_io_origin(h, org), "origin")
+        self.origin = tuple(org)
+        kind = lib.isomend_io_source_kind(h)
+        name = lib.isomend_io_kind_name(kind)
+        self.kind = name.decode() if name else str(kind)
+        fmt = lib.isomend_io_format(h)
+        self.format = fmt.decode() if fmt else ""
+        self.volume_bytes = int(lib.isomend_io_volume_bytes(h))
+        self.slice_bytes = int(lib.isomend_io_slice_bytes(h))
+
+    def _with_progress(self, progress):
+        if progress is not None:
+            self._progress.fn = progress
+
+    # -- public
+    def slice_path(self, k):
+        """Path of slice k (the file itself for every page of a multi-page file)."""
+        p = self._lib.isomend_io_slice_path(self._require_open(), int(k))
+        if p is None:
+            raise IndexError("slice %d out of range 0..%d" % (k, self.dims[2] - 1))
+        return os.fsdecode(p)
+
+    def read(self, progress=None):
+        """Reads the whole volume into a new numpy array [z, y, x] of ``dtype``."""
+        h = self._require_open()
+        self._with_progress(progress)
+        nx, ny, nz = self.dims
+        out = np.empty((nz, ny, nx), self.dtype)
+        self._check(self._lib.isomend_io_read(h, out.ctypes.data, out.nbytes), "read")
+        return out
+
+    def read_slice(self, k):
+        """Reads slice k into a new numpy array [y, x] (opens and closes the file)."""
+        h = self._require_open()
+        nx, ny, nz = self.dims
+        if not 0 <= int(k) < nz:
+            raise IndexError("slice %d out of range 0..%d" % (k, nz - 1))
+        out = np.empty((ny, nx), self.dtype)
+        self._check(self._lib.isomend_io_read_slice(h, int(k), out.ctypes.data, out.nbytes),
+                    "read slice %d" % k)
+        return out
+
+    def analyse(self, progress=None):
+        """Value range, 16-bin histogram, NaN count and the suggested iso (Otsu)."""
+        h = self._require_open()
+        self._with_progress(progress)
+        s = IOSummary()
+        self._check(self._lib.isomend_io_analyse(h, ctypes.byref(s)), "analyse")
+        return {"min": s.min, "max": s.max, "samples": s.samples, "nan_samples": s.nan_samples,
+                "histogram": list(s.histogram), "suggested_iso": s.suggested_iso,
+                "read_seconds": s.read_seconds}
+
+    def extract(self, iso=None, method="dmc", pad=False, flip=False, normals=True, origins=True,
+                threads=0, progress=None):
+        """Loads the volume and extracts its isosurface (isomend_io_extract).
+        iso None: the importer's suggested level (see analyse()).  Spacing and
+        origin are the source's.  Returns a Mesh whose ``iso`` is the level used."""
+        h = self._require_open()
+        self._with_progress(progress)
+        # Progress of the extraction goes through the source's callback (stage "extract").
+        opts = _options(iso if iso is not None else 0.0, method, pad, flip, normals, origins,
+                        threads, None)
+        handle = ctypes.c_void_p()
+        stats = Stats()
+        iso_used = ctypes.c_double()
+        status = self._lib.isomend_io_extract(h, ctypes.byref(opts), 1 if iso is None else 0,
+                                              ctypes.byref(iso_used), ctypes.byref(handle),
+                                              ctypes.byref(stats))
+        if status != 0 and handle.value:
+            _core_lib().isomend_mesh_destroy(handle)
+        self._check(status, "extract")
+        return _take_mesh(handle, stats, iso_used.value, opts.method, normals, origins)
+
+    def close(self):
+        """Releases the handle and the loaded volume (idempotent)."""
+        if self._handle is not None:
+            h, self._handle = self._handle, None
+            self._lib.isomend_io_destroy(h)
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self.close()
+        return False
+
+    def __del__(self):
+        try:
+            self.close()
+        except Exception:
+            pass
+
+    def __repr__(self):
+        return "<isomend.Source %s %s %dx%dx%d %s spacing=%s>" % (
+            self.kind, self.format, self.dims[0], self.dims[1], self.dims[2],
+            np.dtype(self.dtype).name, self.spacing)
+
+
+def _type_id(t):
+    if isinstance(t, str):
+        out = ctypes.c_int()
+        if _core_lib().isomend_type_from_name(t.encode(), ctypes.byref(out)) == 0:
+            return out.value
+    try:
+        dt = np.dtype(t)
+    except TypeError:
+        dt = None
+    if dt is not None and dt in _DTYPE_TO_TYPE:
+        return _DTYPE_TO_TYPE[dt]
+    raise ValueError("raw_type: expected u8, i8, u16, i16, i32, f32, f64 (or a numpy dtype), got %r" % (t,))
+
+
+def open_source(paths, **kwargs):
+    """Opens and validates a source: a folder, a glob ('scan/*.tif'), a printf
+    pattern ('s_%04d.tif' with first/count/step), a list of files, a multi-page
+    TIFF, a raw file (raw_dims, raw_type) or an NRRD file.  Keyword arguments:
+    channel (index, 'auto', 'luma'), spacing, origin, first, count, step, threads,
+    memory_limit, raw_dims, raw_type, raw_header, raw_big_endian, progress.
+    Returns a Source; raises IsomendError naming the file and the reason."""
+    return Source(paths, **kwargs)
+
+
+def extract_source(paths, iso=None, method="dmc", pad=False, flip=False, normals=True,
+                   origins=True, threads=0, progress=None, **open_kwargs):
+    """open_source(paths, **open_kwargs) then Source.extract(...): one call from
+    files to a Mesh; iso None uses the suggested level."""
+    with Source(paths, threads=threads, progress=progress, **open_kwargs) as src:
+        return src.extract(iso=iso, method=method, pad=pad, flip=flip, normals=normals,
+                           origins=origins, threads=threads)
