@@ -294,7 +294,8 @@ typedef struct isomend_io_summary {
  *
  * Suggested iso rule (Otsu 1979): a 256-bin histogram of the finite samples
  * over [min, max]; t = the upper edge of the bin that maximises the
- * between-class variance w0*w1*(m0 - m1)^2.  For integer types t is then
+ * between-class variance w0*w1*(m0 - m1)^2 (when empty bins after it give
+ * the same maximum, the edge in the middle of that gap).  For integer types t is then
  * moved to floor(t) + 0.5, so that no sample equals the level.  If all
  * samples are equal the suggestion is that value (no surface exists).
  */

@@ -264,8 +264,10 @@ double otsu(const uint64_t *h, int bins, double mn, double mx, bool integer) {
         total += (double)h[i];
         total_mass += (double)h[i] * (mn + (i + 0.5) * w);
     }
+    // Empty bins between two classes give the same between-class variance:
+    // take the middle of that plateau, not its first bin.
     double w0 = 0, m0 = 0, best = -1;
-    int best_i = 0;
+    int best_first = 0, best_last = 0;
     for (int i = 0; i < bins - 1; i++) {
         w0 += (double)h[i];
         m0 += (double)h[i] * (mn + (i + 0.5) * w);
@@ -273,12 +275,14 @@ double otsu(const uint64_t *h, int bins, double mn, double mx, bool integer) {
         if (w0 <= 0 || w1 <= 0) continue;
         double d = m0 / w0 - (total_mass - m0) / w1;
         double between = w0 * w1 * d * d;
-        if (between > best) {
+        if (between > best * (1 + 1e-12)) {
             best = between;
-            best_i = i;
+            best_first = best_last = i;
+        } else if (between >= best * (1 - 1e-12) && h[i] == 0 && best_last == i - 1) {
+            best_last = i;
         }
     }
-    double t = mn + (best_i + 1) * w;
+    double t = mn + ((best_first + best_last) / 2.0 + 1) * w;
     if (integer) t = std::floor(t) + 0.5;
     return t;
 }

@@ -1,0 +1,341 @@
+#!/usr/bin/env python3
+"""Writes the test stacks of tests/io into OUTDIR and a manifest for the C test.
+
+Every stack is written here, by the test, with OpenImageIO's Python bindings or
+tifffile (an independent TIFF writer); the expected volume of each good case is
+written next to it as little-endian raw (x fastest, then y, then z), computed
+with numpy from the same arrays, so the C test compares what isomend_io reads
+with what was meant, sample by sample.
+
+manifest.tsv, one case per line, tab-separated:
+  ok   NAME TYPE NX NY NZ EXPECTED.raw KIND CHANNEL FIRST COUNT STEP SX SY SZ SPSRC SOURCE...
+  err  NAME STATUS MESSAGE-SUBSTRING CHANNEL FIRST COUNT STEP SOURCE...
+CHANNEL: -1 auto, -2 luma, else index.  SX SY SZ: expected spacing (0 0 0 =
+not checked); SPSRC: expected spacing sources "x,y,z" names or "-".  STATUS is
+an isomend_io_status number.  SOURCE paths are relative to OUTDIR.
+
+Usage: gen_stacks.py OUTDIR
+"""
+import os
+import shutil
+import struct
+import sys
+
+import numpy as np
+import OpenImageIO as oiio
+import tifffile
+
+OUT = os.path.abspath(sys.argv[1])
+shutil.rmtree(OUT, ignore_errors=True)  # stale files would change folder contents
+os.makedirs(OUT)
+RNG = np.random.default_rng(20261122)
+LINES = []
+
+# isomend_io_status values (isomend_io.h)
+NOT_FOUND, UNREADABLE, CORRUPT, MISMATCH, UNSUPPORTED, TOO_FEW, TOO_LARGE = 2, 3, 4, 5, 6, 7, 8
+AUTO, LUMA = -1, -2
+
+
+def d(*parts):
+    p = os.path.join(OUT, *parts)
+    os.makedirs(p, exist_ok=True)
+    return p
+
+
+def oiio_write(path, img, fmt, compression="none", channels=None, extra=None, bits=None):
+    """img: (h, w) or (h, w, c) array already in the stored representation."""
+    if img.ndim == 2:
+        img = img[:, :, None]
+    h, w, c = img.shape
+    spec = oiio.ImageSpec(w, h, c, fmt)
+    if compression:
+        spec.attribute("compression", compression)
+    if channels:
+        spec.channelnames = tuple(channels)
+    if bits:
+        spec.attribute("oiio:BitsPerSample", bits)
+    for k, v in (extra or {}).items():
+        spec.attribute(k, v)
+    out = oiio.ImageOutput.create(path)
+    assert out is not None and out.open(path, spec), oiio.geterror()
+    assert out.write_image(np.ascontiguousarray(img)), out.geterror()
+    out.close()
+
+
+def save_expected(name, vol):
+    """vol indexed [z, y, x] in the delivered type."""
+    p = os.path.join(OUT, name + ".expected.raw")
+    np.ascontiguousarray(vol).astype(vol.dtype.newbyteorder("<")).tofile(p)
+    return os.path.basename(p)
+
+
+def ok(name, tname, vol, kind, sources, channel=AUTO, first=0, count=0, step=1,
+       spacing=(0, 0, 0), spsrc="-"):
+    nz, ny, nx = vol.shape
+    exp = save_expected(name, vol)
+    rel = [os.path.relpath(s, OUT) for s in sources]
+    LINES.append("\t".join(["ok", name, tname, str(nx), str(ny), str(nz), exp, kind, str(channel),
+                            str(first), str(count), str(step)] + ["%.17g" % s for s in spacing] +
+                           [spsrc] + rel))
+
+
+def err(name, status, substring, sources, channel=AUTO, first=0, count=0, step=1):
+    rel = [os.path.relpath(s, OUT) if os.path.isabs(s) else s for s in sources]
+    LINES.append("\t".join(["err", name, str(status), substring, str(channel), str(first),
+                            str(count), str(step)] + rel))
+
+
+def rand(shape, dtype, lo, hi):
+    return RNG.integers(lo, hi, size=shape, endpoint=True).astype(dtype)
+
+
+NX, NY = 13, 9   # odd, unequal: a transposition or a row stride error shows
+
+# ---- good stacks -----------------------------------------------------------------------------
+
+# u8 folder, natural order (s_2 before s_10), distractors of other extensions ignored
+f = d("u8_folder")
+vol = rand((12, NY, NX), np.uint8, 0, 255)
+vol[:, 0, 0] = np.arange(12)            # slice index in a corner
+for k in range(12):
+    oiio_write(os.path.join(f, "s_%d.tif" % (k + 1)), vol[k], "uint8")
+oiio_write(os.path.join(f, "preview.png"), vol[0], "uint8")
+open(os.path.join(f, "notes.txt"), "w").write("not an image\n")
+open(os.path.join(f, ".hidden.tif"), "w").write("hidden files are skipped\n")
+ok("u8_folder", "u8", vol, "folder", [f])
+
+# u16 printf pattern with first/count/step (deflate)
+f = d("u16_pattern")
+allv = rand((13, NY, NX), np.uint16, 0, 65535)
+for k in range(13):
+    oiio_write(os.path.join(f, "slice_%04d.tif" % k), allv[k], "uint16", "zip")
+ok("u16_pattern", "u16", allv[3:11:2], "pattern", [os.path.join(f, "slice_%04d.tif")],
+   first=3, count=4, step=2)
+ok("u16_pattern_all", "u16", allv, "pattern", [os.path.join(f, "slice_%04d.tif")])
+
+# i16 glob, negative values kept, natural order of g_9, g_10, g_100; h_* not matched
+f = d("i16_glob")
+vol = rand((3, NY, NX), np.int16, -32768, 32767)
+vol[:, 0, 0] = [-1000, -2000, -3000]
+for k, idx in enumerate([9, 10, 100]):
+    tifffile.imwrite(os.path.join(f, "g_%d.tif" % idx), vol[k], photometric="minisblack")
+tifffile.imwrite(os.path.join(f, "h_1.tif"), vol[0], photometric="minisblack")
+ok("i16_glob", "i16", vol, "glob", [os.path.join(f, "g_*.tif")])
+
+# f32 explicit list: the order given is kept (not sorted)
+f = d("f32_list")
+vol = RNG.normal(0, 1000, size=(4, NY, NX)).astype(np.float32)
+names = ["c.tif", "a.tif", "d.tif", "b.tif"]
+for k, n in enumerate(names):
+    oiio_write(os.path.join(f, n), vol[k], "float", "zip")
+ok("f32_list", "f32", vol, "list", [os.path.join(f, n) for n in names])
+
+# packed 12-bit TIFF: stored values 0..4095 (OIIO's writer takes them scaled to 16 bits)
+f = d("u12_folder")
+vol = rand((3, NY, NX), np.uint16, 0, 4095)
+vol[0, 0, :3] = [0, 4095, 1]
+for k in range(3):
+    oiio_write(os.path.join(f, "t_%02d.tif" % k), vol[k] << 4, "uint16", "none", bits=12)
+ok("u12_folder", "u16", vol, "folder", [f])
+
+# OpenEXR half (values beyond 1 and negative) and float
+f = d("exr_half")
+vol = (RNG.normal(0, 300, size=(3, NY, NX))).astype(np.float16)
+for k in range(3):
+    oiio_write(os.path.join(f, "e%d.exr" % k), vol[k], "half", "zip", channels=["Y"])
+ok("exr_half", "f32", vol.astype(np.float32), "folder", [f])
+f = d("exr_float")
+vol = (RNG.normal(0, 1e5, size=(3, NY, NX))).astype(np.float32)
+for k in range(3):
+    oiio_write(os.path.join(f, "e%d.exr" % k), vol[k], "float", "piz", channels=["Y"])
+ok("exr_float", "f32", vol, "folder", [f])
+
+# multi-part EXR: parts are slices
+f = d("exr_multipart")
+vol = (RNG.normal(0, 10, size=(4, NY, NX))).astype(np.float16)
+specs = []
+for k in range(4):
+    s = oiio.ImageSpec(NX, NY, 1, "half")
+    s.channelnames = ("Y",)
+    s.attribute("name", "slice%d" % k)
+    specs.append(s)
+p = os.path.join(f, "stack.exr")
+out = oiio.ImageOutput.create(p)
+assert out.open(p, specs), out.geterror()
+for k in range(4):
+    if k:
+        assert out.open(p, specs[k], "AppendSubimage"), out.geterror()
+    assert out.write_image(np.ascontiguousarray(vol[k][:, :, None])), out.geterror()
+out.close()
+ok("exr_multipart", "f32", vol.astype(np.float32), "multipage", [p])
+
+# multi-page TIFF written by tifffile in ImageJ's format: spacing from metadata
+f = d("multipage")
+vol = rand((5, NY, NX), np.uint16, 0, 60000)
+p = os.path.join(f, "stack.tif")
+tifffile.imwrite(p, vol, imagej=True, resolution=(1 / 0.25, 1 / 0.5),
+                 metadata={"spacing": 2.5, "unit": "um", "axes": "ZYX"})
+ok("multipage_imagej", "u16", vol, "multipage", [p], spacing=(0.25, 0.5, 2.5),
+   spsrc="imagej,imagej,imagej")
+
+# TIFF resolution tags in pixels per cm: spacing in mm
+f = d("res_cm")
+vol = rand((2, NY, NX), np.uint8, 0, 255)
+for k in range(2):
+    tifffile.imwrite(os.path.join(f, "r%d.tif" % k), vol[k], photometric="minisblack",
+                     resolution=(20.0, 40.0), resolutionunit="CENTIMETER")
+ok("res_cm", "u8", vol, "folder", [f], spacing=(0.5, 0.25, 1.0), spsrc="tiff,tiff,default")
+
+# PNG u8 and u16
+for tname, dt, fmt, hi in (("u8", np.uint8, "uint8", 255), ("u16", np.uint16, "uint16", 65535)):
+    f = d("png_" + tname)
+    vol = rand((3, NY, NX), dt, 0, hi)
+    for k in range(3):
+        oiio_write(os.path.join(f, "p%d.png" % k), vol[k], fmt, None)
+    ok("png_" + tname, tname, vol, "folder", [f])
+
+# RGB: --channel 1 and --channel luma (Rec. 709 of the stored values, f32)
+f = d("rgb")
+rgb = rand((3, NY, NX, 3), np.uint8, 0, 255)
+for k in range(3):
+    oiio_write(os.path.join(f, "c%d.tif" % k), rgb[k], "uint8")
+ok("rgb_channel1", "u8", rgb[..., 1], "folder", [f], channel=1)
+r, g, b = (rgb[..., i].astype(np.float64) for i in range(3))
+ok("rgb_luma", "f32", (0.2126 * r + 0.7152 * g + 0.0722 * b).astype(np.float32), "folder", [f],
+   channel=LUMA)
+
+# bimodal u8 (two classes around 20 and 200): Otsu's level lies between them
+f = d("bimodal")
+vol = rand((4, NY, NX), np.uint8, 17, 23)
+mask = RNG.random((4, NY, NX)) < 0.4
+vol[mask] = rand((int(mask.sum()),), np.uint8, 197, 203)
+for k in range(4):
+    oiio_write(os.path.join(f, "m%d.tif" % k), vol[k], "uint8")
+ok("bimodal", "u8", vol, "folder", [f])
+
+# the "L" phantom (tifffile, rows top to bottom as any viewer shows them): a vertical bar at
+# columns 2-3 from row 2 down to row 12, a foot at rows 11-12 to the right up to column 9, in
+# slices 1 and 2 of 4; slice 1 also has a 2x2 dot at columns 8-9, rows 2-3 (top right).
+f = d("L_phantom")
+vol = np.zeros((4, 16, 12), np.uint8)
+for z in (1, 2):
+    vol[z, 2:13, 2:4] = 100
+    vol[z, 11:13, 2:10] = 100
+vol[1, 2:4, 8:10] = 100
+for k in range(4):
+    tifffile.imwrite(os.path.join(f, "L_%d.tif" % k), vol[k], photometric="minisblack")
+ok("L_phantom", "u8", vol, "folder", [f])
+
+# ---- bad stacks ------------------------------------------------------------------------------
+
+def gray_folder(name, n=3, dt=np.uint8, fmt="uint8", compression="none", ext="tif"):
+    f = d(name)
+    vol = rand((n, NY, NX), dt, 0, 200)
+    paths = []
+    for k in range(n):
+        paths.append(os.path.join(f, "b_%02d.%s" % (k, ext)))
+        oiio_write(paths[-1], vol[k], fmt, compression)
+    return f, paths
+
+f, paths = gray_folder("missing_in_list")
+err("missing_in_list", NOT_FOUND, "nothere.tif", [paths[0], os.path.join(f, "nothere.tif"), paths[1]])
+err("missing_folder", NOT_FOUND, "no_such_folder", [os.path.join(OUT, "no_such_folder")])
+
+f, paths = gray_folder("unknown_file")
+open(os.path.join(f, "b_01.tif"), "w").write("this is not a TIFF file at all\n")
+err("unknown_file", UNREADABLE, "b_01.tif", [f])
+
+# truncated TIFF (uncompressed): the last slice loses half its pixel data
+f, paths = gray_folder("truncated", n=3, dt=np.uint16, fmt="uint16")
+# tifffile writes the IFD before the pixel data: cutting the file's end cuts pixels
+tifffile.imwrite(paths[2], rand((NY, NX), np.uint16, 0, 200), photometric="minisblack")
+sz = os.path.getsize(paths[2])
+os.truncate(paths[2], sz - (NX * NY))  # half of the last rows' bytes
+err("truncated", CORRUPT, "b_02.tif", [f])
+
+# deflate TIFF with a corrupted strip: garbage in the middle of the compressed data
+f = d("deflate_corrupt")
+big = rand((3, 64, 64), np.uint16, 0, 65535)
+paths = []
+for k in range(3):
+    paths.append(os.path.join(f, "z_%d.tif" % k))
+    tifffile.imwrite(paths[-1], big[k], photometric="minisblack", compression="zlib",
+                     rowsperstrip=64)
+with tifffile.TiffFile(paths[1]) as t:
+    off = t.pages[0].dataoffsets[0]
+    cnt = t.pages[0].databytecounts[0]
+with open(paths[1], "r+b") as fh:
+    fh.seek(off + cnt // 2)
+    fh.write(bytes(RNG.integers(0, 255, size=64, endpoint=True).astype(np.uint8)))
+err("deflate_corrupt", CORRUPT, "z_1.tif", [f])
+
+f, paths = gray_folder("size_mismatch")
+oiio_write(paths[1], rand((NY - 1, NX), np.uint8, 0, 9), "uint8")
+err("size_mismatch", MISMATCH, "b_01.tif", [f])
+
+f, paths = gray_folder("type_mismatch")
+oiio_write(paths[2], rand((NY, NX), np.uint16, 0, 9), "uint16")
+err("type_mismatch", MISMATCH, "b_02.tif", [f])
+
+f, paths = gray_folder("channel_mismatch")
+oiio_write(paths[1], rand((NY, NX, 3), np.uint8, 0, 9), "uint8")
+err("channel_mismatch", MISMATCH, "b_01.tif", [f])
+
+# an EXR whose data window is offset: same width and height, different window
+f, paths = gray_folder("window_mismatch", dt=np.float32, fmt="float", compression="zip", ext="exr")
+s = oiio.ImageSpec(NX, NY, 1, "float")
+s.x, s.y = 3, 2
+out = oiio.ImageOutput.create(paths[1])
+out.open(paths[1], s)
+out.write_image(np.zeros((NY, NX, 1), np.float32))
+out.close()
+err("window_mismatch", MISMATCH, "b_01.exr", [f])
+
+# a 3D image (OpenVDB grids are read by OIIO with depth > 1) is not a slice
+import pyopenvdb
+f = d("volume3d")
+for k in range(2):
+    g = pyopenvdb.FloatGrid()
+    g.copyFromArray(np.ones((4, 5, 6), np.float32))
+    g.name = "density"
+    pyopenvdb.write(os.path.join(f, "v%d.vdb" % k), grids=[g])
+err("volume3d", UNSUPPORTED, "v0.vdb", [f])
+
+d("empty_folder")
+err("empty_folder", NOT_FOUND, "empty_folder", [os.path.join(OUT, "empty_folder")])
+f, paths = gray_folder("one_slice", n=1)
+err("one_slice_folder", TOO_FEW, "b_00.tif", [f])
+err("one_slice_file", TOO_FEW, "b_00.tif", [paths[0]])
+err("glob_no_match", NOT_FOUND, "nomatch_*.tif", [os.path.join(OUT, "u8_folder", "nomatch_*.tif")])
+err("pattern_missing", NOT_FOUND, "slice_0013.tif", [os.path.join(OUT, "u16_pattern", "slice_%04d.tif")],
+    first=10, count=5)
+err("rgb_no_channel", UNSUPPORTED, "--channel", [os.path.join(OUT, "rgb")])
+err("rgb_bad_channel", UNSUPPORTED, "no channel 5", [os.path.join(OUT, "rgb")], channel=5)
+
+
+def huge_tiff(path, w, h, pages):
+    """A valid-looking TIFF header declaring huge pages whose data is absent."""
+    entries_per_ifd = 8
+    ifd_size = 2 + entries_per_ifd * 12 + 4
+    buf = bytearray(b"II*\x00" + struct.pack("<I", 8))
+    for p in range(pages):
+        start = 8 + p * ifd_size
+        nxt = start + ifd_size if p + 1 < pages else 0
+        ent = [(256, 4, 1, w), (257, 4, 1, h), (258, 3, 1, 8), (259, 3, 1, 1), (262, 3, 1, 1),
+               (273, 4, 1, 4096), (278, 4, 1, h), (279, 4, 1, w * h)]
+        buf += struct.pack("<H", len(ent))
+        for tag, typ, n, val in ent:
+            buf += struct.pack("<HHII", tag, typ, n, val)
+        buf += struct.pack("<I", nxt)
+        assert len(buf) == start + ifd_size
+    buf += bytes(4096 - len(buf)) + bytes(4096)
+    open(path, "wb").write(buf)
+
+
+f = d("too_large")
+huge_tiff(os.path.join(f, "huge.tif"), 60000, 60000, 40)   # 40 x 3.35 GiB = 134 GiB of u8
+err("too_large", TOO_LARGE, "GiB", [os.path.join(f, "huge.tif")])
+
+with open(os.path.join(OUT, "manifest.tsv"), "w") as fh:
+    fh.write("\n".join(LINES) + "\n")
+print("gen_stacks: %d cases in %s" % (len(LINES), OUT))
