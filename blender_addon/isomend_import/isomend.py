@@ -32,8 +32,9 @@ uint8; float16 is converted to float32 and uint32/int64/uint64 to float64 (a
 copy); non-native byte order is converted (a copy).
 
 Library lookup (done once, on first use):
-  1. the folder in the environment variable ISOMEND_LIB_DIR (an error if the
-     library is not there: no silent fallback);
+  1. the folders in the environment variable ISOMEND_LIB_DIR (one folder, or
+     several separated by ':' such as "build/libcore:build/io/slices"; an
+     error if the library is not there: no silent fallback);
   2. ``lib/`` next to this file: the add-on zip, and the staged copy the
      build makes in ``<build>/blender_addon/isomend_import/`` (so
      ``sys.path.insert(0, "<build>/blender_addon/isomend_import")`` then
@@ -245,7 +246,7 @@ _IO_NAMES = ("libisomend_io.so.0", "libisomend_io.so", "libisomend_io.dylib", "i
 def _search_dirs():
     env = os.environ.get("ISOMEND_LIB_DIR")
     if env:
-        return [("ISOMEND_LIB_DIR", env)], True
+        return [("ISOMEND_LIB_DIR", d) for d in env.split(os.pathsep) if d], True
     return [("next to the module", os.path.join(_HERE, "lib"))], False
 
 
@@ -264,7 +265,7 @@ def _load(names, what):
         tried.append("%s (%s)" % (folder, label))
     if exclusive:
         raise LibraryNotFound("%s: none of %s found in ISOMEND_LIB_DIR=%s"
-                              % (what, ", ".join(names[:2]), dirs[0][1]))
+                              % (what, ", ".join(names[:2]), os.environ.get("ISOMEND_LIB_DIR")))
     for name in names[:2]:
         try:
             return ctypes.CDLL(name, mode=ctypes.RTLD_GLOBAL), name

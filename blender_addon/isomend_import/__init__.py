@@ -1,0 +1,403 @@
+"""Blender add-on: File > Import > Slice Stack as Isosurface (isomend).
+
+A thin host adapter (STYLE.md item 16): the algorithm is in libisomend, the
+file reading in libisomend_io, both reached through the bpy-free ctypes module
+``isomend.py`` next to this file (plain Python can import and test it).  This
+file only turns operator properties into wrapper arguments, forwards progress
+to Blender's progress indicator, reports errors and builds the mesh with
+``foreach_set`` on float32/int32 arrays.
+
+Conventions:
+  - iso: with ``use_suggested_iso`` (default) the importer's suggested level
+    (Otsu) is used and ``iso`` is ignored; the level used is reported and
+    stored on the object as the custom property ``isomend_iso``.
+  - spacing (x, y, z) in millimetres; (0, 0, 0), the default, means "from the
+    files' metadata (TIFF resolution, ImageJ spacing, NRRD header), else 1".
+  - unit_scale: Blender units per millimetre, default 0.001 (1 unit = 1 metre,
+    Blender's default scene units, so a 250 mm head is 0.25 m tall).
+  - axes: x = image column, y = image row (top row first), z = slice order,
+    as isomend_io.h documents: the mesh is the stack as an image viewer shows
+    it, moved and scaled, never mirrored.
+  - the object is placed at the volume's origin (sample (0, 0, 0)); its
+    vertices are relative to it.
+  - normals: with ``smooth`` the core's gradient normals become custom split
+    normals and faces are shaded smooth; without it the faces are flat.
+  - a multi-file selection is put in natural order (s_2 before s_10).
+
+Cancellation: in the interactive UI the import runs in a worker thread while
+a modal operator updates the progress indicator; Esc cancels (the C library
+stops at its next progress callback).  Run from a script or in background
+mode (blender -b) it runs synchronously and prints progress instead.
+"""
+
+bl_info = {
+    "name": "Slice Stack as Isosurface (isomend)",
+    "author": "isomend contributors",
+    "version": (0, 1, 0),
+    "blender": (3, 4, 0),
+    "location": "File > Import > Slice Stack as Isosurface",
+    "description": "Import a stack of 2D images (CT, MRI, microscopy) as a hole-free isosurface mesh",
+    "category": "Import-Export",
+}
+
+import os
+import re
+import threading
+import time
+
+import bpy
+import numpy as np
+from bpy.props import (BoolProperty, CollectionProperty, EnumProperty, FloatProperty,
+                       FloatVectorProperty, IntProperty, StringProperty)
+from bpy.types import Operator, OperatorFileListElement
+from bpy_extras.io_utils import ImportHelper
+
+from . import isomend
+
+# The three methods of the thesis come first; methods added to the library
+# later (isomend_method_available) follow in id order.  Blender needs the item
+# strings kept referenced while the enum is in use, hence the module cache.
+_FIXED_METHODS = (
+    ("DMC", "DMC (mended)", "Marching cubes plus a quadrilateral on every inverted combination: "
+     "no holes, no extra polygons (the thesis method)"),
+    ("MC", "Marching cubes", "Lorensen & Cline 1987: may leave holes at ambiguous faces"),
+    ("DURST", "Durst", "Marching cubes plus a quadrilateral on every ambiguous face: no holes, "
+     "but extraneous polygons"),
+)
+_method_items_cache = []
+
+
+def _method_items(_self, _context):
+    if not _method_items_cache:
+        items = [(ident, name, desc, i) for i, (ident, name, desc) in enumerate(_FIXED_METHODS)]
+        try:
+            fixed = {ident.lower() for ident, _, _ in _FIXED_METHODS}
+            for name, available in isomend.methods():
+                if available and name not in fixed:
+                    items.append((name.upper(), name.capitalize(), "isomend method '%s'" % name,
+                                  isomend.METHODS.get(name, len(items))))
+        except isomend.IsomendError:
+            pass  # library missing: the fixed items; execute() reports the reason
+        _method_items_cache.extend(items)
+    return _method_items_cache
+
+
+_NATURAL = re.compile(r"(\d+)")
+
+
+def _natural_key(name):
+    return [int(part) if part.isdigit() else part.lower() for part in _NATURAL.split(name)]
+
+
+def _stack_name(paths):
+    """Object name: the folder's name, a single file's stem, or the common
+    prefix of a file list (without trailing digits/separators)."""
+    first = paths[0].rstrip("/\\")
+    if len(paths) == 1:
+        if os.path.isdir(first):
+            return os.path.basename(first) or "slice_stack"
+        return os.path.splitext(os.path.basename(first))[0] or "slice_stack"
+    prefix = os.path.commonprefix([os.path.basename(p) for p in paths])
+    prefix = prefix.rstrip("0123456789_-. ")
+    return prefix or os.path.basename(os.path.dirname(first)) or "slice_stack"
+
+
+# Share of each stage in the overall progress bar.
+_STAGE_SPAN = {"open": (0.0, 0.05), "read": (0.05, 0.55), "analyse": (0.55, 0.6),
+               "extract": (0.6, 0.92), "mesh": (0.92, 1.0)}
+
+
+def _overall(stage, fraction):
+    lo, hi = _STAGE_SPAN.get(stage, (0.0, 1.0))
+    return lo + (hi - lo) * min(max(fraction, 0.0), 1.0)
+
+
+class _Job:
+    """The bpy-free part of one import: open, extract.  Runs in the calling
+    thread or a worker thread; progress is recorded here and read by the
+    main thread (bpy is never touched from this class)."""
+
+    def __init__(self, paths, iso, method, spacing, channel, pad, smooth):
+        self.paths = paths
+        self.iso = iso
+        self.method = method
+        self.spacing = spacing
+        self.channel = channel
+        self.pad = pad
+        self.smooth = smooth
+        self.stage = "open"
+        self.fraction = 0.0
+        self.cancel = False
+        self.printer = None  # callable(stage, fraction) for background mode
+        self.result = None   # (mesh, source info dict)
+        self.error = None
+
+    def progress(self, stage, fraction):
+        self.stage, self.fraction = stage, fraction
+        if self.printer is not None:
+            self.printer(stage, fraction)
+        return self.cancel
+
+    def run(self):
+        try:
+            with isomend.open_source(self.paths, channel=self.channel, spacing=self.spacing,
+                                     progress=self.progress) as src:
+                info = {"dims": src.dims, "dtype": np.dtype(src.dtype).name,
+                        "spacing": src.spacing, "spacing_sources": src.spacing_sources,
+                        "origin": src.origin, "kind": src.kind}
+                mesh = src.extract(iso=self.iso, method=self.method, pad=self.pad,
+                                   normals=self.smooth, origins=True, progress=self.progress)
+            self.result = (mesh, info)
+        except Exception as exc:  # reported by the main thread
+            self.error = exc
+
+
+class IMPORT_MESH_OT_slice_stack(Operator, ImportHelper):
+    """Import a slice stack (folder of images, selected files or a multi-page TIFF) as an isosurface mesh"""
+    bl_idname = "import_mesh.slice_stack"
+    bl_label = "Slice Stack as Isosurface"
+    bl_options = {'REGISTER', 'UNDO'}
+
+    filename_ext = ""
+    filter_glob: StringProperty(
+        default="*.tif;*.tiff;*.png;*.exr;*.jpg;*.jpeg;*.bmp;*.dpx;*.jp2;*.hdr;*.nrrd;*.nhdr",
+        options={'HIDDEN'})
+    directory: StringProperty(subtype='DIR_PATH', options={'HIDDEN', 'SKIP_SAVE'})
+    files: CollectionProperty(type=OperatorFileListElement, options={'HIDDEN', 'SKIP_SAVE'})
+
+    use_suggested_iso: BoolProperty(
+        name="Suggested Iso Level",
+        description="Use the importer's suggested iso level (Otsu's threshold of the histogram) "
+                    "instead of Iso Level",
+        default=True)
+    iso: FloatProperty(
+        name="Iso Level",
+        description="Samples >= this value are inside the surface (in the images' own units, "
+                    "e.g. 0..65535 for 16-bit)",
+        default=0.0, precision=3)
+    method: EnumProperty(name="Method", description="Isosurface method", items=_method_items)
+    spacing: FloatVectorProperty(
+        name="Spacing (mm)",
+        description="Distance between samples along x (columns), y (rows), z (slices) in "
+                    "millimetres; 0, 0, 0 = from the files' metadata, else 1",
+        size=3, default=(0.0, 0.0, 0.0), min=0.0, precision=4, subtype='XYZ')
+    unit_scale: FloatProperty(
+        name="Unit Scale",
+        description="Blender units per millimetre (0.001: 1 unit = 1 metre)",
+        default=0.001, min=1e-9, max=1e6, precision=4)
+    channel: IntProperty(
+        name="Channel",
+        description="Image channel to use: -1 = the only channel (an error if there are several), "
+                    "-2 = luminance of R, G, B, 0.. = that channel",
+        default=-1, min=-2, max=64)
+    pad: BoolProperty(
+        name="Close at Border",
+        description="Surround the volume with one layer of outside samples, so the surface is "
+                    "closed where it touches the volume's border",
+        default=True)
+    smooth: BoolProperty(
+        name="Smooth Normals",
+        description="Use the volume's gradient normals (custom split normals, smooth shading); "
+                    "off: flat shading",
+        default=True)
+    modal_ui: BoolProperty(options={'HIDDEN', 'SKIP_SAVE'}, default=False)
+
+    def draw(self, _context):
+        layout = self.layout
+        layout.use_property_split = True
+        layout.prop(self, "use_suggested_iso")
+        row = layout.row()
+        row.active = not self.use_suggested_iso
+        row.prop(self, "iso")
+        layout.prop(self, "method")
+        layout.prop(self, "spacing")
+        layout.prop(self, "unit_scale")
+        layout.prop(self, "channel")
+        layout.prop(self, "pad")
+        layout.prop(self, "smooth")
+
+    # ---------------------------------------------------------------- inputs
+    def _paths(self):
+        """The source paths, or raises ValueError with the reason."""
+        directory = bpy.path.abspath(self.directory) if self.directory else ""
+        names = [f.name for f in self.files if f.name]
+        if not directory and self.filepath:
+            path = bpy.path.abspath(self.filepath)
+            if os.path.isdir(path):
+                directory = path
+            else:
+                directory, name = os.path.split(path)
+                names = names or [name]
+        if not directory:
+            raise ValueError("no folder or file chosen")
+        if not os.path.isdir(directory):
+            raise ValueError("folder not found: %s" % directory)
+        if not names:
+            return [directory]
+        names.sort(key=_natural_key)
+        return [os.path.join(directory, n) for n in names]
+
+    def _job(self):
+        paths = self._paths()
+        spacing = tuple(self.spacing)
+        if all(s == 0.0 for s in spacing):
+            spacing = None
+        elif any(s <= 0.0 for s in spacing):
+            raise ValueError("spacing: all three values must be > 0, or all 0 to read them from "
+                             "the files (got %g, %g, %g)" % spacing)
+        return _Job(paths, None if self.use_suggested_iso else self.iso, self.method.lower(),
+                    spacing, self.channel, self.pad, self.smooth)
+
+    # ---------------------------------------------------------------- running
+    def invoke(self, context, event):
+        self.modal_ui = True
+        return ImportHelper.invoke(self, context, event)
+
+    def execute(self, context):
+        try:
+            job = self._job()
+        except ValueError as exc:
+            self.report({'ERROR'}, str(exc))
+            return {'CANCELLED'}
+        if self.modal_ui and not bpy.app.background and context.window is not None:
+            return self._start_modal(context, job)
+        wm = context.window_manager
+        wm.progress_begin(0, 1000)
+        try:
+            if bpy.app.background:
+                job.printer = _BackgroundPrinter()
+            else:
+                job.printer = lambda stage, fraction: wm.progress_update(int(1000 * _overall(stage, fraction)))
+            job.run()
+            return self._finish(context, job)
+        finally:
+            wm.progress_end()
+
+    def _start_modal(self, context, job):
+        self._job_obj = job
+        self._thread = threading.Thread(target=job.run, name="isomend import", daemon=True)
+        wm = context.window_manager
+        wm.progress_begin(0, 1000)
+        self._timer = wm.event_timer_add(0.1, window=context.window)
+        wm.modal_handler_add(self)
+        self._thread.start()
+        return {'RUNNING_MODAL'}
+
+    def modal(self, context, event):
+        job = self._job_obj
+        wm = context.window_manager
+        if event.type == 'ESC':
+            job.cancel = True  # the worker stops at the library's next progress callback
+        if event.type == 'TIMER':
+            wm.progress_update(int(1000 * _overall(job.stage, job.fraction)))
+            if not self._thread.is_alive():
+                self._thread.join()
+                wm.event_timer_remove(self._timer)
+                wm.progress_end()
+                return self._finish(context, job)
+            return {'RUNNING_MODAL'}
+        if event.type == 'ESC':
+            return {'RUNNING_MODAL'}
+        return {'PASS_THROUGH'}  # the viewport stays usable; the worker never touches bpy
+
+    # ---------------------------------------------------------------- result
+    def _finish(self, context, job):
+        if job.error is not None:
+            exc = job.error
+            if isinstance(exc, isomend.Cancelled):
+                self.report({'WARNING'}, "Import cancelled")
+            else:
+                self.report({'ERROR'}, str(exc))
+            return {'CANCELLED'}
+        mesh, info = job.result
+        name = _stack_name(job.paths)
+        try:
+            obj = _make_object(context, name, mesh, info, self.unit_scale, self.smooth)
+        except Exception as exc:  # e.g. out of memory in Blender: nothing is left behind
+            self.report({'ERROR'}, "could not build the mesh: %s" % exc)
+            return {'CANCELLED'}
+        obj["isomend_iso"] = float(mesh.iso)
+        obj["isomend_method"] = mesh.method
+        obj["isomend_mending_triangles"] = int(mesh.stats["mending_triangles"])
+        obj["isomend_spacing_mm"] = list(info["spacing"])
+        msg = ("Imported %s: %d vertices, %d triangles (%d mending), iso %g%s, %s, %dx%dx%d samples"
+               % (obj.name, mesh.vertex_count, mesh.triangle_count, mesh.stats["mending_triangles"],
+                  mesh.iso, " (suggested)" if job.iso is None else "", mesh.method.upper(),
+                  info["dims"][0], info["dims"][1], info["dims"][2]))
+        self.report({'INFO'}, msg)
+        if bpy.app.background:
+            print("isomend: " + msg)
+        return {'FINISHED'}
+
+
+class _BackgroundPrinter:
+    """Prints progress in background mode (the progress indicator is a no-op
+    there): one line per stage and every 25 %."""
+
+    def __init__(self):
+        self.last = (None, -1)
+
+    def __call__(self, stage, fraction):
+        step = int(fraction * 4)
+        if (stage, step) != self.last and (stage != self.last[0] or step > self.last[1]):
+            self.last = (stage, step)
+            print("isomend: %-7s %3d%%" % (stage, int(fraction * 100)), flush=True)
+
+
+def _make_object(context, name, mesh, info, unit_scale, smooth):
+    """Builds the Blender mesh and object; removes both if anything fails."""
+    origin = np.asarray(info["origin"], dtype=np.float64)
+    positions = mesh.positions
+    if np.any(origin != 0.0):
+        positions = (positions.astype(np.float64) - origin).astype(np.float32)
+    coords = positions.reshape(-1) * np.float32(unit_scale)
+    nv, nt = mesh.vertex_count, mesh.triangle_count
+    me = bpy.data.meshes.new(name)
+    obj = None
+    try:
+        me.vertices.add(nv)
+        me.vertices.foreach_set("co", coords.astype(np.float32, copy=False))
+        me.loops.add(3 * nt)
+        me.loops.foreach_set("vertex_index", mesh.triangles.reshape(-1).view(np.int32))
+        me.polygons.add(nt)
+        me.polygons.foreach_set("loop_start", np.arange(0, 3 * nt, 3, dtype=np.int32))
+        me.polygons.foreach_set("loop_total", np.full(nt, 3, dtype=np.int32))
+        me.update(calc_edges=True)
+        if smooth and mesh.normals is not None and nt:
+            me.polygons.foreach_set("use_smooth", np.ones(nt, dtype=bool))
+            me.use_auto_smooth = True
+            me.auto_smooth_angle = np.pi  # never split: the gradient normals are per vertex
+            me.normals_split_custom_set_from_vertices(mesh.normals)
+        obj = bpy.data.objects.new(me.name, me)
+        obj.location = tuple(float(o) * unit_scale for o in origin)
+        collection = context.collection or context.scene.collection
+        collection.objects.link(obj)
+        for other in context.selected_objects:
+            other.select_set(False)
+        obj.select_set(True)
+        context.view_layer.objects.active = obj
+        return obj
+    except BaseException:
+        if obj is not None:
+            bpy.data.objects.remove(obj)
+        bpy.data.meshes.remove(me)
+        raise
+
+
+def menu_func_import(self, _context):
+    self.layout.operator(IMPORT_MESH_OT_slice_stack.bl_idname, text="Slice Stack as Isosurface")
+
+
+classes = (IMPORT_MESH_OT_slice_stack,)
+
+
+def register():
+    for cls in classes:
+        bpy.utils.register_class(cls)
+    bpy.types.TOPBAR_MT_file_import.append(menu_func_import)
+
+
+def unregister():
+    bpy.types.TOPBAR_MT_file_import.remove(menu_func_import)
+    for cls in reversed(classes):
+        bpy.utils.unregister_class(cls)
