@@ -96,6 +96,9 @@ typedef struct isomend_fileio_info {
                                /* where the compressed stream starts)           */
     uint64_t line_skip;        /* NRRD "line skip", applied before data_offset   */
     uint64_t data_file_bytes;  /* size of data_path                             */
+    int axis_negative[3];      /* 1 if "space directions" point axis a along -a  */
+                               /* (e.g. NIfTI-derived RAS data): world position  */
+                               /* decreases with the index; see describe()       */
 } isomend_fileio_info;
 
 /* Bytes of the decoded volume (dims product * sample size); 0 on overflow. */
@@ -144,7 +147,14 @@ isomend_fileio_status isomend_fileio_load(const isomend_fileio_info *info, void 
                                           isomend_fileio_progress_fn progress,
                                           void *progress_user, char *msg, size_t msg_size);
 
-/* Fills an isomend_volume (contiguous strides) describing `data` read for `info`. */
+/*
+ * Fills an isomend_volume describing `data` read for `info`: contiguous
+ * strides, spacing and origin from the header.  For an axis with
+ * axis_negative set, the volume is described in reverse along that axis
+ * (data pointer at the last sample, negative stride, origin moved to the
+ * last sample's world position), so the mesh lands at the samples' true
+ * world positions, unmirrored.
+ */
 void isomend_fileio_describe(const isomend_fileio_info *info, const void *data,
                              isomend_volume *vol);
 

@@ -1,0 +1,139 @@
+/*
+ * cli_util.c - messages, strict number parsing, timing and the progress bar
+ *
+ * Numbers are parsed strictly (the whole argument must be the number, no
+ * trailing text, finite) so that "--iso 1O" is a usage error naming the
+ * flag instead of silently meaning 1.
+ */
+#define _POSIX_C_SOURCE 200809L
+
+#include "cli.h"
+
+#include <errno.h>
+#include <math.h>
+#include <stdarg.h>
+#include <stdlib.h>
+#include <string.h>
+#include <time.h>
+
+cli_progress *cli_active_progress;
+
+void cli_error(const char *fmt, ...)
+{
+    if (cli_active_progress) cli_progress_clear(cli_active_progress);
+    va_list ap;
+    va_start(ap, fmt);
+    fputs("isomend: ", stderr);
+    vfprintf(stderr, fmt, ap);
+    fputc('\n', stderr);
+    va_end(ap);
+}
+
+int cli_parse_double(const char *s, double *out)
+{
+    if (!s || !*s) return 0;
+    char *end;
+    errno = 0;
+    double v = strtod(s, &end);
+    if (end == s || *end || errno == ERANGE || !isfinite(v)) return 0;
+    *out = v;
+    return 1;
+}
+
+int cli_parse_int64(const char *s, int64_t *out)
+{
+    if (!s || !*s) return 0;
+    char *end;
+    errno = 0;
+    long long v = strtoll(s, &end, 10);
+    if (end == s || *end || errno == ERANGE) return 0;
+    *out = v;
+    return 1;
+}
+
+int cli_parse_doubles(const char *s, double *out, int n)
+{
+    char buf[512];
+    if (!s || strlen(s) >= sizeof buf) return 0;
+    strcpy(buf, s);
+    char *p = buf;
+    for (int i = 0; i < n; i++) {
+        char *comma = strchr(p, ',');
+        if (i < n - 1) {
+            if (!comma) return 0;
+            *comma = '\0';
+        } else if (comma) {
+            return 0;
+        }
+        if (!cli_parse_double(p, &out[i])) return 0;
+        p = comma ? comma + 1 : p;
+    }
+    return 1;
+}
+
+double cli_now_ms(void)
+{
+    struct timespec ts;
+    clock_gettime(CLOCK_MONOTONIC, &ts);
+    return (double)ts.tv_sec * 1e3 + (double)ts.tv_nsec / 1e6;
+}
+
+void cli_progress_init(cli_progress *p, int enabled)
+{
+    memset(p, 0, sizeof *p);
+    p->enabled = enabled;
+    p->last_permille = -1;
+}
+
+void cli_progress_update(cli_progress *p, const char *label, double fraction)
+{
+    if (!p || !p->enabled) return;
+    if (fraction < 0) fraction = 0;
+    if (fraction > 1) fraction = 1;
+    int permille = (int)(fraction * 1000.0);
+    if (p->shown && label == p->label && permille / 10 == p->last_permille / 10) return;
+    p->label = label;
+    p->last_permille = permille;
+    enum { WIDTH = 30 };
+    char bar[WIDTH + 1];
+    int fill = (int)(fraction * WIDTH);
+    for (int i = 0; i < WIDTH; i++) bar[i] = i < fill ? '#' : '-';
+    bar[WIDTH] = '\0';
+    fprintf(stderr, "\r\033[K%-8s [%s] %3d%%", label, bar, permille / 10);
+    fflush(stderr);
+    p->shown = 1;
+}
+
+void cli_progress_clear(cli_progress *p)
+{
+    if (!p || !p->shown) return;
+    fputs("\r\033[K", stderr);
+    fflush(stderr);
+    p->shown = 0;
+}
+
+int cli_progress_extract_cb(void *user, double fraction)
+{
+    cli_progress_update(user, "extract", fraction);
+    return 0;
+}
+
+int cli_progress_read_cb(void *user, double fraction)
+{
+    cli_progress_update(user, "read", fraction);
+    return 0;
+}
+
+void cli_json_string(FILE *fp, const char *s)
+{
+    fputc('"', fp);
+    for (const unsigned char *p = (const unsigned char *)s; *p; p++) {
+        if (*p == '"' || *p == '\\')
+            fprintf(fp, "\\%c", *p);
+        else if (*p < 0x20)
+            fprintf(fp, "\\u%04x", *p);
+        else
+            fputc(*p, fp);
+    }
+    fputc('"', fp);
+}
