@@ -1,0 +1,351 @@
+/*
+ * test_job.cpp - the MeshLab filter's host-independent half, without MeshLab
+ *
+ * Checks what the adapter relies on: the method menu order (scripts call
+ * methods by index), the rawType list, rawDims parsing, layer names, and that
+ * a run on a raw volume gives exactly the core's mesh (positions, normals,
+ * triangles, statistics) with the spacing/pad/flip parameters applied, that
+ * progress is monotonic, and that every bad parameter fails with a message
+ * naming it and leaves no mesh.
+ */
+#include <algorithm>
+#include <cmath>
+#include <cstdint>
+#include <cstdio>
+#include <cstdlib>
+#include <cstring>
+#include <string>
+#include <unistd.h>
+#include <vector>
+
+#include "isomend.h"
+#include "isomend_filter_job.h"
+#include "testutil.h"
+
+namespace job = isomend_filter;
+
+namespace {
+
+bool contains(const std::string &s, const char *part)
+{
+    return s.find(part) != std::string::npos;
+}
+
+/* A u16 volume: two overlapping blobs plus a saddle-rich ripple, so that
+ * the surface has ambiguous faces and DMC mends some of them. */
+std::vector<uint16_t> make_volume(int nx, int ny, int nz)
+{
+    std::vector<uint16_t> v(static_cast<size_t>(nx) * ny * nz);
+    for (int z = 0; z < nz; ++z)
+        for (int y = 0; y < ny; ++y)
+            for (int x = 0; x < nx; ++x) {
+                const double a = std::hypot(std::hypot(x - 7.3, y - 8.1), z - 6.2);
+                const double b = std::hypot(std::hypot(x - 12.7, y - 9.4), z - 9.9);
+                double f = 1000.0 * (std::exp(-a * a / 20.0) + std::exp(-b * b / 14.0));
+                f += 300.0 * std::sin(1.9 * x) * std::sin(2.3 * y) * std::sin(1.7 * z);
+                f = std::max(0.0, std::min(65535.0, f + 400.0));
+                v[(static_cast<size_t>(z) * ny + y) * nx + x] = static_cast<uint16_t>(f);
+            }
+    return v;
+}
+
+struct TempDir {
+    std::string path;
+    TempDir()
+    {
+        char tmpl[] = "/tmp/isomend_meshlab_job_XXXXXX";
+        const char *p = mkdtemp(tmpl);
+        path = p ? p : "";
+    }
+    ~TempDir()
+    {
+        if (!path.empty()) {
+            std::string cmd = "rm -rf '" + path + "'";
+            if (std::system(cmd.c_str()) != 0)
+                std::fprintf(stderr, "could not remove %s\n", path.c_str());
+        }
+    }
+};
+
+/* The core's own result, for comparison. */
+isomend_mesh *direct(const std::vector<uint16_t> &v, int nx, int ny, int nz, double iso,
+                     isomend_method method, unsigned flags, const double spacing[3],
+                     isomend_stats *stats)
+{
+    isomend_volume vol;
+    isomend_volume_init(&vol, v.data(), ISOMEND_U16, nx, ny, nz);
+    for (int a = 0; a < 3; ++a)
+        vol.spacing[a] = spacing[a];
+    isomend_options opts;
+    isomend_options_init(&opts);
+    opts.iso = iso;
+    opts.method = method;
+    opts.flags = flags;
+    isomend_mesh *mesh = nullptr;
+    CHECK_EQ_INT(isomend_extract(&vol, &opts, &mesh, stats), ISOMEND_OK);
+    return mesh;
+}
+
+void check_same_mesh(const isomend_mesh *a, const isomend_mesh *b)
+{
+    CHECK(a && b);
+    if (!a || !b)
+        return;
+    const size_t nv = isomend_mesh_vertex_count(a), nt = isomend_mesh_triangle_count(a);
+    CHECK_EQ_INT(isomend_mesh_vertex_count(b), nv);
+    CHECK_EQ_INT(isomend_mesh_triangle_count(b), nt);
+    if (isomend_mesh_vertex_count(b) != nv || isomend_mesh_triangle_count(b) != nt)
+        return;
+    CHECK(std::memcmp(isomend_mesh_positions(a), isomend_mesh_positions(b),
+                      nv * 3 * sizeof(float)) == 0);
+    CHECK(std::memcmp(isomend_mesh_normals(a), isomend_mesh_normals(b),
+                      nv * 3 * sizeof(float)) == 0);
+    CHECK(std::memcmp(isomend_mesh_triangles(a), isomend_mesh_triangles(b),
+                      nt * 3 * sizeof(uint32_t)) == 0);
+}
+
+void test_lists()
+{
+    const auto choices = job::method_choices();
+    CHECK(choices.size() >= 3);
+    if (choices.size() < 3)
+        return;
+    CHECK(choices[0].display == "Disambiguated MC" && choices[0].method == ISOMEND_METHOD_DMC);
+    CHECK(choices[1].display == "Original MC" && choices[1].method == ISOMEND_METHOD_MC);
+    CHECK(choices[2].display == "Durst" && choices[2].method == ISOMEND_METHOD_DURST);
+    int available = 0;
+    for (int m = 0; m < ISOMEND_METHOD_COUNT; ++m)
+        available += isomend_method_available(static_cast<isomend_method>(m)) ? 1 : 0;
+    CHECK_EQ_INT(choices.size(), available);
+    for (size_t i = 0; i < choices.size(); ++i) {
+        CHECK(isomend_method_available(choices[i].method));
+        CHECK(!choices[i].display.empty());
+        for (size_t j = 0; j < i; ++j)
+            CHECK(choices[j].method != choices[i].method);
+        /* after the first three, core order */
+        if (i > 3)
+            CHECK(choices[i - 1].method < choices[i].method);
+    }
+
+    const auto types = job::raw_type_choices();
+    CHECK_EQ_INT(types.size(), ISOMEND_TYPE_COUNT);
+    for (int t = 0; t < ISOMEND_TYPE_COUNT && t < static_cast<int>(types.size()); ++t)
+        CHECK(types[static_cast<size_t>(t)] == isomend_type_name(static_cast<isomend_type>(t)));
+
+    /* every parameter has a label and a tooltip */
+    const char *names[] = {job::kParamSource,     job::kParamIso,        job::kParamMethod,
+                           job::kParamSpacing[0], job::kParamSpacing[1], job::kParamSpacing[2],
+                           job::kParamChannel,    job::kParamPad,        job::kParamFlip,
+                           job::kParamRawDims,    job::kParamRawType};
+    for (const char *n : names) {
+        const job::ParamText t = job::param_text(n);
+        CHECK(t.label && *t.label);
+        CHECK(t.tooltip && std::strlen(t.tooltip) > 20);
+    }
+    CHECK(std::string(job::kFilterName) == "Isosurface from Slice Stack (isomend)");
+}
+
+void test_parsing()
+{
+    CHECK(job::layer_name_for("/data/scan/stack/") == "stack");
+    CHECK(job::layer_name_for("/data/ct.nrrd") == "ct.nrrd");
+    CHECK(job::layer_name_for("slices/s_%04d.tif") == "s_%04d.tif");
+    CHECK(job::layer_name_for("vol.raw") == "vol.raw");
+    CHECK(job::layer_name_for("/") == "isosurface");
+
+    int64_t d[3] = {0, 0, 0};
+    std::string msg;
+    CHECK(job::parse_raw_dims("10 20 30", d, &msg) && d[0] == 10 && d[1] == 20 && d[2] == 30);
+    CHECK(job::parse_raw_dims(" 4,5,6 ", d, &msg) && d[0] == 4 && d[1] == 5 && d[2] == 6);
+    CHECK(job::parse_raw_dims("7x8x9", d, &msg) && d[0] == 7 && d[1] == 8 && d[2] == 9);
+    const char *bad[] = {"", "10 20", "10 20 30 40", "10 -2 3", "a b c", "10 20 3.5", "0 1 2",
+                         "99999999999999999999 1 1"};
+    for (const char *b : bad) {
+        msg.clear();
+        CHECK(!job::parse_raw_dims(b, d, &msg));
+        CHECK(contains(msg, "rawDims"));
+    }
+}
+
+void test_run(const std::string &dir)
+{
+    const int nx = 21, ny = 18, nz = 17;
+    const std::vector<uint16_t> v = make_volume(nx, ny, nz);
+    const std::string path = dir + "/blobs.raw";
+    FILE *f = std::fopen(path.c_str(), "wb");
+    CHECK(f != nullptr);
+    if (!f)
+        return;
+    CHECK_EQ_INT(std::fwrite(v.data(), sizeof(uint16_t), v.size(), f), v.size());
+    std::fclose(f);
+
+    const double iso = 700.5;
+    const double unit[3] = {1, 1, 1};
+    job::Params p = job::default_params();
+    p.source = path;
+    p.iso = iso;
+    p.raw_dims = "21 18 17";
+    p.raw_type_index = ISOMEND_U16;
+
+    /* every method of the menu, padded and not: exactly the core's mesh */
+    bool some_mending = false;
+    const auto choices = job::method_choices();
+    for (size_t mi = 0; mi < choices.size(); ++mi)
+        for (int pad = 0; pad < 2; ++pad) {
+            p.method_index = static_cast<int>(mi);
+            p.pad = pad != 0;
+            std::vector<int> seen;
+            job::Job run;
+            const bool ok = run.run(p, [&seen](int percent, const char *stage) {
+                CHECK(stage && *stage);
+                seen.push_back(percent);
+                return true;
+            });
+            CHECK(ok);
+            if (!ok) {
+                std::fprintf(stderr, "run failed: %s\n", run.error().c_str());
+                continue;
+            }
+            isomend_stats ref{};
+            isomend_mesh *mesh = direct(v, nx, ny, nz, iso, choices[mi].method,
+                                        pad ? static_cast<unsigned>(ISOMEND_FLAG_PAD) : 0u, unit, &ref);
+            check_same_mesh(run.mesh(), mesh);
+            CHECK(std::memcmp(&ref.case_histogram, &run.stats().case_histogram,
+                              sizeof ref.case_histogram) == 0);
+            CHECK(std::memcmp(&ref.triangles_by_origin, &run.stats().triangles_by_origin,
+                              sizeof ref.triangles_by_origin) == 0);
+            if (choices[mi].method == ISOMEND_METHOD_DMC &&
+                ref.triangles_by_origin[ISOMEND_ORIGIN_MEND] > 0)
+                some_mending = true;
+            isomend_mesh_destroy(mesh);
+
+            CHECK(run.layer_name() == "blobs.raw");
+            bool counts_logged = false, histogram_logged = false;
+            char counts[128];
+            std::snprintf(counts, sizeof counts, "vertices %llu, triangles %llu",
+                          static_cast<unsigned long long>(ref.vertices),
+                          static_cast<unsigned long long>(ref.triangles));
+            for (const std::string &line : run.log_lines()) {
+                counts_logged = counts_logged || contains(line, counts);
+                histogram_logged = histogram_logged || contains(line, " 14:");
+            }
+            CHECK(counts_logged);
+            CHECK(histogram_logged);
+            CHECK(!seen.empty());
+            for (size_t i = 1; i < seen.size(); ++i)
+                CHECK(seen[i] >= seen[i - 1]);
+            if (!seen.empty())
+                CHECK(seen.back() >= 95 && seen.back() <= 100 && seen.front() >= 0);
+        }
+    CHECK(some_mending); /* the volume exercises the mending */
+
+    /* spacing: 0 keeps the source's (1 for raw), > 0 replaces it per axis */
+    {
+        p.method_index = 0;
+        p.pad = true;
+        p.spacing[0] = 0;
+        p.spacing[1] = 0.5;
+        p.spacing[2] = 2.25;
+        job::Job run;
+        CHECK(run.run(p, nullptr));
+        const double sp[3] = {1, 0.5, 2.25};
+        isomend_mesh *mesh = direct(v, nx, ny, nz, iso, ISOMEND_METHOD_DMC, ISOMEND_FLAG_PAD, sp,
+                                    nullptr);
+        check_same_mesh(run.mesh(), mesh);
+        isomend_mesh_destroy(mesh);
+        p.spacing[0] = p.spacing[1] = p.spacing[2] = 0;
+    }
+
+    /* flipNormals: the core's flipped mesh */
+    {
+        p.flip_normals = true;
+        job::Job run;
+        CHECK(run.run(p, nullptr));
+        isomend_mesh *mesh = direct(v, nx, ny, nz, iso, ISOMEND_METHOD_DMC,
+                                    ISOMEND_FLAG_PAD | ISOMEND_FLAG_FLIP, unit, nullptr);
+        check_same_mesh(run.mesh(), mesh);
+        isomend_mesh_destroy(mesh);
+        p.flip_normals = false;
+    }
+
+    /* cancellation from the progress callback: no mesh */
+    {
+        job::Job run;
+        CHECK(!run.run(p, [](int percent, const char *) { return percent < 10; }));
+        CHECK(run.mesh() == nullptr);
+        CHECK(contains(run.error(), "cancelled"));
+    }
+
+    /* no surface at this level: an error with the value range, no mesh */
+    {
+        job::Params q = p;
+        q.iso = 1e6;
+        job::Job run;
+        CHECK(!run.run(q, nullptr));
+        CHECK(run.mesh() == nullptr);
+        CHECK(contains(run.error(), "iso:") && contains(run.error(), "range"));
+    }
+
+    /* a raw file whose size does not match rawDims: the io message */
+    {
+        job::Params q = p;
+        q.raw_dims = "21 18 18";
+        job::Job run;
+        CHECK(!run.run(q, nullptr));
+        CHECK(run.mesh() == nullptr);
+        CHECK(contains(run.error(), "blobs.raw"));
+    }
+}
+
+void test_errors(const std::string &dir)
+{
+    struct Case {
+        const char *what;
+        void (*change)(job::Params &);
+        const char *expect;
+    };
+    static std::string missing;
+    missing = dir + "/no_such_folder";
+    const Case cases[] = {
+        {"empty source", [](job::Params &q) { q.source = "  "; }, "source:"},
+        {"missing folder", [](job::Params &q) { q.source = missing; }, "no_such_folder"},
+        {"NaN iso", [](job::Params &q) { q.iso = std::nan(""); }, "iso:"},
+        {"infinite iso", [](job::Params &q) { q.iso = HUGE_VAL; }, "iso:"},
+        {"method index", [](job::Params &q) { q.method_index = 99; }, "method:"},
+        {"negative method", [](job::Params &q) { q.method_index = -1; }, "method:"},
+        {"negative spacingY", [](job::Params &q) { q.spacing[1] = -1; }, "spacingY"},
+        {"NaN spacingZ", [](job::Params &q) { q.spacing[2] = std::nan(""); }, "spacingZ"},
+        {"channel", [](job::Params &q) { q.channel = -3; }, "channel:"},
+        {"rawDims", [](job::Params &q) { q.raw_dims = "12 x"; }, "rawDims"},
+        {"rawType", [](job::Params &q) { q.raw_dims = "2 2 2"; q.raw_type_index = 42; }, "rawType"},
+    };
+    for (const Case &c : cases) {
+        job::Params q = job::default_params();
+        q.source = dir;
+        c.change(q);
+        job::Job run;
+        const bool ok = run.run(q, nullptr);
+        CHECK(!ok);
+        CHECK(run.mesh() == nullptr);
+        if (!contains(run.error(), c.expect)) {
+            std::fprintf(stderr, "%s: expected \"%s\" in \"%s\"\n", c.what, c.expect,
+                         run.error().c_str());
+            CHECK(false);
+        }
+    }
+}
+
+} // namespace
+
+int main()
+{
+    TempDir dir;
+    CHECK(!dir.path.empty());
+    if (dir.path.empty())
+        return 1;
+    test_lists();
+    test_parsing();
+    test_run(dir.path);
+    test_errors(dir.path);
+    TEST_EXIT();
+}

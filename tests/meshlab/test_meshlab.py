@@ -1,0 +1,507 @@
+#!/usr/bin/python3
+"""MeshLab filter tests: meshlabserver runs .mlx scripts that call
+"Isosurface from Slice Stack (isomend)" (and MeshLab's own "Compute
+Topological Measures") on stacks generated here, and the results are compared
+with the `isomend extract` command line on the same input and options.
+
+Usage (run by ctest under `xvfb-run -a`, which provides $DISPLAY):
+    test_meshlab.py counts|topology|holes|errors --prefix PREFIX --cli ISOMEND --work DIR
+
+  counts    folder / pattern / multi-page TIFF / NRRD / raw sources, the three
+            menu methods, pad, flip, spacing: MeshLab's PLY equals the CLI's
+            PLY (counts, positions, normals, triangles), normals are unit, the
+            log's counts and 15-case histogram equal the CLI's --json.
+  topology  padded DMC of a sphere cut by the volume border and of a torus:
+            MeshLab reports 0 boundary edges, two-manifold, genus 0 and 1
+            (and the unpadded cut sphere has boundary edges: the measure sees
+            a difference).
+  holes     F1 (thesis Chapter 5.2) tiled by mirroring into a 7^3 volume:
+            the CLI's check finds holes for mc and none for dmc, and MeshLab
+            agrees: MC open, DMC closed two-manifold genus 0.
+  errors    bad sources and parameters: exit 255 (never 134/abort), the
+            reason in the log, no output file; the filter is listed by
+            meshlabserver's plugin dump with its menu text.
+"""
+import argparse
+import json
+import os
+import re
+import shutil
+import subprocess
+import sys
+from xml.sax.saxutils import quoteattr
+
+import numpy as np
+
+FILTER = "Isosurface from Slice Stack (isomend)"
+# The menu's first three methods have fixed indices; the CLI's names for them.
+METHODS = ["Disambiguated MC", "Original MC", "Durst"]
+CLI_METHOD = ["dmc", "mc", "durst"]
+TYPES = ["u8", "i8", "u16", "i16", "i32", "f32", "f64"]
+
+failures = []
+
+
+def check(cond, what):
+    if cond:
+        print("  ok   " + what)
+    else:
+        print("  FAIL " + what)
+        failures.append(what)
+    return cond
+
+
+# ----------------------------------------------------------------- volumes
+
+def write_tiff_folder(folder, vol, prefix="s_"):
+    import tifffile
+    os.makedirs(folder, exist_ok=True)
+    for k in range(vol.shape[0]):
+        tifffile.imwrite(os.path.join(folder, "%s%03d.tif" % (prefix, k)), vol[k])
+
+
+def write_multipage(path, vol, spacing_z=None, resolution=None):
+    import tifffile
+    kw = {}
+    if spacing_z is not None:
+        kw["imagej"] = True
+        kw["metadata"] = {"spacing": spacing_z, "unit": "mm", "axes": "ZYX"}
+    if resolution is not None:
+        kw["resolution"] = resolution
+    tifffile.imwrite(path, vol, **kw)
+
+
+def write_nrrd(path, vol, spacings):
+    nz, ny, nx = vol.shape
+    kind = {np.dtype(np.int16): "int16", np.dtype(np.uint8): "uint8",
+            np.dtype(np.float32): "float"}[vol.dtype]
+    header = ("NRRD0004\ntype: %s\ndimension: 3\nsizes: %d %d %d\nspacings: %g %g %g\n"
+              "encoding: raw\nendian: little\n\n" % (kind, nx, ny, nz, *spacings))
+    with open(path, "wb") as f:
+        f.write(header.encode())
+        f.write(vol.astype(vol.dtype.newbyteorder("<")).tobytes())
+
+
+def blobs(nz, ny, nx, seed=7):
+    """Smooth random field with saddles: plenty of ambiguous faces."""
+    rng = np.random.default_rng(seed)
+    z, y, x = np.mgrid[0:nz, 0:ny, 0:nx].astype(np.float64)
+    f = np.zeros((nz, ny, nx))
+    for _ in range(9):
+        c = rng.uniform([0, 0, 0], [nz, ny, nx])
+        r2 = (z - c[0]) ** 2 + (y - c[1]) ** 2 + (x - c[2]) ** 2
+        f += rng.uniform(0.6, 1.0) * np.exp(-r2 / rng.uniform(6, 20))
+    f += 0.25 * np.sin(1.7 * x) * np.sin(2.1 * y) * np.sin(1.3 * z)
+    f = (f - f.min()) / (f.max() - f.min())
+    return f
+
+
+def f1_tiled(tiles=2):
+    """F1 = 4y + 4(x-z)^2 - 5 on 0..3, mirrored into (3*tiles+1)^3 samples."""
+    n = 3 * tiles + 1
+    idx = np.array([(i % 6) if (i % 6) <= 3 else 6 - (i % 6) for i in range(n)], float)
+    z, y, x = np.meshgrid(idx, idx, idx, indexing="ij")
+    return (4 * y + 4 * (x - z) ** 2 - 5).astype(np.float32)
+
+
+# ------------------------------------------------------------------- runs
+
+def mlx(params, topology=False):
+    """A FilterScript calling the filter with every parameter (meshlabserver
+    aborts on a missing one)."""
+    p = {"source": "", "iso": 0.5, "method": 0, "spacingX": 0, "spacingY": 0, "spacingZ": 0,
+         "channel": -1, "pad": True, "flipNormals": False, "rawDims": "", "rawType": 0}
+    p.update(params)
+    enum_methods = " ".join('enum_val%d=%s' % (i, quoteattr(m)) for i, m in enumerate(METHODS))
+    enum_types = " ".join('enum_val%d=%s' % (i, quoteattr(t)) for i, t in enumerate(TYPES))
+    b = lambda v: "true" if v else "false"
+    lines = [
+        "<!DOCTYPE FilterScript>", "<FilterScript>", " <filter name=%s>" % quoteattr(FILTER),
+        '  <Param type="RichString" name="source" value=%s/>' % quoteattr(str(p["source"])),
+        '  <Param type="RichFloat" name="iso" value="%r"/>' % float(p["iso"]),
+        '  <Param type="RichEnum" name="method" value="%d" enum_cardinality="%d" %s/>'
+        % (p["method"], len(METHODS), enum_methods),
+        '  <Param type="RichFloat" name="spacingX" value="%r"/>' % float(p["spacingX"]),
+        '  <Param type="RichFloat" name="spacingY" value="%r"/>' % float(p["spacingY"]),
+        '  <Param type="RichFloat" name="spacingZ" value="%r"/>' % float(p["spacingZ"]),
+        '  <Param type="RichInt" name="channel" value="%d"/>' % p["channel"],
+        '  <Param type="RichBool" name="pad" value="%s"/>' % b(p["pad"]),
+        '  <Param type="RichBool" name="flipNormals" value="%s"/>' % b(p["flipNormals"]),
+        '  <Param type="RichString" name="rawDims" value=%s/>' % quoteattr(str(p["rawDims"])),
+        '  <Param type="RichEnum" name="rawType" value="%d" enum_cardinality="%d" %s/>'
+        % (p["rawType"], len(TYPES), enum_types),
+        " </filter>"]
+    if topology:
+        lines.append(' <filter name="Compute Topological Measures"/>')
+    lines.append("</FilterScript>")
+    return "\n".join(lines) + "\n"
+
+
+class Runner:
+    def __init__(self, prefix, cli, work):
+        self.server = os.path.join(prefix, "bin", "meshlabserver")
+        self.cli = cli
+        self.work = work
+        self.n = 0
+
+    def meshlab(self, params, topology=False, save=True):
+        """Runs the filter; returns (exit code, log text, output path or None)."""
+        self.n += 1
+        base = os.path.join(self.work, "ml%02d" % self.n)
+        script, log, out = base + ".mlx", base + ".log", base + ".ply"
+        with open(script, "w") as f:
+            f.write(mlx(params, topology))
+        for p in (log, out):
+            if os.path.exists(p):
+                os.remove(p)
+        cmd = [self.server, "-l", log, "-s", script]
+        if save:
+            cmd += ["-o", out, "-m", "vn"]
+        r = subprocess.run(cmd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, timeout=120)
+        text = open(log, errors="replace").read() if os.path.exists(log) else ""
+        if r.returncode != 0 and r.returncode != 255:
+            print(r.stdout.decode(errors="replace")[-2000:])
+        return r.returncode, text, out if os.path.exists(out) else None
+
+    def isomend(self, source, args):
+        """`isomend extract`; returns (json dict, PLY path)."""
+        self.n += 1
+        base = os.path.join(self.work, "cli%02d" % self.n)
+        cmd = [self.cli, "extract", source, "-o", base + ".ply", "--json", base + ".json",
+               "--quiet"] + args
+        r = subprocess.run(cmd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, timeout=120)
+        if r.returncode != 0:
+            raise RuntimeError("%s failed (%d): %s" % (" ".join(cmd), r.returncode,
+                                                       r.stdout.decode(errors="replace")))
+        with open(base + ".json") as f:
+            return json.load(f), base + ".ply"
+
+
+# ------------------------------------------------------------------ parsing
+
+PLY_TYPES = {"char": "i1", "int8": "i1", "uchar": "u1", "uint8": "u1", "short": "i2",
+             "int16": "i2", "ushort": "u2", "uint16": "u2", "int": "i4", "int32": "i4",
+             "uint": "u4", "uint32": "u4", "float": "f4", "float32": "f4", "double": "f8",
+             "float64": "f8"}
+
+
+def read_ply(path):
+    """Binary little-endian PLY with a vertex element (scalar properties) and
+    a face element (one list property of triangles).  Returns (vertex record
+    array, triangles (T, 3) int64)."""
+    with open(path, "rb") as f:
+        data = f.read()
+    end = data.index(b"end_header\n") + len(b"end_header\n")
+    header = data[:end].decode("ascii").splitlines()
+    assert header[1].startswith("format binary_little_endian"), header[1]
+    elements = []
+    for line in header:
+        w = line.split()
+        if w[0] == "element":
+            elements.append([w[1], int(w[2]), []])
+        elif w[0] == "property":
+            elements[-1][2].append(w[1:])
+    pos = end
+    verts = tris = None
+    for name, count, props in elements:
+        if name == "vertex":
+            dt = np.dtype([(p[1], "<" + PLY_TYPES[p[0]]) for p in props])
+            verts = np.frombuffer(data, dt, count, pos)
+            pos += dt.itemsize * count
+        elif name == "face":
+            assert len(props) == 1 and props[0][0] == "list", props
+            ct, it = "<" + PLY_TYPES[props[0][1]], "<" + PLY_TYPES[props[0][2]]
+            dt = np.dtype([("n", ct), ("v", it, 3)])
+            faces = np.frombuffer(data, dt, count, pos)
+            assert (faces["n"] == 3).all(), "non-triangle face"
+            tris = faces["v"].astype(np.int64)
+            pos += dt.itemsize * count
+        else:
+            raise AssertionError("unexpected element " + name)
+    return verts, tris
+
+
+def last_block(log, start):
+    i = log.rfind(start)
+    return log[i:] if i >= 0 else ""
+
+
+def parse_isomend_log(log):
+    """The filter's own log lines: counts by origin and the case histogram."""
+    out = {}
+    m = re.search(r"vertices (\d+), triangles (\d+) \(table (\d+), Durst (\d+), mending (\d+)\)", log)
+    if m:
+        out["vertices"], out["triangles"], out["table"], out["durst"], out["mend"] = map(int, m.groups())
+    m = re.search(r"cases \(cubes per elementary case 0\.\.14 of \d+\):((?: \d+:\d+){15})", log)
+    if m:
+        out["histogram"] = [int(t.split(":")[1]) for t in m.group(1).split()]
+    return out
+
+
+def parse_topology(log):
+    """MeshLab's "Compute Topological Measures" block (the last one)."""
+    block = last_block(log, "V:")
+    t = {}
+    m = re.search(r"V:\s*(\d+)\s+E:\s*(\d+)\s+F:\s*(\d+)", block)
+    if m:
+        t["V"], t["E"], t["F"] = map(int, m.groups())
+    for key, pat in (("boundary_edges", r"Boundary Edges (\d+)"),
+                     ("components", r"composed by (\d+) connected component"),
+                     ("holes", r"Mesh has (\d+) holes"),
+                     ("genus", r"Genus is (\d+)"),
+                     ("nonmanifold_edges", r"Mesh has (\d+) non two manifold edges"),
+                     ("nonmanifold_vertices", r"Mesh has (\d+) non two manifold vertices")):
+        m = re.search(pat, block)
+        if m:
+            t[key] = int(m.group(1))
+    t["two_manifold"] = "Mesh is two-manifold" in block
+    return t
+
+
+# -------------------------------------------------------------------- tests
+
+def compare(run, label, source, ml_params, cli_args, log_expect=None):
+    """The filter and `isomend extract` on the same input: identical meshes."""
+    print("%s:" % label)
+    params = dict(ml_params, source=source)
+    rc, log, out = run.meshlab(params)
+    if not check(rc == 0 and out is not None, "meshlabserver exit 0 with a PLY (rc %d)" % rc):
+        print(log[-3000:])
+        return
+    ref, ref_ply = run.isomend(source, cli_args)
+    v, t = read_ply(out)
+    rv, rt = read_ply(ref_ply)
+    check(len(v) == ref["vertices"] and len(t) == ref["triangles"],
+          "vertex/triangle counts %d/%d equal the CLI's %d/%d"
+          % (len(v), len(t), ref["vertices"], ref["triangles"]))
+    if len(v) == len(rv) and len(t) == len(rt):
+        pos = np.stack([v["x"], v["y"], v["z"]], 1)
+        rpos = np.stack([rv["x"], rv["y"], rv["z"]], 1)
+        check(np.array_equal(pos, rpos), "positions identical to the CLI's")
+        check(np.array_equal(t, rt), "triangles identical to the CLI's")
+        n = np.stack([v["nx"], v["ny"], v["nz"]], 1).astype(np.float64)
+        rn = np.stack([rv["nx"], rv["ny"], rv["nz"]], 1).astype(np.float64)
+        check(np.abs(n - rn).max() < 1e-6, "normals equal the CLI's")
+        lengths = np.linalg.norm(n, axis=1)
+        check(np.abs(lengths - 1).max() < 1e-5,
+              "per-vertex normals are unit (max |len-1| %.2g)" % np.abs(lengths - 1).max())
+    if log_expect:
+        check(log_expect in log, "log says %r" % log_expect)
+    st = parse_isomend_log(log)
+    by = ref.get("triangles_by_origin", {})
+    check(st.get("vertices") == ref["vertices"] and st.get("triangles") == ref["triangles"]
+          and st.get("table") == by.get("table") and st.get("durst") == by.get("durst")
+          and st.get("mend") == by.get("mend"),
+          "log: vertices, triangles, table/Durst/mending triangles equal the CLI's json %s"
+          % ({k: st.get(k) for k in ("vertices", "triangles", "table", "durst", "mend")},))
+    check(st.get("histogram") == list(ref.get("case_histogram", [])),
+          "log: 15-case histogram equals the CLI's")
+    return ref
+
+
+def test_counts(run):
+    work = run.work
+    f = blobs(23, 26, 29)
+    u8 = np.round(f * 255).astype(np.uint8)
+    folder = os.path.join(work, "stack_u8")
+    write_tiff_folder(folder, u8)
+    mended = 0
+    for mi in range(3):
+        for pad in (True, False):
+            ref = compare(run, "folder u8, %s, pad %s" % (METHODS[mi], pad), folder,
+                          {"iso": 127.5, "method": mi, "pad": pad},
+                          ["--iso", "127.5", "--method", CLI_METHOD[mi]] + (["--pad"] if pad else []))
+            if ref and mi == 0:
+                mended += ref["triangles_by_origin"]["mend"]
+    check(mended > 0, "the generated stack makes DMC mend (%d mending triangles)" % mended)
+    compare(run, "folder u8, DMC, flipNormals", folder,
+            {"iso": 127.5, "method": 0, "pad": True, "flipNormals": True},
+            ["--iso", "127.5", "--method", "dmc", "--pad", "--flip"])
+    compare(run, "folder u8, spacing 0.5 / 0 (= 1) / 2.25", folder,
+            {"iso": 100.5, "spacingX": 0.5, "spacingY": 0, "spacingZ": 2.25},
+            ["--iso", "100.5", "--pad", "--spacing", "0.5,1,2.25"])
+    compare(run, "printf pattern s_%03d.tif", os.path.join(folder, "s_%03d.tif"),
+            {"iso": 127.5}, ["--iso", "127.5", "--pad"])
+
+    u16 = np.round(f * 4000).astype(np.uint16)
+    multipage = os.path.join(work, "stack_u16.tif")
+    write_multipage(multipage, u16, spacing_z=2.5)
+    compare(run, "multi-page TIFF u16 with ImageJ spacing (metadata used by both)", multipage,
+            {"iso": 2000.5, "method": 1}, ["--iso", "2000.5", "--method", "mc", "--pad"],
+            log_expect="spacing 1 1 2.5 (from imagej")
+
+    i16 = np.round(f * 3000 - 1000).astype(np.int16)
+    nrrd = os.path.join(work, "vol.nrrd")
+    write_nrrd(nrrd, i16, (0.8, 0.9, 1.5))
+    compare(run, "NRRD i16 with spacings (negative values)", nrrd,
+            {"iso": 200.5, "method": 2}, ["--iso", "200.5", "--method", "durst", "--pad"],
+            log_expect="spacing 0.8 0.9 1.5 (from header, header, header)")
+
+    # RGB slices: channel -1 is the luminance (the CLI's --channel luma),
+    # channel N that channel.
+    g = blobs(23, 26, 29, seed=11)
+    rgb = np.stack([np.round(f * 255), np.round(g * 255), np.round((f + g) * 120)], -1).astype(np.uint8)
+    rgb_folder = os.path.join(work, "stack_rgb")
+    write_tiff_folder(rgb_folder, rgb)
+    compare(run, "RGB folder, channel -1 (luminance)", rgb_folder,
+            {"iso": 120.5, "channel": -1}, ["--iso", "120.5", "--pad", "--channel", "luma"],
+            log_expect="luminance of the channels")
+    compare(run, "RGB folder, channel 1", rgb_folder,
+            {"iso": 120.5, "channel": 1}, ["--iso", "120.5", "--pad", "--channel", "1"])
+
+    raw = os.path.join(work, "vol.raw")
+    f.astype("<f4").tofile(raw)
+    nz, ny, nx = f.shape
+    compare(run, "raw f32 with rawDims/rawType", raw,
+            {"iso": 0.5, "rawDims": "%d %d %d" % (nx, ny, nz), "rawType": TYPES.index("f32")},
+            ["--iso", "0.5", "--pad", "--raw", "%d,%d,%d:f32" % (nx, ny, nz)])
+
+
+def sphere_and_torus(n=40):
+    z, y, x = np.mgrid[0:n, 0:n, 0:n].astype(np.float64)
+    # a sphere whose centre is outside the box on -x: cut by the border
+    r = np.sqrt((x + 3.0) ** 2 + (y - 20.2) ** 2 + (z - 19.7) ** 2)
+    sphere = np.clip(200 - 10 * r + 128, 0, 255).astype(np.uint8)
+    # a torus (R 11, r 4.5) fully inside
+    q = np.sqrt((np.sqrt((x - 19.6) ** 2 + (y - 20.3) ** 2) - 11.0) ** 2 + (z - 20.1) ** 2)
+    torus = np.clip(128 + 25 * (4.5 - q), 0, 255).astype(np.uint8)
+    return sphere, torus
+
+
+def test_topology(run):
+    sphere, torus = sphere_and_torus()
+    for name, vol, genus in (("sphere cut by the border", sphere, 0), ("torus", torus, 1)):
+        folder = os.path.join(run.work, name.split()[0])
+        write_tiff_folder(folder, vol)
+        print("%s, padded DMC:" % name)
+        rc, log, out = run.meshlab({"source": folder, "iso": 127.5, "pad": True}, topology=True)
+        check(rc == 0 and out is not None, "meshlabserver exit 0 (rc %d)" % rc)
+        t = parse_topology(log)
+        ref, _ = run.isomend(folder, ["--iso", "127.5", "--pad"])
+        check(t.get("V") == ref["vertices"] and t.get("F") == ref["triangles"],
+              "MeshLab's V/F %s/%s equal the CLI's %d/%d"
+              % (t.get("V"), t.get("F"), ref["vertices"], ref["triangles"]))
+        check(t.get("boundary_edges") == 0, "Boundary Edges 0 (%s)" % t.get("boundary_edges"))
+        check(t["two_manifold"], "Mesh is two-manifold")
+        check(t.get("components") == 1, "1 connected component (%s)" % t.get("components"))
+        check(t.get("genus") == genus, "Genus is %d (%s)" % (genus, t.get("genus")))
+        check(t.get("holes") == 0, "0 holes (%s)" % t.get("holes"))
+        if name.startswith("sphere"):
+            print("%s, unpadded DMC (the check can fail):" % name)
+            rc, log, out = run.meshlab({"source": folder, "iso": 127.5, "pad": False},
+                                       topology=True)
+            t = parse_topology(log)
+            check(rc == 0 and (t.get("boundary_edges") or 0) > 0,
+                  "open where the border cuts it: Boundary Edges %s > 0" % t.get("boundary_edges"))
+
+
+def test_holes(run):
+    vol = f1_tiled(2)
+    folder = os.path.join(run.work, "f1_tiled")
+    write_tiff_folder(folder, vol)
+    for mi, closed in ((1, False), (0, True), (2, True)):
+        print("F1 tiled 2x2x2 by mirroring (%d^3 f32), padded, %s:" % (vol.shape[0], METHODS[mi]))
+        ref, _ = run.isomend(folder, ["--iso", "0", "--pad", "--method", CLI_METHOD[mi]])
+        holes = ref["check"]["holes"]
+        if closed:
+            check(holes == 0, "isomend check: no hole edges (%d)" % holes)
+        else:
+            check(holes > 0, "isomend check: hole edges %d > 0" % holes)
+        rc, log, out = run.meshlab({"source": folder, "iso": 0.0, "method": mi, "pad": True},
+                                   topology=True)
+        check(rc == 0, "meshlabserver exit 0 (rc %d)" % rc)
+        t = parse_topology(log)
+        check(t.get("F") == ref["triangles"], "MeshLab's F %s equals the CLI's %d"
+              % (t.get("F"), ref["triangles"]))
+        if closed:
+            check(t.get("boundary_edges") == 0, "MeshLab: Boundary Edges 0 (%s)" % t.get("boundary_edges"))
+            check(t["two_manifold"], "MeshLab: Mesh is two-manifold")
+            if mi == 0:
+                check(t.get("genus") == 0 and t.get("components") == 1,
+                      "MeshLab: one component of genus 0 (%s, %s)" % (t.get("components"), t.get("genus")))
+        else:
+            open_ = (t.get("boundary_edges") or 0) > 0 or not t["two_manifold"]
+            check(open_ and t.get("boundary_edges") == holes,
+                  "MeshLab: MC is open, Boundary Edges %s = isomend's hole edges %d"
+                  % (t.get("boundary_edges"), holes))
+
+
+def test_errors(run):
+    work = run.work
+    # the plugin is loaded and listed with its description and parameters
+    dump = os.path.join(work, "filters.txt")
+    subprocess.run([run.server, "-d", dump], stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
+                   timeout=120)
+    text = open(dump, errors="replace").read() if os.path.exists(dump) else ""
+    block = text[text.find(FILTER):][:6000] if FILTER in text else ""
+    check(bool(block), "meshlabserver -d lists \"%s\"" % FILTER)
+    check(all(l in block for l in ("Source", "Iso level", "Method", "Spacing X", "Channel",
+                                   "Pad (closed surface)", "Flip normals", "Raw dimensions")),
+          "the dump shows the parameters with their tooltips")
+
+    good = os.path.join(work, "good")
+    write_tiff_folder(good, np.round(blobs(6, 9, 10) * 255).astype(np.uint8))
+    mismatched = os.path.join(work, "mismatched")
+    write_tiff_folder(mismatched, np.zeros((3, 8, 8), np.uint8))
+    import tifffile
+    tifffile.imwrite(os.path.join(mismatched, "s_003.tif"), np.zeros((9, 8), np.uint8))
+    empty = os.path.join(work, "empty")
+    os.makedirs(empty, exist_ok=True)
+    truncated = os.path.join(work, "truncated.raw")
+    np.zeros(100, np.uint8).tofile(truncated)
+    not_image = os.path.join(work, "notes")
+    os.makedirs(not_image, exist_ok=True)
+    for k in range(3):
+        with open(os.path.join(not_image, "s_%d.tif" % k), "w") as fh:
+            fh.write("not a TIFF\n")
+
+    cases = [
+        ("missing folder", {"source": os.path.join(work, "no_such_stack")}, "no_such_stack"),
+        ("empty folder", {"source": empty}, "empty"),
+        ("slice of another size", {"source": mismatched}, "s_003.tif"),
+        ("files that are not images", {"source": not_image}, "s_0.tif"),
+        ("raw file shorter than rawDims", {"source": truncated, "rawDims": "10 10 10"}, "truncated.raw"),
+        ("malformed rawDims", {"source": truncated, "rawDims": "10 x"}, "rawDims"),
+        ("negative spacingY", {"source": good, "spacingY": -1.0}, "spacingY"),
+        ("channel out of range", {"source": good, "channel": 3}, "channel"),
+        ("no surface at the iso level", {"source": good, "iso": 1000.0}, "no surface"),
+        ("empty source", {"source": ""}, "source"),
+    ]
+    for label, params, expect in cases:
+        print("%s:" % label)
+        rc, log, out = run.meshlab(params)
+        check(rc == 255, "meshlabserver exit 255, not an abort (rc %d)" % rc)
+        m = re.search(r"isomend: error: (.*)", log)
+        reason = m.group(1) if m else ""
+        check(expect in reason, "log names the reason: %r" % reason)
+        check("Problem with filter" in log, "meshlabserver reports the failed filter")
+        check(out is None, "no output file written")
+
+    print("a good run after the failures, same folder:")
+    rc, log, out = run.meshlab({"source": good, "iso": 127.5})
+    check(rc == 0 and out is not None, "exit 0 with a PLY")
+
+
+def main():
+    ap = argparse.ArgumentParser()
+    ap.add_argument("test", choices=["counts", "topology", "holes", "errors"])
+    ap.add_argument("--prefix", required=True)
+    ap.add_argument("--cli", required=True)
+    ap.add_argument("--work", required=True)
+    a = ap.parse_args()
+    if not os.environ.get("DISPLAY"):
+        print("no DISPLAY: run under xvfb-run -a (meshlabserver needs a GLX context)")
+        return 1
+    if os.path.isdir(a.work):
+        shutil.rmtree(a.work)
+    os.makedirs(a.work)
+    run = Runner(a.prefix, a.cli, a.work)
+    {"counts": test_counts, "topology": test_topology, "holes": test_holes,
+     "errors": test_errors}[a.test](run)
+    print("%d meshlabserver run(s); %s" % (sum(1 for f in os.listdir(a.work) if f.endswith(".mlx")),
+                                           "FAILED: %d" % len(failures) if failures else "all ok"))
+    return 1 if failures else 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
