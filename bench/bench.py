@@ -1,0 +1,925 @@
+#!/usr/bin/python3
+"""isomend against its peers, on the same arrays, in one run.
+
+What is timed (the library call only: no file I/O, volumes already in memory)
+
+  isomend DMC+normals   isomend_extract(), method DMC, vertex normals, one shared
+                        vertex per intersected edge, hole-free (the spec's goal row)
+  isomend DMC geometry  the same without normals (ISOMEND_FLAG_NO_NORMALS)
+  FE geometry / FE+n    vtkFlyingEdges3D, normals (and gradients, scalars) off / normals on
+  vtkMarchingCubes      geometry only (normals, gradients, scalars off); single-threaded
+  skimage lewiner       skimage.measure.marching_cubes(method='lewiner'); always computes
+                        normals; single-threaded
+  OpenVDB               FloatGrid.copyFromArray() + convertToPolygons(adaptivity=0), i.e.
+                        openvdb::tools::volumeToMesh; the dense-to-VDB copy is included
+                        because every other extractor starts from the same dense array
+  floor                 the memory-read floor: the sum of every voxel by a small C loop
+                        (bench/floor.c, built by CMake), measured in every child process
+                        right before its extractor, on the same array
+
+How it is measured
+
+  Every (volume, extractor, thread count) runs in a fresh child process pinned to N
+  cores (sched_setaffinity: TBB, used by VTK and OpenVDB, and isomend then see N cores;
+  VTK also gets vtkSMPTools.Initialize(N), isomend options.threads = N).  The child
+  loads the volume from a .npy file, then for each repetition resets its peak-RSS mark
+  (/proc/self/clear_refs = 5) and records wall time and the peak RSS above what it held
+  before the call (the "extra" memory: output, temporaries).  Times are medians.
+
+Modes: --smoke (seconds, for ctest), --quick (under two minutes: the goal volumes),
+default full (every field, size, type, thread count, and the Colin27 MRI).
+Run with Debian's /usr/bin/python3 (numpy, vtk, skimage, pyopenvdb, nibabel).
+"""
+import argparse
+import ctypes
+import datetime
+import gc
+import json
+import os
+import platform
+import shutil
+import statistics
+import subprocess
+import sys
+import tempfile
+import time
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+ROOT = os.path.dirname(HERE)
+FIELD_VERSION = 1  # bump when a field's definition changes (invalidates the cache)
+
+# ---------------------------------------------------------------------------- fields
+
+FIELDS = ("sphere", "gyroid", "noise", "colin27")
+# Scale that maps a float field onto uint8 around 127.5 (iso 127.5, so no sample
+# equals the level), and the float iso level.
+U8_SCALE = {"sphere": 16.0, "gyroid": 80.0, "noise": 40.0}
+GYROID_PERIODS = 16       # periods across the box, at every size
+NOISE_SIGMA_AT_256 = 1.5  # Gaussian smoothing of white noise, in voxels at 256^3
+COLIN_ISO = 60.0          # ch2better (uint8, 0..130): skin/skull boundary
+
+
+def field_description(name):
+    return {
+        "sphere": "R - |p - c|, R = 0.4 N (a ball of radius 0.4 N), iso 0",
+        "gyroid": "sin x cos y + sin y cos z + sin z cos x, %d periods across the box, iso 0"
+                  % GYROID_PERIODS,
+        "noise": "white Gaussian noise (seed 1) smoothed by a Gaussian of sigma %.1f N/256 "
+                 "voxels, normalised to unit variance, iso 0" % NOISE_SIGMA_AT_256,
+        "colin27": "Colin27 MRI, ch2better.nii.gz from Debian's mricron-data "
+                   "(301x370x316, uint8, 0.5 mm), iso %g" % COLIN_ISO,
+    }[name]
+
+
+def make_float_field(name, n):
+    import numpy as np
+    if name == "sphere":
+        c = np.arange(n, dtype=np.float32) - np.float32((n - 1) / 2)
+        r2 = c[:, None, None] ** 2 + c[None, :, None] ** 2
+        r2 = r2 + c[None, None, :] ** 2
+        return (np.float32(0.4 * n) - np.sqrt(r2)).astype(np.float32)
+    if name == "gyroid":
+        x = (np.arange(n, dtype=np.float64) + 0.5) * (2 * np.pi * GYROID_PERIODS / n)
+        s, c = np.sin(x).astype(np.float32), np.cos(x).astype(np.float32)
+        # array axes (z, y, x): f = sin x cos y + sin y cos z + sin z cos x
+        f = s[None, None, :] * c[None, :, None]
+        f = f + s[None, :, None] * c[:, None, None]
+        f += s[:, None, None] * c[None, None, :]
+        return f.astype(np.float32, copy=False)
+    if name == "noise":
+        import scipy.ndimage as nd
+        rng = np.random.default_rng(1)
+        w = rng.standard_normal((n, n, n), dtype=np.float32)
+        f = nd.gaussian_filter(w, NOISE_SIGMA_AT_256 * n / 256.0, output=np.float32, mode="wrap")
+        del w
+        f /= np.float32(f.std(dtype=np.float64))
+        return f
+    raise ValueError("unknown field %r" % name)
+
+
+def to_u8(name, f):
+    import numpy as np
+    u = f * np.float32(U8_SCALE[name])
+    u += np.float32(127.5)
+    np.clip(u, 0, 255, out=u)
+    return np.rint(u).astype(np.uint8)
+
+
+def colin27_path(cache):
+    """ch2better.nii.gz: installed mricron-data, else `apt-get download` into the cache."""
+    for p in ("/usr/share/mricron/templates/ch2better.nii.gz",
+              os.path.join(cache, "mricron", "usr/share/mricron/templates/ch2better.nii.gz")):
+        if os.path.exists(p):
+            return p
+    dl = os.path.join(cache, "mricron-download")
+    os.makedirs(dl, exist_ok=True)
+    try:
+        subprocess.run(["apt-get", "download", "mricron-data"], cwd=dl, check=True,
+                       stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
+        debs = [f for f in os.listdir(dl) if f.endswith(".deb")]
+        if not debs:
+            raise RuntimeError("apt-get download mricron-data produced no .deb")
+        subprocess.run(["dpkg-deb", "-x", os.path.join(dl, debs[0]),
+                        os.path.join(cache, "mricron")], check=True)
+    except (OSError, subprocess.CalledProcessError, RuntimeError) as e:
+        raise RuntimeError("Colin27 MRI unavailable (install mricron-data or allow "
+                           "`apt-get download mricron-data`): %s" % e)
+    p = os.path.join(cache, "mricron", "usr/share/mricron/templates/ch2better.nii.gz")
+    if not os.path.exists(p):
+        raise RuntimeError("mricron-data has no %s" % p)
+    return p
+
+
+def volume_file(cache, name, n, dtype):
+    """Path of a cached .npy volume (generated on first use) and its iso level."""
+    import numpy as np
+    if name == "colin27":
+        iso = COLIN_ISO
+        path = os.path.join(cache, "v%d-colin27-%s.npy" % (FIELD_VERSION, dtype))
+        if not os.path.exists(path):
+            import nibabel
+            img = nibabel.load(colin27_path(cache))
+            a = np.asarray(img.dataobj)  # (x, y, z), x fastest in the file
+            a = np.ascontiguousarray(a.transpose(2, 1, 0))  # our arrays are (z, y, x)
+            _save(path, a.astype(np.float32) if dtype == "f32" else a.astype(np.uint8))
+        return path, iso
+    iso = 127.5 if dtype == "u8" else 0.0
+    path = os.path.join(cache, "v%d-%s-%d-%s.npy" % (FIELD_VERSION, name, n, dtype))
+    if not os.path.exists(path):
+        f = make_float_field(name, n)
+        _save(path, to_u8(name, f) if dtype == "u8" else f)
+        del f
+    return path, iso
+
+
+def _save(path, a):
+    import numpy as np
+    d = os.path.dirname(path)
+    fd, tmp = tempfile.mkstemp(prefix=".tmp-", suffix=".npy", dir=d)
+    try:
+        with os.fdopen(fd, "wb") as fh:
+            np.save(fh, a)
+        os.replace(tmp, path)
+    except BaseException:
+        if os.path.exists(tmp):
+            os.unlink(tmp)
+        raise
+
+
+# ------------------------------------------------------------------ the extractors
+# Each runs in a child process: setup(array, iso, threads) returns a callable that
+# performs one extraction and returns (triangles, vertices, output bytes, extra).
+
+class IsomendVolume(ctypes.Structure):
+    _fields_ = [("data", ctypes.c_void_p), ("type", ctypes.c_int),
+                ("dims", ctypes.c_int64 * 3), ("strides", ctypes.c_int64 * 3),
+                ("spacing", ctypes.c_double * 3), ("origin", ctypes.c_double * 3)]
+
+
+class IsomendOptions(ctypes.Structure):
+    _fields_ = [("iso", ctypes.c_double), ("method", ctypes.c_int), ("flags", ctypes.c_uint),
+                ("threads", ctypes.c_int), ("progress", ctypes.c_void_p),
+                ("progress_user", ctypes.c_void_p)]
+
+
+class IsomendStats(ctypes.Structure):
+    _fields_ = [("cubes", ctypes.c_uint64), ("case_histogram", ctypes.c_uint64 * 15),
+                ("ambiguous_faces", ctypes.c_uint64), ("inverted_combinations", ctypes.c_uint64),
+                ("triangles_by_origin", ctypes.c_uint64 * 3), ("nan_samples", ctypes.c_uint64),
+                ("vertices", ctypes.c_uint64), ("triangles", ctypes.c_uint64)]
+
+
+ISOMEND_TYPES = {"uint8": 0, "int8": 1, "uint16": 2, "int16": 3, "int32": 4, "float32": 5,
+                 "float64": 6}
+ISOMEND_FLAG_NO_NORMALS = 1
+
+
+def load_isomend(lib_dir):
+    """The core library through a minimal ctypes binding: the bench times
+    isomend_extract() alone, as it times vtkAlgorithm::Update() alone."""
+    names = ["libisomend.so", "libisomend.so.0"]
+    d = lib_dir or os.environ.get("ISOMEND_LIB_DIR")
+    tried = []
+    for n in names:
+        p = os.path.join(d, n) if d else n
+        tried.append(p)
+        try:
+            lib = ctypes.CDLL(p)
+            break
+        except OSError:
+            continue
+    else:
+        raise RuntimeError("libisomend not found (tried %s); pass --lib-dir or set "
+                           "ISOMEND_LIB_DIR" % ", ".join(tried))
+    P = ctypes.POINTER
+    lib.isomend_volume_init.argtypes = [P(IsomendVolume), ctypes.c_void_p, ctypes.c_int,
+                                        ctypes.c_int64, ctypes.c_int64, ctypes.c_int64]
+    lib.isomend_volume_init.restype = None
+    lib.isomend_options_init.argtypes = [P(IsomendOptions)]
+    lib.isomend_options_init.restype = None
+    lib.isomend_extract.argtypes = [P(IsomendVolume), P(IsomendOptions),
+                                    P(ctypes.c_void_p), P(IsomendStats)]
+    lib.isomend_extract.restype = ctypes.c_int
+    lib.isomend_status_string.argtypes = [ctypes.c_int]
+    lib.isomend_status_string.restype = ctypes.c_char_p
+    lib.isomend_mesh_destroy.argtypes = [ctypes.c_void_p]
+    lib.isomend_mesh_destroy.restype = None
+    for f in ("isomend_mesh_vertex_count", "isomend_mesh_triangle_count"):
+        getattr(lib, f).argtypes = [ctypes.c_void_p]
+        getattr(lib, f).restype = ctypes.c_size_t
+    lib.isomend_version.restype = ctypes.c_char_p
+    return lib
+
+
+def setup_isomend(a, iso, threads, args, normals):
+    lib = load_isomend(args.lib_dir)
+    vol = IsomendVolume()
+    nz, ny, nx = a.shape
+    lib.isomend_volume_init(ctypes.byref(vol), a.ctypes.data, ISOMEND_TYPES[a.dtype.name],
+                            nx, ny, nz)
+    opts = IsomendOptions()
+    lib.isomend_options_init(ctypes.byref(opts))
+    opts.iso = iso
+    opts.method = 2  # ISOMEND_METHOD_DMC
+    opts.threads = threads
+    if not normals:
+        opts.flags |= ISOMEND_FLAG_NO_NORMALS
+
+    def run():
+        mesh = ctypes.c_void_p()
+        st = IsomendStats()
+        s = lib.isomend_extract(ctypes.byref(vol), ctypes.byref(opts), ctypes.byref(mesh),
+                                ctypes.byref(st))
+        if s != 0:
+            raise RuntimeError("isomend_extract: %s" % lib.isomend_status_string(s).decode())
+        return mesh, st
+
+    def measure(out):
+        mesh, st = out
+        nv = lib.isomend_mesh_vertex_count(mesh)
+        nt = lib.isomend_mesh_triangle_count(mesh)
+        nbytes = nv * 12 * (2 if normals else 1) + nt * 12 + nt  # + 1 origin byte per triangle
+        extra = {"mend_triangles": st.triangles_by_origin[2],
+                 "inverted_combinations": st.inverted_combinations,
+                 "version": lib.isomend_version().decode()}
+        lib.isomend_mesh_destroy(mesh)
+        return nt, nv, nbytes, extra
+    return run, measure
+
+
+def setup_wrapper(a, iso, threads, args):
+    """isomend through the Python wrapper of the Blender add-on (copies into numpy)."""
+    if args.lib_dir:
+        os.environ["ISOMEND_LIB_DIR"] = args.lib_dir
+    sys.path.insert(0, os.path.join(ROOT, "blender_addon", "isomend_import"))
+    import isomend  # noqa: E402 (the wrapper module)
+
+    def run():
+        return isomend.extract(a, iso, method="dmc", normals=True, threads=threads)
+
+    def measure(out):
+        arrays = [getattr(out, k) for k in ("positions", "vertices", "normals", "triangles",
+                                            "faces") if getattr(out, k, None) is not None]
+        nbytes = sum(x.nbytes for x in arrays)
+        tri = getattr(out, "triangles", None)
+        if tri is None:
+            tri = getattr(out, "faces")
+        pos = getattr(out, "positions", None)
+        if pos is None:
+            pos = getattr(out, "vertices")
+        return len(tri), len(pos), nbytes, {}
+    return run, measure
+
+
+def _vtk_image(a):
+    from vtkmodules.vtkCommonDataModel import vtkImageData
+    from vtkmodules.util.numpy_support import numpy_to_vtk
+    img = vtkImageData()
+    nz, ny, nx = a.shape
+    img.SetDimensions(nx, ny, nz)
+    arr = numpy_to_vtk(a.reshape(-1), deep=False)
+    img.GetPointData().SetScalars(arr)
+    return img, arr
+
+
+def setup_vtk(a, iso, threads, args, cls, normals):
+    from vtkmodules.vtkCommonCore import vtkSMPTools
+    import vtkmodules.vtkFiltersCore as fc
+    vtkSMPTools.Initialize(threads)
+    img, keep = _vtk_image(a)
+
+    def run():
+        f = getattr(fc, cls)()
+        f.SetInputData(img)
+        f.SetValue(0, iso)
+        f.SetComputeNormals(1 if normals else 0)
+        f.ComputeGradientsOff()
+        f.ComputeScalarsOff()
+        f.Update()
+        return f
+
+    def measure(f):
+        out = f.GetOutput()
+        res = (out.GetNumberOfPolys(), out.GetNumberOfPoints(),
+               out.GetActualMemorySize() * 1024, {"keep": id(keep)})
+        return res
+    return run, measure
+
+
+def setup_skimage(a, iso, threads, args):
+    from skimage.measure import marching_cubes
+
+    def run():
+        return marching_cubes(a, level=iso, method="lewiner")
+
+    def measure(out):
+        verts, faces, normals, values = out
+        return len(faces), len(verts), sum(x.nbytes for x in out), {}
+    return run, measure
+
+
+def setup_openvdb(a, iso, threads, args):
+    import numpy as np
+    import pyopenvdb as vdb
+
+    def run():
+        # background: a value on the outside (< iso) so inactive tiles stay outside
+        g = vdb.FloatGrid(float(a.min()))
+        g.copyFromArray(a if a.dtype == np.float32 else a.astype(np.float32))
+        return g.convertToPolygons(isovalue=float(iso), adaptivity=0.0)
+
+    def measure(out):
+        pts, tris, quads = out
+        return len(tris) + 2 * len(quads), len(pts), sum(x.nbytes for x in out), \
+            {"quads": len(quads)}
+    return run, measure
+
+
+EXTRACTORS = {
+    # name: (label, setup, parallel)
+    "isomend": ("isomend DMC+normals", lambda a, i, t, g: setup_isomend(a, i, t, g, True), True),
+    "isomend-geom": ("isomend DMC geometry",
+                     lambda a, i, t, g: setup_isomend(a, i, t, g, False), True),
+    "isomend-py": ("isomend via Python wrapper", setup_wrapper, True),
+    "fe": ("vtkFlyingEdges3D geometry",
+           lambda a, i, t, g: setup_vtk(a, i, t, g, "vtkFlyingEdges3D", False), True),
+    "fe-normals": ("vtkFlyingEdges3D +normals",
+                   lambda a, i, t, g: setup_vtk(a, i, t, g, "vtkFlyingEdges3D", True), True),
+    "vtkmc": ("vtkMarchingCubes geometry",
+              lambda a, i, t, g: setup_vtk(a, i, t, g, "vtkMarchingCubes", False), False),
+    "skimage": ("skimage marching_cubes lewiner", setup_skimage, False),
+    "openvdb": ("OpenVDB volumeToMesh (adapt. 0)", setup_openvdb, True),
+}
+ALL_PEERS = ["isomend", "isomend-geom", "fe", "fe-normals", "vtkmc", "skimage", "openvdb"]
+
+
+# ------------------------------------------------------------------- child process
+
+def _status_kb(key):
+    with open("/proc/self/status") as f:
+        for line in f:
+            if line.startswith(key + ":"):
+                return int(line.split()[1])
+    return 0
+
+
+def _reset_peak():
+    try:
+        with open("/proc/self/clear_refs", "w") as f:
+            f.write("5")
+        return True
+    except OSError:
+        return False
+
+
+def load_floor(path):
+    if not path:
+        return None
+    lib = ctypes.CDLL(path)
+    lib.isomend_bench_sum_f32.argtypes = [ctypes.c_void_p, ctypes.c_size_t, ctypes.c_int]
+    lib.isomend_bench_sum_f32.restype = ctypes.c_double
+    lib.isomend_bench_sum_u8.argtypes = [ctypes.c_void_p, ctypes.c_size_t, ctypes.c_int]
+    lib.isomend_bench_sum_u8.restype = ctypes.c_double
+    return lib
+
+
+def floor_sum(lib, a, threads):
+    """The memory-read floor: every voxel read once (C loop; numpy if not built)."""
+    if lib is not None and a.dtype.name == "float32":
+        return lib.isomend_bench_sum_f32(a.ctypes.data, a.size, threads)
+    if lib is not None and a.dtype.name == "uint8":
+        return lib.isomend_bench_sum_u8(a.ctypes.data, a.size, threads)
+    return float(a.sum(dtype="float64"))
+
+
+def child_main(args):
+    threads = args.child_threads
+    ncpu = os.cpu_count() or 1
+    if threads <= ncpu:
+        os.sched_setaffinity(0, set(sorted(os.sched_getaffinity(0))[:threads]))
+    import numpy as np
+    label, setup, _parallel = EXTRACTORS[args.child_extractor]
+    floor_lib = load_floor(args.floor_lib)
+    rss_before_input = _status_kb("VmRSS")
+    a = np.load(args.child_volume)
+    rss_input = _status_kb("VmRSS")
+    run, measure = setup(a, args.child_iso, threads, args)
+
+    # The floor, in this process, on this array, before the extractor.
+    floor_times, numpy_times = [], []
+    fsum = None
+    for _ in range(max(3, args.repeats)):
+        t0 = time.perf_counter()
+        fsum = floor_sum(floor_lib, a, threads)
+        floor_times.append(time.perf_counter() - t0)
+    for _ in range(2):
+        t0 = time.perf_counter()
+        nsum = float(a.sum(dtype=np.float64))
+        numpy_times.append(time.perf_counter() - t0)
+
+    times, peaks = [], []
+    result = None
+    for r in range(args.repeats):
+        gc.collect()
+        have_peak = _reset_peak()
+        base = _status_kb("VmRSS")
+        t0 = time.perf_counter()
+        out = run()
+        dt = time.perf_counter() - t0
+        peak = _status_kb("VmHWM") - base if have_peak else None
+        res = measure(out)
+        del out
+        times.append(dt)
+        peaks.append(peak)
+        if result is None:
+            result = res
+        elif (res[0], res[1]) != (result[0], result[1]):
+            raise RuntimeError("%s: output changed between repetitions" % label)
+    ntri, nvert, nbytes, extra = result
+    extra.pop("keep", None)
+    json.dump({"times": times, "peak_extra_kb": None if None in peaks else max(peaks),
+               "triangles": ntri, "vertices": nvert, "output_bytes": nbytes,
+               "input_bytes": int(a.nbytes), "rss_input_kb": rss_input - rss_before_input,
+               "floor_times": floor_times, "floor_sum": fsum, "numpy_sum": nsum,
+               "numpy_sum_times": numpy_times, "floor_impl": "C" if floor_lib else "numpy",
+               "extra": extra}, sys.stdout)
+
+
+# ------------------------------------------------------------------------ the parent
+
+def run_child(args, extractor, vol_path, iso, threads, repeats):
+    cmd = [sys.executable, os.path.abspath(__file__), "--child-extractor", extractor,
+           "--child-volume", vol_path, "--child-iso", repr(iso), "--child-threads",
+           str(threads), "--repeats", str(repeats)]
+    if args.lib_dir:
+        cmd += ["--lib-dir", args.lib_dir]
+    if args.floor_lib:
+        cmd += ["--floor-lib", args.floor_lib]
+    p = subprocess.run(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                       timeout=args.child_timeout)
+    if p.returncode != 0:
+        msg = (p.stderr.strip().splitlines() or ["exit status %d" % p.returncode])[-1]
+        return {"error": msg}
+    return json.loads(p.stdout)
+
+
+def plan(args):
+    """The list of volumes (field, size, dtype) and the per-volume extractor policy."""
+    if args.smoke:
+        vols = [("sphere", 24, "f32"), ("noise", 24, "u8")]
+    elif args.quick:
+        vols = [(f, 256, "f32") for f in ("sphere", "gyroid", "noise")]
+        vols += [("sphere", 512, "f32")]
+    else:
+        vols = [(f, n, d) for n in (128, 256, 512) for f in ("sphere", "gyroid", "noise")
+                for d in ("f32", "u8")]
+        vols += [("colin27", 0, "u8"), ("colin27", 0, "f32")]
+    if args.fields:
+        keep = set(args.fields.split(","))
+        vols = [v for v in vols if v[0] in keep]
+    if args.sizes:
+        keep = {int(s) for s in args.sizes.split(",")}
+        vols = [v for v in vols if v[1] in keep or v[0] == "colin27"]
+    if args.dtypes:
+        keep = set(args.dtypes.split(","))
+        vols = [v for v in vols if v[2] in keep]
+    return vols
+
+
+def slow_peer_policy(args, name, size):
+    """Quick mode runs the peers that are far from the goal once and at one thread."""
+    if not args.quick:
+        return None
+    if name in ("vtkmc", "skimage", "openvdb"):
+        return 1
+    return None
+
+
+def machine_info():
+    info = {"python": platform.python_version(), "cpus": os.cpu_count()}
+    try:
+        with open("/proc/cpuinfo") as f:
+            for line in f:
+                if line.startswith("model name"):
+                    info["cpu"] = line.split(":", 1)[1].strip()
+                    break
+        with open("/proc/meminfo") as f:
+            info["mem_gb"] = round(int(f.readline().split()[1]) / 1024 / 1024, 1)
+        with open("/etc/debian_version") as f:
+            info["debian"] = f.read().strip()
+        info["loadavg"] = os.getloadavg()
+    except OSError:
+        pass
+    try:
+        import numpy
+        import vtkmodules.vtkCommonCore as cc
+        info["numpy"] = numpy.__version__
+        info["vtk"] = cc.vtkVersion.GetVTKVersion()
+        info["vtk_smp"] = cc.vtkSMPTools.GetBackend()
+    except ImportError:
+        pass
+    for mod, key in (("skimage", "skimage"), ("pyopenvdb", "openvdb")):
+        try:
+            m = __import__(mod)
+            info[key] = getattr(m, "__version__", None) or ".".join(
+                str(x) for x in getattr(m, "LIBRARY_VERSION", ()))
+        except ImportError:
+            pass
+    try:
+        info["git"] = subprocess.run(["git", "-C", ROOT, "describe", "--always", "--dirty"],
+                                     capture_output=True, text=True).stdout.strip()
+    except OSError:
+        pass
+    return info
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0],
+                                 formatter_class=argparse.RawDescriptionHelpFormatter)
+    mode = ap.add_mutually_exclusive_group()
+    mode.add_argument("--quick", action="store_true", help="the goal volumes, under two minutes")
+    mode.add_argument("--smoke", action="store_true", help="tiny volumes, a few seconds")
+    ap.add_argument("--fields", help="comma list of %s" % ",".join(FIELDS))
+    ap.add_argument("--sizes", help="comma list of edge lengths (128,256,512)")
+    ap.add_argument("--dtypes", help="comma list of f32,u8")
+    ap.add_argument("--threads", help="comma list of thread counts (default 1 and all cores)")
+    ap.add_argument("--repeats", type=int, help="timed runs per measurement (median)")
+    ap.add_argument("--peers", default="all",
+                    help="comma list of %s, or all (+ isomend-py for the Python wrapper)"
+                    % ",".join(ALL_PEERS))
+    ap.add_argument("--lib-dir", help="folder with libisomend.so (else $ISOMEND_LIB_DIR)")
+    ap.add_argument("--floor-lib", help="libisomend_bench_floor.so (else numpy's sum)")
+    ap.add_argument("--cache-dir", help="where generated volumes are kept "
+                    "(default ~/.cache/isomend-bench; the smoke test uses a temporary one)")
+    ap.add_argument("--out", help="markdown table to write (atomically)")
+    ap.add_argument("--json", help="raw results to write")
+    ap.add_argument("--check", action="store_true",
+                    help="fail unless every extractor ran and the counts are consistent")
+    ap.add_argument("--child-timeout", type=float, default=1800)
+    ap.add_argument("--child-extractor", help=argparse.SUPPRESS)
+    ap.add_argument("--child-volume", help=argparse.SUPPRESS)
+    ap.add_argument("--child-iso", type=float, help=argparse.SUPPRESS)
+    ap.add_argument("--child-threads", type=int, help=argparse.SUPPRESS)
+    args = ap.parse_args(argv)
+
+    if args.child_extractor:
+        child_main(args)
+        return 0
+
+    started = time.time()
+    for path, what in ((args.lib_dir, "--lib-dir"), (args.floor_lib, "--floor-lib")):
+        if path and not os.path.exists(path):
+            print("bench.py: %s %s does not exist" % (what, path), file=sys.stderr)
+            return 2
+    if args.lib_dir:
+        args.lib_dir = os.path.abspath(args.lib_dir)
+    if args.floor_lib:
+        args.floor_lib = os.path.abspath(args.floor_lib)
+    peers = ALL_PEERS if args.peers == "all" else args.peers.split(",")
+    for p in peers:
+        if p not in EXTRACTORS:
+            print("bench.py: --peers: unknown extractor %r (known: %s)"
+                  % (p, ", ".join(EXTRACTORS)), file=sys.stderr)
+            return 2
+    ncpu = os.cpu_count() or 1
+    if args.threads:
+        try:
+            thread_counts = [int(t) for t in args.threads.split(",")]
+        except ValueError:
+            thread_counts = [0]
+        if any(t < 1 for t in thread_counts):
+            print("bench.py: --threads %r: expected positive integers" % args.threads,
+                  file=sys.stderr)
+            return 2
+    else:
+        thread_counts = sorted({1, ncpu})
+    repeats = args.repeats or (2 if args.smoke else 3 if args.quick else 5)
+    if repeats < 1:
+        print("bench.py: --repeats must be >= 1", file=sys.stderr)
+        return 2
+
+    tmp_cache = None
+    if args.cache_dir:
+        cache = args.cache_dir
+    elif args.smoke:
+        cache = tmp_cache = tempfile.mkdtemp(prefix="isomend-bench-")
+    else:
+        cache = os.path.join(os.environ.get("XDG_CACHE_HOME",
+                                            os.path.expanduser("~/.cache")), "isomend-bench")
+    os.makedirs(cache, exist_ok=True)
+
+    info = machine_info()
+    info["mode"] = "smoke" if args.smoke else "quick" if args.quick else "full"
+    info["command"] = "bench/bench.py " + " ".join(argv if argv is not None else sys.argv[1:])
+    info["started"] = datetime.datetime.utcnow().strftime("%Y-%m-%d %H:%M UTC")
+    info["repeats"] = repeats
+    results = []
+    try:
+        for (field, n, dtype) in plan(args):
+            try:
+                t0 = time.perf_counter()
+                vol_path, iso = volume_file(cache, field, n, dtype)
+                gen = time.perf_counter() - t0
+            except (RuntimeError, OSError, ImportError) as e:
+                print("bench.py: %s: %s" % (field, e), file=sys.stderr)
+                results.append({"field": field, "size": n, "dtype": dtype, "error": str(e)})
+                continue
+            print("[bench] %s %s %s (ready in %.1f s)" % (field, n or "", dtype, gen),
+                  file=sys.stderr, flush=True)
+            for ext in peers:
+                label, _setup, parallel = EXTRACTORS[ext]
+                for t in thread_counts:
+                    forced = slow_peer_policy(args, ext, n)
+                    reps = forced or repeats
+                    if (not parallel or forced) and t != thread_counts[0]:
+                        continue  # single-threaded: its 1-thread time stands for every count
+                    r = run_child(args, ext, vol_path, iso, t, reps)
+                    r.update({"field": field, "size": n, "dtype": dtype, "extractor": ext,
+                              "label": label, "threads": t, "iso": iso, "parallel": parallel,
+                              "repeats": reps})
+                    if "times" in r:
+                        r["median"] = statistics.median(r["times"])
+                        r["floor"] = statistics.median(r["floor_times"])
+                        print("[bench]   %-32s %d thr: %8.1f ms  %9d tri  floor %.1f ms"
+                              % (label, t, 1e3 * r["median"], r["triangles"],
+                                 1e3 * r["floor"]), file=sys.stderr, flush=True)
+                    else:
+                        print("[bench]   %-32s %d thr: FAILED: %s" % (label, t, r["error"]),
+                              file=sys.stderr, flush=True)
+                    results.append(r)
+    finally:
+        if tmp_cache:
+            shutil.rmtree(tmp_cache, ignore_errors=True)
+    info["seconds"] = round(time.time() - started, 1)
+
+    if args.json:
+        _write_atomic(args.json, json.dumps({"machine": info, "results": results}, indent=1))
+    text = render(info, results, thread_counts)
+    if args.out:
+        _write_atomic(args.out, text)
+    else:
+        sys.stdout.write(text)
+    print("[bench] done in %.0f s" % info["seconds"], file=sys.stderr)
+    if args.check:
+        problems = check(results, peers)
+        for p in problems:
+            print("bench.py: check: %s" % p, file=sys.stderr)
+        return 1 if problems else 0
+    return 0
+
+
+def _write_atomic(path, text):
+    d = os.path.dirname(os.path.abspath(path))
+    os.makedirs(d, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(prefix=".tmp-", dir=d)
+    try:
+        with os.fdopen(fd, "w") as f:
+            f.write(text)
+        os.replace(tmp, path)
+    except BaseException:
+        if os.path.exists(tmp):
+            os.unlink(tmp)
+        raise
+
+
+def check(results, peers):
+    """Consistency of a run (the smoke test): every measurement succeeded, the
+    floor read every voxel, isomend's mesh has Flying Edges' vertices (one per
+    intersected edge), the Python wrapper and the geometry-only run give the
+    library's mesh, and the mesh does not depend on the thread count."""
+    problems = []
+    by = {}
+    for r in results:
+        if "error" in r:
+            problems.append("%s %s %s %s: %s" % (r["field"], r["size"], r["dtype"],
+                                                  r.get("extractor", "volume"), r["error"]))
+            continue
+        by[(r["field"], r["size"], r["dtype"], r["extractor"], r["threads"])] = r
+        if abs(r["floor_sum"] - r["numpy_sum"]) > 1e-4 * max(1.0, abs(r["numpy_sum"])) + 1e-3 * \
+                r["input_bytes"]:
+            problems.append("%s: floor sum %g != numpy sum %g" % (r["label"], r["floor_sum"],
+                                                                  r["numpy_sum"]))
+        if not r["triangles"] and r["field"] != "colin27":
+            problems.append("%s on %s: no triangles" % (r["label"], r["field"]))
+    for key, r in by.items():
+        f, n, d, ext, t = key
+        if ext == "isomend":
+            for other in ("isomend-geom", "isomend-py"):
+                o = by.get((f, n, d, other, t))
+                if o and (o["triangles"], o["vertices"]) != (r["triangles"], r["vertices"]):
+                    problems.append("%s %d %s: %s differs from isomend (%d/%d vs %d/%d)" % (
+                        f, n, d, other, o["triangles"], o["vertices"], r["triangles"],
+                        r["vertices"]))
+            # Flying Edges also shares one vertex per intersected edge: same vertices.
+            # (Its table triangulates some inverted cases with more triangles, so
+            # triangle counts differ by design; they stay within 15 %.)
+            fe = by.get((f, n, d, "fe", t))
+            if fe:
+                if r["vertices"] != fe["vertices"]:
+                    problems.append("%s %d %s: isomend has %d vertices, Flying Edges %d" % (
+                        f, n, d, r["vertices"], fe["vertices"]))
+                if abs(r["triangles"] - fe["triangles"]) > 0.15 * fe["triangles"]:
+                    problems.append("%s %d %s: isomend %d triangles, Flying Edges %d" % (
+                        f, n, d, r["triangles"], fe["triangles"]))
+            base = by.get((f, n, d, "isomend", 1))
+            if base and (base["triangles"], base["vertices"]) != (r["triangles"], r["vertices"]):
+                problems.append("%s %d %s: isomend output depends on the thread count" % (f, n, d))
+    for p in peers:
+        if not any(k[3] == p for k in by):
+            problems.append("extractor %s never ran" % p)
+    return problems
+
+
+# ------------------------------------------------------------------------ rendering
+
+def _ms(x):
+    if x is None:
+        return "—"
+    x *= 1e3
+    return "%.0f" % x if x >= 100 else "%.1f" % x if x >= 1 else "%.2f" % x
+
+
+def _mb(kb):
+    return "—" if kb is None else "%.0f" % (kb / 1024) if kb >= 10240 else "%.1f" % (kb / 1024)
+
+
+def _count(n):
+    return "%.2f M" % (n / 1e6) if n >= 1e5 else "%d" % n
+
+
+def _vol_name(f, n, d):
+    return "%s %s" % (f, d) if f == "colin27" else "%s %d³ %s" % (f, n, d)
+
+
+def render(info, results, thread_counts):
+    out = []
+    w = out.append
+    w("# isomend benchmark results\n")
+    w("Generated by `%s` (%s mode) on %s in %.0f s. "
+      "**Do not edit: rerun the benchmark** (see the README's performance section).\n"
+      % (info.get("command"), info["mode"], info["started"], info["seconds"]))
+    w("Machine: %s, %s cores, %s GB RAM, Debian %s; load average at start %s (the machine "
+      "may be shared: timings are medians of %d runs, single runs where marked ¹). "
+      "isomend %s (git %s); VTK %s (SMP backend %s), scikit-image %s, OpenVDB %s, numpy %s, "
+      "Python %s.\n"
+      % (info.get("cpu", "?"), info.get("cpus"), info.get("mem_gb"), info.get("debian", "?"),
+         ", ".join("%.2f" % x for x in info.get("loadavg", ())), info["repeats"],
+         _first_extra(results, "version") or "?", info.get("git", "?"), info.get("vtk", "?"),
+         info.get("vtk_smp", "?"), info.get("skimage", "?"), info.get("openvdb", "?"),
+         info.get("numpy", "?"), info.get("python")))
+    ok = [r for r in results if "times" in r]
+    by = {(r["field"], r["size"], r["dtype"], r["extractor"], r["threads"]): r for r in ok}
+    vols = []
+    for r in results:
+        v = (r["field"], r["size"], r["dtype"])
+        if v not in vols:
+            vols.append(v)
+
+    # Goal summary.
+    w("## Goals\n")
+    w("Goal 2: isomend DMC (normals, shared vertices, no holes) at least 2x faster than "
+      "vtkFlyingEdges3D geometry-only at equal threads on every field at 256³ and 512³, and "
+      "within 4x of the memory-read floor on the sphere. Floor = sum of every voxel by a C "
+      "loop at the same thread count, same process, same array.\n")
+    w("| volume | threads | isomend DMC+normals ms | FE geometry ms | speed-up vs FE (goal ≥ 2) "
+      "| floor ms | isomend / floor | triangles |")
+    w("|---|---|---|---|---|---|---|---|")
+    for v in vols:
+        for t in thread_counts:
+            i = by.get(v + ("isomend", t))
+            fe = by.get(v + ("fe", t))
+            if not i:
+                continue
+            sp = fe["median"] / i["median"] if fe else None
+            goal_size = v[1] in (256, 512)
+            mark = "" if sp is None or not goal_size else " ✔" if sp >= 2 else " ✘"
+            fl = i["median"] / i["floor"]
+            fmark = " ✔" if v[0] == "sphere" and goal_size and fl <= 4 else \
+                " ✘" if v[0] == "sphere" and goal_size else ""
+            w("| %s | %d | %s | %s | %s%s | %s | %.1f%s | %s |" % (
+                _vol_name(*v), t, _ms(i["median"]), _ms(fe["median"]) if fe else "—",
+                "%.2f" % sp if sp else "—", mark, _ms(i["floor"]), fl, fmark,
+                _count(i["triangles"])))
+    w("")
+    mem = [r for r in ok if r["extractor"] == "isomend" and r.get("peak_extra_kb") is not None]
+    if mem:
+        w("Goal 3, memory: peak resident memory of the extraction (input + the largest "
+          "increase of RSS during the call) against input + output mesh + 10 %.\n")
+        w("| volume | threads | input MB | output MB | peak MB | limit MB | met |")
+        w("|---|---|---|---|---|---|---|")
+        for r in mem:
+            inp = r["input_bytes"] / 2**20
+            outp = r["output_bytes"] / 2**20
+            peak = inp + r["peak_extra_kb"] / 1024
+            lim = 1.1 * (inp + outp)
+            w("| %s | %d | %.0f | %.0f | %.0f | %.0f | %s |" % (
+                _vol_name(r["field"], r["size"], r["dtype"]), r["threads"], inp, outp, peak,
+                lim, "✔" if peak <= lim else "✘"))
+        w("")
+
+    # Details per volume.
+    w("## Every extractor, per volume\n")
+    w("Times in ms (median). *speed-up* = the extractor's time / isomend DMC+normals' time at "
+      "the same thread count (> 1: isomend is faster). *extra MB* = the largest RSS increase "
+      "during the call (output and temporaries; the input is already resident). "
+      "Single-threaded peers (vtkMarchingCubes, scikit-image) run once at 1 thread: that time "
+      "stands for every thread count.\n")
+    for v in vols:
+        errs = [r for r in results if (r["field"], r["size"], r["dtype"]) == v and "error" in r]
+        rows = [r for r in ok if (r["field"], r["size"], r["dtype"]) == v]
+        if not rows:
+            w("### %s\n\nnot measured: %s\n" % (_vol_name(*v), "; ".join(
+                r["error"] for r in errs) or "no result"))
+            continue
+        w("### %s — iso %g\n" % (_vol_name(*v), rows[0]["iso"]))
+        floors = {t: statistics.median([r["floor"] for r in rows if r["threads"] == t])
+                  for t in thread_counts if any(r["threads"] == t for r in rows)}
+        head = "| extractor |"
+        for t in thread_counts:
+            head += " %d thr ms | speed-up | × floor |" % t
+        head += " triangles | vertices | extra MB |"
+        w(head)
+        w("|---" * (1 + 3 * len(thread_counts) + 3) + "|")
+        exts = []
+        for r in rows:
+            if r["extractor"] not in exts:
+                exts.append(r["extractor"])
+        for ext in exts:
+            any_r = next(r for r in rows if r["extractor"] == ext)
+            line = "| %s |" % any_r["label"]
+            for t in thread_counts:
+                r = by.get(v + (ext, t))
+                if r is None and not any_r["parallel"] or r is None and any_r["repeats"] == 1:
+                    r = by.get(v + (ext, thread_counts[0]))
+                    note = " (1 thr)" if t != thread_counts[0] else ""
+                else:
+                    note = ""
+                if r is None:
+                    line += " — | | |"
+                    continue
+                once = "¹" if r["repeats"] == 1 else ""
+                iso_r = by.get(v + ("isomend", t))
+                sp = r["median"] / iso_r["median"] if iso_r else None
+                fl = floors.get(t)
+                line += " %s%s%s | %s | %s |" % (_ms(r["median"]), once, note,
+                                                  "%.2f" % sp if sp else "—",
+                                                  "%.1f" % (r["median"] / fl) if fl else "—")
+            peak = max([x["peak_extra_kb"] for x in rows if x["extractor"] == ext
+                        and x["peak_extra_kb"] is not None] or [None], key=lambda x: x or 0)
+            line += " %s | %s | %s |" % (_count(any_r["triangles"]), _count(any_r["vertices"]),
+                                         _mb(peak))
+            w(line)
+        w("| memory-read floor (%s sum) |" % rows[0]["floor_impl"] +
+          "".join(" %s | | |" % _ms(floors.get(t)) for t in thread_counts) + " | | |")
+        np_t = statistics.median([min(r["numpy_sum_times"]) for r in rows])
+        w("\nnumpy `a.sum(dtype=float64)` of the same array: %s ms (1 thread).\n" % _ms(np_t))
+        for r in errs:
+            w("- %s at %s threads: failed: %s" % (r.get("label", r.get("extractor")),
+                                                  r.get("threads"), r["error"]))
+        if errs:
+            w("")
+    w("## Fields\n")
+    for f in FIELDS:
+        if any(v[0] == f for v in vols):
+            w("- **%s**: %s; uint8 variants: round(127.5 + %s f), clipped, iso 127.5." % (
+                f, field_description(f), U8_SCALE.get(f, "—")) if f != "colin27" else
+              "- **%s**: %s; float32 variant: the same values as float32." % (
+                  f, field_description(f)))
+    w("")
+    w("OpenVDB's time includes `copyFromArray` (dense array to a sparse grid) since every "
+      "other extractor starts from the same dense array; its mesh is dual (one vertex per "
+      "cell, quads counted as 2 triangles). scikit-image always computes normals. "
+      "Flying Edges' and isomend's meshes share one vertex per intersected edge; isomend "
+      "adds the mending quads (2 triangles per inverted combination).\n")
+    return "\n".join(out)
+
+
+def _first_extra(results, key):
+    for r in results:
+        if key in r.get("extra", {}):
+            return r["extra"][key]
+    return None
+
+
+if __name__ == "__main__":
+    sys.exit(main())
