@@ -98,4 +98,7 @@ dpkg-source -x "$dsc" "$partial" >"$cache/dpkg-source.log" 2>&1 \
 echo "$version" >"$partial/.isomend-complete"
 rm -rf "$tree"
 mv "$partial" "$tree"
+# Only the unpacked tree is needed from now on (~45 MB); drop the index and
+# the tarballs (~40 MB).
+rm -rf "$apt_dir" "$dl" "$cache"/meshlab_*.orig.tar.* "$cache/dpkg-source.log"
 echo "$tree"
