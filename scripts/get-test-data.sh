@@ -33,7 +33,7 @@ while [ $# -gt 0 ]; do
   case "$1" in
     --out) OUT="$2"; shift ;;
     --force) FORCE=1 ;;
-    -h|--help) sed -n '2,27p' "$0"; exit 0 ;;
+    -h|--help) sed -n '2,/^set -euo/p' "$0" | sed '$d'; exit 0 ;;
     -*) echo "get-test-data: unknown option $1" >&2; exit 1 ;;
     *) SETS+=("$1") ;;
   esac

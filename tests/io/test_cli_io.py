@@ -1,0 +1,155 @@
+#!/usr/bin/env python3
+"""`isomend info` and `isomend extract` on every slice source of gen_stacks.py.
+
+Usage: test_cli_io.py ISOMEND_CLI STACKS_DIR
+
+- every bad stack: exit status 1, the message names the file and the reason,
+  and no output file (nor a temporary one) is left in the output folder;
+- every good stack: `info --json` reports its dimensions, type, kind and
+  spacing; the mesh extracted from the stack is byte-identical to the mesh of
+  the expected volume given as raw (same values, same order, same axes);
+- without --iso, extract uses the suggested level and says so;
+- `info` prints the histogram, the spacing with its origin and the suggested iso;
+- the L phantom's mesh has the L where the image has it (not mirrored).
+"""
+import json
+import os
+import struct
+import subprocess
+import sys
+import tempfile
+
+import numpy as np
+
+CLI, STACKS = sys.argv[1], os.path.abspath(sys.argv[2])
+failures = []
+
+
+def check(cond, what):
+    if not cond:
+        failures.append(what)
+        print("FAIL:", what, flush=True)
+
+
+def run(args):
+    return subprocess.run([CLI] + args, capture_output=True, text=True)
+
+
+def stack_args(channel, first, count, step):
+    a = []
+    if channel == -2:
+        a += ["--channel", "luma"]
+    elif channel >= 0:
+        a += ["--channel", str(channel)]
+    if first:
+        a += ["--first", str(first)]
+    if count:
+        a += ["--count", str(count)]
+    if step != 1:
+        a += ["--step", str(step)]
+    return a
+
+
+def read_ply(path):
+    data = open(path, "rb").read()
+    end = data.index(b"end_header\n") + len(b"end_header\n")
+    header = data[:end].decode().splitlines()
+    nv = nf = 0
+    vprops = 0
+    for line in header:
+        w = line.split()
+        if w[:2] == ["element", "vertex"]:
+            nv = int(w[2])
+        elif w[:2] == ["element", "face"]:
+            nf = int(w[2])
+        elif w[:2] == ["property", "float"]:
+            vprops += 1
+    assert "format binary_little_endian 1.0" in header
+    verts = np.frombuffer(data, dtype="<f4", count=nv * vprops, offset=end).reshape(nv, vprops)
+    return verts[:, :3], nf
+
+
+cases = [line.rstrip("\n").split("\t") for line in open(os.path.join(STACKS, "manifest.tsv"))]
+with tempfile.TemporaryDirectory() as tmp:
+    # ---- bad stacks: exit 1, message, nothing written ----
+    for f in (c for c in cases if c[0] == "err"):
+        name, sub = f[1], f[3]
+        srcs = [os.path.join(STACKS, s) for s in f[8:]]
+        opts = stack_args(int(f[4]), int(f[5]), int(f[6]), int(f[7]))
+        outdir = os.path.join(tmp, "out_" + name)
+        os.makedirs(outdir)
+        r = run(["extract"] + srcs + opts + ["-o", os.path.join(outdir, "mesh.ply"), "--iso", "1"])
+        check(r.returncode == 1, "%s: extract exit %d (want 1): %s" % (name, r.returncode, r.stderr))
+        check(sub in r.stderr, "%s: extract message lacks %r: %s" % (name, sub, r.stderr))
+        check(os.listdir(outdir) == [], "%s: extract left %s" % (name, os.listdir(outdir)))
+        r = run(["info"] + srcs + opts)
+        check(r.returncode == 1, "%s: info exit %d (want 1)" % (name, r.returncode))
+        check(sub in r.stderr, "%s: info message lacks %r: %s" % (name, sub, r.stderr))
+        print("err  %-18s exit 1: %s" % (name, r.stderr.strip().splitlines()[-1] if r.stderr else ""))
+
+    # ---- good stacks: info, and mesh == mesh of the expected raw volume ----
+    for f in (c for c in cases if c[0] == "ok"):
+        name, tname, nx, ny, nz, exp, kind = f[1], f[2], int(f[3]), int(f[4]), int(f[5]), f[6], f[7]
+        spacing = [float(x) for x in f[12:15]]
+        srcs = [os.path.join(STACKS, s) for s in f[16:]]
+        opts = stack_args(int(f[8]), int(f[9]), int(f[10]), int(f[11]))
+        r = run(["info"] + srcs + opts + ["--json", "-"])
+        check(r.returncode == 0, "%s: info exit %d: %s" % (name, r.returncode, r.stderr))
+        if r.returncode:
+            continue
+        info = json.loads(r.stdout)
+        check(info["dims"] == [nx, ny, nz], "%s: dims %s" % (name, info["dims"]))
+        check(info["type"] == tname, "%s: type %s" % (name, info["type"]))
+        check(info["kind"] == kind, "%s: kind %s (want %s)" % (name, info["kind"], kind))
+        if spacing[0] > 0:
+            check(np.allclose(info["spacing"], spacing, rtol=1e-6), "%s: spacing %s" % (name, info["spacing"]))
+            check(",".join(info["spacing_from"]) == f[15], "%s: spacing from %s" % (name, info["spacing_from"]))
+        sp = spacing if spacing[0] > 0 else [1.0, 1.0, 1.0]
+        dt = {"u8": "<u1", "u16": "<u2", "i16": "<i2", "f32": "<f4"}[tname]
+        vol = np.fromfile(os.path.join(STACKS, exp), dtype=dt)
+        iso = float(np.median(vol)) + (0.5 if tname != "f32" else 0.0)
+        spacing_arg = ",".join(repr(s) for s in sp)
+        a, b = os.path.join(tmp, name + "_stack.ply"), os.path.join(tmp, name + "_raw.ply")
+        r1 = run(["extract"] + srcs + opts + ["-o", a, "--iso", repr(iso), "--pad", "--quiet",
+                                              "--spacing", spacing_arg])
+        r2 = run(["extract", os.path.join(STACKS, exp), "--raw", "%d,%d,%d:%s" % (nx, ny, nz, tname),
+                  "-o", b, "--iso", repr(iso), "--pad", "--quiet", "--spacing", spacing_arg])
+        check(r1.returncode == 0 and r2.returncode == 0, "%s: extract failed: %s %s" % (name, r1.stderr, r2.stderr))
+        if r1.returncode == 0 and r2.returncode == 0:
+            da, db = open(a, "rb").read(), open(b, "rb").read()
+            body = lambda x: x[x.index(b"end_header\n"):]
+            check(body(da) == body(db), "%s: the stack's mesh differs from the raw volume's" % name)
+            print("ok   %-18s info %s %s %s; mesh at iso %g equals the raw volume's (%d bytes)"
+                  % (name, kind, tname, info["dims"], iso, len(da)))
+
+    # ---- suggested iso, info text, --json timing ----
+    src = os.path.join(STACKS, "bimodal")
+    r = run(["extract", src, "-o", os.path.join(tmp, "bimodal.ply"), "--json", "-"])
+    check(r.returncode == 0, "bimodal extract: " + r.stderr)
+    j = json.loads(r.stdout)
+    check(j["iso_suggested"] and 23 < j["iso"] < 197, "bimodal: iso %s" % j["iso"])
+    check("suggested" in r.stderr, "extract does not say it used the suggested level: " + r.stderr)
+    check(j["timings_ms"]["read"] >= 0, "extract --json lacks the read timing")
+    r = run(["info", os.path.join(STACKS, "multipage", "stack.tif")])
+    check(r.returncode == 0 and "histogram" in r.stdout and "imagej" in r.stdout
+          and "suggested iso" in r.stdout, "info text: " + r.stdout)
+    print(r.stdout)
+
+    # ---- the L phantom, through the command line ----
+    out = os.path.join(tmp, "L.ply")
+    r = run(["extract", os.path.join(STACKS, "L_phantom"), "-o", out, "--iso", "50", "--pad", "--quiet"])
+    check(r.returncode == 0, "L extract: " + r.stderr)
+    v, nf = read_ply(out)
+    x, y, z = v[:, 0], v[:, 1], v[:, 2]
+    foot = (y > 10.4) & (y < 12.6) & (x > 8.4)           # the foot: bottom right of the image
+    mirrored = ((y < 10.4) & (y > 4.6) & (x > 4.6)) | (y < 1.4) | (x > 10.6) | (y > 13.6)
+    dot = (x > 7.4) & (y < 4.6)
+    check(foot.sum() > 0 and mirrored.sum() == 0, "L phantom: foot %d, at mirrored places %d"
+          % (foot.sum(), mirrored.sum()))
+    check(dot.sum() > 0 and z[dot].max() < 1.6, "L phantom: the dot of slice 1 is not in slice 1")
+    print("ok   L phantom: %d vertices at the foot (bottom right), none at mirrored places" % foot.sum())
+
+if failures:
+    print("%d failure(s)" % len(failures))
+    sys.exit(1)
+print("ok")
