@@ -346,7 +346,7 @@ class _BackgroundPrinter:
 
 def _make_object(context, name, mesh, info, unit_scale, smooth):
     """Builds the Blender mesh and object; removes both if anything fails."""
-    origin = np.asarray(info["origin"], dtype=np.float64)
+    origin = np.asarray(mesh.volume_origin, dtype=np.float64)
     positions = mesh.positions
     if np.any(origin != 0.0):
         positions = (positions.astype(np.float64) - origin).astype(np.float32)

@@ -594,7 +594,10 @@ class Mesh:
     positions (V, 3) float32; normals (V, 3) float32 or None; triangles (T, 3)
     uint32; origins (T,) uint8 or None (ORIGIN_TABLE/DURST/MEND); grid_box
     (min x, y, z, max x, y, z) of the sampled grid (padded if pad=True); stats
-    dict; iso and method used.
+    dict; iso and method used.  From Source.extract also volume_origin and
+    volume_spacing (x, y, z) of the volume as delivered (the world position of
+    its sample (0, 0, 0), which differs from Source.origin for a file whose
+    axis points the negative way) and read_seconds.
     """
 
     def __init__(self, positions, normals, triangles, origins, grid_box, stats, iso, method):
@@ -606,6 +609,10 @@ class Mesh:
         self.stats = stats
         self.iso = iso
         self.method = method
+        # set by Source.extract: the delivered volume's sample (0, 0, 0) and spacing
+        self.volume_origin = None
+        self.volume_spacing = None
+        self.read_seconds = None
 
     @property
     def vertex_count(self):
@@ -898,6 +905,13 @@ class Source:
         origin are the source's.  Returns a Mesh whose ``iso`` is the level used."""
         h = self._require_open()
         self._with_progress(progress)
+        # Load first (isomend_io_extract reuses the buffer) to learn the origin and
+        # spacing of the volume as delivered: a file whose axis points the negative
+        # way (NRRD "space directions" (-2,0,0)) is read with a negative stride, so
+        # its sample (0, 0, 0) is not the file's first sample.
+        vol = Volume()
+        seconds = ctypes.c_double()
+        self._check(self._lib.isomend_io_load(h, ctypes.byref(vol), ctypes.byref(seconds)), "load")
         # Progress of the extraction goes through the source's callback (stage "extract").
         opts = _options(iso if iso is not None else 0.0, method, pad, flip, normals, origins,
                         threads, None)
@@ -910,7 +924,11 @@ class Source:
         if status != 0 and handle.value:
             _core_lib().isomend_mesh_destroy(handle)
         self._check(status, "extract")
-        return _take_mesh(handle, stats, iso_used.value, opts.method, normals, origins)
+        mesh = _take_mesh(handle, stats, iso_used.value, opts.method, normals, origins)
+        mesh.volume_origin = tuple(vol.origin)
+        mesh.volume_spacing = tuple(vol.spacing)
+        mesh.read_seconds = seconds.value
+        return mesh
 
     def close(self):
         """Releases the handle and the loaded volume (idempotent)."""

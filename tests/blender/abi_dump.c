@@ -1,0 +1,131 @@
+/*
+ * abi_dump.c - prints, as JSON, the sizes and field offsets of the public
+ * structs of isomend.h and isomend_io.h and the values of their enums, so
+ * that test_wrapper.py can compare them with the ctypes declarations of
+ * blender_addon/isomend_import/isomend.py.  A field added to a struct or an
+ * enum renumbered in a header then fails a test instead of corrupting memory.
+ */
+#include <stddef.h>
+#include <stdio.h>
+
+#include "isomend.h"
+#include "isomend_io.h"
+
+#define FIELD(type, name) printf("      \"%s\": %zu,\n", #name, offsetof(type, name))
+#define LAST_FIELD(type, name) printf("      \"%s\": %zu\n", #name, offsetof(type, name))
+#define CONST(name) printf("    \"%s\": %lld,\n", #name, (long long)(name))
+#define LAST_CONST(name) printf("    \"%s\": %lld\n", #name, (long long)(name))
+
+static void begin_struct(const char *name, size_t size, int first)
+{
+    printf("%s    \"%s\": {\"size\": %zu, \"offsets\": {\n", first ? "" : ",\n", name, size);
+}
+
+static void end_struct(void)
+{
+    printf("    }}");
+}
+
+int main(void)
+{
+    printf("{\n  \"structs\": {\n");
+    begin_struct("Volume", sizeof(isomend_volume), 1);
+    FIELD(isomend_volume, data);
+    FIELD(isomend_volume, type);
+    FIELD(isomend_volume, dims);
+    FIELD(isomend_volume, strides);
+    FIELD(isomend_volume, spacing);
+    LAST_FIELD(isomend_volume, origin);
+    end_struct();
+    begin_struct("Options", sizeof(isomend_options), 0);
+    FIELD(isomend_options, iso);
+    FIELD(isomend_options, method);
+    FIELD(isomend_options, flags);
+    FIELD(isomend_options, threads);
+    FIELD(isomend_options, progress);
+    LAST_FIELD(isomend_options, progress_user);
+    end_struct();
+    begin_struct("Stats", sizeof(isomend_stats), 0);
+    FIELD(isomend_stats, cubes);
+    FIELD(isomend_stats, case_histogram);
+    FIELD(isomend_stats, ambiguous_faces);
+    FIELD(isomend_stats, inverted_combinations);
+    FIELD(isomend_stats, triangles_by_origin);
+    FIELD(isomend_stats, nan_samples);
+    FIELD(isomend_stats, vertices);
+    LAST_FIELD(isomend_stats, triangles);
+    end_struct();
+    begin_struct("CheckReport", sizeof(isomend_check_report), 0);
+    FIELD(isomend_check_report, vertices);
+    FIELD(isomend_check_report, triangles);
+    FIELD(isomend_check_report, edges);
+    FIELD(isomend_check_report, border_edges);
+    FIELD(isomend_check_report, hole_edges);
+    FIELD(isomend_check_report, hole_loops);
+    FIELD(isomend_check_report, nonmanifold_edges);
+    FIELD(isomend_check_report, misoriented_edges);
+    FIELD(isomend_check_report, nonmanifold_vertices);
+    FIELD(isomend_check_report, degenerate_triangles);
+    FIELD(isomend_check_report, components);
+    LAST_FIELD(isomend_check_report, euler);
+    end_struct();
+    begin_struct("IOOptions", sizeof(isomend_io_options), 0);
+    FIELD(isomend_io_options, first);
+    FIELD(isomend_io_options, count);
+    FIELD(isomend_io_options, step);
+    FIELD(isomend_io_options, channel);
+    FIELD(isomend_io_options, spacing);
+    FIELD(isomend_io_options, origin);
+    FIELD(isomend_io_options, threads);
+    FIELD(isomend_io_options, memory_limit);
+    FIELD(isomend_io_options, raw_dims);
+    FIELD(isomend_io_options, raw_type);
+    FIELD(isomend_io_options, raw_header);
+    FIELD(isomend_io_options, raw_big_endian);
+    FIELD(isomend_io_options, progress);
+    LAST_FIELD(isomend_io_options, progress_user);
+    end_struct();
+    begin_struct("IOSummary", sizeof(isomend_io_summary), 0);
+    FIELD(isomend_io_summary, min);
+    FIELD(isomend_io_summary, max);
+    FIELD(isomend_io_summary, samples);
+    FIELD(isomend_io_summary, nan_samples);
+    FIELD(isomend_io_summary, histogram);
+    FIELD(isomend_io_summary, suggested_iso);
+    LAST_FIELD(isomend_io_summary, read_seconds);
+    end_struct();
+    printf("\n  },\n  \"constants\": {\n");
+    CONST(ISOMEND_ERR_CANCELLED);
+    CONST(ISOMEND_ERR_UNSUPPORTED);
+    CONST(ISOMEND_U8);
+    CONST(ISOMEND_I8);
+    CONST(ISOMEND_U16);
+    CONST(ISOMEND_I16);
+    CONST(ISOMEND_I32);
+    CONST(ISOMEND_F32);
+    CONST(ISOMEND_F64);
+    CONST(ISOMEND_TYPE_COUNT);
+    CONST(ISOMEND_METHOD_MC);
+    CONST(ISOMEND_METHOD_DURST);
+    CONST(ISOMEND_METHOD_DMC);
+    CONST(ISOMEND_METHOD_COUNT);
+    CONST(ISOMEND_FLAG_NO_NORMALS);
+    CONST(ISOMEND_FLAG_FLIP);
+    CONST(ISOMEND_FLAG_PAD);
+    CONST(ISOMEND_FLAG_NO_ORIGINS);
+    CONST(ISOMEND_ORIGIN_TABLE);
+    CONST(ISOMEND_ORIGIN_DURST);
+    CONST(ISOMEND_ORIGIN_MEND);
+    CONST(ISOMEND_IO_ERR_CANCELLED);
+    CONST(ISOMEND_IO_ERR_INTERNAL);
+    CONST(ISOMEND_IO_CHANNEL_AUTO);
+    CONST(ISOMEND_IO_CHANNEL_LUMA);
+    CONST(ISOMEND_IO_STAGE_OPEN);
+    CONST(ISOMEND_IO_STAGE_READ);
+    CONST(ISOMEND_IO_STAGE_ANALYSE);
+    CONST(ISOMEND_IO_STAGE_EXTRACT);
+    CONST(ISOMEND_IO_KIND_NRRD);
+    LAST_CONST(ISOMEND_IO_HISTOGRAM_BINS);
+    printf("  }\n}\n");
+    return 0;
+}

@@ -1,0 +1,216 @@
+"""Runs inside headless Blender (see run_blender_tests.py, which prepares cases.json):
+
+    blender -b --factory-startup -noaudio --python-exit-code 1 --python blender_import_test.py -- cases.json
+
+Installs the add-on zip as a user would (Preferences > Add-ons > Install),
+enables it, and for each case calls bpy.ops.import_mesh.slice_stack, then
+asserts: exactly one new object named after the stack; vertex and triangle
+counts (and mending triangles) equal to the `isomend extract` command line's
+on the same input; mesh.validate() returns False (nothing to repair); every
+edge used exactly twice (padded: closed); positive signed volume (outward
+winding) and outward custom normals; the spacing and unit scale in the
+object's dimensions and the origin in its location.  Broken inputs must make
+the operator raise RuntimeError with the reason and leave nothing behind.
+Any failed assertion exits non-zero (--python-exit-code 1).
+"""
+import json
+import math
+import sys
+import time
+
+import addon_utils
+import bpy
+import numpy as np
+
+spec_path = sys.argv[sys.argv.index("--") + 1]
+with open(spec_path) as fp:
+    SPEC = json.load(fp)
+
+failures = []
+
+
+def check(cond, message):
+    if not cond:
+        failures.append(message)
+        print("FAIL: " + message, flush=True)
+
+
+# ------------------------------------------------------------ install + enable
+bpy.ops.preferences.addon_install(filepath=SPEC["zip"], overwrite=True)
+module = addon_utils.enable("isomend_import", default_set=True, handle_error=None)
+assert module is not None, "addon_utils.enable('isomend_import') failed (see the traceback above)"
+assert hasattr(bpy.types, "IMPORT_MESH_OT_slice_stack"), "operator import_mesh.slice_stack not registered"
+assert "isomend_import" in bpy.context.preferences.addons.keys()
+# the menu entry exists
+assert any(getattr(f, "__name__", "") == "menu_func_import"
+           for f in bpy.types.TOPBAR_MT_file_import._dyn_ui_initialize()), "File > Import entry missing"
+# the method list starts with the three thesis methods
+methods = [item[0] for item in module._method_items(None, bpy.context)]
+assert methods[:3] == ["DMC", "MC", "DURST"], methods
+
+
+def reset():
+    bpy.ops.wm.read_homefile(use_empty=True)
+    assert hasattr(bpy.types, "IMPORT_MESH_OT_slice_stack"), "read_homefile unregistered the add-on"
+
+
+def mesh_arrays(me):
+    nv, nl, nt = len(me.vertices), len(me.loops), len(me.polygons)
+    co = np.empty(3 * nv, np.float32)
+    me.vertices.foreach_get("co", co)
+    vi = np.empty(nl, np.int32)
+    me.loops.foreach_get("vertex_index", vi)
+    totals = np.empty(nt, np.int32)
+    me.polygons.foreach_get("loop_total", totals)
+    return co.reshape(-1, 3), vi, totals
+
+
+def run_case(i, case):
+    reset()
+    p = case["params"]
+    kwargs = dict(directory=case["directory"], files=[{"name": n} for n in case["files"]],
+                  use_suggested_iso=p["use_suggested_iso"], iso=p["iso"], method=p["method"],
+                  spacing=p["spacing"], unit_scale=p["unit_scale"], pad=p["pad"], smooth=p["smooth"])
+    t0 = time.perf_counter()
+    result = bpy.ops.import_mesh.slice_stack(**kwargs)
+    seconds = time.perf_counter() - t0
+    tag = "case %d (%s, %s)" % (i, case["name"], p["method"])
+    check(result == {"FINISHED"}, "%s: operator returned %s" % (tag, result))
+    objs = list(bpy.data.objects)
+    check(len(objs) == 1, "%s: expected one object, got %d" % (tag, len(objs)))
+    obj = objs[0]
+    check(obj.name == case["name"], "%s: object named %r" % (tag, obj.name))
+    check(bpy.context.view_layer.objects.active == obj and obj.select_get(), "%s: not active/selected" % tag)
+    me = obj.data
+    cli = case["cli"]
+    co, vi, totals = mesh_arrays(me)
+    check(len(me.vertices) == cli["vertices"], "%s: %d vertices, CLI %d" % (tag, len(me.vertices), cli["vertices"]))
+    check(len(me.polygons) == cli["triangles"],
+          "%s: %d triangles, CLI %d" % (tag, len(me.polygons), cli["triangles"]))
+    check(bool((totals == 3).all()), "%s: not all polygons are triangles" % tag)
+    check(obj["isomend_mending_triangles"] == cli["triangles_by_origin"]["mend"],
+          "%s: %d mending triangles, CLI %d" % (tag, obj["isomend_mending_triangles"],
+                                                cli["triangles_by_origin"]["mend"]))
+    check(math.isclose(obj["isomend_iso"], cli["iso"], rel_tol=1e-12, abs_tol=1e-9),
+          "%s: iso %r, CLI %r" % (tag, obj["isomend_iso"], cli["iso"]))
+    # edge usage: padded DMC surfaces are closed 2-manifolds (every edge used
+    # exactly twice); MC's holes and Durst's extra polygons show as in the CLI's check
+    ei = np.empty(len(me.loops), np.int32)
+    me.loops.foreach_get("edge_index", ei)
+    uses = np.bincount(ei, minlength=len(me.edges))
+    once, more = int((uses == 1).sum()), int((uses > 2).sum())
+    if p["method"] == "DMC" and p["pad"]:
+        check(once == 0, "%s: %d edges used once (holes)" % (tag, once))
+        check(more == 0, "%s: %d edges used 3+ times" % (tag, more))
+    check(once == cli["check"]["holes"] + cli["check"]["border_edges"],
+          "%s: %d edges used once, CLI check %s" % (tag, once, cli["check"]))
+    check(more == cli["check"]["nonmanifold_edges"],
+          "%s: %d edges used 3+ times, CLI check %s" % (tag, more, cli["check"]))
+    if p["method"] == "MC":
+        check(once > 0, "%s: MC on this stack should leave holes" % tag)
+    check(len(me.edges) == cli["check"]["edges"], "%s: %d edges, CLI %d" % (tag, len(me.edges), cli["check"]["edges"]))
+    # signed volume (outward winding); only meaningful for closed surfaces
+    tri = co.astype(np.float64)[vi.reshape(-1, 3)]
+    signed = np.einsum("ij,ij->i", tri[:, 0], np.cross(tri[:, 1], tri[:, 2])).sum() / 6.0
+    if once == 0:
+        check(signed > 0, "%s: signed volume %g is not positive" % (tag, signed))
+    # validate() returns True when it had to repair something
+    check(me.validate(verbose=True) is False, "%s: mesh.validate() repaired the mesh" % tag)
+    check(len(me.vertices) == cli["vertices"] and len(me.polygons) == cli["triangles"],
+          "%s: validate() changed the counts" % tag)
+    # normals: the custom split normals are the core's gradient normals (Blender
+    # stores them compressed), and they point to the faces' side on the whole
+    if p["smooth"]:
+        check(me.has_custom_normals, "%s: no custom normals" % tag)
+        paths = ([case["directory"]] if not case["files"] else
+                 [case["directory"] + "/" + n for n in sorted(case["files"], key=module._natural_key)])
+        spacing = p["spacing"] if any(p["spacing"]) else None
+        core = module.isomend.extract_source(
+            paths, iso=None if p["use_suggested_iso"] else p["iso"], method=p["method"].lower(),
+            pad=p["pad"], spacing=spacing)
+        me.calc_normals_split()
+        ln = np.empty(3 * len(me.loops), np.float32)
+        me.loops.foreach_get("normal", ln)
+        ln = ln.reshape(-1, 3)
+        want = core.normals[vi]
+        cos = np.einsum("ij,ij->i", ln, want)
+        # Blender gives a zero split normal to a vertex whose faces are all nearly
+        # degenerate (a surface grazing a sample: a fan with no angle); allow that
+        # only there, and rarely.
+        zero = np.linalg.norm(ln, axis=1) < 0.5
+        area = np.empty(len(me.polygons), np.float32)
+        me.polygons.foreach_get("area", area)
+        tiny = area[np.arange(len(me.loops)) // 3] < 0.1 * np.median(area)
+        check(bool((~zero | tiny).all()) and int(zero.sum()) <= max(8, len(me.loops) // 10000),
+              "%s: %d zero split normals (%d not on tiny faces)" % (tag, int(zero.sum()), int((zero & ~tiny).sum())))
+        check(float(cos[~zero].min()) > 0.999, "%s: custom normals differ from the core's (min cos %.5f)"
+              % (tag, float(cos[~zero].min())))
+        pn = np.empty(3 * len(me.polygons), np.float32)
+        me.polygons.foreach_get("normal", pn)
+        agree = np.einsum("ij,ij->i", ln, np.repeat(pn.reshape(-1, 3), 3, axis=0))
+        check(float((agree > 0).mean()) > 0.9,
+              "%s: only %.1f%% of the gradient normals agree with the faces" % (tag, 100 * (agree > 0).mean()))
+        smooth = np.empty(len(me.polygons), bool)
+        me.polygons.foreach_get("use_smooth", smooth)
+        check(bool(smooth.all()), "%s: faces not smooth" % tag)
+        me.free_normals_split()
+    else:
+        check(not me.has_custom_normals, "%s: custom normals without smooth" % tag)
+    # placement: the object sits at the volume's origin (the CLI's), and its world
+    # bounding box is the CLI mesh's, both in millimetres times unit scale
+    s = p["unit_scale"]
+    want_loc = [o * s for o in cli["origin"]]
+    check(np.allclose(obj.location[:], want_loc, atol=1e-6 + 1e-6 * max(map(abs, want_loc))),
+          "%s: location %s, expected the CLI's origin %s x unit scale = %s"
+          % (tag, tuple(obj.location), cli["origin"], want_loc))
+    world = co.astype(np.float64) + np.array(obj.location[:])
+    got_box = np.concatenate([world.min(0), world.max(0)])
+    want_box = np.array(case["cli_bbox"]) * s
+    check(np.allclose(got_box, want_box, rtol=1e-5, atol=1e-6 * s * np.abs(want_box).max()),
+          "%s: world bounding box %s, CLI mesh's %s" % (tag, np.round(got_box, 6), np.round(want_box, 6)))
+    spacing = cli["spacing"]
+    dims = np.array(obj.dimensions[:])
+    # padded surfaces lie within the padded grid box and beyond the sample grid's half-cells
+    n = np.array(cli["dims"], float)
+    upper = (n + 1) * np.array(spacing) * s
+    check(bool((dims <= upper * (1 + 1e-5)).all()) and bool((dims > 0).all()),
+          "%s: dimensions %s exceed the padded grid %s" % (tag, dims, upper))
+    print("%s: %d vertices, %d triangles, %d mending, import %.3f s, dimensions %s"
+          % (tag, len(me.vertices), len(me.polygons), obj["isomend_mending_triangles"], seconds,
+             np.round(dims, 5)), flush=True)
+    return dims
+
+
+dims_by_case = []
+for i, case in enumerate(SPEC["cases"]):
+    dims_by_case.append(run_case(i, case))
+    ref = case.get("same_as")
+    if ref is not None:
+        # the same stack at another spacing: dimensions scale axis by axis
+        ratio = np.array(case["params"]["spacing"]) / np.array(SPEC["cases"][ref]["params"]["spacing"])
+        check(np.allclose(dims_by_case[-1], dims_by_case[ref] * ratio, rtol=1e-5),
+              "case %d: dimensions %s are not case %d's %s scaled by %s"
+              % (i, dims_by_case[-1], ref, dims_by_case[ref], ratio))
+
+# ------------------------------------------------------------ errors leave nothing behind
+for err in SPEC["errors"]:
+    reset()
+    kwargs = dict(directory=err["directory"], files=[{"name": n} for n in err["files"]])
+    if "spacing" in err:
+        kwargs["spacing"] = err["spacing"]
+    try:
+        bpy.ops.import_mesh.slice_stack(**kwargs)
+        check(False, "error case %s: no RuntimeError" % err["directory"])
+    except RuntimeError as exc:
+        check(err["expect"] in str(exc), "error case: %r does not mention %r" % (str(exc), err["expect"]))
+        print("error case ok: %s" % str(exc).strip(), flush=True)
+    check(len(bpy.data.objects) == 0 and len(bpy.data.meshes) == 0,
+          "error case %s left %d objects, %d meshes" % (err["directory"], len(bpy.data.objects),
+                                                        len(bpy.data.meshes)))
+
+addon_utils.disable("isomend_import", default_set=True)
+check(not hasattr(bpy.types, "IMPORT_MESH_OT_slice_stack"), "unregister left the operator")
+
+if failures:
+    raise AssertionError("%d check(s) failed:\n  %s" % (len(failures), "\n  ".join(failures)))
+print("blender add-on test: all checks passed", flush=True)

@@ -1,0 +1,181 @@
+"""Drives the headless Blender test of the add-on (ctest: blender_addon_import).
+
+1. writes slice stacks into a fresh work folder (tifffile): a u8 smoothed
+   noise field with many inverted combinations (DMC mends them), a float32 multi-page
+   TIFF, the project's real MRI sample (NRRD), and broken stacks;
+2. runs the `isomend extract` command line on each good stack with the same
+   parameters as the add-on and keeps its JSON (vertex, triangle and mending
+   triangle counts);
+3. runs Blender in background mode with a fresh user-scripts/config/cache/tmp
+   folder (nothing in $HOME), which installs the add-on zip, enables it and
+   runs blender_import_test.py on those cases.
+
+Usage: run_blender_tests.py --blender EXE --zip isomend_import.zip --cli isomend --work DIR
+                            [--sample samples/anatomical.nrrd]
+"""
+import argparse
+import json
+import os
+import shutil
+import subprocess
+import sys
+
+import numpy as np
+import tifffile
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+
+
+def foam(shape=(30, 34, 38), seed=7):
+    """array[z, y, x] u8: random noise smoothed by a 3-tap filter per axis, so
+    that many neighbouring cubes form inverted combinations (DMC mends them)."""
+    v = np.random.default_rng(seed).random(shape)
+    for axis in range(3):
+        v = (np.roll(v, 1, axis) + 2 * v + np.roll(v, -1, axis)) / 4
+    v = (v - v.min()) / (v.max() - v.min())
+    return np.round(255 * v).astype(np.uint8)
+
+
+def blob(shape=(20, 26, 22)):
+    """array[z, y, x] f32: two overlapping Gaussian blobs (a peanut)."""
+    z, y, x = np.meshgrid(*(np.arange(n, dtype=np.float64) for n in shape), indexing="ij")
+    a = np.exp(-((x - 8) ** 2 + (y - 12) ** 2 + (z - 9) ** 2) / 18)
+    b = np.exp(-((x - 14) ** 2 + (y - 13) ** 2 + (z - 10) ** 2) / 14)
+    return (a + b).astype(np.float32)
+
+
+def ply_bbox(path):
+    """(min x, y, z, max x, y, z) of a binary little-endian PLY whose vertex
+    properties are all float (as `isomend extract` writes them)."""
+    with open(path, "rb") as fp:
+        data = fp.read()
+    end = data.index(b"end_header\n") + len(b"end_header\n")
+    header = data[:end].decode("ascii").splitlines()
+    assert "format binary_little_endian 1.0" in header, header[:3]
+    nv, props, in_vertex = 0, 0, False
+    for line in header:
+        words = line.split()
+        if words[:2] == ["element", "vertex"]:
+            nv, in_vertex = int(words[2]), True
+        elif words[:1] == ["element"]:
+            in_vertex = False
+        elif words[:1] == ["property"] and in_vertex:
+            assert words[1] == "float", line
+            props += 1
+    v = np.frombuffer(data, dtype="<f4", count=nv * props, offset=end).reshape(nv, props)[:, :3]
+    return [float(x) for x in np.concatenate([v.min(0), v.max(0)])]
+
+
+def run_cli(cli, work, name, source_args, params):
+    out_json = os.path.join(work, name + ".cli.json")
+    cmd = [cli, "extract", *source_args, "-o", os.path.join(work, name + ".cli.ply"),
+           "--method", params["method"].lower(), "--json", out_json, "--quiet"]
+    if params.get("pad", True):
+        cmd.append("--pad")
+    if not params.get("use_suggested_iso", True):
+        cmd += ["--iso", repr(params["iso"])]
+    if any(params.get("spacing", (0, 0, 0))):
+        cmd += ["--spacing", ",".join(repr(float(s)) for s in params["spacing"])]
+    r = subprocess.run(cmd, capture_output=True, text=True, timeout=120)
+    if r.returncode != 0:
+        sys.exit("isomend CLI failed on %s (%s): %s" % (name, " ".join(cmd), r.stderr.strip()))
+    with open(out_json) as fp:
+        result = json.load(fp)
+    result["bbox"] = ply_bbox(os.path.join(work, name + ".cli.ply"))
+    return result
+
+
+def main():
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--blender", required=True)
+    ap.add_argument("--zip", required=True)
+    ap.add_argument("--cli", required=True)
+    ap.add_argument("--work", required=True)
+    ap.add_argument("--sample")
+    args = ap.parse_args()
+
+    work = os.path.abspath(args.work)
+    shutil.rmtree(work, ignore_errors=True)
+    os.makedirs(work)
+
+    cases = []
+    # 1. folder of u8 slices, explicit spacing, fixed iso: many DMC mending quads
+    folder = os.path.join(work, "foam_stack")
+    os.makedirs(folder)
+    g = foam()
+    for k in range(g.shape[0]):
+        tifffile.imwrite(os.path.join(folder, "slice_%d.tif" % k), g[k])
+    base = {"use_suggested_iso": False, "iso": 127.5, "method": "DMC", "pad": True, "smooth": True}
+    cases.append({"name": "foam_stack", "directory": folder, "files": [],
+                  "params": dict(base, spacing=(1.0, 1.0, 1.0), unit_scale=0.01),
+                  "cli_source": [folder]})
+    cases.append({"name": "foam_stack", "directory": folder, "files": [],
+                  "params": dict(base, spacing=(0.5, 0.75, 2.0), unit_scale=0.01),
+                  "cli_source": [folder], "same_as": 0})
+    # the same slices selected one by one (listed out of order: the add-on sorts them naturally)
+    names = ["slice_%d.tif" % k for k in range(g.shape[0])]
+    shuffled = sorted(names)  # slice_0, slice_1, slice_10, ...: not the stack order
+    cases.append({"name": "slice", "directory": folder, "files": shuffled,
+                  "params": dict(base, spacing=(1.0, 1.0, 1.0), unit_scale=0.01, method="MC"),
+                  "cli_source": [os.path.join(folder, n) for n in names]})
+    # 2. float32 multi-page TIFF, suggested iso, Durst
+    multi = os.path.join(work, "peanut.tif")
+    tifffile.imwrite(multi, blob())
+    cases.append({"name": "peanut", "directory": work, "files": ["peanut.tif"],
+                  "params": {"use_suggested_iso": True, "iso": 0.0, "method": "DURST", "pad": True,
+                             "smooth": False, "spacing": (0.0, 0.0, 0.0), "unit_scale": 0.001},
+                  "cli_source": [multi]})
+    # 3. the real MRI sample (NRRD), suggested iso, DMC
+    if args.sample and os.path.exists(args.sample):
+        cases.append({"name": "anatomical", "directory": os.path.dirname(os.path.abspath(args.sample)),
+                      "files": [os.path.basename(args.sample)],
+                      "params": {"use_suggested_iso": True, "iso": 0.0, "method": "DMC", "pad": True,
+                                 "smooth": True, "spacing": (0.0, 0.0, 0.0), "unit_scale": 0.001},
+                      "cli_source": [os.path.abspath(args.sample)]})
+    for i, case in enumerate(cases):
+        case["cli"] = run_cli(args.cli, work, "case%d" % i, case["cli_source"], case["params"])
+        case["cli_bbox"] = case["cli"]["bbox"]
+    for i, case in enumerate(cases):
+        c = case["cli"]
+        print("case %d %-13s %s: CLI %d vertices, %d triangles, %d mending, iso %g"
+              % (i, case["name"], case["params"]["method"], c["vertices"], c["triangles"],
+                 c["triangles_by_origin"]["mend"], c["iso"]))
+    assert cases[0]["cli"]["triangles_by_origin"]["mend"] > 0, "the foam case must exercise mending"
+
+    # broken inputs: each must raise RuntimeError naming the reason
+    mismatch = os.path.join(work, "mismatch")
+    os.makedirs(mismatch)
+    for k in range(3):
+        tifffile.imwrite(os.path.join(mismatch, "m_%d.tif" % k), np.zeros((8, 9 if k == 2 else 8), np.uint8))
+    empty = os.path.join(work, "empty")
+    os.makedirs(empty)
+    with open(os.path.join(empty, "notes.txt"), "w") as fp:
+        fp.write("no images here\n")
+    errors = [
+        {"directory": os.path.join(work, "does_not_exist"), "files": [], "expect": "folder not found"},
+        {"directory": mismatch, "files": [], "expect": "m_2.tif"},
+        {"directory": empty, "files": [], "expect": "no image files"},
+        {"directory": work, "files": ["peanut.tif"], "spacing": (1.0, 0.0, 1.0), "expect": "spacing"},
+    ]
+
+    spec = os.path.join(work, "cases.json")
+    with open(spec, "w") as fp:
+        json.dump({"zip": os.path.abspath(args.zip), "cases": cases, "errors": errors}, fp, indent=1)
+
+    home = os.path.join(work, "blender_home")
+    for sub in ("scripts", "config", "cache", "tmp"):
+        os.makedirs(os.path.join(home, sub))
+    env = dict(os.environ, BLENDER_USER_SCRIPTS=os.path.join(home, "scripts"),
+               BLENDER_USER_CONFIG=os.path.join(home, "config"),
+               XDG_CACHE_HOME=os.path.join(home, "cache"), TMPDIR=os.path.join(home, "tmp"),
+               HOME=home)
+    env.pop("ISOMEND_LIB_DIR", None)  # the add-on must use its own lib/
+    cmd = [args.blender, "-b", "--factory-startup", "-noaudio", "--python-exit-code", "1",
+           "--python", os.path.join(HERE, "blender_import_test.py"), "--", spec]
+    r = subprocess.run(cmd, env=env, timeout=300)
+    if r.returncode != 0:
+        sys.exit("Blender test failed (exit %d)" % r.returncode)
+
+
+if __name__ == "__main__":
+    main()

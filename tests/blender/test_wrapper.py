@@ -1,0 +1,406 @@
+"""pytest tests of the bpy-free ctypes wrapper blender_addon/isomend_import/isomend.py.
+
+Run by ctest (tests/blender/CMakeLists.txt) with Debian's python3-pytest:
+    ISOMEND_STAGE=<build>/blender_addon/isomend_import ISOMEND_ABI_DUMP=<exe> python3 -m pytest -q test_wrapper.py
+ISOMEND_STAGE is the staged add-on folder (isomend.py + lib/) that the build
+zips, so these tests load the libraries the way the add-on does ("lib/ next
+to the module").  ISOMEND_ABI_DUMP is tests/blender/abi_dump.c compiled
+against the headers.
+"""
+import ctypes
+import json
+import os
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+STAGE = os.environ.get("ISOMEND_STAGE")
+if not STAGE:
+    pytest.exit("ISOMEND_STAGE is not set (the staged add-on folder)", returncode=2)
+sys.path.insert(0, STAGE)
+os.environ.pop("ISOMEND_LIB_DIR", None)  # test the add-on's own lookup
+import isomend  # noqa: E402
+
+
+# ------------------------------------------------------------ helpers
+
+def sphere(n=24, r=7.5, centre=(11.3, 12.1, 10.7), dtype=np.float32):
+    """array[z, y, x] = r - distance: positive (inside) in a ball."""
+    i = np.arange(n, dtype=np.float64)
+    z, y, x = np.meshgrid(i, i, i, indexing="ij")
+    d = np.sqrt((x - centre[0]) ** 2 + (y - centre[1]) ** 2 + (z - centre[2]) ** 2)
+    return (r - d).astype(dtype)
+
+
+def f1_volume():
+    """The thesis's F1(x,y,z) = 4y + 4(x-z)^2 - 5 on {0..3}^3, array[z, y, x]."""
+    i = np.arange(4, dtype=np.float64)
+    z, y, x = np.meshgrid(i, i, i, indexing="ij")
+    return 4 * y + 4 * (x - z) ** 2 - 5
+
+
+def signed_volume(positions, triangles):
+    p = positions.astype(np.float64)[triangles.astype(np.int64)]
+    return np.einsum("ij,ij->i", p[:, 0], np.cross(p[:, 1], p[:, 2])).sum() / 6.0
+
+
+def same_mesh(a, b):
+    assert a.vertex_count == b.vertex_count
+    assert a.triangle_count == b.triangle_count
+    np.testing.assert_array_equal(a.positions, b.positions)
+    np.testing.assert_array_equal(a.triangles, b.triangles)
+
+
+# ------------------------------------------------------------ ABI and loading
+
+def test_struct_layouts_and_constants_match_the_headers():
+    exe = os.environ.get("ISOMEND_ABI_DUMP")
+    if not exe:
+        pytest.skip("ISOMEND_ABI_DUMP not set")
+    abi = json.loads(subprocess.run([exe], check=True, capture_output=True, text=True).stdout)
+    for name, want in abi["structs"].items():
+        cls = getattr(isomend, name)
+        assert ctypes.sizeof(cls) == want["size"], name
+        got = {f: getattr(cls, f).offset for f, _ in cls._fields_}
+        assert got == want["offsets"], name
+    c = abi["constants"]
+    assert isomend.ERR_CANCELLED == c["ISOMEND_ERR_CANCELLED"]
+    assert (isomend.TYPE_U8, isomend.TYPE_I8, isomend.TYPE_U16, isomend.TYPE_I16, isomend.TYPE_I32,
+            isomend.TYPE_F32, isomend.TYPE_F64) == tuple(
+        c["ISOMEND_" + t] for t in ("U8", "I8", "U16", "I16", "I32", "F32", "F64"))
+    assert isomend.METHODS["mc"] == c["ISOMEND_METHOD_MC"]
+    assert isomend.METHODS["durst"] == c["ISOMEND_METHOD_DURST"]
+    assert isomend.METHODS["dmc"] == c["ISOMEND_METHOD_DMC"]
+    assert isomend.METHOD_COUNT == c["ISOMEND_METHOD_COUNT"]
+    assert isomend.FLAG_NO_NORMALS == c["ISOMEND_FLAG_NO_NORMALS"]
+    assert isomend.FLAG_FLIP == c["ISOMEND_FLAG_FLIP"]
+    assert isomend.FLAG_PAD == c["ISOMEND_FLAG_PAD"]
+    assert isomend.FLAG_NO_ORIGINS == c["ISOMEND_FLAG_NO_ORIGINS"]
+    assert (isomend.ORIGIN_TABLE, isomend.ORIGIN_DURST, isomend.ORIGIN_MEND) == (
+        c["ISOMEND_ORIGIN_TABLE"], c["ISOMEND_ORIGIN_DURST"], c["ISOMEND_ORIGIN_MEND"])
+    assert isomend.IO_ERR_CANCELLED == c["ISOMEND_IO_ERR_CANCELLED"]
+    assert max(isomend.IO_STATUS_NAMES) == c["ISOMEND_IO_ERR_INTERNAL"]
+    assert (isomend.IO_CHANNEL_AUTO, isomend.IO_CHANNEL_LUMA) == (
+        c["ISOMEND_IO_CHANNEL_AUTO"], c["ISOMEND_IO_CHANNEL_LUMA"])
+    for k, stage in enumerate(("OPEN", "READ", "ANALYSE", "EXTRACT")):
+        assert c["ISOMEND_IO_STAGE_" + stage] == k
+        assert isomend.IO_STAGES[k] == stage.lower()
+    assert len(isomend.IO_KIND_NAMES) == c["ISOMEND_IO_KIND_NRRD"] + 1
+    assert isomend.IO_HISTOGRAM_BINS == c["ISOMEND_IO_HISTOGRAM_BINS"]
+
+
+def test_libraries_load_from_lib_next_to_the_module():
+    lib_dir = os.path.join(STAGE, "lib")
+    assert os.path.dirname(isomend.library_path()) == lib_dir
+    assert os.path.dirname(isomend.io_library_path()) == lib_dir
+    assert isomend.version() == isomend.io_version()
+    # every status code the wrapper names has a text in the library
+    for status in isomend.STATUS_NAMES:
+        assert isomend._status_text(status)
+
+
+def _run_python(code, env):
+    return subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True,
+                          timeout=60)
+
+
+def test_env_var_overrides_the_library_path(tmp_path):
+    env = dict(os.environ, PYTHONPATH=STAGE, PYTHONDONTWRITEBYTECODE="1")
+    # a folder without the library: a clear error naming the variable, no fallback
+    env["ISOMEND_LIB_DIR"] = str(tmp_path)
+    r = _run_python("import isomend; isomend.version()", env)
+    assert r.returncode != 0
+    assert "ISOMEND_LIB_DIR=" + str(tmp_path) in r.stderr and "LibraryNotFound" in r.stderr
+    # a folder list: both libraries found there
+    other = tmp_path / "copy"
+    other.mkdir()
+    for name in os.listdir(os.path.join(STAGE, "lib")):
+        with open(os.path.join(STAGE, "lib", name), "rb") as src, open(other / name, "wb") as dst:
+            dst.write(src.read())
+    env["ISOMEND_LIB_DIR"] = str(tmp_path / "empty") + os.pathsep + str(other)
+    r = _run_python("import isomend; print(isomend.library_path()); print(isomend.io_library_path())", env)
+    assert r.returncode == 0, r.stderr
+    assert r.stdout.split() == [str(other / "libisomend.so.0"), str(other / "libisomend_io.so.0")]
+
+
+def test_methods_list_names_the_three_thesis_methods_first():
+    names = [n for n, _ in isomend.methods()]
+    assert names[:3] == ["mc", "durst", "dmc"]
+    assert {"mc", "durst", "dmc"} <= set(isomend.available_methods())
+
+
+# ------------------------------------------------------------ extraction
+
+def test_padded_sphere_is_closed_outward_and_the_right_size():
+    vol = sphere()
+    m = isomend.extract(vol, 0.0, pad=True)
+    assert m.stats["vertices"] == m.vertex_count and m.stats["triangles"] == m.triangle_count
+    assert m.positions.dtype == np.float32 and m.positions.shape == (m.vertex_count, 3)
+    assert m.triangles.dtype == np.uint32 and m.triangles.shape == (m.triangle_count, 3)
+    assert m.triangles.max() < m.vertex_count
+    rep = m.check()
+    assert rep["hole_edges"] == 0 and rep["nonmanifold_edges"] == 0
+    assert rep["misoriented_edges"] == 0 and rep["border_edges"] == 0
+    assert rep["components"] == 1 and rep["euler"] == 2
+    vol_mesh = signed_volume(m.positions, m.triangles)
+    assert vol_mesh == pytest.approx(4 / 3 * np.pi * 7.5 ** 3, rel=0.03)  # positive: outward
+    # gradient normals: unit length, pointing away from the centre (towards lower values)
+    np.testing.assert_allclose(np.linalg.norm(m.normals, axis=1), 1.0, atol=1e-4)
+    radial = m.positions - np.array([11.3, 12.1, 10.7], np.float32)
+    assert (np.einsum("ij,ij->i", radial, m.normals) > 0).all()
+    # origins: every triangle from the table or a mending quad, counts as in stats
+    counts = np.bincount(m.origins, minlength=3)
+    assert list(counts) == [m.stats["triangles_by_origin"][k] for k in isomend.ORIGIN_NAMES]
+
+
+def test_flip_reverses_winding_and_normals():
+    vol = sphere()
+    a = isomend.extract(vol, 0.0, pad=True)
+    b = isomend.extract(vol, 0.0, pad=True, flip=True)
+    np.testing.assert_array_equal(a.positions, b.positions)
+    np.testing.assert_allclose(a.normals, -b.normals)
+    assert signed_volume(b.positions, b.triangles) == pytest.approx(-signed_volume(a.positions, a.triangles))
+
+
+def test_f1_methods_mc_leaves_holes_dmc_mends_them_durst_adds_polygons():
+    vol = f1_volume()
+    mc = isomend.extract(vol, 0.0, method="mc")
+    dmc = isomend.extract(vol, 0.0, method="dmc")
+    durst = isomend.extract(vol, 0.0, method="DURST")
+    assert mc.method == "mc" and dmc.method == "dmc" and durst.method == "durst"
+    assert mc.check()["hole_edges"] > 0
+    assert dmc.check()["hole_edges"] == 0 and dmc.check()["nonmanifold_edges"] == 0
+    assert dmc.stats["mending_triangles"] == 6
+    assert int((dmc.origins == isomend.ORIGIN_MEND).sum()) == 6
+    assert durst.check()["hole_edges"] == 0
+    assert durst.stats["durst_triangles"] > 0
+    by_id = isomend.extract(vol, 0.0, method=isomend.METHODS["dmc"])
+    same_mesh(by_id, dmc)
+
+
+def test_spacing_and_origin_place_the_mesh_in_world_units():
+    vol = sphere()
+    a = isomend.extract(vol, 0.0)
+    b = isomend.extract(vol, 0.0, spacing=(0.5, 2.0, 3.0), origin=(10, -20, 30))
+    np.testing.assert_allclose(b.positions, a.positions * [0.5, 2.0, 3.0] + [10, -20, 30], rtol=1e-5, atol=1e-4)
+    np.testing.assert_allclose(b.grid_box, (10, -20, 30, 10 + 23 * 0.5, -20 + 23 * 2, 30 + 23 * 3))
+    c = isomend.extract(vol, 0.0, spacing=2.0)
+    np.testing.assert_allclose(c.positions, a.positions * 2, rtol=1e-6)
+
+
+@pytest.mark.parametrize("view", ["fortran", "reversed_x", "reversed_z", "sliced", "transposed_xyz"])
+def test_strided_views_need_no_copy_and_give_the_same_mesh(view):
+    base = sphere(26)
+    if view == "fortran":
+        arr, axes = np.asfortranarray(base), "zyx"
+    elif view == "reversed_x":
+        arr, axes = base[:, :, ::-1], "zyx"
+    elif view == "reversed_z":
+        arr, axes = base[::-1], "zyx"
+    elif view == "sliced":
+        arr, axes = base[1:-1:2, 2:, ::3], "zyx"
+    else:  # array[x, y, z], Fortran order: the same memory as base
+        arr, axes = base.transpose(2, 1, 0), "xyz"
+        assert arr.flags.f_contiguous
+    reference = np.ascontiguousarray(arr)
+    if axes == "xyz":
+        reference = np.ascontiguousarray(base)
+    got = isomend.extract(arr, 0.0, axes=axes)
+    want = isomend.extract(reference, 0.0)
+    same_mesh(got, want)
+    assert got.triangle_count > 0
+
+
+@pytest.mark.parametrize("dtype", ["u1", "i1", "<u2", ">u2", "i2", "i4", "f4", "f8", "f2", "u4", "i8", "?"])
+def test_every_dtype_gives_the_same_surface(dtype):
+    ball = sphere(20, r=6.0, centre=(9.5, 9.5, 9.5), dtype=np.float64) > 0
+    levels = np.where(ball, 100, 20)
+    if dtype == "?":
+        arr, iso = ball, 0.5
+    else:
+        arr, iso = levels.astype(dtype), 60.5
+    got = isomend.extract(arr, iso, pad=True)
+    want = isomend.extract(levels.astype(np.float64), 60.5, pad=True)
+    assert got.triangle_count == want.triangle_count > 0
+    np.testing.assert_array_equal(got.triangles, want.triangles)
+    if dtype != "?":
+        np.testing.assert_allclose(got.positions, want.positions, atol=1e-5)
+
+
+def test_threads_do_not_change_the_mesh():
+    vol = sphere(40, r=14, centre=(19.2, 20.1, 18.7))
+    same_mesh(isomend.extract(vol, 0.0, threads=1), isomend.extract(vol, 0.0, threads=2))
+
+
+def test_optional_outputs_can_be_switched_off():
+    m = isomend.extract(sphere(), 0.0, normals=False, origins=False)
+    assert m.normals is None and m.origins is None and m.triangle_count > 0
+    empty = isomend.extract(sphere(), 100.0)
+    assert empty.vertex_count == 0 and empty.triangle_count == 0
+    assert empty.positions.shape == (0, 3) and empty.triangles.shape == (0, 3)
+
+
+def test_bad_arguments_raise_clear_errors():
+    vol = sphere()
+    with pytest.raises(ValueError, match="method: unknown method 'marching'"):
+        isomend.extract(vol, 0.0, method="marching")
+    unavailable = [n for n, ok in isomend.methods() if not ok]
+    if unavailable:
+        with pytest.raises(isomend.IsomendError, match="not implemented in this build"):
+            isomend.extract(vol, 0.0, method=unavailable[0])
+    with pytest.raises(ValueError, match="3D array"):
+        isomend.extract(vol[0], 0.0)
+    with pytest.raises(ValueError, match="spacing: y component"):
+        isomend.extract(vol, 0.0, spacing=(1, 0, 1))
+    with pytest.raises(ValueError, match="spacing: expected 3 numbers"):
+        isomend.extract(vol, 0.0, spacing=(1, 1))
+    with pytest.raises(ValueError, match="origin"):
+        isomend.extract(vol, 0.0, origin=(0, np.inf, 0))
+    with pytest.raises(ValueError, match="iso: must be finite"):
+        isomend.extract(vol, float("nan"))
+    with pytest.raises(ValueError, match="iso: required"):
+        isomend.extract(vol, None)
+    with pytest.raises(ValueError, match="axes"):
+        isomend.extract(vol, 0.0, axes="xxy")
+    with pytest.raises(ValueError, match="threads"):
+        isomend.extract(vol, 0.0, threads=-1)
+    with pytest.raises(TypeError, match="unsupported dtype complex"):
+        isomend.extract(vol.astype(np.complex64), 0.0)
+    with pytest.raises(isomend.IsomendError) as err:
+        isomend.extract(np.zeros((1, 5, 5), np.float32), 0.0)
+    assert err.value.status_name == "BAD_DIMENSIONS" and "dimensions" in str(err.value)
+    # with padding a dimension of 1 is allowed
+    isomend.extract(np.ones((1, 5, 5), np.float32), 0.5, pad=True)
+
+
+def test_progress_reports_cancels_and_reraises():
+    vol = sphere(48, r=18, centre=(23.5, 24.2, 22.9))
+    seen = []
+    isomend.extract(vol, 0.0, progress=lambda stage, f: seen.append((stage, f)))
+    assert seen and all(stage == "extract" and 0.0 <= f <= 1.0 for stage, f in seen)
+    assert [f for _, f in seen] == sorted(f for _, f in seen)
+    with pytest.raises(isomend.Cancelled) as err:
+        isomend.extract(vol, 0.0, progress=lambda stage, f: True)
+    assert err.value.status_name == "CANCELLED"
+
+    class Stop(Exception):
+        pass
+
+    def boom(stage, f):
+        raise Stop("from the callback")
+
+    with pytest.raises(Stop, match="from the callback"):
+        isomend.extract(vol, 0.0, progress=boom)
+
+
+def test_check_finds_holes_in_an_open_mesh():
+    # a tetrahedron without its bottom face: three hole edges forming one loop
+    pos = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0.3, 0.3, 1]], np.float32)
+    tri = np.array([[0, 1, 3], [1, 2, 3], [2, 0, 3]])
+    rep = isomend.check(pos, tri, box=(-1, -1, -1, 2, 2, 2))
+    assert rep["hole_edges"] == 3 and rep["hole_loops"] == 1 and rep["triangles"] == 3
+    closed = isomend.check(pos, np.vstack([tri, [[0, 2, 1]]]))
+    assert closed["hole_edges"] == 0 and closed["border_edges"] == 0 and closed["euler"] == 2
+    with pytest.raises(ValueError, match="index out of range"):
+        isomend.check(pos, [[0, 1, 4]])
+    with pytest.raises(ValueError, match="box"):
+        isomend.check(pos, tri, box=(0, 0, 0))
+
+
+# ------------------------------------------------------------ slice sources
+
+tifffile = pytest.importorskip("tifffile")
+
+
+@pytest.fixture(scope="module")
+def stack(tmp_path_factory):
+    """A 16-bit 'blob' volume as 12 slices s_0.tif .. s_11.tif and as one multi-page TIFF."""
+    root = tmp_path_factory.mktemp("stack")
+    n = 12
+    i = np.arange(n, dtype=np.float64)
+    z, y, x = np.meshgrid(i, np.arange(14.0), np.arange(16.0), indexing="ij")
+    vol = (1000 * np.exp(-((x - 7.5) ** 2 + (y - 6.2) ** 2 + (z - 5.3) ** 2) / 12)).astype(np.uint16)
+    folder = root / "blob"
+    folder.mkdir()
+    for k in range(n):
+        tifffile.imwrite(str(folder / ("s_%d.tif" % k)), vol[k])
+    tifffile.imwrite(str(root / "blob_multi.tif"), vol)
+    return {"root": root, "folder": str(folder), "multi": str(root / "blob_multi.tif"), "volume": vol}
+
+
+def test_source_reads_a_folder_in_natural_order(stack):
+    with isomend.open_source(stack["folder"]) as src:
+        assert src.dims == (16, 14, 12) and np.dtype(src.dtype) == np.uint16
+        assert src.kind == "folder" and src.format == "tiff"
+        assert src.spacing == (1.0, 1.0, 1.0)
+        assert os.path.basename(src.slice_path(2)) == "s_2.tif"
+        assert os.path.basename(src.slice_path(10)) == "s_10.tif"
+        np.testing.assert_array_equal(src.read(), stack["volume"])
+        np.testing.assert_array_equal(src.read_slice(10), stack["volume"][10])
+        with pytest.raises(IndexError):
+            src.read_slice(12)
+        summary = src.analyse()
+        assert summary["max"] == stack["volume"].max() and summary["samples"] == 16 * 14 * 12
+        assert summary["min"] < summary["suggested_iso"] < summary["max"]
+    with pytest.raises(ValueError, match="closed"):
+        src.read()
+    src.close()  # idempotent
+
+
+def test_source_extract_equals_extract_on_the_read_array(stack):
+    with isomend.open_source(stack["multi"], spacing=(0.5, 0.5, 2.0)) as src:
+        assert src.kind == "multipage" and src.spacing_sources == ("option",) * 3
+        mesh = src.extract(pad=True)                     # suggested iso
+        iso = src.analyse()["suggested_iso"]
+    assert mesh.iso == iso
+    want = isomend.extract(stack["volume"], iso, spacing=(0.5, 0.5, 2.0), pad=True)
+    same_mesh(mesh, want)
+    assert mesh.check()["hole_edges"] == 0
+    from_folder = isomend.extract_source(stack["folder"], iso=iso, spacing=(0.5, 0.5, 2.0), pad=True)
+    same_mesh(from_folder, want)
+    fixed = isomend.extract_source(stack["folder"], iso=300.0, method="mc")
+    assert fixed.iso == 300.0 and fixed.method == "mc"
+
+
+def test_source_progress_and_cancel(stack):
+    stages = []
+    isomend.extract_source(stack["folder"], progress=lambda s, f: stages.append(s))
+    assert {"read", "extract"} <= set(stages)  # "open" is rate-limited away on small stacks
+    assert set(stages) <= set(isomend.IO_STAGES)
+    with pytest.raises(isomend.Cancelled) as err:
+        isomend.extract_source(stack["folder"], progress=lambda s, f: s == "read")
+    assert err.value.status_name == "CANCELLED"
+    with pytest.raises(KeyError):
+        isomend.extract_source(stack["folder"], progress=lambda s, f: {}["boom"])
+
+
+def test_source_errors_name_the_file_and_the_reason(stack, tmp_path):
+    missing = str(tmp_path / "no_such_folder")
+    with pytest.raises(isomend.IsomendError) as err:
+        isomend.open_source(missing)
+    assert err.value.status_name == "NOT_FOUND" and missing in str(err.value)
+    bad = tmp_path / "mismatch"
+    bad.mkdir()
+    for k in range(3):
+        tifffile.imwrite(str(bad / ("s_%d.tif" % k)), np.zeros((8, 8 if k != 2 else 9), np.uint8))
+    with pytest.raises(isomend.IsomendError) as err:
+        isomend.open_source(str(bad))
+    assert err.value.status_name == "MISMATCH" and "s_2.tif" in str(err.value)
+    with pytest.raises(ValueError, match="channel"):
+        isomend.open_source(stack["folder"], channel="red")
+    with pytest.raises(ValueError, match="spacing"):
+        isomend.open_source(stack["folder"], spacing=(1, -1, 1))
+    with pytest.raises(ValueError, match="raw_type"):
+        isomend.open_source(stack["multi"], raw_dims=(4, 4, 4))
+    with pytest.raises(ValueError, match="paths"):
+        isomend.open_source([])
+
+
+def test_raw_source(stack, tmp_path):
+    path = tmp_path / "blob.raw"
+    stack["volume"].astype(">u2").tofile(str(path))
+    with isomend.open_source(str(path), raw_dims=(16, 14, 12), raw_type="u16", raw_big_endian=True) as src:
+        assert src.kind == "raw"
+        np.testing.assert_array_equal(src.read(), stack["volume"])
