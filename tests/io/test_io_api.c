@@ -471,6 +471,24 @@ static void test_misuse(void) {
     CHECK(vol.spacing[2] == 2 && vol.origin[0] == -10);
     isomend_io_destroy(src);
     free(p);
+    /* the memory limit: whole volume (load) and streamed slice buffers (analyse) */
+    isomend_io_options_init(&o);
+    o.memory_limit = 1ull << 30;
+    o.threads = 1;
+    p = join("too_large/huge.tif");
+    paths[0] = p;
+    CHECK_EQ_INT(isomend_io_create(&src), ISOMEND_IO_OK);
+    CHECK_EQ_INT(isomend_io_open(src, paths, 1, &o), ISOMEND_IO_OK);
+    CHECK_EQ_INT(isomend_io_load(src, &vol, NULL), ISOMEND_IO_ERR_TOO_LARGE);
+    CHECK(strstr(isomend_io_message(src), "60000x60000x40") && strstr(isomend_io_message(src), "memory limit"));
+    isomend_io_summary sum;
+    CHECK_EQ_INT(isomend_io_analyse(src, &sum), ISOMEND_IO_ERR_TOO_LARGE);
+    CHECK(strstr(isomend_io_message(src), "slice buffer") != NULL);
+    isomend_mesh *mesh = NULL;
+    CHECK_EQ_INT(isomend_io_extract(src, NULL, 1, NULL, &mesh, NULL), ISOMEND_IO_ERR_TOO_LARGE);
+    CHECK(mesh == NULL);
+    isomend_io_destroy(src);
+    free(p);
     printf("ok   misuse and options\n");
 }
 

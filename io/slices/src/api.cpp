@@ -21,6 +21,7 @@
 #include <memory>
 #include <mutex>
 #include <new>
+#include <thread>
 
 #include "volume_readers.h"
 
@@ -134,7 +135,10 @@ isomend_type src_type(const isomend_io_source *s) {
 }
 
 uint64_t slice_bytes(const isomend_io_source *s) {
-    return (uint64_t)dim(s, 0) * (uint64_t)dim(s, 1) * isomend_type_size(src_type(s));
+    // dims are < 2^31 each (OIIO ints), so x*y < 2^62; saturate the last product
+    uint64_t xy = (uint64_t)dim(s, 0) * (uint64_t)dim(s, 1);
+    uint64_t size = isomend_type_size(src_type(s));
+    return xy > UINT64_MAX / size ? UINT64_MAX : xy * size;
 }
 
 uint64_t volume_bytes(const isomend_io_source *s) {
@@ -147,6 +151,25 @@ uint64_t volume_bytes(const isomend_io_source *s) {
 std::string dims_text(const isomend_io_source *s) {
     return std::to_string(dim(s, 0)) + "x" + std::to_string(dim(s, 1)) + "x" + std::to_string(dim(s, 2)) +
            " " + isomend_type_name(src_type(s));
+}
+
+int reader_threads(const isomend_io_source *s) {
+    if (s->opts.threads > 0) return s->opts.threads;
+    unsigned hc = std::thread::hardware_concurrency();
+    return hc ? (int)std::min(hc, 8u) : 2;
+}
+
+// Refuses `need` bytes (described by `what`) beyond the limit, before allocating.
+void check_memory_for(const isomend_io_source *s, uint64_t need, const std::string &what_needs) {
+    uint64_t limit = s->opts.memory_limit;
+    const char *what = "the memory limit";
+    if (limit == 0) {
+        limit = memory_available();
+        what = "the memory available (MemAvailable)";
+    }
+    if ((limit && need > limit) || need > (uint64_t)SIZE_MAX / 2)
+        throw IoError(ISOMEND_IO_ERR_TOO_LARGE, what_needs + " needs " + human_bytes(need) + ", more than " +
+                                                    what + " of " + human_bytes(limit));
 }
 
 void check_memory(const isomend_io_source *s) {
@@ -298,6 +321,11 @@ template <typename F> void for_each_slice(isomend_io_source *s, F &&f, double ba
         for (int64_t k = 0; k < dim(s, 2); k++) f(s->volume.get() + (size_t)k * sb, n);
         return;
     }
+    // Streaming keeps one slice per reader thread in memory: check that much.
+    uint64_t workers = s->is_file_volume ? 1 : (uint64_t)reader_threads(s);
+    check_memory_for(s, sb > 0 && workers > UINT64_MAX / sb ? UINT64_MAX : sb * workers,
+                     std::to_string(workers) + " slice buffer(s) of " + std::to_string(dim(s, 0)) + "x" +
+                         std::to_string(dim(s, 1)) + " " + isomend_type_name(src_type(s)));
     std::mutex mu;
     if (s->is_file_volume) {
         std::vector<char> buf(sb);

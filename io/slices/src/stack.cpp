@@ -185,6 +185,9 @@ static void describe_first(const Slice &s, const ImageSpec &spec, int channel,
                           "); only 2D slices can be stacked");
     if (spec.width < 1 || spec.height < 1 || spec.nchannels < 1)
         throw IoError(ISOMEND_IO_ERR_CORRUPT, name + ": empty image");
+    if ((uint64_t)spec.width * (uint64_t)spec.height > (1ull << 50))
+        throw IoError(ISOMEND_IO_ERR_UNSUPPORTED,
+                      name + ": " + size_text(spec) + " pixels is beyond any memory");
     info.width = spec.width;
     info.height = spec.height;
     info.xorigin = spec.x;
