@@ -1,0 +1,206 @@
+/*
+ * extract_npy.c - times isomend_extract() on a volume saved by numpy (.npy),
+ * without Python in the process: the driver for perf and callgrind when
+ * profiling the core (see docs/readme-bench.md, "Profiling").
+ *
+ *   isomend_bench_extract FILE.npy ISO [--threads N] [--repeats N]
+ *                         [--method mc|durst|dmc] [--no-normals] [--pad]
+ *
+ * Reads a C-order 3-D array (shape (nz, ny, nx), x fastest) of uint8, int8,
+ * uint16, int16, int32, float32 or float64 in little-endian order, then runs
+ * the extraction N times and prints one line per run (wall time, triangles,
+ * vertices) and the median.  Exit status 0 on success, 1 on bad input (with a
+ * message naming the file or option), 2 when the extraction fails.
+ */
+#define _POSIX_C_SOURCE 200809L /* clock_gettime */
+#include "isomend.h"
+
+#include <errno.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <time.h>
+
+static double now(void)
+{
+    struct timespec ts;
+    clock_gettime(CLOCK_MONOTONIC, &ts);
+    return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
+}
+
+static int cmp_double(const void *a, const void *b)
+{
+    double x = *(const double *)a, y = *(const double *)b;
+    return (x > y) - (x < y);
+}
+
+typedef struct npy {
+    void *data;
+    isomend_type type;
+    int64_t shape[3];
+} npy;
+
+/* Parses the .npy header (format 1.0/2.0/3.0) and reads the samples. */
+static int read_npy(const char *path, npy *out)
+{
+    FILE *f = fopen(path, "rb");
+    if (!f) {
+        fprintf(stderr, "isomend_bench_extract: %s: %s\n", path, strerror(errno));
+        return 0;
+    }
+    unsigned char magic[8];
+    char *header = NULL;
+    int ok = 0;
+    if (fread(magic, 1, 8, f) != 8 || memcmp(magic, "\x93NUMPY", 6) != 0) {
+        fprintf(stderr, "isomend_bench_extract: %s: not a .npy file\n", path);
+        goto done;
+    }
+    unsigned long hlen;
+    if (magic[6] == 1) {
+        unsigned char b[2];
+        if (fread(b, 1, 2, f) != 2)
+            goto truncated;
+        hlen = b[0] | (unsigned long)b[1] << 8;
+    } else {
+        unsigned char b[4];
+        if (fread(b, 1, 4, f) != 4)
+            goto truncated;
+        hlen = b[0] | (unsigned long)b[1] << 8 | (unsigned long)b[2] << 16 |
+               (unsigned long)b[3] << 24;
+    }
+    if (hlen > 65536) {
+        fprintf(stderr, "isomend_bench_extract: %s: header too long\n", path);
+        goto done;
+    }
+    header = calloc(1, hlen + 1);
+    if (!header || fread(header, 1, hlen, f) != hlen)
+        goto truncated;
+    static const struct { const char *descr; isomend_type type; } types[] = {
+        {"'|u1'", ISOMEND_U8},  {"'|i1'", ISOMEND_I8},  {"'<u2'", ISOMEND_U16},
+        {"'<i2'", ISOMEND_I16}, {"'<i4'", ISOMEND_I32}, {"'<f4'", ISOMEND_F32},
+        {"'<f8'", ISOMEND_F64}};
+    const char *d = strstr(header, "'descr':");
+    int found = 0;
+    for (size_t i = 0; d && i < sizeof(types) / sizeof(types[0]); i++)
+        if (strncmp(d + 9, types[i].descr, strlen(types[i].descr)) == 0 ||
+            strncmp(d + 8, types[i].descr, strlen(types[i].descr)) == 0) {
+            out->type = types[i].type;
+            found = 1;
+        }
+    const char *fo = strstr(header, "'fortran_order': False");
+    const char *sh = strstr(header, "'shape': (");
+    long long s0, s1, s2;
+    if (!found || !fo || !sh || sscanf(sh + 10, "%lld, %lld, %lld", &s0, &s1, &s2) != 3 ||
+        s0 < 1 || s1 < 1 || s2 < 1) {
+        fprintf(stderr, "isomend_bench_extract: %s: need a C-order 3-D array of a little-endian "
+                        "integer or float type; header: %s\n", path, header);
+        goto done;
+    }
+    out->shape[0] = s0;
+    out->shape[1] = s1;
+    out->shape[2] = s2;
+    size_t n = (size_t)s0 * (size_t)s1 * (size_t)s2 * isomend_type_size(out->type);
+    out->data = malloc(n ? n : 1);
+    if (!out->data) {
+        fprintf(stderr, "isomend_bench_extract: %s: out of memory\n", path);
+        goto done;
+    }
+    if (fread(out->data, 1, n, f) != n)
+        goto truncated;
+    ok = 1;
+    goto done;
+truncated:
+    fprintf(stderr, "isomend_bench_extract: %s: truncated file\n", path);
+done:
+    free(header);
+    fclose(f);
+    if (!ok) {
+        free(out->data);
+        out->data = NULL;
+    }
+    return ok;
+}
+
+static int usage(void)
+{
+    fprintf(stderr, "usage: isomend_bench_extract FILE.npy ISO [--threads N] [--repeats N] "
+                    "[--method mc|durst|dmc] [--no-normals] [--pad]\n");
+    return 1;
+}
+
+int main(int argc, char **argv)
+{
+    if (argc < 3)
+        return usage();
+    const char *path = argv[1];
+    char *end;
+    isomend_options o;
+    isomend_options_init(&o);
+    o.iso = strtod(argv[2], &end);
+    if (*end || end == argv[2]) {
+        fprintf(stderr, "isomend_bench_extract: ISO %s is not a number\n", argv[2]);
+        return 1;
+    }
+    int repeats = 5;
+    for (int i = 3; i < argc; i++) {
+        const char *a = argv[i];
+        if (!strcmp(a, "--no-normals")) {
+            o.flags |= ISOMEND_FLAG_NO_NORMALS;
+        } else if (!strcmp(a, "--pad")) {
+            o.flags |= ISOMEND_FLAG_PAD;
+        } else if ((!strcmp(a, "--threads") || !strcmp(a, "--repeats")) && i + 1 < argc) {
+            long v = strtol(argv[++i], &end, 10);
+            if (*end || v < (a[2] == 't' ? 0 : 1) || v > 1000) {
+                fprintf(stderr, "isomend_bench_extract: %s %s: expected an integer in %d..1000\n",
+                        a, argv[i], a[2] == 't' ? 0 : 1);
+                return 1;
+            }
+            if (a[2] == 't')
+                o.threads = (int)v;
+            else
+                repeats = (int)v;
+        } else if (!strcmp(a, "--method") && i + 1 < argc) {
+            if (isomend_method_from_name(argv[++i], &o.method) != ISOMEND_OK) {
+                fprintf(stderr, "isomend_bench_extract: --method %s: unknown method\n", argv[i]);
+                return 1;
+            }
+        } else {
+            fprintf(stderr, "isomend_bench_extract: unknown option %s\n", a);
+            return usage();
+        }
+    }
+    npy v = {0};
+    if (!read_npy(path, &v))
+        return 1;
+    isomend_volume vol;
+    isomend_volume_init(&vol, v.data, v.type, v.shape[2], v.shape[1], v.shape[0]);
+    double *times = calloc((size_t)repeats, sizeof(double));
+    int rc = times ? 0 : 2;
+    for (int r = 0; r < repeats && rc == 0; r++) {
+        isomend_mesh *mesh = NULL;
+        isomend_stats st;
+        double t0 = now();
+        isomend_status s = isomend_extract(&vol, &o, &mesh, &st);
+        times[r] = now() - t0;
+        if (s != ISOMEND_OK) {
+            fprintf(stderr, "isomend_bench_extract: %s: %s\n", path, isomend_status_string(s));
+            rc = 2;
+            break;
+        }
+        printf("run %d: %.2f ms, %llu triangles, %llu vertices, %llu mended\n", r,
+               1e3 * times[r], (unsigned long long)st.triangles,
+               (unsigned long long)st.vertices,
+               (unsigned long long)st.triangles_by_origin[ISOMEND_ORIGIN_MEND]);
+        isomend_mesh_destroy(mesh);
+    }
+    if (rc == 0) {
+        qsort(times, (size_t)repeats, sizeof(double), cmp_double);
+        printf("median %.2f ms, min %.2f ms (%lld x %lld x %lld %s, %d threads)\n",
+               1e3 * times[repeats / 2], 1e3 * times[0], (long long)v.shape[2],
+               (long long)v.shape[1], (long long)v.shape[0], isomend_type_name(v.type),
+               o.threads);
+    }
+    free(times);
+    free(v.data);
+    return rc;
+}
