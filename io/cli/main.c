@@ -558,8 +558,7 @@ static int cmd_extract(int argc, char **argv)
     cli_timings tm = {src.read_ms, cli_now_ms() - t0, 0};
     if (st != ISOMEND_OK) {
         cli_error("%s: extraction failed: %s", src.label, isomend_status_string(st));
-        rc = st == ISOMEND_ERR_BAD_DIMENSIONS || st == ISOMEND_ERR_BAD_SPACING ? CLI_EXIT_USAGE
-                                                                               : CLI_EXIT_FAIL;
+        rc = CLI_EXIT_FAIL;
         goto fail_source;
     }
     isomend_check_report check;

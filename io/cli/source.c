@@ -28,7 +28,78 @@
 #include "volume_readers.h"
 
 #ifdef ISOMEND_HAVE_IO
+#include <dlfcn.h>
+
 #include "isomend_io.h"
+
+/*
+ * The importer is loaded with dlopen() only when a slice-stack source needs
+ * it: linking it would load OpenImageIO's ~260 shared libraries (~0.3-0.7 s)
+ * on every start, even for `isomend check` or a NRRD file.  Search order:
+ * $ISOMEND_IO_LIBRARY, the build tree's library (ISOMEND_IO_BUILD_PATH),
+ * then the installed soname through the normal library search.
+ */
+static struct io_api {
+    void *handle;
+    const char *(*status_string)(isomend_io_status);
+    isomend_io_status (*create)(isomend_io_source **);
+    void (*destroy)(isomend_io_source *);
+    const char *(*message)(const isomend_io_source *);
+    void (*options_init)(isomend_io_options *);
+    isomend_io_status (*open)(isomend_io_source *, const char *const *, size_t,
+                              const isomend_io_options *);
+    isomend_io_status (*load)(isomend_io_source *, isomend_volume *, double *);
+    isomend_io_status (*analyse)(isomend_io_source *, isomend_io_summary *);
+    isomend_io_status (*spacing)(const isomend_io_source *, double *, int *);
+    const char *(*spacing_source_name)(int);
+    const char *(*kind_name)(int);
+    int (*source_kind)(const isomend_io_source *);
+    const char *(*format)(const isomend_io_source *);
+} io_api;
+
+static int io_load_api(char *why, size_t why_size)
+{
+    if (io_api.handle) return 1;
+    const char *candidates[3] = {getenv("ISOMEND_IO_LIBRARY"), ISOMEND_IO_BUILD_PATH,
+                                 "libisomend_io.so.0"};
+    void *h = NULL;
+    why[0] = '\0';
+    for (int i = 0; i < 3 && !h; i++) {
+        if (!candidates[i] || !*candidates[i]) continue;
+        h = dlopen(candidates[i], RTLD_NOW | RTLD_LOCAL);
+        if (!h && !why[0]) {
+            const char *e = dlerror();
+            snprintf(why, why_size, "%s", e ? e : candidates[i]);
+        }
+    }
+    if (!h) return 0;
+#define IO_SYM(field, name)                                                                        \
+    do {                                                                                           \
+        void *sym_ = dlsym(h, name);                                                               \
+        if (!sym_) {                                                                               \
+            snprintf(why, why_size, "symbol %s missing", name);                                    \
+            dlclose(h);                                                                            \
+            return 0;                                                                              \
+        }                                                                                          \
+        memcpy(&io_api.field, &sym_, sizeof sym_);                                                 \
+    } while (0)
+    IO_SYM(status_string, "isomend_io_status_string");
+    IO_SYM(create, "isomend_io_create");
+    IO_SYM(destroy, "isomend_io_destroy");
+    IO_SYM(message, "isomend_io_message");
+    IO_SYM(options_init, "isomend_io_options_init");
+    IO_SYM(open, "isomend_io_open");
+    IO_SYM(load, "isomend_io_load");
+    IO_SYM(analyse, "isomend_io_analyse");
+    IO_SYM(spacing, "isomend_io_spacing");
+    IO_SYM(spacing_source_name, "isomend_io_spacing_source_name");
+    IO_SYM(kind_name, "isomend_io_kind_name");
+    IO_SYM(source_kind, "isomend_io_source_kind");
+    IO_SYM(format, "isomend_io_format");
+#undef IO_SYM
+    io_api.handle = h;
+    return 1;
+}
 #endif
 
 int cli_builtin_volume(const char *name, float out[64])
@@ -107,12 +178,18 @@ static int io_progress(void *user, int stage, double fraction)
 static int open_io(const char *const *paths, int n, const cli_source_opts *o, cli_source *src)
 {
     isomend_io_source *io = NULL;
-    if (isomend_io_create(&io) != ISOMEND_IO_OK) {
+    char why[512];
+    if (!io_load_api(why, sizeof why)) {
+        cli_error("%s: slice stacks need the importer library libisomend_io, which could not be "
+                  "loaded (%s); set ISOMEND_IO_LIBRARY to its path", paths[0], why);
+        return CLI_EXIT_FAIL;
+    }
+    if (io_api.create(&io) != ISOMEND_IO_OK) {
         cli_error("%s: out of memory", paths[0]);
         return CLI_EXIT_FAIL;
     }
     isomend_io_options opts;
-    isomend_io_options_init(&opts);
+    io_api.options_init(&opts);
     if (o->have_first) opts.first = o->first;
     if (o->have_count) opts.count = o->count;
     if (o->have_step) opts.step = o->step;
@@ -126,26 +203,26 @@ static int open_io(const char *const *paths, int n, const cli_source_opts *o, cl
         opts.progress = io_progress;
         opts.progress_user = o->progress;
     }
-    isomend_io_status st = isomend_io_open(io, paths, (size_t)n, &opts);
+    isomend_io_status st = io_api.open(io, paths, (size_t)n, &opts);
     double seconds = 0;
-    if (st == ISOMEND_IO_OK) st = isomend_io_load(io, &src->vol, &seconds);
+    if (st == ISOMEND_IO_OK) st = io_api.load(io, &src->vol, &seconds);
     cli_progress_clear(o->progress);
     if (st != ISOMEND_IO_OK) {
-        const char *m = isomend_io_message(io);
-        cli_error("%s", m && *m ? m : isomend_io_status_string(st));
-        isomend_io_destroy(io);
+        const char *m = io_api.message(io);
+        cli_error("%s", m && *m ? m : io_api.status_string(st));
+        io_api.destroy(io);
         return st == ISOMEND_IO_ERR_INVALID_ARGUMENT ? CLI_EXIT_USAGE : CLI_EXIT_FAIL;
     }
     src->io = io;
     src->read_ms = seconds * 1e3;
-    const char *kind = isomend_io_kind_name(isomend_io_source_kind(io));
+    const char *kind = io_api.kind_name(io_api.source_kind(io));
     snprintf(src->kind, sizeof src->kind, "%s", kind ? kind : "?");
-    snprintf(src->format, sizeof src->format, "%s", isomend_io_format(io));
+    snprintf(src->format, sizeof src->format, "%s", io_api.format(io));
     double spacing[3];
     int from[3] = {0, 0, 0};
-    if (isomend_io_spacing(io, spacing, from) == ISOMEND_IO_OK)
+    if (io_api.spacing(io, spacing, from) == ISOMEND_IO_OK)
         for (int a = 0; a < 3; a++) {
-            const char *name = isomend_io_spacing_source_name(from[a]);
+            const char *name = io_api.spacing_source_name(from[a]);
             src->spacing_from[a] = name ? name : "?";
         }
     return CLI_EXIT_OK;
@@ -206,7 +283,7 @@ void cli_source_close(cli_source *src)
     if (!src) return;
     free(src->owned);
 #ifdef ISOMEND_HAVE_IO
-    isomend_io_destroy(src->io);
+    if (src->io) io_api.destroy(src->io);
 #endif
     memset(src, 0, sizeof *src);
 }
@@ -247,9 +324,9 @@ int cli_source_summary(cli_source *src, cli_summary *sum)
 #ifdef ISOMEND_HAVE_IO
     if (src->io) {
         isomend_io_summary s;
-        isomend_io_status st = isomend_io_analyse(src->io, &s);
+        isomend_io_status st = io_api.analyse(src->io, &s);
         if (st != ISOMEND_IO_OK) {
-            cli_error("%s", isomend_io_message(src->io));
+            cli_error("%s", io_api.message(src->io));
             return CLI_EXIT_FAIL;
         }
         sum->min = s.min;
