@@ -268,7 +268,8 @@ def setup_isomend(a, iso, threads, args, normals):
 
 
 def setup_wrapper(a, iso, threads, args):
-    """isomend through the Python wrapper of the Blender add-on (copies into numpy)."""
+    """isomend through the Python wrapper of the Blender add-on: the same call plus
+    the copy of the mesh into numpy arrays (isomend_mesh_copy)."""
     if args.lib_dir:
         os.environ["ISOMEND_LIB_DIR"] = args.lib_dir
     sys.path.insert(0, os.path.join(ROOT, "blender_addon", "isomend_import"))
@@ -278,16 +279,10 @@ def setup_wrapper(a, iso, threads, args):
         return isomend.extract(a, iso, method="dmc", normals=True, threads=threads)
 
     def measure(out):
-        arrays = [getattr(out, k) for k in ("positions", "vertices", "normals", "triangles",
-                                            "faces") if getattr(out, k, None) is not None]
-        nbytes = sum(x.nbytes for x in arrays)
-        tri = getattr(out, "triangles", None)
-        if tri is None:
-            tri = getattr(out, "faces")
-        pos = getattr(out, "positions", None)
-        if pos is None:
-            pos = getattr(out, "vertices")
-        return len(tri), len(pos), nbytes, {}
+        arrays = [x for x in (out.positions, out.normals, out.triangles, out.origins)
+                  if x is not None]
+        return (out.triangle_count, out.vertex_count, sum(x.nbytes for x in arrays),
+                {"mend_triangles": out.stats["mending_triangles"]})
     return run, measure
 
 
@@ -370,7 +365,8 @@ EXTRACTORS = {
     "skimage": ("skimage marching_cubes lewiner", setup_skimage, False),
     "openvdb": ("OpenVDB volumeToMesh (adapt. 0)", setup_openvdb, True),
 }
-ALL_PEERS = ["isomend", "isomend-geom", "fe", "fe-normals", "vtkmc", "skimage", "openvdb"]
+ALL_PEERS = ["isomend", "isomend-geom", "isomend-py", "fe", "fe-normals", "vtkmc", "skimage",
+             "openvdb"]
 
 
 # ------------------------------------------------------------------- child process
@@ -512,9 +508,9 @@ def plan(args):
 
 def slow_peer_policy(args, name, size, field):
     """Quick mode keeps the goal's comparisons (isomend, Flying Edges) complete and
-    runs the peers far from the goal (vtkMarchingCubes, scikit-image, OpenVDB) once,
+    runs the others (the Python wrapper, vtkMarchingCubes, scikit-image, OpenVDB) once,
     at one thread, on the 256^3 sphere and gyroid only.  Returns (run?, repeats)."""
-    if not args.quick or name not in ("vtkmc", "skimage", "openvdb"):
+    if not args.quick or name not in ("isomend-py", "vtkmc", "skimage", "openvdb"):
         return True, None
     return (size == 256 and field in ("sphere", "gyroid")), 1
 
@@ -569,7 +565,7 @@ def main(argv=None):
     ap.add_argument("--threads", help="comma list of thread counts (default 1 and all cores)")
     ap.add_argument("--repeats", type=int, help="timed runs per measurement (median)")
     ap.add_argument("--peers", default="all",
-                    help="comma list of %s, or all (+ isomend-py for the Python wrapper)"
+                    help="comma list of %s, or all"
                     % ",".join(ALL_PEERS))
     ap.add_argument("--lib-dir", help="folder with libisomend.so (else $ISOMEND_LIB_DIR)")
     ap.add_argument("--floor-lib", help="libisomend_bench_floor.so (else numpy's sum)")
