@@ -70,7 +70,8 @@ def run_case(i, case):
     p = case["params"]
     kwargs = dict(directory=case["directory"], files=[{"name": n} for n in case["files"]],
                   use_suggested_iso=p["use_suggested_iso"], iso=p["iso"], method=p["method"],
-                  spacing=p["spacing"], unit_scale=p["unit_scale"], pad=p["pad"], smooth=p["smooth"])
+                  spacing=p["spacing"], unit_scale=p["unit_scale"], pad=p["pad"], smooth=p["smooth"],
+                  gradient_normals=p.get("gradient_normals", True))
     t0 = time.perf_counter()
     result = bpy.ops.import_mesh.slice_stack(**kwargs)
     seconds = time.perf_counter() - t0
@@ -120,7 +121,7 @@ def run_case(i, case):
           "%s: validate() changed the counts" % tag)
     # normals: the custom split normals are the core's gradient normals (Blender
     # stores them compressed), and they point to the faces' side on the whole
-    if p["smooth"]:
+    if p["smooth"] and p.get("gradient_normals", True):
         check(me.has_custom_normals, "%s: no custom normals" % tag)
         paths = ([case["directory"]] if not case["files"] else
                  [case["directory"] + "/" + n for n in sorted(case["files"], key=module._natural_key)])
@@ -155,7 +156,11 @@ def run_case(i, case):
         check(bool(smooth.all()), "%s: faces not smooth" % tag)
         me.free_normals_split()
     else:
-        check(not me.has_custom_normals, "%s: custom normals without smooth" % tag)
+        check(not me.has_custom_normals, "%s: custom normals without gradient_normals" % tag)
+        smooth = np.empty(len(me.polygons), bool)
+        me.polygons.foreach_get("use_smooth", smooth)
+        check(bool(smooth.all()) if p["smooth"] else not smooth.any(),
+              "%s: use_smooth is not %s on every face" % (tag, p["smooth"]))
     # placement: the object sits at the volume's origin (the CLI's), and its world
     # bounding box is the CLI mesh's, both in millimetres times unit scale
     s = p["unit_scale"]

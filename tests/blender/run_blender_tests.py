@@ -116,7 +116,8 @@ def main():
     names = ["slice_%d.tif" % k for k in range(g.shape[0])]
     shuffled = sorted(names)  # slice_0, slice_1, slice_10, ...: not the stack order
     cases.append({"name": "slice", "directory": folder, "files": shuffled,
-                  "params": dict(base, spacing=(1.0, 1.0, 1.0), unit_scale=0.01, method="MC"),
+                  "params": dict(base, spacing=(1.0, 1.0, 1.0), unit_scale=0.01, method="MC",
+                                 gradient_normals=False),
                   "cli_source": [os.path.join(folder, n) for n in names]})
     # 2. float32 multi-page TIFF, suggested iso, Durst
     multi = os.path.join(work, "peanut.tif")
