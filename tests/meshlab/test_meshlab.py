@@ -18,6 +18,9 @@ Usage (run by ctest under `xvfb-run -a`, which provides $DISPLAY):
   holes     F1 (thesis Chapter 5.2) tiled by mirroring into a 7^3 volume:
             the CLI's check finds holes for mc and none for dmc, and MeshLab
             agrees: MC open, DMC closed two-manifold genus 0.
+  realdata  the ITK T1 MRI (scripts/get-test-data.sh): at the suggested level
+            MeshLab counts MC's hole edges as boundary edges and finds DMC's
+            result closed and two-manifold.
   errors    bad sources and parameters: exit 255 (never 134/abort), the
             reason in the log, no output file; the filter is listed by
             meshlabserver's plugin dump with its menu text.
@@ -426,6 +429,41 @@ def test_holes(run):
                   % (t.get("boundary_edges"), holes))
 
 
+def test_realdata(run, get_data):
+    """The ITK T1 MRI head (Debian's insighttoolkit5-examples, fetched and
+    cached by scripts/get-test-data.sh): MeshLab sees MC's holes and DMC's
+    closed 2-manifold at the suggested (Otsu) level."""
+    r = subprocess.run(["bash", get_data, "mri_t1_small"], stdout=subprocess.PIPE,
+                       stderr=subprocess.STDOUT, timeout=600)
+    if not check(r.returncode == 0, "scripts/get-test-data.sh mri_t1_small (exit %d)" % r.returncode):
+        print(r.stdout.decode(errors="replace")[-2000:])
+        return
+    root = os.environ.get("ISOMEND_TESTDATA") or os.path.join(
+        os.environ.get("XDG_CACHE_HOME") or os.path.expanduser("~/.cache"), "isomend")
+    tiff = os.path.join(root, "mri_t1_small", "tiff")
+    info = json.loads(subprocess.run([run.cli, "info", tiff, "--json", "-"], stdout=subprocess.PIPE,
+                                     check=True).stdout)
+    iso = info["suggested_iso"]
+    for mi in (1, 0):
+        print("T1 MRI 128x128x62 i16, iso %g (suggested), padded, %s:" % (iso, METHODS[mi]))
+        ref, _ = run.isomend(tiff, ["--iso", repr(iso), "--pad", "--method", CLI_METHOD[mi]])
+        rc, log, out = run.meshlab({"source": tiff, "iso": iso, "method": mi, "pad": True},
+                                   topology=True, save=False)
+        t = parse_topology(log)
+        check(rc == 0 and t.get("V") == ref["vertices"] and t.get("F") == ref["triangles"],
+              "MeshLab's V/F %s/%s equal the CLI's %d/%d"
+              % (t.get("V"), t.get("F"), ref["vertices"], ref["triangles"]))
+        holes = ref["check"]["holes"]
+        if mi == 1:
+            check(holes > 0 and t.get("boundary_edges") == holes,
+                  "MC: MeshLab's Boundary Edges %s = isomend's hole edges %d > 0"
+                  % (t.get("boundary_edges"), holes))
+        else:
+            check(holes == 0 and t.get("boundary_edges") == 0 and t["two_manifold"],
+                  "DMC: Boundary Edges %s, two-manifold %s, isomend hole edges %d"
+                  % (t.get("boundary_edges"), t["two_manifold"], holes))
+
+
 def test_errors(run):
     work = run.work
     # the plugin is loaded and listed with its description and parameters
@@ -484,7 +522,8 @@ def test_errors(run):
 
 def main():
     ap = argparse.ArgumentParser()
-    ap.add_argument("test", choices=["counts", "topology", "holes", "errors"])
+    ap.add_argument("test", choices=["counts", "topology", "holes", "errors", "realdata"])
+    ap.add_argument("--get-data", help="scripts/get-test-data.sh (realdata)")
     ap.add_argument("--prefix", required=True)
     ap.add_argument("--cli", required=True)
     ap.add_argument("--work", required=True)
@@ -496,8 +535,11 @@ def main():
         shutil.rmtree(a.work)
     os.makedirs(a.work)
     run = Runner(a.prefix, a.cli, a.work)
-    {"counts": test_counts, "topology": test_topology, "holes": test_holes,
-     "errors": test_errors}[a.test](run)
+    if a.test == "realdata":
+        test_realdata(run, a.get_data)
+    else:
+        {"counts": test_counts, "topology": test_topology, "holes": test_holes,
+         "errors": test_errors}[a.test](run)
     print("%d meshlabserver run(s); %s" % (sum(1 for f in os.listdir(a.work) if f.endswith(".mlx")),
                                            "FAILED: %d" % len(failures) if failures else "all ok"))
     return 1 if failures else 0
