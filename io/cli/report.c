@@ -54,11 +54,12 @@ void cli_print_check(FILE *fp, const char *what, const isomend_check_report *r)
             "%s: %" PRIu64 " vertices, %" PRIu64 " triangles, %" PRIu64 " edges\n"
             "  continuity: %" PRIu64 " hole edges in %" PRIu64 " loops, %" PRIu64
             " edges used 3+ times, %" PRIu64 " misoriented edges, %" PRIu64 " border edges\n"
-            "  topology: %" PRIu64 " components, Euler characteristic %" PRId64 ", %" PRIu64
+            "  topology: %" PRIu64 " component%s, Euler characteristic %" PRId64 ", %" PRIu64
             " non-manifold vertices, %" PRIu64 " degenerate triangles\n"
             "  verdict: %s\n",
             what, r->vertices, r->triangles, r->edges, r->hole_edges, r->hole_loops,
-            r->nonmanifold_edges, r->misoriented_edges, r->border_edges, r->components, r->euler,
+            r->nonmanifold_edges, r->misoriented_edges, r->border_edges, r->components,
+            r->components == 1 ? "" : "s", r->euler,
             r->nonmanifold_vertices, r->degenerate_triangles,
             cli_check_has_defects(r) ? "NOT continuous (holes, extraneous or misoriented edges)"
                                      : "continuous (every inner edge used exactly twice, consistently oriented)");

@@ -312,6 +312,14 @@ static double sample_at(const isomend_volume *v, int64_t i, int64_t j, int64_t k
     return NAN;
 }
 
+/* Histogram bin of d over [mn, mx] (the importer's formula, clamped). */
+static int bin_of(double d, double mn, double mx, int bins)
+{
+    if (!(mx > mn)) return 0;
+    int b = (int)((d - mn) / (mx - mn) * bins);
+    return b < 0 ? 0 : (b >= bins ? bins - 1 : b);
+}
+
 static int is_integer_type(isomend_type t)
 {
     return t == ISOMEND_U8 || t == ISOMEND_I8 || t == ISOMEND_U16 || t == ISOMEND_I16 ||
@@ -363,34 +371,40 @@ int cli_source_summary(cli_source *src, cli_summary *sum)
     enum { BINS = 256 };
     uint64_t fine[BINS];
     memset(fine, 0, sizeof fine);
-    double w16 = (hi - lo) / 16.0, w = (hi - lo) / BINS;
     for (int64_t k = 0; k < v->dims[2]; k++)
         for (int64_t j = 0; j < v->dims[1]; j++)
             for (int64_t i = 0; i < v->dims[0]; i++) {
                 double x = sample_at(v, i, j, k);
                 if (!isfinite(x)) continue;
-                int b16 = (int)((x - lo) / w16), b = (int)((x - lo) / w);
-                sum->histogram[b16 > 15 ? 15 : b16]++;
-                fine[b >= BINS ? BINS - 1 : b]++;
+                sum->histogram[bin_of(x, lo, hi, 16)]++;
+                fine[bin_of(x, lo, hi, BINS)]++;
             }
-    /* Otsu: maximise w0*w1*(m0-m1)^2 over the split after bin t */
-    double total = (double)finite, sum_all = 0;
-    for (int b = 0; b < BINS; b++) sum_all += (double)fine[b] * (lo + (b + 0.5) * w);
-    double w0 = 0, s0 = 0, best = -1;
-    int best_t = 0;
-    for (int t = 0; t < BINS - 1; t++) {
-        w0 += (double)fine[t];
-        s0 += (double)fine[t] * (lo + (t + 0.5) * w);
+    /* Otsu: maximise w0*w1*(m0-m1)^2 over the split after bin i; empty bins
+     * between the two classes give the same value: take the middle of that
+     * plateau (exactly the importer's rule, so both give the same level) */
+    const double w = (hi - lo) / BINS;
+    double total = 0, total_mass = 0;
+    for (int b = 0; b < BINS; b++) {
+        total += (double)fine[b];
+        total_mass += (double)fine[b] * (lo + (b + 0.5) * w);
+    }
+    double w0 = 0, m0 = 0, best = -1;
+    int best_first = 0, best_last = 0;
+    for (int b = 0; b < BINS - 1; b++) {
+        w0 += (double)fine[b];
+        m0 += (double)fine[b] * (lo + (b + 0.5) * w);
         double w1 = total - w0;
-        if (w0 == 0 || w1 == 0) continue;
-        double m0 = s0 / w0, m1 = (sum_all - s0) / w1;
-        double between = w0 * w1 * (m0 - m1) * (m0 - m1);
-        if (between > best) {
+        if (w0 <= 0 || w1 <= 0) continue;
+        double d = m0 / w0 - (total_mass - m0) / w1;
+        double between = w0 * w1 * d * d;
+        if (between > best * (1 + 1e-12)) {
             best = between;
-            best_t = t;
+            best_first = best_last = b;
+        } else if (between >= best * (1 - 1e-12) && fine[b] == 0 && best_last == b - 1) {
+            best_last = b;
         }
     }
-    double t = lo + (best_t + 1) * w;
+    double t = lo + ((best_first + best_last) / 2.0 + 1) * w;
     if (is_integer_type(v->type)) t = floor(t) + 0.5;
     sum->suggested_iso = t;
     sum->has_suggestion = 1;

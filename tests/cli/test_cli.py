@@ -425,6 +425,11 @@ def test_suggested_iso_and_info(r):
     rc, out, err = r.run("extract", anat, "--quiet", "-o", "aq.ply")
     if rc != 0 or err:
         fail("suggested iso --quiet", f"exit {rc}, stderr {err!r}")
+    # Otsu's plateau: a two-valued volume gets the level in the middle of the gap
+    write_nrrd(r.path("two.nrrd"), "uint8", "B", (4, 4, 4), [0] * 32 + [100] * 32)
+    rc, out, err = r.run("info", "two.nrrd", "--json", "-")
+    if rc != 0 or json.loads(out)["suggested_iso"] != 50.5:
+        fail("suggested iso plateau", f"exit {rc}: {out}")
     # a constant volume has no suggestion: --iso is required
     write_nrrd(r.path("const.nrrd"), "uint8", "B", (3, 3, 3), [7] * 27)
     expect_error(r, "constant volume", ["extract", "const.nrrd", "-o", "c.ply"], 2,
