@@ -489,7 +489,7 @@ def plan(args):
         vols = [("sphere", 24, "f32"), ("noise", 24, "u8")]
     elif args.quick:
         vols = [(f, 256, "f32") for f in ("sphere", "gyroid", "noise")]
-        vols += [("sphere", 512, "f32")]
+        vols += [("sphere", 512, "f32"), ("noise", 512, "u8")]
     else:
         vols = [(f, n, d) for n in (128, 256, 512) for f in ("sphere", "gyroid", "noise")
                 for d in ("f32", "u8")]
@@ -506,11 +506,20 @@ def plan(args):
     return vols
 
 
-def slow_peer_policy(args, name, size, field):
-    """Quick mode keeps the goal's comparisons (isomend, Flying Edges) complete and
-    runs the others (the Python wrapper, vtkMarchingCubes, scikit-image, OpenVDB) once,
-    at one thread, on the 256^3 sphere and gyroid only.  Returns (run?, repeats)."""
-    if not args.quick or name not in ("isomend-py", "vtkmc", "skimage", "openvdb"):
+def quick_policy(args, name, field, size, dtype):
+    """Which measurements quick mode makes, so that it stays under two minutes:
+    the goal's comparison (isomend DMC against Flying Edges) everywhere, with 3 runs;
+    the other extractors once, at one thread, on the 256^3 sphere and gyroid only;
+    at 512^3 the sphere with isomend and Flying Edges geometry only, and the uint8
+    noise volume of the memory goal with isomend alone, once.
+    Returns (measure?, repeats or None for the default)."""
+    if not args.quick:
+        return True, None
+    if size == 512:
+        if (field, dtype) == ("noise", "u8"):
+            return name == "isomend", 1
+        return name in ("isomend", "fe"), None
+    if name in ("isomend", "isomend-geom", "fe", "fe-normals"):
         return True, None
     return (size == 256 and field in ("sphere", "gyroid")), 1
 
@@ -649,12 +658,15 @@ def main(argv=None):
             for ext in peers:
                 label, _setup, parallel = EXTRACTORS[ext]
                 for t in thread_counts:
-                    wanted, forced = slow_peer_policy(args, ext, n, field)
+                    wanted, forced = quick_policy(args, ext, field, n, dtype)
                     if not wanted:
                         continue
                     reps = forced or repeats
-                    if (not parallel or forced) and t != thread_counts[0]:
+                    if not parallel and t != thread_counts[0]:
                         continue  # single-threaded: its 1-thread time stands for every count
+                    if forced == 1 and t != (thread_counts[-1] if ext == "isomend"
+                                             else thread_counts[0]):
+                        continue  # measured once: at 1 thread (isomend: all threads)
                     r = run_child(args, ext, vol_path, iso, t, reps)
                     r.update({"field": field, "size": n, "dtype": dtype, "extractor": ext,
                               "label": label, "threads": t, "iso": iso, "parallel": parallel,
