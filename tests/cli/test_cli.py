@@ -244,6 +244,11 @@ def test_formats(r):
     if size != 84 + 50 * 40:
         fail("format stl", f"binary STL size {size}, expected {84 + 50 * 40}")
     expect_ok(r, "format upper case", ["extract", "builtin:f1", "--iso", "0", "-o", "UP.PLY", "-q"])
+    expect_ok(r, "--output", ["extract", "builtin:f1", "--iso=0", "--output", "long.ply", "-q"])
+    expect_ok(r, "--output=", ["extract", "builtin:f1", "--iso", "0", "--output=long2.ply", "-q"])
+    if open(r.path("long.ply"), "rb").read() != open(r.path("long2.ply"), "rb").read() or \
+            open(r.path("long.ply"), "rb").read() != open(r.path("fmt.ply"), "rb").read():
+        fail("--output", "long forms give a different mesh")
 
 
 def test_flags(r):
@@ -405,6 +410,17 @@ def test_suggested_iso_and_info(r):
     iso = j["suggested_iso"]
     if not (j["min"] < iso < j["max"]) or iso != int(iso) + 0.5:
         fail("info", f"suggested iso {iso} not strictly inside the range at a half integer")
+    rc, out, err = r.run("info", anat, "--spacing", "1,1.5,3", "--origin", "5,6,7", "--json", "-")
+    j2 = json.loads(out) if rc == 0 else {}
+    if j2.get("spacing") != [1, 1.5, 3] or j2.get("spacing_from") != ["option"] * 3 \
+            or j2.get("origin") != [5, 6, 7]:
+        fail("info --spacing --origin", f"exit {rc}: {out[:300]}")
+    rc, out, err = r.run("info", anat, "--quiet")
+    if rc != 0 or out or err:
+        fail("info --quiet", f"exit {rc}: {out!r} {err!r}")
+    rc, out, err = r.run("info", os.path.join(r.work, "f1le.raw"), "--raw", "4,4,4:f32")
+    if rc != 0 or "4 x 4 x 4" not in out or "f32" not in out or "value range: -5 .. 43" not in out:
+        fail("info --raw", f"exit {rc}: {out!r} {err!r}")
     rc, out, err = r.run("info", anat)
     for s in ("dimensions:", "33 x 41 x 25", "sample type: i16", "value range:", "histogram",
               "spacing:", "header", "suggested iso:"):

@@ -1,0 +1,133 @@
+#!/usr/bin/env python3
+"""`isomend check` reads what MeshLab and Blender write.
+
+MeshLab (meshlabserver 2020.09, under xvfb-run): isomend's padded DMC mesh of
+the MRI sample is loaded and saved again as PLY (binary, int indices,
+"VCGLIB generated"), OBJ and STL; `isomend check` must find the same
+triangles, no hole, no edge used 3+ times, no misoriented edge.
+
+Blender (3.4, background): a UV sphere (quads and triangle fans) exported
+with every mesh exporter Blender has (PLY ascii and binary, STL ascii and
+binary, OBJ with normals); `isomend check` must find Blender's vertex and
+triangle counts after fan-splitting and a closed, consistently oriented
+surface (Euler characteristic 2).
+
+usage: test_peers_hosts.py --isomend PATH --samples DIR --work DIR
+"""
+import argparse
+import json
+import os
+import shutil
+import subprocess
+import sys
+
+FAILURES = []
+
+
+def fail(name, why):
+    FAILURES.append(name)
+    print(f"FAIL {name}: {why}", file=sys.stderr)
+
+
+def check(exe, work, name, path, triangles, vertices=None):
+    p = subprocess.run([exe, "check", path, "--json", "-"], cwd=work, capture_output=True,
+                       text=True, timeout=120)
+    if p.returncode != 0:
+        fail(name, f"exit {p.returncode}: {p.stderr.strip()} {p.stdout[:300]}")
+        return
+    c = json.loads(p.stdout)["check"]
+    if c["triangles"] != triangles:
+        fail(name, f"{c['triangles']} triangles, expected {triangles}")
+    if vertices is not None and c["vertices"] != vertices:
+        fail(name, f"{c['vertices']} vertices, expected {vertices}")
+    if c["holes"] or c["nonmanifold_edges"] or c["misoriented_edges"]:
+        fail(name, f"defects: {c}")
+    return c
+
+
+def test_meshlab(exe, work, samples):
+    src = os.path.join(work, "anat.ply")
+    p = subprocess.run([exe, "extract", os.path.join(samples, "anatomical.nrrd"), "--iso", "7000.5",
+                        "--pad", "-q", "-o", src, "--json", os.path.join(work, "anat.json")],
+                       capture_output=True, text=True)
+    if p.returncode != 0:
+        fail("meshlab input", p.stderr)
+        return
+    j = json.load(open(os.path.join(work, "anat.json")))
+    for ext in ("ply", "obj", "stl"):
+        out = os.path.join(work, f"meshlab.{ext}")
+        p = subprocess.run(["xvfb-run", "-a", "meshlabserver", "-i", src, "-o", out, "-m", "vn"],
+                           capture_output=True, text=True, timeout=300)
+        if p.returncode != 0 or not os.path.exists(out):
+            fail(f"meshlab {ext}", f"meshlabserver exit {p.returncode}: {p.stdout[-300:]} {p.stderr[-300:]}")
+            continue
+        c = check(exe, work, f"meshlab {ext}", out, j["triangles"],
+                  j["vertices"])
+        if c and c["euler"] != j["check"]["euler"]:
+            fail(f"meshlab {ext}", f"Euler {c['euler']} != {j['check']['euler']}")
+
+
+BLENDER_SCRIPT = r"""
+import bpy, json, sys
+out = sys.argv[sys.argv.index("--") + 1]
+bpy.ops.wm.read_factory_settings(use_empty=True)
+bpy.ops.mesh.primitive_uv_sphere_add(segments=16, ring_count=8)
+ob = bpy.context.active_object
+me = ob.data
+tris = sum(len(p.vertices) - 2 for p in me.polygons)
+json.dump({"vertices": len(me.vertices), "triangles": tris}, open(out + "/blender.json", "w"))
+kw = dict(use_selection=False)
+bpy.ops.export_mesh.ply(filepath=out + "/b_ascii.ply", use_ascii=True, use_normals=False,
+                        use_uv_coords=False, use_colors=False)
+bpy.ops.export_mesh.ply(filepath=out + "/b_bin.ply", use_ascii=False, use_normals=False,
+                        use_uv_coords=False, use_colors=False)
+bpy.ops.export_mesh.stl(filepath=out + "/b_ascii.stl", ascii=True)
+bpy.ops.export_mesh.stl(filepath=out + "/b_bin.stl", ascii=False)
+bpy.ops.wm.obj_export(filepath=out + "/b.obj", export_normals=True, export_uv=True,
+                      export_materials=False)
+"""
+
+
+def test_blender(exe, work):
+    script = os.path.join(work, "export.py")
+    with open(script, "w") as f:
+        f.write(BLENDER_SCRIPT)
+    p = subprocess.run(["blender", "-b", "--factory-startup", "--python", script, "--", work],
+                       capture_output=True, text=True, timeout=300)
+    info = os.path.join(work, "blender.json")
+    if p.returncode != 0 or not os.path.exists(info):
+        fail("blender export", f"exit {p.returncode}: {p.stdout[-500:]} {p.stderr[-500:]}")
+        return
+    b = json.load(open(info))
+    for name in ("b_ascii.ply", "b_bin.ply", "b_ascii.stl", "b_bin.stl", "b.obj"):
+        c = check(exe, work, f"blender {name}", os.path.join(work, name), b["triangles"], b["vertices"])
+        if c and (c["euler"] != 2 or c["components"] != 1):
+            fail(f"blender {name}", f"not one closed sphere: {c}")
+
+
+def main():
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--isomend", required=True)
+    ap.add_argument("--samples", required=True)
+    ap.add_argument("--work", required=True)
+    a = ap.parse_args()
+    if os.path.exists(a.work):
+        shutil.rmtree(a.work)
+    os.makedirs(a.work)
+    for tool in ("meshlabserver", "xvfb-run", "blender"):
+        if not shutil.which(tool):
+            fail("tools", f"{tool} not found (bash scripts/deps.sh test installs it)")
+    if not FAILURES:
+        exe = os.path.abspath(a.isomend)
+        test_meshlab(exe, a.work, os.path.abspath(a.samples))
+        test_blender(exe, a.work)
+    if FAILURES:
+        print(f"{len(FAILURES)} failure(s)", file=sys.stderr)
+        return 1
+    shutil.rmtree(a.work)
+    print("ok")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
