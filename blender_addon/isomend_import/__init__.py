@@ -91,13 +91,21 @@ def _natural_key(name):
     return [int(part) if part.isdigit() else part.lower() for part in _NATURAL.split(name)]
 
 
+# Folder names that say nothing about the stack: the parent's name is used.
+_GENERIC_FOLDERS = {"tif", "tiff", "png", "exr", "jpg", "slices", "images", "image", "stack", "data"}
+
+
 def _stack_name(paths):
-    """Object name: the folder's name, a single file's stem, or the common
-    prefix of a file list (without trailing digits/separators)."""
+    """Object name: the folder's name (its parent's for a generic name such as
+    "tiff" or "slices"), a single file's stem, or the common prefix of a file
+    list (without trailing digits/separators)."""
     first = paths[0].rstrip("/\\")
     if len(paths) == 1:
         if os.path.isdir(first):
-            return os.path.basename(first) or "slice_stack"
+            name = os.path.basename(first)
+            if name.lower() in _GENERIC_FOLDERS:
+                name = os.path.basename(os.path.dirname(first)) or name
+            return name or "slice_stack"
         return os.path.splitext(os.path.basename(first))[0] or "slice_stack"
     prefix = os.path.commonprefix([os.path.basename(p) for p in paths])
     prefix = prefix.rstrip("0123456789_-. ")
