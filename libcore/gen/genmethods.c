@@ -58,7 +58,8 @@
 
 #define SLOT_DIAG0 12
 #define SLOT_CENTRE 18
-#define NSLOTS 19
+#define SLOT_RING0 19 /* 19 + e: halfway between the centre and edge e's point */
+#define NSLOTS 31
 
 #define MAX_TRI_POOL 200000
 #define MAX_POLY 8
@@ -90,8 +91,13 @@ static void slot_pos(int s, double p[3])
         /* Face diagonal: any diagonal of the face has the same midpoint. */
         corner_pos(cube_face_corner[s - SLOT_DIAG0][0], a);
         corner_pos(cube_face_corner[s - SLOT_DIAG0][2], b);
-    } else {
+    } else if (s == SLOT_CENTRE) {
         p[0] = p[1] = p[2] = 0.5;
+        return;
+    } else {
+        slot_pos(s - SLOT_RING0, p);
+        for (int i = 0; i < 3; i++)
+            p[i] = 0.5 * (p[i] + 0.5);
         return;
     }
     for (int i = 0; i < 3; i++)
@@ -122,6 +128,8 @@ static unsigned edge_faces(int e)
  * neighbouring cube as well; forbid it. */
 static int chord_allowed(int s, int t)
 {
+    if (s >= 12 || t >= 12)
+        return 1; /* private to the cube */
     return (edge_faces(s) & edge_faces(t)) == 0;
 }
 
@@ -494,7 +502,7 @@ static void verify(const trace *t, const tri_list *l, unsigned config, unsigned 
             } else if (!rseg && used[a][b] + used[b][a] > 0) {
                 if (used[a][b] != 1 || used[b][a] != 1)
                     die("internal edge not used once in each direction", config, join);
-                if (a < 12 && b < 12 && !chord_allowed(a, b))
+                if (!chord_allowed(a, b))
                     die("chord between points of one face", config, join);
             } else if (rseg && used[a][b]) {
                 die("face segment reversed", config, join);
@@ -529,7 +537,7 @@ typedef struct entry_out {
 static entry_out entries[256 * 64];
 static int nentries;
 static int entry_base[257];
-static int infeasible_tubes;
+static int infeasible_tubes, ring_tubes;
 
 static int append(const tri_list *l)
 {
@@ -585,8 +593,21 @@ static void build_entry(unsigned config, unsigned join, entry_out *en)
              * avoid that face; the trilinear interpolant never joins them
              * either (both regions would touch the face's saddle side). */
             if (!triangulate_tube(t.poly[p1], t.plen[p1], t.poly[p2], t.plen[p2], &tube)) {
-                infeasible_tubes++;
-                continue;
+                /* Every strip needs a rung inside a face: go through a ring
+                 * of private vertices, polygon p1 shrunk towards the centre
+                 * (slots 19 + e), with two strips. */
+                int ring[MAX_PV], rrev[MAX_PV], n1 = t.plen[p1];
+                for (int i = 0; i < n1; i++) {
+                    ring[i] = SLOT_RING0 + t.poly[p1][i];
+                    rrev[i] = SLOT_RING0 + t.poly[p1][n1 - 1 - i];
+                }
+                tube.n = 0;
+                if (!triangulate_tube(t.poly[p1], n1, rrev, n1, &tube) ||
+                    !triangulate_tube(ring, n1, t.poly[p2], t.plen[p2], &tube)) {
+                    infeasible_tubes++;
+                    continue;
+                }
+                ring_tubes++;
             }
             /* Verify the whole surface with the tube in place of two disks. */
             tri_list whole;
@@ -787,10 +808,10 @@ int main(int argc, char **argv)
         return 1;
     }
     write_banner(f);
-    fprintf(f, "/* %d face-decision entries, %d polygons, %d candidate tubes (%d pairs of\n"
-               " * polygons on one face have none), %d triangles; %d entries fan a polygon\n"
-               " * from the centre vertex. */\n",
-            nentries, npolys, ntubes, infeasible_tubes, ntri_pool, centre_entries);
+    fprintf(f, "/* %d face-decision entries, %d polygons, %d candidate tubes (%d through a\n"
+               " * ring of private vertices; %d pairs of polygons have none), %d triangles;\n"
+               " * %d entries fan a polygon from the centre vertex. */\n",
+            nentries, npolys, ntubes, ring_tubes, infeasible_tubes, ntri_pool, centre_entries);
     fprintf(f, "#define METHODS_ENTRY_COUNT %d\n", nentries);
     fprintf(f, "#define METHODS_ENTRY_MAX_TRI %d\n", max_entry_tri);
     fprintf(f, "#define METHODS_ENTRY_MAX_POLY %d\n", max_polys);

@@ -71,6 +71,8 @@ typedef struct grid {
     int64_t N[3];  /* marched grid: n + 2 pad                      */
     double iso;
     double h[3];   /* spacing                                       */
+    double inv2h[3]; /* 1 / (2 spacing), for central differences    */
+    int64_t inner_lo[3], inner_hi[3]; /* marched samples with all 6 neighbours in the volume */
     double o[3];   /* world position of marched sample (0, 0, 0)   */
     int constant;  /* integer types: -1 none, 0 all out, 1 all in */
     int64_t ithr;  /* integer types: inside iff v >= ithr           */
@@ -100,46 +102,68 @@ static double fetch(const grid *g, int64_t i, int64_t j, int64_t k)
 }
 
 /*
- * Classifies row (j, k) of the marched grid into sign bytes s[0..N0-1]
- * (1 = inside).  Returns the number of inside samples; adds NaNs to *nans.
+ * Sign rows.  A row of the marched grid is stored as bytes (1 = inside) plus
+ * its span: `lo`, the first column whose sign differs from column 0 (N0 when
+ * the row is uniform), and `hi`, the last column whose sign differs from the
+ * last column (-1 when uniform).  Outside [lo - 1, hi] the row is constant,
+ * which is what lets every loop below skip the empty parts of a row.
  */
-#define CLASSIFY_LOOP(T, INSIDE)                                                       \
-    do {                                                                               \
+typedef struct rowinfo {
+    int64_t lo, hi;
+    uint8_t first, last;
+} rowinfo;
+
+/*
+ * The classification loops, one per voxel type, written so the compiler
+ * vectorises them: restrict pointers, the threshold in a local, 32-bit
+ * counters.  A strided or misaligned row takes the memcpy loop.
+ */
+#define DEFINE_CLASSIFY(NAME, T)                                                       \
+    static uint64_t NAME(const char *row, int64_t n, int64_t st, T t, int count_nans,  \
+                         uint8_t *restrict o)                                          \
+    {                                                                                  \
+        uint32_t nn = 0;                                                               \
         if (st == (int64_t)sizeof(T) && (uintptr_t)row % _Alignof(T) == 0) {           \
-            const T *r = (const T *)(const void *)row;                                 \
-            for (int64_t i = 0; i < n; i++) {                                          \
-                T v = r[i];                                                            \
-                uint8_t b = (uint8_t)(INSIDE);                                         \
-                o[i] = b;                                                              \
-                cnt += b;                                                              \
+            const T *restrict r = (const T *)(const void *)row;                        \
+            if (count_nans) {                                                          \
+                for (int64_t i = 0; i < n; i++) {                                      \
+                    o[i] = (uint8_t)(r[i] >= t);                                       \
+                    nn += (uint32_t)(r[i] != r[i]);                                    \
+                }                                                                      \
+            } else {                                                                   \
+                for (int64_t i = 0; i < n; i++)                                        \
+                    o[i] = (uint8_t)(r[i] >= t);                                       \
             }                                                                          \
         } else {                                                                       \
             for (int64_t i = 0; i < n; i++) {                                          \
                 T v;                                                                   \
                 memcpy(&v, row + i * st, sizeof v);                                    \
-                uint8_t b = (uint8_t)(INSIDE);                                         \
-                o[i] = b;                                                              \
-                cnt += b;                                                              \
+                o[i] = (uint8_t)(v >= t);                                              \
+                nn += (uint32_t)(v != v);                                              \
             }                                                                          \
         }                                                                              \
-    } while (0)
+        return nn;                                                                     \
+    }
+DEFINE_CLASSIFY(classify_u8, uint8_t)
+DEFINE_CLASSIFY(classify_i8, int8_t)
+DEFINE_CLASSIFY(classify_u16, uint16_t)
+DEFINE_CLASSIFY(classify_i16, int16_t)
+DEFINE_CLASSIFY(classify_i32, int32_t)
+DEFINE_CLASSIFY(classify_f32, float)
+DEFINE_CLASSIFY(classify_f64, double)
 
-#define COUNT_NANS(T)                                                                  \
-    do {                                                                               \
-        for (int64_t i = 0; i < n; i++) {                                              \
-            T v;                                                                       \
-            memcpy(&v, row + i * st, sizeof v);                                        \
-            nn += v != v;                                                              \
-        }                                                                              \
-    } while (0)
-
-static int64_t classify_row(const grid *g, int64_t j, int64_t k, uint8_t *s, uint64_t *nans)
+/* Classifies row (j, k) of the marched grid into s[0..N0-1]; adds NaNs to *nans. */
+static void classify_row(const grid *g, int64_t j, int64_t k, uint8_t *s, rowinfo *ri,
+                         uint64_t *nans)
 {
     const int64_t N0 = g->N[0], p = g->pad;
     const int64_t rj = j - p, rk = k - p;
     if (rj < 0 || rj >= g->n[1] || rk < 0 || rk >= g->n[2]) {
         memset(s, 0, (size_t)N0);
-        return 0;
+        ri->lo = N0;
+        ri->hi = -1;
+        ri->first = ri->last = 0;
+        return;
     }
     if (p) {
         s[0] = 0;
@@ -148,59 +172,46 @@ static int64_t classify_row(const grid *g, int64_t j, int64_t k, uint8_t *s, uin
     uint8_t *o = s + p;
     const int64_t n = g->n[0], st = g->st[0];
     const char *row = g->data + rj * g->st[1] + rk * g->st[2];
-    int64_t cnt = 0;
     if (g->constant >= 0) {
         memset(o, g->constant, (size_t)n);
-        return g->constant ? n : 0;
-    }
-    switch (g->type) {
-    case ISOMEND_U8: {
-        const uint8_t t = (uint8_t)g->ithr;
-        CLASSIFY_LOOP(uint8_t, v >= t);
-        break;
-    }
-    case ISOMEND_I8: {
-        const int8_t t = (int8_t)g->ithr;
-        CLASSIFY_LOOP(int8_t, v >= t);
-        break;
-    }
-    case ISOMEND_U16: {
-        const uint16_t t = (uint16_t)g->ithr;
-        CLASSIFY_LOOP(uint16_t, v >= t);
-        break;
-    }
-    case ISOMEND_I16: {
-        const int16_t t = (int16_t)g->ithr;
-        CLASSIFY_LOOP(int16_t, v >= t);
-        break;
-    }
-    case ISOMEND_I32: {
-        const int32_t t = (int32_t)g->ithr;
-        CLASSIFY_LOOP(int32_t, v >= t);
-        break;
-    }
-    case ISOMEND_F32: {
-        const float t = g->fthr;
-        CLASSIFY_LOOP(float, v >= t);
-        if (cnt < n) {
-            uint64_t nn = 0;
-            COUNT_NANS(float);
-            *nans += nn;
+    } else {
+        switch (g->type) {
+        case ISOMEND_U8: classify_u8(row, n, st, (uint8_t)g->ithr, 0, o); break;
+        case ISOMEND_I8: classify_i8(row, n, st, (int8_t)g->ithr, 0, o); break;
+        case ISOMEND_U16: classify_u16(row, n, st, (uint16_t)g->ithr, 0, o); break;
+        case ISOMEND_I16: classify_i16(row, n, st, (int16_t)g->ithr, 0, o); break;
+        case ISOMEND_I32: classify_i32(row, n, st, (int32_t)g->ithr, 0, o); break;
+        case ISOMEND_F32: *nans += classify_f32(row, n, st, g->fthr, 1, o); break;
+        case ISOMEND_F64: *nans += classify_f64(row, n, st, g->iso, 1, o); break;
         }
-        break;
     }
-    case ISOMEND_F64: {
-        const double t = g->iso;
-        CLASSIFY_LOOP(double, v >= t);
-        if (cnt < n) {
-            uint64_t nn = 0;
-            COUNT_NANS(double);
-            *nans += nn;
-        }
-        break;
+    ri->first = s[0];
+    ri->last = s[N0 - 1];
+    const uint8_t *d = memchr(s, s[0] ^ 1, (size_t)N0);
+    if (!d) {
+        ri->lo = N0;
+        ri->hi = -1;
+        return;
     }
-    }
-    return cnt;
+    ri->lo = d - s;
+    int64_t h = N0 - 1;
+    while (s[h] == ri->last)
+        h--;
+    ri->hi = h;
+}
+
+/* Columns [*from, *to] outside which rows a and b agree; 0 if they agree everywhere. */
+static inline int pair_span(const rowinfo *a, const rowinfo *b, int64_t N0, int64_t *from,
+                            int64_t *to)
+{
+    int64_t f = 0, t = N0 - 1;
+    if (a->first == b->first)
+        f = a->lo < b->lo ? a->lo : b->lo;
+    if (a->last == b->last)
+        t = a->hi > b->hi ? a->hi : b->hi;
+    *from = f;
+    *to = t;
+    return f <= t;
 }
 
 /* Sets the exact per-type threshold: inside iff sample >= iso. */
@@ -237,12 +248,74 @@ static double gradient_component(const grid *g, const int64_t p[3], int a, doubl
     double fm = fetch(g, r[0], r[1], r[2]);
     int vp = !isnan(fp), vm = !isnan(fm);
     if (vp && vm)
-        return (fp - fm) / (2.0 * g->h[a]);
+        return (fp - fm) * g->inv2h[a];
     if (vp)
         return (fp - f0) / g->h[a];
     if (vm)
         return (f0 - fm) / g->h[a];
     return 0.0;
+}
+
+/*
+ * Fast path for a vertex whose endpoints and their six neighbours are all
+ * inside the volume: typed loads, no bounds checks.  Fills the endpoint
+ * values and the gradients at both endpoints (NaN samples make them NaN,
+ * which the caller detects and hands to the general path).
+ */
+#define DEFINE_FAST_GRADIENTS(NAME, T)                                                 \
+    static inline double NAME##_load(const char *p)                                    \
+    {                                                                                  \
+        T v;                                                                           \
+        memcpy(&v, p, sizeof v);                                                       \
+        return (double)v;                                                              \
+    }                                                                                  \
+    static void NAME(const grid *g, const char *p, int a, double f[2], double gr[2][3]) \
+    {                                                                                  \
+        const int64_t sx = g->st[0], sy = g->st[1], sz = g->st[2];                     \
+        const char *q = p + g->st[a];                                                  \
+        const double f0 = NAME##_load(p), f1 = NAME##_load(q);                         \
+        f[0] = f0;                                                                     \
+        f[1] = f1;                                                                     \
+        /* along the edge each endpoint is the other's neighbour */                    \
+        gr[0][0] = a == 0 ? f1 - NAME##_load(p - sx) : NAME##_load(p + sx) - NAME##_load(p - sx); \
+        gr[0][1] = a == 1 ? f1 - NAME##_load(p - sy) : NAME##_load(p + sy) - NAME##_load(p - sy); \
+        gr[0][2] = a == 2 ? f1 - NAME##_load(p - sz) : NAME##_load(p + sz) - NAME##_load(p - sz); \
+        gr[1][0] = a == 0 ? NAME##_load(q + sx) - f0 : NAME##_load(q + sx) - NAME##_load(q - sx); \
+        gr[1][1] = a == 1 ? NAME##_load(q + sy) - f0 : NAME##_load(q + sy) - NAME##_load(q - sy); \
+        gr[1][2] = a == 2 ? NAME##_load(q + sz) - f0 : NAME##_load(q + sz) - NAME##_load(q - sz); \
+        for (int c = 0; c < 3; c++) {                                                  \
+            gr[0][c] *= g->inv2h[c];                                                   \
+            gr[1][c] *= g->inv2h[c];                                                   \
+        }                                                                              \
+    }
+DEFINE_FAST_GRADIENTS(fast_gradients_u8, uint8_t)
+DEFINE_FAST_GRADIENTS(fast_gradients_i8, int8_t)
+DEFINE_FAST_GRADIENTS(fast_gradients_u16, uint16_t)
+DEFINE_FAST_GRADIENTS(fast_gradients_i16, int16_t)
+DEFINE_FAST_GRADIENTS(fast_gradients_i32, int32_t)
+DEFINE_FAST_GRADIENTS(fast_gradients_f32, float)
+DEFINE_FAST_GRADIENTS(fast_gradients_f64, double)
+
+static int fast_gradients(const grid *g, int64_t i, int64_t j, int64_t k, int a, double f[2],
+                          double gr[2][3])
+{
+    /* Both endpoints and their neighbours must lie inside the volume. */
+    if (i < g->inner_lo[0] || j < g->inner_lo[1] || k < g->inner_lo[2] ||
+        i + (a == 0) > g->inner_hi[0] || j + (a == 1) > g->inner_hi[1] ||
+        k + (a == 2) > g->inner_hi[2])
+        return 0;
+    const char *p = g->data + (i - g->pad) * g->st[0] + (j - g->pad) * g->st[1] +
+                    (k - g->pad) * g->st[2];
+    switch (g->type) {
+    case ISOMEND_U8: fast_gradients_u8(g, p, a, f, gr); break;
+    case ISOMEND_I8: fast_gradients_i8(g, p, a, f, gr); break;
+    case ISOMEND_U16: fast_gradients_u16(g, p, a, f, gr); break;
+    case ISOMEND_I16: fast_gradients_i16(g, p, a, f, gr); break;
+    case ISOMEND_I32: fast_gradients_i32(g, p, a, f, gr); break;
+    case ISOMEND_F32: fast_gradients_f32(g, p, a, f, gr); break;
+    case ISOMEND_F64: fast_gradients_f64(g, p, a, f, gr); break;
+    }
+    return 1;
 }
 
 /* Computes the vertex on the edge along axis a from marched sample (i, j, k). */
@@ -251,11 +324,17 @@ static void make_vertex(const grid *g, int flip, int64_t i, int64_t j, int64_t k
 {
     int64_t p0[3] = {i, j, k}, p1[3] = {i, j, k};
     p1[a]++;
-    const double f0 = fetch(g, p0[0], p0[1], p0[2]);
-    const double f1 = fetch(g, p1[0], p1[1], p1[2]);
-    const int valid = !isnan(f0) && !isnan(f1);
-    const int inside0 = f0 >= g->iso; /* NaN: outside */
-    const double t = valid ? (g->iso - f0) / (f1 - f0) : 0.5;
+    double f[2] = {0.0, 0.0}, gr[2][3];
+    int have_gradients = 0;
+    if (nrm && fast_gradients(g, i, j, k, a, f, gr)) {
+        have_gradients = 1;
+    } else {
+        f[0] = fetch(g, p0[0], p0[1], p0[2]);
+        f[1] = fetch(g, p1[0], p1[1], p1[2]);
+    }
+    const int valid = !isnan(f[0]) && !isnan(f[1]);
+    const int inside0 = f[0] >= g->iso; /* NaN: outside */
+    const double t = valid ? (g->iso - f[0]) / (f[1] - f[0]) : 0.5;
     for (int c = 0; c < 3; c++) {
         double x = (double)p0[c] + (c == a ? t : 0.0);
         pos[c] = (float)(g->o[c] + x * g->h[c]);
@@ -264,12 +343,19 @@ static void make_vertex(const grid *g, int flip, int64_t i, int64_t j, int64_t k
         return;
     double n[3] = {0, 0, 0}, len = 0.0;
     if (valid) {
-        for (int c = 0; c < 3; c++) {
-            double g0 = gradient_component(g, p0, c, f0);
-            double g1 = gradient_component(g, p1, c, f1);
-            n[c] = -((1.0 - t) * g0 + t * g1);
+        if (have_gradients) {
+            for (int c = 0; c < 3; c++)
+                n[c] = -((1.0 - t) * gr[0][c] + t * gr[1][c]);
+            len = sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
         }
-        len = sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
+        if (!have_gradients || !isfinite(len)) { /* near the border, NaN or padding: one-sided differences */
+            for (int c = 0; c < 3; c++) {
+                double g0 = gradient_component(g, p0, c, f[0]);
+                double g1 = gradient_component(g, p1, c, f[1]);
+                n[c] = -((1.0 - t) * g0 + t * g1);
+            }
+            len = sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
+        }
     }
     if (!(len > 0.0) || !isfinite(len)) {
         /* Edge direction, from the inside endpoint towards the outside one. */
@@ -277,9 +363,9 @@ static void make_vertex(const grid *g, int flip, int64_t i, int64_t j, int64_t k
         n[a] = inside0 ? 1.0 : -1.0;
         len = 1.0;
     }
-    const double sgn = flip ? -1.0 : 1.0;
+    const double scale = (flip ? -1.0 : 1.0) / len;
     for (int c = 0; c < 3; c++)
-        nrm[c] = (float)(sgn * n[c] / len);
+        nrm[c] = (float)(scale * n[c]);
 }
 
 /* ------------------------------------------------------- the extraction */
@@ -308,34 +394,112 @@ typedef struct ctx {
 typedef struct worker {
     ctx *c;
     uint8_t *sg[3];   /* sign slices, ring indexed by k % 3 */
-    int64_t *rp[3];   /* inside samples per row             */
+    rowinfo *ri[3];   /* their rows' spans                  */
     uint64_t nan[3];  /* NaN samples of the slice           */
     int64_t sk[3];    /* slice held, -1 none                */
     uint32_t *map[2]; /* vertex ids of edges x, y, z; ring k % 2 */
-    int64_t mk[2];
+    uint8_t *cases;   /* configurations of one row of cubes */
     isomend_stats stats;
     int is_main;
 } worker;
 
-static const uint8_t *signs(worker *w, int64_t k, const int64_t **rowpos)
+static const uint8_t *signs(worker *w, int64_t k, const rowinfo **ri)
 {
     const grid *g = &w->c->g;
     int r = (int)(k % 3);
     if (w->sk[r] != k) {
         uint64_t nans = 0;
         for (int64_t j = 0; j < g->N[1]; j++)
-            w->rp[r][j] = classify_row(g, j, k, w->sg[r] + j * g->N[0], &nans);
+            classify_row(g, j, k, w->sg[r] + j * g->N[0], &w->ri[r][j], &nans);
         w->nan[r] = nans;
         w->sk[r] = k;
     }
-    *rowpos = w->rp[r];
+    *ri = w->ri[r];
     return w->sg[r];
 }
 
-/* -1 mixed row, else its uniform sign. */
-static inline int row_uniform(int64_t inside, int64_t n)
+/*
+ * Word-at-a-time scanning: 8 sign bytes (or cube configurations) per step,
+ * so long stretches without a crossing cost one load and a test.  Buffers
+ * carry SCAN_PAD bytes of slack for the reads past a row's last column.
+ */
+#define SCAN_PAD 16
+
+static inline uint64_t load8(const uint8_t *p)
 {
-    return inside == 0 ? 0 : inside == n ? 1 : -1;
+    uint64_t v;
+    memcpy(&v, p, sizeof v);
+#if defined(__BYTE_ORDER__) && __BYTE_ORDER__ == __ORDER_BIG_ENDIAN__
+    v = __builtin_bswap64(v);
+#endif
+    return v;
+}
+
+/* Keeps bytes 0..n-1 (n < 8) of a word, in memory order. */
+static inline uint64_t first_bytes(uint64_t w, int64_t n)
+{
+    return w & ((UINT64_C(1) << (8 * n)) - 1);
+}
+
+/* High bit of each byte set iff the byte is neither 0x00 nor 0xFF. */
+static inline uint64_t mixed_bytes(uint64_t w)
+{
+    const uint64_t m = UINT64_C(0x7F7F7F7F7F7F7F7F);
+    uint64_t nonzero = (((w & m) + m) | w) & ~m;
+    uint64_t v = ~w;
+    uint64_t notff = (((v & m) + m) | v) & ~m;
+    return nonzero & notff;
+}
+
+/* Index of the first byte flagged in a non-zero mask. */
+static inline int64_t first_flag(uint64_t mask)
+{
+    return (int64_t)(__builtin_ctzll(mask) >> 3);
+}
+
+/*
+ * Numbers (and, if `write`, computes) the vertices on the edges along
+ * `axis` from row a of slice m towards row b: one per column i in
+ * [from, to] where a[i] != b[i].  Returns the next free id.
+ */
+static uint64_t number_crossings(const ctx *c, const uint8_t *a, const uint8_t *b, int64_t from,
+                                 int64_t to, int64_t j, int64_t m, int axis, uint32_t *ids,
+                                 uint64_t id, int write)
+{
+    for (int64_t i = from; i <= to; i += 8) {
+        uint64_t diff = (load8(a + i) ^ load8(b + i)) & UINT64_C(0x0101010101010101);
+        if (to - i < 7)
+            diff = first_bytes(diff, to - i + 1);
+        while (diff) {
+            const int64_t x = i + first_flag(diff);
+            diff &= diff - 1;
+            if (write)
+                make_vertex(&c->g, c->flip, x, j, m, axis, c->pos + 3 * id,
+                            c->nrm ? c->nrm + 3 * id : NULL);
+            ids[x] = (uint32_t)id++;
+        }
+    }
+    return id;
+}
+
+/* Number of i in [from, to] with a[i] != b[i]; vectorises. */
+static uint64_t count_differences(const uint8_t *restrict a, const uint8_t *restrict b,
+                                  int64_t from, int64_t to)
+{
+    uint32_t n = 0;
+    for (int64_t i = from; i <= to; i++)
+        n += (uint32_t)(a[i] != b[i]);
+    return n;
+}
+
+/* Configurations of the cubes [from, to] of a row from its four sample rows. */
+static void row_cases(const uint8_t *restrict a, const uint8_t *restrict b,
+                      const uint8_t *restrict c, const uint8_t *restrict d, int64_t from,
+                      int64_t to, uint8_t *restrict cases)
+{
+    for (int64_t i = from; i <= to; i++)
+        cases[i] = (uint8_t)(a[i] | a[i + 1] << 1 | b[i] << 2 | b[i + 1] << 3 | c[i] << 4 |
+                             c[i + 1] << 5 | d[i] << 6 | d[i + 1] << 7);
 }
 
 /*
@@ -348,66 +512,43 @@ static uint64_t scan_slice(worker *w, int64_t m, int mode, uint64_t first, int w
     const ctx *c = w->c;
     const grid *g = &c->g;
     const int64_t N0 = g->N[0], N1 = g->N[1], N2 = g->N[2];
-    const int64_t *rp, *rq = NULL;
-    const uint8_t *s = signs(w, m, &rp);
-    const uint8_t *t = NULL;
-    if (m + 1 < N2)
-        t = signs(w, m + 1, &rq);
-    s = signs(w, m, &rp); /* the ring keeps both */
+    const rowinfo *ra, *rn = NULL;
+    const uint8_t *t = m + 1 < N2 ? signs(w, m + 1, &rn) : NULL;
+    const uint8_t *s = signs(w, m, &ra); /* slots m % 3 and (m + 1) % 3 differ */
     uint32_t *mx = NULL, *my = NULL, *mz = NULL;
     if (mode) {
-        uint32_t *mp = w->map[m % 2];
-        w->mk[m % 2] = m;
-        mx = mp;
-        my = mp + N0 * N1;
-        mz = mp + 2 * N0 * N1;
+        mx = w->map[m % 2];
+        my = mx + N0 * N1;
+        mz = mx + 2 * N0 * N1;
     }
     uint64_t id = first, count = 0;
     for (int64_t j = 0; j < N1; j++) {
         const uint8_t *a = s + j * N0;
-        const int ua = row_uniform(rp[j], N0);
-        const int has_y = j + 1 < N1 && !(ua >= 0 && ua == row_uniform(rp[j + 1], N0));
-        const int has_z = t && !(ua >= 0 && ua == row_uniform(rq[j], N0));
-        const int has_x = ua < 0;
+        int64_t x0 = ra[j].lo - 1, x1 = ra[j].hi, y0 = 0, y1 = -1, z0 = 0, z1 = -1;
+        const int has_x = x0 <= x1 && ra[j].lo < N0;
+        const int has_y = j + 1 < N1 && pair_span(&ra[j], &ra[j + 1], N0, &y0, &y1);
+        const int has_z = t && pair_span(&ra[j], &rn[j], N0, &z0, &z1);
         if (!has_x && !has_y && !has_z)
             continue;
-        const uint8_t *b = has_y ? a + N0 : NULL;
+        const uint8_t *b = a + N0; /* row j + 1, read only when has_y */
         const uint8_t *d = has_z ? t + j * N0 : NULL;
         if (!mode) {
-            uint64_t n = 0;
             if (has_x)
-                for (int64_t i = 0; i + 1 < N0; i++)
-                    n += a[i] != a[i + 1];
+                count += count_differences(a, a + 1, x0, x1);
             if (has_y)
-                for (int64_t i = 0; i < N0; i++)
-                    n += a[i] != b[i];
+                count += count_differences(a, b, y0, y1);
             if (has_z)
-                for (int64_t i = 0; i < N0; i++)
-                    n += a[i] != d[i];
-            count += n;
+                count += count_differences(a, d, z0, z1);
             continue;
         }
-        for (int64_t i = 0; i < N0; i++) {
-            const int64_t at = j * N0 + i;
-            if (has_x && i + 1 < N0 && a[i] != a[i + 1]) {
-                if (write)
-                    make_vertex(g, c->flip, i, j, m, 0, c->pos + 3 * id,
-                                c->nrm ? c->nrm + 3 * id : NULL);
-                mx[at] = (uint32_t)id++;
-            }
-            if (has_y && a[i] != b[i]) {
-                if (write)
-                    make_vertex(g, c->flip, i, j, m, 1, c->pos + 3 * id,
-                                c->nrm ? c->nrm + 3 * id : NULL);
-                my[at] = (uint32_t)id++;
-            }
-            if (has_z && a[i] != d[i]) {
-                if (write)
-                    make_vertex(g, c->flip, i, j, m, 2, c->pos + 3 * id,
-                                c->nrm ? c->nrm + 3 * id : NULL);
-                mz[at] = (uint32_t)id++;
-            }
-        }
+        /* Vertex order within a row: x edges, then y edges, then z edges. */
+        const int64_t at = j * N0;
+        if (has_x)
+            id = number_crossings(c, a, a + 1, x0, x1, j, m, 0, mx + at, id, write);
+        if (has_y)
+            id = number_crossings(c, a, b, y0, y1, j, m, 1, my + at, id, write);
+        if (has_z)
+            id = number_crossings(c, a, d, z0, z1, j, m, 2, mz + at, id, write);
     }
     return mode ? id - first : count;
 }
@@ -416,6 +557,25 @@ static uint64_t scan_slice(worker *w, int64_t m, int mode, uint64_t first, int w
     ((unsigned)(r0)[i] | (unsigned)(r0)[(i) + 1] << 1 | (unsigned)(r1)[i] << 2 |       \
      (unsigned)(r1)[(i) + 1] << 3 | (unsigned)(r2)[i] << 4 | (unsigned)(r2)[(i) + 1] << 5 | \
      (unsigned)(r3)[i] << 6 | (unsigned)(r3)[(i) + 1] << 7)
+
+/* Columns of cubes [*from, *to] outside which the row of cubes between the
+ * four sample rows is empty (all cubes inside or all outside). */
+static int cube_span(const rowinfo *r[4], int64_t N0, int64_t *from, int64_t *to)
+{
+    int same_first = 1, same_last = 1;
+    int64_t lo = N0, hi = -1;
+    for (int q = 0; q < 4; q++) {
+        same_first &= r[q]->first == r[0]->first;
+        same_last &= r[q]->last == r[0]->last;
+        if (r[q]->lo < lo)
+            lo = r[q]->lo;
+        if (r[q]->hi > hi)
+            hi = r[q]->hi;
+    }
+    *from = same_first ? (lo > 0 ? lo - 1 : 0) : 0;
+    *to = same_last ? (hi < N0 - 2 ? hi : N0 - 2) : N0 - 2;
+    return *from <= *to;
+}
 
 /*
  * Marches layer k.  mode 0 counts triangles and statistics; mode 1 writes
@@ -426,12 +586,13 @@ static uint64_t march_layer(worker *w, int64_t k, int mode, uint64_t first)
     ctx *c = w->c;
     const grid *g = &c->g;
     const int64_t N0 = g->N[0], N1 = g->N[1], N2 = g->N[2];
-    const int64_t *r0, *r1, *r2 = NULL;
+    const rowinfo *r0, *r1, *r2 = NULL;
     const uint8_t *S2 = k + 2 < N2 ? signs(w, k + 2, &r2) : NULL;
     const uint8_t *S1 = signs(w, k + 1, &r1);
     const uint8_t *S0 = signs(w, k, &r0);
     const int quads = c->method == ISOMEND_METHOD_DMC || c->method == ISOMEND_METHOD_DURST;
     const int durst = c->method == ISOMEND_METHOD_DURST;
+    const uint8_t quad_origin = durst ? ISOMEND_ORIGIN_DURST : ISOMEND_ORIGIN_MEND;
     isomend_stats *st = &w->stats;
     const uint32_t *mk0 = NULL, *mk1 = NULL;
     if (mode) {
@@ -439,19 +600,18 @@ static uint64_t march_layer(worker *w, int64_t k, int mode, uint64_t first)
         mk1 = w->map[(k + 1) % 2];
     }
     const int64_t plane = N0 * N1;
-    uint64_t ntri = 0;
+    uint64_t ntri = 0, busy = 0;
     uint32_t *out = mode ? c->tri + 3 * first : NULL;
     uint8_t *org = mode && c->org ? c->org + first : NULL;
+    uint8_t *cases = w->cases;
 
     for (int64_t j = 0; j + 1 < N1; j++) {
-        const int u = row_uniform(r0[j], N0);
-        if (u >= 0 && u == row_uniform(r0[j + 1], N0) && u == row_uniform(r1[j], N0) &&
-            u == row_uniform(r1[j + 1], N0)) {
-            if (!mode)
-                st->case_histogram[0] += (uint64_t)(N0 - 1);
+        const rowinfo *rows[4] = {&r0[j], &r0[j + 1], &r1[j], &r1[j + 1]};
+        int64_t i0, i1;
+        if (!cube_span(rows, N0, &i0, &i1))
             continue;
-        }
         const uint8_t *a = S0 + j * N0, *b = a + N0, *cc = S1 + j * N0, *d = cc + N0;
+        row_cases(a, b, cc, d, i0, i1, cases);
         const uint32_t *ep[12] = {NULL};
         if (mode) {
             const int64_t o = j * N0;
@@ -468,14 +628,16 @@ static uint64_t march_layer(worker *w, int64_t k, int mode, uint64_t first)
             ep[10] = mk0 + 2 * plane + o + N0;
             ep[11] = mk0 + 2 * plane + o + N0 + 1;
         }
-        for (int64_t i = 0; i + 1 < N0; i++) {
-            const unsigned cfg = CUBE_CASE(a, b, cc, d, i);
-            if (cfg == 0 || cfg == 255) {
-                if (!mode)
-                    st->case_histogram[0]++;
-                continue;
-            }
+        for (int64_t word = i0; word <= i1; word += 8) {
+          uint64_t mixed = mixed_bytes(load8(cases + word));
+          if (i1 - word < 7)
+              mixed = first_bytes(mixed, i1 - word + 1);
+          while (mixed) {
+            const int64_t i = word + first_flag(mixed);
+            mixed &= mixed - 1;
+            const unsigned cfg = cases[i];
             const unsigned nt = isomend_mc_tri_count[cfg];
+            busy++;
             if (!mode) {
                 st->case_histogram[isomend_mc_case_of[cfg]]++;
                 st->triangles_by_origin[ISOMEND_ORIGIN_TABLE] += nt;
@@ -504,7 +666,7 @@ static uint64_t march_layer(worker *w, int64_t k, int mode, uint64_t first)
                 if (axis == 0) {
                     if (i + 2 >= N0)
                         continue;
-                    nb = CUBE_CASE(a, b, cc, d, i + 1);
+                    nb = i + 1 <= i1 ? cases[i + 1] : CUBE_CASE(a, b, cc, d, i + 1);
                 } else if (axis == 1) {
                     if (j + 2 >= N1)
                         continue;
@@ -523,7 +685,7 @@ static uint64_t march_layer(worker *w, int64_t k, int mode, uint64_t first)
                 if (!quads || !(inverted || durst))
                     continue;
                 if (!mode) {
-                    st->triangles_by_origin[durst ? ISOMEND_ORIGIN_DURST : ISOMEND_ORIGIN_MEND] += 2;
+                    st->triangles_by_origin[quad_origin] += 2;
                 } else {
                     const signed char *l = isomend_mc_face_loop[cfg][f];
                     const uint32_t p = ep[l[0]][i], q = ep[l[1]][i], r = ep[l[2]][i],
@@ -536,13 +698,16 @@ static uint64_t march_layer(worker *w, int64_t k, int mode, uint64_t first)
                         out[2] = c->flip ? quad[h + 1] : quad[h + 2];
                         out += 3;
                         if (org)
-                            *org++ = durst ? ISOMEND_ORIGIN_DURST : ISOMEND_ORIGIN_MEND;
+                            *org++ = quad_origin;
                     }
                 }
                 ntri += 2;
             }
+          }
         }
     }
+    if (!mode)
+        st->case_histogram[0] += (uint64_t)(N0 - 1) * (uint64_t)(N1 - 1) - busy;
     return ntri;
 }
 
@@ -628,10 +793,11 @@ static void worker_free(worker *w)
 {
     for (int r = 0; r < 3; r++) {
         free(w->sg[r]);
-        free(w->rp[r]);
+        free(w->ri[r]);
     }
     for (int r = 0; r < 2; r++)
         free(w->map[r]);
+    free(w->cases);
 }
 
 static int worker_init(worker *w, ctx *c)
@@ -640,15 +806,17 @@ static int worker_init(worker *w, ctx *c)
     memset(w, 0, sizeof(*w));
     w->c = c;
     for (int r = 0; r < 3; r++) {
-        w->sg[r] = malloc((size_t)(N0 * N1));
-        w->rp[r] = malloc(sizeof(int64_t) * (size_t)N1);
+        w->sg[r] = malloc((size_t)(N0 * N1) + SCAN_PAD);
+        w->ri[r] = malloc(sizeof(rowinfo) * (size_t)N1);
         w->sk[r] = -1;
-        if (!w->sg[r] || !w->rp[r])
+        if (!w->sg[r] || !w->ri[r])
             return 0;
     }
+    w->cases = calloc((size_t)N0 + SCAN_PAD, 1);
+    if (!w->cases)
+        return 0;
     for (int r = 0; r < 2; r++) {
         w->map[r] = malloc(sizeof(uint32_t) * 3 * (size_t)(N0 * N1));
-        w->mk[r] = -1;
         if (!w->map[r])
             return 0;
     }
@@ -709,6 +877,9 @@ isomend_status isomend_extract(const isomend_volume *vol, const isomend_options 
         g->n[a] = vol->dims[a];
         g->N[a] = vol->dims[a] + 2 * g->pad;
         g->h[a] = vol->spacing[a];
+        g->inv2h[a] = 0.5 / vol->spacing[a];
+        g->inner_lo[a] = g->pad + 1;
+        g->inner_hi[a] = g->pad + vol->dims[a] - 2;
         g->o[a] = vol->origin[a] - (double)g->pad * vol->spacing[a];
     }
     if (vol->strides[0] == 0 && vol->strides[1] == 0 && vol->strides[2] == 0) {

@@ -70,6 +70,9 @@
 
 #include "methods_tables.inc"
 
+_Static_assert(METHODS_ENTRY_MAX_TRI <= METHODS_MAX_TRI, "METHODS_MAX_TRI too small");
+_Static_assert(METHODS_TETRA_MAX_TRI <= METHODS_MAX_TRI, "METHODS_MAX_TRI too small");
+
 int methods_handles(isomend_method method)
 {
     return method == ISOMEND_METHOD_FACIAL || method == ISOMEND_METHOD_GRADIENT ||

@@ -39,8 +39,12 @@
  *           of the cube's intersected edges (slots 0..11 cut in this cube).
  *           The triangles use it only for polygons that no triangulation
  *           without a chord inside one face can fill.
+ *   19..30  mc33 only: slot 19 + e is private to the cube, halfway between the
+ *           centre vertex (slot 18) and edge e's point (same for normals,
+ *           renormalised).  A tunnel whose two polygons cannot be joined
+ *           without a chord inside a face goes through a ring of these.
  *
- * Per cube at most METHODS_MAX_TRI triangles.  Every method here keeps the
+  * Per cube at most METHODS_MAX_TRI triangles.  Every method here keeps the
  * neighbours consistent: the face decisions read only samples of the shared
  * face's plane, in an order fixed by the face, never by the cube; the MC33
  * interior test and the centre vertex concern the cube alone.
@@ -54,8 +58,9 @@
 
 #define METHODS_SLOT_DIAG0 12
 #define METHODS_SLOT_CENTRE 18
-#define METHODS_SLOT_COUNT 19
-#define METHODS_MAX_TRI 16
+#define METHODS_SLOT_RING0 19
+#define METHODS_SLOT_COUNT 31
+#define METHODS_MAX_TRI 32
 
 typedef struct methods_cube {
     double v[8];
