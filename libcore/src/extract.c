@@ -15,7 +15,7 @@
  *   2. Prefix sums give every slice's first vertex and every layer's first
  *      triangle; the output arrays are allocated once, at their exact size.
  *   3. Fill.  Each chunk numbers the intersected edges of its slices in a
- *      fixed order (slice, row, column, axis x/y/z), computes those vertices
+ *      fixed order (slice, row, axis x/y/z, column), computes those vertices
  *      (position, normal) once, and writes its layers' triangles.
  *
  * Each pass classifies samples row by row into sign bytes (sample >= iso,
