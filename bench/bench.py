@@ -893,13 +893,13 @@ def render(info, results, thread_counts):
             line = "| %s |" % any_r["label"]
             for t in thread_counts:
                 r = by.get(v + (ext, t))
-                if r is None and not any_r["parallel"] or r is None and any_r["repeats"] == 1:
+                if r is None and not any_r["parallel"]:
                     r = by.get(v + (ext, thread_counts[0]))
                     note = " (1 thr)" if t != thread_counts[0] else ""
                 else:
                     note = ""
                 if r is None:
-                    line += " — | | |"
+                    line += " not run | | |"
                     continue
                 once = "¹" if r["repeats"] == 1 else ""
                 iso_r = by.get(v + ("isomend", t))
