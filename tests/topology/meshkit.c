@@ -54,7 +54,7 @@ typedef struct builder {
     int X, Y, Z;
     const double *g; /* marched grid, NaN = outside */
     double iso;
-    int32_t *edge_vid, *diag_vid, *centre_vid;
+    int32_t *edge_vid, *diag_vid, *centre_vid, *ring_vid;
     float *pos;
     size_t nv, cap_v;
     uint32_t *tri;
@@ -140,6 +140,22 @@ static int slot_vertex(builder *b, int i, int j, int k, int slot, const int *edg
         }
         return b->diag_vid[key];
     }
+    if (slot > METHODS_SLOT_CENTRE) {
+        /* Ring slot: halfway between the centre and edge e's point. */
+        const int e = slot - METHODS_SLOT_RING0;
+        size_t key = 12 * lin(b, i, j, k) + (size_t)e;
+        if (b->ring_vid[key] < 0) {
+            int cv = slot_vertex(b, i, j, k, METHODS_SLOT_CENTRE, edge_ids);
+            if (cv < 0 || edge_ids[e] < 0)
+                return -1;
+            double p[3];
+            for (int d = 0; d < 3; d++)
+                p[d] = 0.5 * ((double)b->pos[3 * (size_t)cv + (size_t)d] +
+                              (double)b->pos[3 * (size_t)edge_ids[e] + (size_t)d]);
+            b->ring_vid[key] = add_vertex(b, p);
+        }
+        return b->ring_vid[key];
+    }
     size_t key = lin(b, i, j, k);
     if (b->centre_vid[key] < 0) {
         double p[3] = {0, 0, 0};
@@ -172,8 +188,9 @@ static int via_methods(const double *vals, int nx, int ny, int nz, double iso,
     b.edge_vid = malloc(3 * N * sizeof(int32_t));
     b.diag_vid = malloc(3 * N * sizeof(int32_t));
     b.centre_vid = malloc(N * sizeof(int32_t));
+    b.ring_vid = malloc(12 * N * sizeof(int32_t));
     int rc = -1;
-    if (!g || !b.edge_vid || !b.diag_vid || !b.centre_vid)
+    if (!g || !b.edge_vid || !b.diag_vid || !b.centre_vid || !b.ring_vid)
         goto done;
     for (int k = 0; k < b.Z; k++)
         for (int j = 0; j < b.Y; j++)
@@ -187,6 +204,7 @@ static int via_methods(const double *vals, int nx, int ny, int nz, double iso,
     memset(b.edge_vid, 0xff, 3 * N * sizeof(int32_t));
     memset(b.diag_vid, 0xff, 3 * N * sizeof(int32_t));
     memset(b.centre_vid, 0xff, N * sizeof(int32_t));
+    memset(b.ring_vid, 0xff, 12 * N * sizeof(int32_t));
     double ring[64];
     for (int k = 0; k + 1 < b.Z; k++)
         for (int j = 0; j + 1 < b.Y; j++)
@@ -256,6 +274,7 @@ done:
     free(b.edge_vid);
     free(b.diag_vid);
     free(b.centre_vid);
+    free(b.ring_vid);
     free(b.pos);
     free(b.tri);
     return rc;
