@@ -85,6 +85,21 @@ static int write_ply(FILE *fp, const float *pos, const float *nrm, size_t nv, co
     return 0;
 }
 
+/* Appends the decimal digits of v to p; returns the new end. */
+static char *put_uint(char *p, unsigned long v)
+{
+    char tmp[24];
+    int n = 0;
+    do {
+        tmp[n++] = (char)('0' + v % 10);
+        v /= 10;
+    } while (v);
+    while (n) *p++ = tmp[--n];
+    return p;
+}
+
+/* OBJ is text: positions with 9 significant digits (float32 round-trips),
+ * indices formatted by hand (printf costs ~3x more on million-face meshes). */
 static int write_obj(FILE *fp, const float *pos, const float *nrm, size_t nv, const uint32_t *tri,
                      size_t nt)
 {
@@ -94,13 +109,22 @@ static int write_obj(FILE *fp, const float *pos, const float *nrm, size_t nv, co
     if (nrm)
         for (size_t v = 0; v < nv; v++)
             fprintf(fp, "vn %.9g %.9g %.9g\n", nrm[3 * v], nrm[3 * v + 1], nrm[3 * v + 2]);
+    char line[128];
     for (size_t t = 0; t < nt; t++) {
-        unsigned long a = (unsigned long)tri[3 * t] + 1, b = (unsigned long)tri[3 * t + 1] + 1,
-                      c = (unsigned long)tri[3 * t + 2] + 1;
-        if (nrm)
-            fprintf(fp, "f %lu//%lu %lu//%lu %lu//%lu\n", a, a, b, b, c, c);
-        else
-            fprintf(fp, "f %lu %lu %lu\n", a, b, c);
+        char *p = line;
+        *p++ = 'f';
+        for (int c = 0; c < 3; c++) {
+            unsigned long k = (unsigned long)tri[3 * t + (size_t)c] + 1;
+            *p++ = ' ';
+            p = put_uint(p, k);
+            if (nrm) {
+                *p++ = '/';
+                *p++ = '/';
+                p = put_uint(p, k);
+            }
+        }
+        *p++ = '\n';
+        if (fwrite(line, 1, (size_t)(p - line), fp) != (size_t)(p - line)) return -1;
     }
     return ferror(fp) ? -1 : 0;
 }
