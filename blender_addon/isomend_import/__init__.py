@@ -68,6 +68,11 @@ _FIXED_METHODS = (
 )
 _method_items_cache = []
 
+# Outcome of the last finished import: {"status": 'FINISHED' or 'CANCELLED',
+# "message": the report}.  Lets a script that started the import modally (it
+# returns {'RUNNING_MODAL'} at once) find out how it ended.
+last_import = {}
+
 
 def _method_items(_self, _context):
     if not _method_items_cache:
@@ -323,13 +328,20 @@ class IMPORT_MESH_OT_slice_stack(Operator, ImportHelper):
 
     # ---------------------------------------------------------------- result
     def _finish(self, context, job):
+        status, message = self._finish_inner(context, job)
+        # The outcome of the last import, for scripts that started it modally.
+        last_import.clear()
+        last_import.update(status=status, message=message)
+        return {status}
+
+    def _finish_inner(self, context, job):
         if job.error is not None:
             exc = job.error
             if isinstance(exc, isomend.Cancelled):
                 self.report({'WARNING'}, "Import cancelled")
-            else:
-                self.report({'ERROR'}, str(exc))
-            return {'CANCELLED'}
+                return 'CANCELLED', "Import cancelled"
+            self.report({'ERROR'}, str(exc))
+            return 'CANCELLED', str(exc)
         mesh, info = job.result
         name = _stack_name(job.paths)
         t0 = time.perf_counter()
@@ -337,7 +349,7 @@ class IMPORT_MESH_OT_slice_stack(Operator, ImportHelper):
             obj = _make_object(context, name, mesh, self.unit_scale, self.smooth)
         except Exception as exc:  # e.g. out of memory in Blender: nothing is left behind
             self.report({'ERROR'}, "could not build the mesh: %s" % exc)
-            return {'CANCELLED'}
+            return 'CANCELLED', "could not build the mesh: %s" % exc
         obj["isomend_iso"] = float(mesh.iso)
         obj["isomend_method"] = mesh.method
         obj["isomend_mending_triangles"] = int(mesh.stats["mending_triangles"])
@@ -350,7 +362,7 @@ class IMPORT_MESH_OT_slice_stack(Operator, ImportHelper):
         if bpy.app.background:
             print("isomend: %s (read + extract %.2f s, Blender mesh %.2f s)"
                   % (msg, job.seconds, time.perf_counter() - t0), flush=True)
-        return {'FINISHED'}
+        return 'FINISHED', msg
 
 
 class _BackgroundPrinter:

@@ -11,7 +11,9 @@
    runs blender_import_test.py on those cases.
 
 Usage: run_blender_tests.py --blender EXE --zip isomend_import.zip --cli isomend --work DIR
-                            [--sample samples/anatomical.nrrd]
+                            [--sample samples/anatomical.nrrd] [--mode background|gui]
+--mode gui runs Blender's interface under Xvfb instead (blender_modal_test.py):
+the modal import with its worker thread, and Esc cancelling it.
 """
 import argparse
 import json
@@ -92,6 +94,9 @@ def main():
     ap.add_argument("--cli", required=True)
     ap.add_argument("--work", required=True)
     ap.add_argument("--sample")
+    ap.add_argument("--mode", choices=("background", "gui"), default="background",
+                    help="gui: the interactive, modal import under Xvfb (progress in a worker "
+                         "thread, Esc cancels) with blender_modal_test.py")
     args = ap.parse_args()
 
     work = os.path.abspath(args.work)
@@ -133,6 +138,8 @@ def main():
                       "params": {"use_suggested_iso": True, "iso": 0.0, "method": "DMC", "pad": True,
                                  "smooth": True, "spacing": (0.0, 0.0, 0.0), "unit_scale": 0.001},
                       "cli_source": [os.path.abspath(args.sample)]})
+    if args.mode == "gui":
+        cases = cases[:1]  # the modal test imports the first case only
     for i, case in enumerate(cases):
         case["cli"] = run_cli(args.cli, work, "case%d" % i, case["cli_source"], case["params"])
         case["cli_bbox"] = case["cli"]["bbox"]
@@ -159,9 +166,19 @@ def main():
         {"directory": work, "files": ["peanut.tif"], "spacing": (1.0, 0.0, 1.0), "expect": "spacing"},
     ]
 
+    big = None
+    if args.mode == "gui":
+        # a stack large enough that Esc arrives while it is still being read
+        big = os.path.join(work, "big_stack")
+        os.makedirs(big)
+        v = np.random.default_rng(3).integers(0, 4096, (128, 192, 192), dtype=np.uint16)
+        for k in range(v.shape[0]):
+            tifffile.imwrite(os.path.join(big, "b_%03d.tif" % k), v[k])
+
     spec = os.path.join(work, "cases.json")
     with open(spec, "w") as fp:
-        json.dump({"zip": os.path.abspath(args.zip), "cases": cases, "errors": errors}, fp, indent=1)
+        json.dump({"zip": os.path.abspath(args.zip), "cases": cases, "errors": errors, "big": big},
+                  fp, indent=1)
 
     home = os.path.join(work, "blender_home")
     for sub in ("scripts", "config", "cache", "tmp"):
@@ -171,8 +188,16 @@ def main():
                XDG_CACHE_HOME=os.path.join(home, "cache"), TMPDIR=os.path.join(home, "tmp"),
                HOME=home)
     env.pop("ISOMEND_LIB_DIR", None)  # the add-on must use its own lib/
-    cmd = [args.blender, "-b", "--factory-startup", "-noaudio", "--python-exit-code", "1",
-           "--python", os.path.join(HERE, "blender_import_test.py"), "--", spec]
+    if args.mode == "background":
+        cmd = [args.blender, "-b", "--factory-startup", "-noaudio", "--python-exit-code", "1",
+               "--python", os.path.join(HERE, "blender_import_test.py"), "--", spec]
+    else:
+        xvfb = shutil.which("xvfb-run")
+        if not xvfb:
+            sys.exit("xvfb-run not found (apt-get install xvfb xauth)")
+        cmd = [xvfb, "-a", "-s", "-screen 0 1024x768x24", args.blender, "--factory-startup", "-noaudio",
+               "--enable-event-simulate", "--python", os.path.join(HERE, "blender_modal_test.py"),
+               "--", spec]
     r = subprocess.run(cmd, env=env, timeout=300)
     if r.returncode != 0:
         sys.exit("Blender test failed (exit %d)" % r.returncode)

@@ -1,0 +1,109 @@
+"""The interactive (modal) import, in Blender's interface under Xvfb:
+
+    xvfb-run -a blender --factory-startup -noaudio --enable-event-simulate \\
+        --python blender_modal_test.py -- cases.json      (see run_blender_tests.py --mode gui)
+
+1. an import started as from the file browser (modal_ui=True) returns
+   {'RUNNING_MODAL'} at once, runs in a worker thread while the interface keeps
+   running, and ends with one object whose counts equal `isomend extract`'s;
+2. an import of a larger stack followed by a simulated Esc ends cancelled,
+   with a warning and no object or mesh left behind.
+Timers drive the steps; the exit status is set with os._exit because an
+exception inside a timer does not reach --python-exit-code.
+"""
+import json
+import os
+import sys
+import time
+
+import addon_utils
+import bpy
+
+spec_path = sys.argv[sys.argv.index("--") + 1]
+with open(spec_path) as fp:
+    SPEC = json.load(fp)
+
+
+def fail(message):
+    print("FAIL: " + message, flush=True)
+    os._exit(1)
+
+
+bpy.ops.preferences.addon_install(filepath=SPEC["zip"], overwrite=True)
+module = addon_utils.enable("isomend_import", default_set=True, handle_error=None)
+if module is None or not hasattr(bpy.types, "IMPORT_MESH_OT_slice_stack"):
+    fail("the add-on could not be enabled")
+
+case = SPEC["cases"][0]
+state = {"step": "start", "t0": time.time()}
+
+
+def window_override():
+    win = bpy.context.window_manager.windows[0]
+    area = max(win.screen.areas, key=lambda a: a.width * a.height)
+    return bpy.context.temp_override(window=win, area=area)
+
+
+def start(directory, **kwargs):
+    module.last_import.clear()
+    with window_override():
+        return bpy.ops.import_mesh.slice_stack('EXEC_DEFAULT', directory=directory, modal_ui=True, **kwargs)
+
+
+def tick():
+    try:
+        return step()
+    except Exception as exc:  # a failure inside a timer would otherwise be ignored
+        fail("%s: %r" % (state["step"], exc))
+
+
+def step():
+    now = time.time()
+    if now - state["t0"] > 120:
+        fail("timed out in step %s" % state["step"])
+    if state["step"] == "start":
+        for obj in list(bpy.data.objects):
+            bpy.data.objects.remove(obj)
+        p = case["params"]
+        r = start(case["directory"], use_suggested_iso=p["use_suggested_iso"], iso=p["iso"],
+                  method=p["method"], spacing=p["spacing"], unit_scale=p["unit_scale"], pad=p["pad"])
+        if r != {"RUNNING_MODAL"}:
+            fail("modal import returned %s, expected RUNNING_MODAL" % r)
+        state["step"] = "wait_import"
+        return 0.1
+    if state["step"] == "wait_import":
+        if not module.last_import:
+            return 0.1
+        if module.last_import["status"] != "FINISHED":
+            fail("modal import ended %s" % module.last_import)
+        obj = bpy.data.objects.get(case["name"])
+        if obj is None:
+            fail("no object %r after the modal import" % case["name"])
+        cli = case["cli"]
+        if (len(obj.data.vertices), len(obj.data.polygons)) != (cli["vertices"], cli["triangles"]):
+            fail("modal import: %d vertices, %d triangles; CLI %d, %d"
+                 % (len(obj.data.vertices), len(obj.data.polygons), cli["vertices"], cli["triangles"]))
+        print("modal import ok: %s" % module.last_import["message"], flush=True)
+        bpy.data.objects.remove(obj)
+        for me in list(bpy.data.meshes):
+            bpy.data.meshes.remove(me)
+        r = start(SPEC["big"])
+        if r != {"RUNNING_MODAL"}:
+            fail("second modal import returned %s" % r)
+        bpy.context.window_manager.windows[0].event_simulate(type='ESC', value='PRESS')
+        state["step"] = "wait_cancel"
+        return 0.1
+    if state["step"] == "wait_cancel":
+        if not module.last_import:
+            return 0.1
+        if module.last_import["status"] != "CANCELLED" or "cancelled" not in module.last_import["message"]:
+            fail("Esc did not cancel the import: %s" % module.last_import)
+        if len(bpy.data.objects) or len(bpy.data.meshes):
+            fail("a cancelled import left %d objects, %d meshes" % (len(bpy.data.objects), len(bpy.data.meshes)))
+        print("Esc cancelled the import: %s" % module.last_import["message"], flush=True)
+        print("blender modal test: all checks passed", flush=True)
+        os._exit(0)
+    return 0.1
+
+
+bpy.app.timers.register(tick, first_interval=1.0)
