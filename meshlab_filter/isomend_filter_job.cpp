@@ -242,14 +242,51 @@ Params default_params()
     return Params();
 }
 
-std::string layer_name_for(const std::string &source)
+std::string layer_name_for(const std::string &source, int kind)
 {
-    std::string s = source;
-    while (s.size() > 1 && s.back() == '/')
-        s.pop_back();
-    const size_t slash = s.find_last_of('/');
-    std::string base = slash == std::string::npos ? s : s.substr(slash + 1);
-    return base.empty() ? std::string("isosurface") : base;
+    /* Folder names that say nothing about the stack: the parent's is used
+     * (the Blender add-on names its objects the same way). */
+    static const char *const generic[] = {"tif", "tiff", "png", "exr", "jpg", "slices",
+                                          "images", "image", "stack", "data"};
+    auto split = [](std::string path, std::string *parent) {
+        while (path.size() > 1 && path.back() == '/')
+            path.pop_back();
+        const size_t slash = path.find_last_of('/');
+        if (parent)
+            *parent = slash == std::string::npos ? std::string() : path.substr(0, slash);
+        return slash == std::string::npos ? path : path.substr(slash + 1);
+    };
+    auto folder_name = [&](const std::string &folder) {
+        std::string parent;
+        std::string name = split(folder, &parent);
+        std::string lower = name;
+        for (char &c : lower)
+            c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+        for (const char *g : generic)
+            if (lower == g) {
+                const std::string up = split(parent, nullptr);
+                if (!up.empty() && up != "/" && up != "." && up != "..")
+                    return up;
+            }
+        return name;
+    };
+    std::string name;
+    if (kind == ISOMEND_IO_KIND_FOLDER) {
+        name = folder_name(source);
+    } else if (kind == ISOMEND_IO_KIND_PATTERN || kind == ISOMEND_IO_KIND_GLOB) {
+        std::string parent;
+        name = split(source, &parent);
+        if (!parent.empty())
+            name = folder_name(parent);
+    } else {
+        name = split(source, nullptr);
+        const size_t dot = name.find_last_of('.');
+        if (dot != std::string::npos && dot > 0)
+            name.erase(dot);
+    }
+    if (name.empty() || name == "/" || name == "." || name == "..")
+        return "isosurface";
+    return name;
 }
 
 bool parse_raw_dims(const std::string &text, int64_t dims[3], std::string *message)
@@ -365,8 +402,6 @@ bool Job::run_unguarded(const Params &params, const ProgressFn &progress)
     io_opts.progress = io_progress;
     io_opts.progress_user = &state;
     io_opts.channel = params.channel >= 0 ? params.channel : ISOMEND_IO_CHANNEL_AUTO;
-    layer_name_ = layer_name_for(source);
-
     /* 2. open */
     const char *path = source.c_str();
     SourceHandle handle;
@@ -419,6 +454,7 @@ bool Job::run_unguarded(const Params &params, const ProgressFn &progress)
         }
     }
 
+    layer_name_ = layer_name_for(source, isomend_io_source_kind(handle.src));
     const char *kind = isomend_io_kind_name(isomend_io_source_kind(handle.src));
     log_.push_back(format("isomend %s: %s (%s, %s), %" PRId64 " x %" PRId64 " x %" PRId64
                           " %s%s",

@@ -108,7 +108,7 @@ public:
 
     const isomend_mesh *mesh() const { return mesh_; }
     const isomend_stats &stats() const { return stats_; }
-    /* The new layer's name: the source's base name ("stack", "ct.nrrd"). */
+    /* The new layer's name, see layer_name_for() ("head", "ct"). */
     const std::string &layer_name() const { return layer_name_; }
     /* Lines for the host's log, in order (source, volume, options, counts,
      * histogram, times). */
@@ -126,8 +126,13 @@ private:
     std::string error_;
 };
 
-/* The layer name for a source path (exposed for tests). */
-std::string layer_name_for(const std::string &source);
+/*
+ * The layer name for a source path and its isomend_io_kind (exposed for
+ * tests): a folder's name, or its parent's for a generic name ("tiff",
+ * "slices", ...); for a pattern or glob, the name of the folder holding it;
+ * for a file, its name without the extension.
+ */
+std::string layer_name_for(const std::string &source, int kind);
 
 /* Parses rawDims; returns false (and a message) on a malformed value. */
 bool parse_raw_dims(const std::string &text, int64_t dims[3], std::string *message);

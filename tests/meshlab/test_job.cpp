@@ -20,6 +20,7 @@
 
 #include "isomend.h"
 #include "isomend_filter_job.h"
+#include "isomend_io.h"
 #include "testutil.h"
 
 namespace job = isomend_filter;
@@ -147,11 +148,16 @@ void test_lists()
 
 void test_parsing()
 {
-    CHECK(job::layer_name_for("/data/scan/stack/") == "stack");
-    CHECK(job::layer_name_for("/data/ct.nrrd") == "ct.nrrd");
-    CHECK(job::layer_name_for("slices/s_%04d.tif") == "s_%04d.tif");
-    CHECK(job::layer_name_for("vol.raw") == "vol.raw");
-    CHECK(job::layer_name_for("/") == "isosurface");
+    CHECK(job::layer_name_for("/data/scan/head/", ISOMEND_IO_KIND_FOLDER) == "head");
+    CHECK(job::layer_name_for("/data/head/TIFF/", ISOMEND_IO_KIND_FOLDER) == "head");
+    CHECK(job::layer_name_for("tiff", ISOMEND_IO_KIND_FOLDER) == "tiff");
+    CHECK(job::layer_name_for("/data/ct.nrrd", ISOMEND_IO_KIND_NRRD) == "ct");
+    CHECK(job::layer_name_for("/data/head/slices/s_%04d.tif", ISOMEND_IO_KIND_PATTERN) == "head");
+    CHECK(job::layer_name_for("/data/knee/s_*.png", ISOMEND_IO_KIND_GLOB) == "knee");
+    CHECK(job::layer_name_for("s_*.png", ISOMEND_IO_KIND_GLOB) == "s_*.png");
+    CHECK(job::layer_name_for("/data/scan.v2.tif", ISOMEND_IO_KIND_MULTIPAGE) == "scan.v2");
+    CHECK(job::layer_name_for("vol.raw", ISOMEND_IO_KIND_RAW) == "vol");
+    CHECK(job::layer_name_for("/", ISOMEND_IO_KIND_FOLDER) == "isosurface");
 
     int64_t d[3] = {0, 0, 0};
     std::string msg;
@@ -219,7 +225,7 @@ void test_run(const std::string &dir)
                 some_mending = true;
             isomend_mesh_destroy(mesh);
 
-            CHECK(run.layer_name() == "blobs.raw");
+            CHECK(run.layer_name() == "blobs");
             bool counts_logged = false, histogram_logged = false;
             char counts[128];
             std::snprintf(counts, sizeof counts, "vertices %llu, triangles %llu",
