@@ -59,6 +59,16 @@ int cli_progress_read_cb(void *user, double fraction);
 /* The bar that cli_error() clears first (the one in use, or NULL). */
 extern cli_progress *cli_active_progress;
 
+/*
+ * Ctrl-C / SIGTERM: the handler only sets cli_interrupted; the progress
+ * callbacks return it, so reading and extraction stop cleanly (exit 130,
+ * nothing written).  A signal during writing takes effect after the output
+ * is complete and renamed: a partial file never appears.
+ */
+#define CLI_EXIT_INTERRUPTED 130
+extern volatile int cli_interrupted;
+void cli_install_signal_handlers(void);
+
 /* Writes a JSON string literal (with quotes) for `s`. */
 void cli_json_string(FILE *fp, const char *s);
 

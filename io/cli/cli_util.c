@@ -11,12 +11,31 @@
 
 #include <errno.h>
 #include <math.h>
+#include <signal.h>
 #include <stdarg.h>
 #include <stdlib.h>
 #include <string.h>
 #include <time.h>
 
 cli_progress *cli_active_progress;
+volatile int cli_interrupted;
+
+static void on_signal(int sig)
+{
+    (void)sig;
+    cli_interrupted = 1;
+}
+
+void cli_install_signal_handlers(void)
+{
+    struct sigaction sa;
+    memset(&sa, 0, sizeof sa);
+    sa.sa_handler = on_signal;
+    sigemptyset(&sa.sa_mask);
+    sa.sa_flags = SA_RESTART;
+    sigaction(SIGINT, &sa, NULL);
+    sigaction(SIGTERM, &sa, NULL);
+}
 
 void cli_error(const char *fmt, ...)
 {
@@ -115,13 +134,13 @@ void cli_progress_clear(cli_progress *p)
 int cli_progress_extract_cb(void *user, double fraction)
 {
     cli_progress_update(user, "extract", fraction);
-    return 0;
+    return cli_interrupted;
 }
 
 int cli_progress_read_cb(void *user, double fraction)
 {
     cli_progress_update(user, "read", fraction);
-    return 0;
+    return cli_interrupted;
 }
 
 void cli_json_string(FILE *fp, const char *s)

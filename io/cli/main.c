@@ -546,22 +546,30 @@ static int cmd_extract(int argc, char **argv)
     if (a.seen & OPT_PAD) opts.flags |= ISOMEND_FLAG_PAD;
     if (a.seen & OPT_NO_NORMALS) opts.flags |= ISOMEND_FLAG_NO_NORMALS;
     if (a.seen & OPT_FLIP) opts.flags |= ISOMEND_FLAG_FLIP;
-    if (bar.enabled) {
-        opts.progress = cli_progress_extract_cb;
-        opts.progress_user = &bar;
-    }
+    opts.progress = cli_progress_extract_cb; /* the bar, and how Ctrl-C cancels */
+    opts.progress_user = &bar;
     isomend_mesh *mesh = NULL;
     isomend_stats stats;
     double t0 = cli_now_ms();
     isomend_status st = isomend_extract(&src.vol, &opts, &mesh, &stats);
     cli_progress_clear(&bar);
     cli_timings tm = {src.read_ms, cli_now_ms() - t0, 0};
+    if (st == ISOMEND_ERR_CANCELLED) {
+        cli_error("%s: interrupted", src.label);
+        rc = CLI_EXIT_INTERRUPTED;
+        goto fail_source;
+    }
     if (st != ISOMEND_OK) {
         cli_error("%s: extraction failed: %s", src.label, isomend_status_string(st));
         rc = CLI_EXIT_FAIL;
         goto fail_source;
     }
     isomend_check_report check;
+    if (cli_interrupted) { /* after the last progress call: still nothing written */
+        cli_error("%s: interrupted", src.label);
+        rc = CLI_EXIT_INTERRUPTED;
+        goto fail_mesh;
+    }
     st = isomend_mesh_check(mesh, &check);
     if (st != ISOMEND_OK) {
         cli_error("%s: continuity check failed: %s", a.output, isomend_status_string(st));
@@ -889,6 +897,7 @@ int main(int argc, char **argv)
         printf("; slice-stack importer: %s)\n", HAVE_IO_TEXT);
         return CLI_EXIT_OK;
     }
+    cli_install_signal_handlers();
     if (strcmp(cmd, "extract") == 0) return cmd_extract(argc, argv);
     if (strcmp(cmd, "check") == 0) return cmd_check(argc, argv);
     if (strcmp(cmd, "info") == 0) return cmd_info(argc, argv);

@@ -153,9 +153,13 @@ static int open_fileio(const char *path, const cli_source_opts *o, cli_source *s
     snprintf(src->format, sizeof src->format, "%s",
              info.encoding == ISOMEND_FILEIO_ENC_GZIP ? "gzip" : "raw");
     double t0 = cli_now_ms();
-    st = isomend_fileio_load(&info, &src->owned, o->progress ? cli_progress_read_cb : NULL,
-                             o->progress, msg, sizeof msg);
+    st = isomend_fileio_load(&info, &src->owned, cli_progress_read_cb, o->progress, msg,
+                             sizeof msg);
     cli_progress_clear(o->progress);
+    if (st == ISOMEND_FILEIO_ERR_CANCELLED) {
+        cli_error("%s: interrupted", path);
+        return CLI_EXIT_INTERRUPTED;
+    }
     if (st != ISOMEND_FILEIO_OK) {
         cli_error("%s", msg);
         return CLI_EXIT_FAIL;
@@ -172,7 +176,7 @@ static int io_progress(void *user, int stage, double fraction)
 {
     static const char *labels[] = {"open", "read", "analyse", "extract"};
     cli_progress_update(user, stage >= 0 && stage < 4 ? labels[stage] : "io", fraction);
-    return 0;
+    return cli_interrupted;
 }
 
 static int open_io(const char *const *paths, int n, const cli_source_opts *o, cli_source *src)
@@ -199,14 +203,17 @@ static int open_io(const char *const *paths, int n, const cli_source_opts *o, cl
     if (o->have_origin)
         for (int a = 0; a < 3; a++) opts.origin[a] = o->origin[a];
     opts.threads = o->threads;
-    if (o->progress && o->progress->enabled) {
-        opts.progress = io_progress;
-        opts.progress_user = o->progress;
-    }
+    opts.progress = io_progress; /* also how Ctrl-C cancels */
+    opts.progress_user = o->progress;
     isomend_io_status st = io_api.open(io, paths, (size_t)n, &opts);
     double seconds = 0;
     if (st == ISOMEND_IO_OK) st = io_api.load(io, &src->vol, &seconds);
     cli_progress_clear(o->progress);
+    if (st == ISOMEND_IO_ERR_CANCELLED) {
+        cli_error("%s: interrupted", paths[0]);
+        io_api.destroy(io);
+        return CLI_EXIT_INTERRUPTED;
+    }
     if (st != ISOMEND_IO_OK) {
         const char *m = io_api.message(io);
         cli_error("%s", m && *m ? m : io_api.status_string(st));

@@ -488,6 +488,45 @@ def test_progress_bar(r):
         fail("progress not a tty", f"bar printed to a pipe: {err!r}")
 
 
+def test_interrupt(r):
+    """Ctrl-C while reading or extracting: exit 130, no output, no temporary file.
+    Whenever the signal lands, the invariant is: complete mesh and exit 0, or
+    nothing and exit 130; several delays make sure the second case happens."""
+    import signal
+    import time
+    n = 256
+    with open(r.path("ramp.u8"), "wb") as f:
+        f.write(bytes(range(256)) * (n * n))
+    seen = set()
+    for delay in (0.02, 0.05, 0.1, 0.15, 0.2, 0.3, 0.45):
+        out = r.path("int.ply")
+        if os.path.exists(out):
+            os.unlink(out)
+        p = subprocess.Popen([r.exe, "extract", "ramp.u8", "--raw", f"{n},{n},{n}:u8", "--iso", "127.5",
+                              "--threads", "1", "-o", "int.ply"], cwd=r.work,
+                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+        time.sleep(delay)
+        p.send_signal(signal.SIGINT)
+        out_text, err = p.communicate(timeout=120)
+        seen.add(p.returncode)
+        if p.returncode == 0:
+            props, verts, faces = read_ply(out)   # complete and well formed
+            if len(faces) != 2 * (n - 1) * (n - 1):
+                fail("interrupt", f"exit 0 but {len(faces)} faces")
+        elif p.returncode == 130:
+            if os.path.exists(out):
+                fail("interrupt", "exit 130 but the output exists")
+            if "interrupted" not in err:
+                fail("interrupt", f"exit 130 without message: {err!r}")
+        elif p.returncode != -signal.SIGINT:   # killed before the handler was installed
+            fail("interrupt", f"exit {p.returncode}: {err!r}")
+        if leftovers(r.work):
+            fail("interrupt", f"temporary files left: {leftovers(r.work)}")
+    if 130 not in seen:
+        fail("interrupt", f"no run was interrupted cleanly (exit codes {sorted(seen)})")
+    os.unlink(r.path("ramp.u8"))
+
+
 def test_check_command(r):
     expect_ok(r, "check input", ["extract", "builtin:f1", "--iso", "0", "-q", "-o", "c1.ply"])
     rc, out, err = r.run("check", "c1.ply")
@@ -704,6 +743,7 @@ def main():
     test_sources(r)
     test_suggested_iso_and_info(r)
     test_progress_bar(r)
+    test_interrupt(r)
     test_check_command(r)
     test_errors(r, have_io)
     if FAILURES:
