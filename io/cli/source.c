@@ -132,6 +132,19 @@ static int apply_overrides(const cli_source_opts *o, cli_source *src)
     return CLI_EXIT_OK;
 }
 
+/* MemAvailable from /proc/meminfo in bytes, 0 if unknown. */
+static uint64_t memory_available(void)
+{
+    FILE *fp = fopen("/proc/meminfo", "r");
+    if (!fp) return 0;
+    char line[256];
+    unsigned long long kib = 0;
+    while (fgets(line, sizeof line, fp))
+        if (sscanf(line, "MemAvailable: %llu kB", &kib) == 1) break;
+    fclose(fp);
+    return (uint64_t)kib * 1024u;
+}
+
 /* Maps a reader status to an exit code: every reader failure is a failure (1). */
 static int open_fileio(const char *path, const cli_source_opts *o, cli_source *src)
 {
@@ -152,6 +165,14 @@ static int open_fileio(const char *path, const cli_source_opts *o, cli_source *s
     }
     snprintf(src->format, sizeof src->format, "%s",
              info.encoding == ISOMEND_FILEIO_ENC_GZIP ? "gzip" : "raw");
+    /* refuse before allocating: Linux overcommits, so a too large malloc
+     * would "succeed" and the kernel would kill us half-way through */
+    uint64_t need = isomend_fileio_volume_bytes(&info), avail = memory_available();
+    if (avail && need > avail) {
+        cli_error("%s: the volume needs %.1f MiB, only %.1f MiB of memory is available", path,
+                  (double)need / 1048576.0, (double)avail / 1048576.0);
+        return CLI_EXIT_FAIL;
+    }
     double t0 = cli_now_ms();
     st = isomend_fileio_load(&info, &src->owned, cli_progress_read_cb, o->progress, msg,
                              sizeof msg);
