@@ -12,6 +12,18 @@
 #include <stdlib.h>
 #include <string.h>
 
+static int via_methods(const double *vals, int nx, int ny, int nz, double iso,
+                       isomend_method method, int pad, mk_mesh *out);
+
+int mk_extract_loop(const double *vals, int nx, int ny, int nz, double iso,
+                    isomend_method method, int pad, mk_mesh *out)
+{
+    memset(out, 0, sizeof *out);
+    if (method != ISOMEND_METHOD_MC && !methods_handles(method))
+        return -1;
+    return via_methods(vals, nx, ny, nz, iso, method, pad, out);
+}
+
 void mk_free(mk_mesh *m)
 {
     if (!m)
@@ -229,7 +241,15 @@ static int via_methods(const double *vals, int nx, int ny, int nz, double iso,
                     c.ring = ring;
                 }
                 unsigned char slots[3 * METHODS_MAX_TRI];
-                int n = isomend_method_cube(method, &c, slots);
+                int n;
+                if (method == ISOMEND_METHOD_MC) {
+                    int edges[15];
+                    n = isomend_case_triangles(c.config, edges);
+                    for (int q = 0; q < 3 * n; q++)
+                        slots[q] = (unsigned char)edges[q];
+                } else {
+                    n = isomend_method_cube(method, &c, slots);
+                }
                 if (n < 0)
                     goto done;
                 /* Edge vertices first, so that the centre can average them. */

@@ -38,6 +38,10 @@ typedef struct mk_topo {
 /* 0 on success; -1 on failure (out of memory, bad method). */
 int mk_extract(const double *vals, int nx, int ny, int nz, double iso, isomend_method method,
                int pad, mk_mesh *out);
+/* Always the reference loop; MC there uses the MC table (for timing the
+ * per-cube cost of every method in the same loop). */
+int mk_extract_loop(const double *vals, int nx, int ny, int nz, double iso, isomend_method method,
+                    int pad, mk_mesh *out);
 void mk_free(mk_mesh *m);
 
 /* 1 when the mesh is a closed oriented 2-manifold without degenerate triangles. */
