@@ -3,6 +3,7 @@
  * option defaults.
  */
 #include "isomend.h"
+#include "methods.h"
 
 #include <string.h>
 
@@ -78,7 +79,7 @@ isomend_status isomend_method_from_name(const char *name, isomend_method *method
 int isomend_method_available(isomend_method method)
 {
     return method == ISOMEND_METHOD_MC || method == ISOMEND_METHOD_DURST ||
-           method == ISOMEND_METHOD_DMC;
+           method == ISOMEND_METHOD_DMC || methods_handles(method);
 }
 
 void isomend_options_init(isomend_options *opts)

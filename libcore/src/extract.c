@@ -41,6 +41,7 @@
  * midpoint.
  */
 #include "isomend.h"
+#include "methods.h"
 #include "tables.h"
 
 #include <math.h>
@@ -368,6 +369,39 @@ static void make_vertex(const grid *g, int flip, int64_t i, int64_t j, int64_t k
         nrm[c] = (float)(scale * n[c]);
 }
 
+/*
+ * The vertex between two marched samples p0 and p1 that are not necessarily
+ * on a grid edge (the face diagonals of the tetrahedral method), by the
+ * general path: p0 + t (p1 - p0), NaN/padding ends cut at the middle.
+ */
+static void make_vertex_between(const grid *g, int flip, const int64_t p0[3], const int64_t p1[3],
+                                float *pos, float *nrm)
+{
+    const double f0 = fetch(g, p0[0], p0[1], p0[2]), f1 = fetch(g, p1[0], p1[1], p1[2]);
+    const int valid = !isnan(f0) && !isnan(f1);
+    const double t = valid ? (g->iso - f0) / (f1 - f0) : 0.5;
+    for (int c = 0; c < 3; c++)
+        pos[c] = (float)(g->o[c] + ((double)p0[c] + t * (double)(p1[c] - p0[c])) * g->h[c]);
+    if (!nrm)
+        return;
+    double n[3] = {0, 0, 0}, len = 0.0;
+    if (valid) {
+        for (int c = 0; c < 3; c++)
+            n[c] = -((1.0 - t) * gradient_component(g, p0, c, f0) +
+                     t * gradient_component(g, p1, c, f1));
+        len = sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
+    }
+    if (!(len > 0.0) || !isfinite(len)) {
+        const double sign = f0 >= g->iso ? 1.0 : -1.0; /* towards the outside end */
+        for (int c = 0; c < 3; c++)
+            n[c] = sign * (double)(p1[c] - p0[c]) * g->h[c];
+        len = sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
+    }
+    const double scale = (flip ? -1.0 : 1.0) / len;
+    for (int c = 0; c < 3; c++)
+        nrm[c] = (float)(scale * n[c]);
+}
+
 /* ------------------------------------------------------- the extraction */
 
 typedef struct ctx {
@@ -380,6 +414,10 @@ typedef struct ctx {
     int64_t chunk_layers;
     uint64_t *slice_first; /* [N2 + 1]: vertex count, then first vertex */
     uint64_t *layer_first; /* [N2]: triangle count, then first triangle */
+    uint64_t *layer_private; /* [N2]: cube-private vertices (methods.h), then first */
+    int general;           /* a method of methods.h: per-cube hook        */
+    int tetra;             /* ... with face-diagonal vertices             */
+    int planes;            /* id-map planes per slice: 3, or 6 for tetra  */
     float *pos, *nrm;
     uint32_t *tri;
     uint8_t *org;
@@ -399,6 +437,8 @@ typedef struct worker {
     int64_t sk[3];    /* slice held, -1 none                */
     uint32_t *map[2]; /* vertex ids of edges x, y, z; ring k % 2 */
     uint8_t *cases;   /* configurations of one row of cubes */
+    uint64_t private_count; /* cube-private vertices of the layer (methods.h) */
+    uint64_t private_next;  /* next cube-private vertex id (fill pass)       */
     isomend_stats stats;
     int is_main;
 } worker;
@@ -502,6 +542,82 @@ static void row_cases(const uint8_t *restrict a, const uint8_t *restrict b,
                              c[i + 1] << 5 | d[i] << 6 | d[i + 1] << 7);
 }
 
+/* Linear-index order of two marched samples: is p before q? */
+static int sample_before(const int64_t p[3], const int64_t q[3])
+{
+    if (p[2] != q[2])
+        return p[2] < q[2];
+    if (p[1] != q[1])
+        return p[1] < q[1];
+    return p[0] < q[0];
+}
+
+/*
+ * The tetrahedral method's face diagonals (methods.h, slots 12..17): each
+ * face of the grid has the diagonal joining its two corners of even parity
+ * (i + j + k even).  Row j of slice m owns the diagonals of the x faces
+ * (x = i, y in [j, j+1], z in [m, m+1]), the y faces (y = j, x in [i, i+1],
+ * z in [m, m+1]) and the z faces (z = m, x in [i, i+1], y in [j, j+1]) whose
+ * lowest corner is (i, j, m).  In counting mode (ids NULL) returns id + the
+ * number cut; otherwise numbers them in that order and returns the next id.
+ */
+static uint64_t scan_diagonals(const ctx *c, const uint8_t *s, const uint8_t *t, int64_t j,
+                               int64_t m, uint32_t *ids, uint64_t id, int write)
+{
+    const grid *g = &c->g;
+    const int64_t N0 = g->N[0], N1 = g->N[1], plane = N0 * N1;
+    const uint8_t *a = s + j * N0;
+    const uint8_t *b = j + 1 < N1 ? a + N0 : NULL;
+    const uint8_t *d = t ? t + j * N0 : NULL;
+    const uint8_t *e = t && b ? d + N0 : NULL;
+    for (int kind = 0; kind < 3; kind++) {
+        if ((kind == 0 && !e) || (kind == 1 && !d) || (kind == 2 && !b))
+            continue;
+        const int64_t last = kind == 0 ? N0 - 1 : N0 - 2;
+        for (int64_t i = 0; i <= last; i++) {
+            const int even = ((i + j + m) & 1) == 0;
+            int64_t p[3], q[3];
+            uint8_t sp, sq;
+            if (kind == 0) { /* x face: (i,j,m)-(i,j+1,m+1) or (i,j+1,m)-(i,j,m+1) */
+                p[0] = q[0] = i;
+                p[1] = even ? j : j + 1;
+                q[1] = even ? j + 1 : j;
+                p[2] = m;
+                q[2] = m + 1;
+                sp = even ? a[i] : b[i];
+                sq = even ? e[i] : d[i];
+            } else if (kind == 1) { /* y face: (i,j,m)-(i+1,j,m+1) or (i+1,j,m)-(i,j,m+1) */
+                p[1] = q[1] = j;
+                p[0] = even ? i : i + 1;
+                q[0] = even ? i + 1 : i;
+                p[2] = m;
+                q[2] = m + 1;
+                sp = even ? a[i] : a[i + 1];
+                sq = even ? d[i + 1] : d[i];
+            } else { /* z face: (i,j,m)-(i+1,j+1,m) or (i+1,j,m)-(i,j+1,m) */
+                p[2] = q[2] = m;
+                p[0] = even ? i : i + 1;
+                q[0] = even ? i + 1 : i;
+                p[1] = j;
+                q[1] = j + 1;
+                sp = even ? a[i] : a[i + 1];
+                sq = even ? b[i + 1] : b[i];
+            }
+            if (sp == sq)
+                continue;
+            if (ids) {
+                const int64_t *lo = sample_before(p, q) ? p : q, *hi = lo == p ? q : p;
+                if (write)
+                    make_vertex_between(g, c->flip, lo, hi, c->pos + 3 * id,
+                                        c->nrm ? c->nrm + 3 * id : NULL);
+                ids[(3 + kind) * plane + j * N0 + i] = (uint32_t)id;
+            }
+            id++;
+        }
+    }
+    return id;
+}
+
 /*
  * Numbers the intersected edges whose lower end is in slice m.  mode 0
  * counts them; mode 1 fills the id map (ids from `first`) and, if `write`,
@@ -523,6 +639,12 @@ static uint64_t scan_slice(worker *w, int64_t m, int mode, uint64_t first, int w
     }
     uint64_t id = first, count = 0;
     for (int64_t j = 0; j < N1; j++) {
+        if (c->tetra) { /* rare method: full rows, before the skip below */
+            if (mode)
+                id = scan_diagonals(c, s, t, j, m, mx, id, write);
+            else
+                count = scan_diagonals(c, s, t, j, m, NULL, count, 0);
+        }
         const uint8_t *a = s + j * N0;
         int64_t x0 = ra[j].lo - 1, x1 = ra[j].hi, y0 = 0, y1 = -1, z0 = 0, z1 = -1;
         const int has_x = x0 <= x1 && ra[j].lo < N0;
@@ -578,6 +700,110 @@ static int cube_span(const rowinfo *r[4], int64_t N0, int64_t *from, int64_t *to
 }
 
 /*
+ * One cube of a method of methods.h: asks the hook for its triangles (vertex
+ * slots), counts the cube-private vertices they use (mode 0) or numbers and
+ * computes those and writes the triangles (mode 1).  Private vertices are
+ * derived from the cube's own edge points, recomputed here, so a chunk never
+ * reads vertices another thread may still be writing.
+ */
+static unsigned method_cube(worker *w, int64_t i, int64_t j, int64_t k, unsigned cfg, int mode,
+                            const uint32_t *const ep[12], const uint32_t *mk0,
+                            const uint32_t *mk1, uint32_t *out, uint8_t *org)
+{
+    const ctx *c = w->c;
+    const grid *g = &c->g;
+    methods_cube cube;
+    double ring[64];
+    for (int q = 0; q < 8; q++)
+        cube.v[q] = fetch(g, i + CUBE_CORNER_X(q), j + CUBE_CORNER_Y(q), k + CUBE_CORNER_Z(q));
+    cube.iso = g->iso;
+    cube.config = cfg;
+    cube.parity = (unsigned)((i + j + k) & 1);
+    cube.ring = NULL;
+    if (methods_needs_ring(c->method)) {
+        for (int z = -1; z <= 2; z++)
+            for (int y = -1; y <= 2; y++)
+                for (int x = -1; x <= 2; x++)
+                    ring[(x + 1) + 4 * (y + 1) + 16 * (z + 1)] = fetch(g, i + x, j + y, k + z);
+        cube.ring = ring;
+    }
+    unsigned char slots[3 * METHODS_MAX_TRI];
+    int n = isomend_method_cube(c->method, &cube, slots);
+    if (n <= 0)
+        return 0;
+    uint32_t used = 0; /* private slots, bit s - METHODS_SLOT_CENTRE */
+    for (int q = 0; q < 3 * n; q++)
+        if (slots[q] >= METHODS_SLOT_CENTRE)
+            used |= 1u << (slots[q] - METHODS_SLOT_CENTRE);
+    if (!mode) {
+        w->private_count += (uint64_t)__builtin_popcount(used);
+        return (unsigned)n;
+    }
+    uint32_t ids[METHODS_SLOT_COUNT];
+    const int64_t N0 = g->N[0], plane = N0 * g->N[1], at = j * N0 + i;
+    for (int q = 0; q < 3 * n; q++) {
+        const int sl = slots[q];
+        if (sl < 12)
+            ids[sl] = ep[sl][i];
+        else if (sl < METHODS_SLOT_CENTRE) {
+            const int f = sl - METHODS_SLOT_DIAG0;
+            static const int diag_plane[6] = {3, 3, 4, 4, 5, 5};
+            const int64_t off[6] = {at, at + 1, at, at + N0, at, at};
+            ids[sl] = (f == 5 ? mk1 : mk0)[diag_plane[f] * plane + off[f]];
+        }
+    }
+    if (used) {
+        /* The cube's edge points, the centre (their mean) and the ring points. */
+        float ep_pos[12][3], ep_nrm[12][3], centre[3] = {0, 0, 0}, cn[3] = {0, 0, 0};
+        int cut = 0;
+        for (int e = 0; e < 12; e++) {
+            const int c0 = cube_edge_corner[e][0], c1 = cube_edge_corner[e][1];
+            if (((cfg >> c0) & 1) == ((cfg >> c1) & 1))
+                continue;
+            make_vertex(g, c->flip, i + CUBE_CORNER_X(c0), j + CUBE_CORNER_Y(c0),
+                        k + CUBE_CORNER_Z(c0), e / 4, ep_pos[e], c->nrm ? ep_nrm[e] : NULL);
+            for (int a = 0; a < 3; a++) {
+                centre[a] += ep_pos[e][a];
+                cn[a] += c->nrm ? ep_nrm[e][a] : 0.0f;
+            }
+            cut++;
+        }
+        for (int a = 0; a < 3; a++)
+            centre[a] /= (float)(cut ? cut : 1);
+        for (int b = 0; b < METHODS_SLOT_COUNT - METHODS_SLOT_CENTRE; b++) {
+            if (!(used & (1u << b)))
+                continue;
+            const uint64_t id = w->private_next++;
+            ids[METHODS_SLOT_CENTRE + b] = (uint32_t)id;
+            float *pos = c->pos + 3 * id, *nrm = c->nrm ? c->nrm + 3 * id : NULL;
+            double nn[3];
+            for (int a = 0; a < 3; a++) {
+                if (b == 0) {
+                    pos[a] = centre[a];
+                    nn[a] = cn[a];
+                } else {
+                    pos[a] = 0.5f * (centre[a] + ep_pos[b - 1][a]);
+                    nn[a] = (double)cn[a] / (cut ? cut : 1) + (double)ep_nrm[b - 1][a];
+                }
+            }
+            if (nrm) {
+                double len = sqrt(nn[0] * nn[0] + nn[1] * nn[1] + nn[2] * nn[2]);
+                for (int a = 0; a < 3; a++)
+                    nrm[a] = len > 0.0 ? (float)(nn[a] / len) : (a == 2 ? 1.0f : 0.0f);
+            }
+        }
+    }
+    for (int t = 0; t < n; t++) {
+        out[3 * t] = ids[slots[3 * t]];
+        out[3 * t + 1] = ids[slots[3 * t + (c->flip ? 2 : 1)]];
+        out[3 * t + 2] = ids[slots[3 * t + (c->flip ? 1 : 2)]];
+        if (org)
+            org[t] = ISOMEND_ORIGIN_TABLE;
+    }
+    return (unsigned)n;
+}
+
+/*
  * Marches layer k.  mode 0 counts triangles and statistics; mode 1 writes
  * the triangles from index `first`.  Returns the number of triangles.
  */
@@ -604,6 +830,9 @@ static uint64_t march_layer(worker *w, int64_t k, int mode, uint64_t first)
     uint32_t *out = mode ? c->tri + 3 * first : NULL;
     uint8_t *org = mode && c->org ? c->org + first : NULL;
     uint8_t *cases = w->cases;
+    w->private_count = 0;
+    if (mode && c->general)
+        w->private_next = c->slice_first[N2] + c->layer_private[k];
 
     for (int64_t j = 0; j + 1 < N1; j++) {
         const rowinfo *rows[4] = {&r0[j], &r0[j + 1], &r1[j], &r1[j + 1]};
@@ -636,12 +865,22 @@ static uint64_t march_layer(worker *w, int64_t k, int mode, uint64_t first)
             const int64_t i = word + first_flag(mixed);
             mixed &= mixed - 1;
             const unsigned cfg = cases[i];
-            const unsigned nt = isomend_mc_tri_count[cfg];
             busy++;
+            unsigned nt;
+            if (c->general) {
+                nt = method_cube(w, i, j, k, cfg, mode, ep, mk0, mk1, out, org);
+                if (mode) {
+                    out += 3 * nt;
+                    if (org)
+                        org += nt;
+                }
+            } else {
+                nt = isomend_mc_tri_count[cfg];
+            }
             if (!mode) {
                 st->case_histogram[isomend_mc_case_of[cfg]]++;
                 st->triangles_by_origin[ISOMEND_ORIGIN_TABLE] += nt;
-            } else {
+            } else if (!c->general) {
                 const signed char *te = isomend_mc_tri_edges[cfg];
                 for (unsigned q = 0; q < nt; q++, te += 3) {
                     uint32_t v0 = ep[te[0]][i], v1 = ep[te[1]][i], v2 = ep[te[2]][i];
@@ -729,6 +968,7 @@ static void run_chunk(worker *w, int64_t chunk)
                 w->stats.nan_samples += w->nan[(N2 - 1) % 3];
             }
             c->layer_first[k] = march_layer(w, k, 0, 0);
+            c->layer_private[k] = w->private_count;
         }
     } else {
         scan_slice(w, k0, 1, c->slice_first[k0], 1);
@@ -816,7 +1056,7 @@ static int worker_init(worker *w, ctx *c)
     if (!w->cases)
         return 0;
     for (int r = 0; r < 2; r++) {
-        w->map[r] = malloc(sizeof(uint32_t) * 3 * (size_t)(N0 * N1));
+        w->map[r] = malloc(sizeof(uint32_t) * (size_t)c->planes * (size_t)(N0 * N1));
         if (!w->map[r])
             return 0;
     }
@@ -892,6 +1132,9 @@ isomend_status isomend_extract(const isomend_volume *vol, const isomend_options 
     }
     grid_threshold(g);
     c->method = o->method;
+    c->general = methods_handles(o->method);
+    c->tetra = o->method == ISOMEND_METHOD_TETRA;
+    c->planes = c->tetra ? 6 : 3;
     c->flip = (o->flags & ISOMEND_FLAG_FLIP) != 0;
     c->want_normals = !(o->flags & ISOMEND_FLAG_NO_NORMALS);
     c->want_origins = !(o->flags & ISOMEND_FLAG_NO_ORIGINS);
@@ -915,8 +1158,9 @@ isomend_status isomend_extract(const isomend_volume *vol, const isomend_options 
     worker *ws = calloc((size_t)nthreads, sizeof(*ws));
     c->slice_first = calloc((size_t)N2 + 1, sizeof(uint64_t));
     c->layer_first = calloc((size_t)N2, sizeof(uint64_t));
+    c->layer_private = calloc((size_t)N2, sizeof(uint64_t));
     status = ISOMEND_ERR_OUT_OF_MEMORY;
-    if (!ws || !c->slice_first || !c->layer_first ||
+    if (!ws || !c->slice_first || !c->layer_first || !c->layer_private ||
         (uint64_t)N0 * (uint64_t)N1 > (uint64_t)SIZE_MAX / 16)
         goto done;
     for (int t = 0; t < nthreads; t++)
@@ -938,7 +1182,12 @@ isomend_status isomend_extract(const isomend_volume *vol, const isomend_options 
         c->slice_first[k] = nv;
         nv += n;
     }
-    c->slice_first[N2] = nv;
+    c->slice_first[N2] = nv; /* cube-private vertices follow the slices' */
+    for (int64_t k = 0; k < layers; k++) {
+        uint64_t n = c->layer_private[k];
+        c->layer_private[k] = nv - c->slice_first[N2];
+        nv += n;
+    }
     for (int64_t k = 0; k < layers; k++) {
         uint64_t n = c->layer_first[k];
         c->layer_first[k] = nt;
@@ -1012,6 +1261,7 @@ done:
     free(ws);
     free(c->slice_first);
     free(c->layer_first);
+    free(c->layer_private);
     free(c);
     return status;
 }

@@ -161,6 +161,43 @@ static void check_dmc(const isomend_volume *vol, double iso, unsigned flags, int
     isomend_mesh_destroy(m8);
 }
 
+/*
+ * The methods beyond the thesis (facial, gradient, asymptotic, tetra, mc33)
+ * through the extraction API: closed (padded), oriented 2-manifolds, the same
+ * mesh for every thread count.  Their topology against the trilinear
+ * interpolant is verified in tests/topology.
+ */
+static void check_methods(const isomend_volume *vol, double iso, unsigned flags, int closed)
+{
+    for (int m = ISOMEND_METHOD_FACIAL; m < ISOMEND_METHOD_COUNT; m++) {
+        if (!isomend_method_available((isomend_method)m))
+            continue;
+        isomend_stats st;
+        isomend_mesh *a = extract(vol, iso, (isomend_method)m, flags, 1, &st);
+        isomend_mesh *b = extract(vol, iso, (isomend_method)m, flags, 3, NULL);
+        if (!a || !b)
+            continue;
+        CHECK(same_mesh(a, b));
+        isomend_check_report r;
+        CHECK_EQ_INT(isomend_mesh_check(a, &r), ISOMEND_OK);
+        CHECK_EQ_INT(r.hole_edges, 0);
+        CHECK_EQ_INT(r.nonmanifold_edges, 0);
+        CHECK_EQ_INT(r.misoriented_edges, 0);
+        CHECK_EQ_INT(r.nonmanifold_vertices, 0);
+        CHECK_EQ_INT(st.vertices, isomend_mesh_vertex_count(a));
+        if (closed) {
+            CHECK_EQ_INT(r.border_edges, 0);
+            if (isomend_mesh_triangle_count(a))
+                CHECK(signed_volume(a) > 0.0);
+        }
+        const float *p = isomend_mesh_positions(a);
+        for (size_t i = 0; i < 3 * isomend_mesh_vertex_count(a); i++)
+            CHECK(isfinite(p[i]));
+        isomend_mesh_destroy(a);
+        isomend_mesh_destroy(b);
+    }
+}
+
 static void test_noise_shapes(void)
 {
     static const int shapes[][3] = {{2, 2, 2}, {3, 5, 7}, {17, 9, 4}, {16, 16, 16},
@@ -183,6 +220,9 @@ static void test_noise_shapes(void)
             check_dmc(&vol, 0.5, 0, 0);
         check_dmc(&vol, 0.5, ISOMEND_FLAG_PAD, 1);
         check_dmc(&vol, 0.5, ISOMEND_FLAG_PAD | ISOMEND_FLAG_NO_NORMALS, 1);
+        check_methods(&vol, 0.5, ISOMEND_FLAG_PAD, 1);
+        if (can_unpadded)
+            check_methods(&vol, 0.5, 0, 0);
         isomend_stats st;
         isomend_mesh *m = extract(&vol, 0.5, ISOMEND_METHOD_DMC, ISOMEND_FLAG_PAD, 0, &st);
         total_inverted += (long)st.inverted_combinations;
@@ -220,6 +260,7 @@ static void test_ties_and_types(void)
         isomend_volume_init(&ref, f64, ISOMEND_F64, nx, ny, nz);
         check_dmc(&ref, iso, ISOMEND_FLAG_PAD, 1);
         check_dmc(&ref, iso, 0, 0);
+        check_methods(&ref, iso, ISOMEND_FLAG_PAD, 1);
         isomend_mesh *want = extract(&ref, iso, ISOMEND_METHOD_DMC, ISOMEND_FLAG_PAD, 1, NULL);
         for (int t = 0; t < 6; t++) {
             isomend_volume vol;
@@ -273,6 +314,7 @@ static void test_nan(void)
     isomend_volume_init(&vol, v, ISOMEND_F32, nx, ny, nz);
     check_dmc(&vol, 0.3, ISOMEND_FLAG_PAD, 1);
     check_dmc(&vol, 0.3, 0, 0);
+    check_methods(&vol, 0.3, ISOMEND_FLAG_PAD, 1);
     isomend_stats st;
     isomend_mesh *m = extract(&vol, 0.3, ISOMEND_METHOD_DMC, 0, 2, &st);
     CHECK_EQ_INT(st.nan_samples, nans);
