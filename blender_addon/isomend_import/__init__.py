@@ -286,6 +286,8 @@ class IMPORT_MESH_OT_slice_stack(Operator, ImportHelper):
             self.report({'ERROR'}, str(exc))
             return {'CANCELLED'}
         if self.modal_ui and not bpy.app.background and context.window is not None:
+            # Cleared so that a redo (Adjust Last Operation) runs synchronously.
+            self.modal_ui = False
             return self._start_modal(context, job)
         wm = context.window_manager
         wm.progress_begin(0, 1000)
@@ -295,6 +297,8 @@ class IMPORT_MESH_OT_slice_stack(Operator, ImportHelper):
             else:
                 job.printer = lambda stage, fraction: wm.progress_update(int(1000 * _overall(stage, fraction)))
             job.run()
+            if not bpy.app.background:
+                wm.progress_update(int(1000 * _overall("mesh", 0.0)))
             return self._finish(context, job)
         finally:
             wm.progress_end()
@@ -319,8 +323,11 @@ class IMPORT_MESH_OT_slice_stack(Operator, ImportHelper):
             if not self._thread.is_alive():
                 self._thread.join()
                 wm.event_timer_remove(self._timer)
-                wm.progress_end()
-                return self._finish(context, job)
+                wm.progress_update(int(1000 * _overall("mesh", 0.0)))
+                try:
+                    return self._finish(context, job)  # builds the mesh: progress stays up
+                finally:
+                    wm.progress_end()
             return {'RUNNING_MODAL'}
         if event.type == 'ESC':
             return {'RUNNING_MODAL'}
