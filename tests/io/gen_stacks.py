@@ -226,6 +226,23 @@ for k in range(4):
     tifffile.imwrite(os.path.join(f, "L_%d.tif" % k), vol[k], photometric="minisblack")
 ok("L_phantom", "u8", vol, "folder", [f])
 
+# NRRD (attached raw, little endian): isomend_io opens it through io/common's reader
+f = d("nrrd")
+vol = rand((5, NY, NX), np.uint16, 0, 65535)
+with open(os.path.join(f, "vol.nrrd"), "wb") as fh:
+    fh.write(("NRRD0004\ntype: uint16\ndimension: 3\nsizes: %d %d %d\nencoding: raw\n"
+              "endian: little\nspacings: 0.5 0.75 2\n\n" % (NX, NY, 5)).encode())
+    fh.write(np.ascontiguousarray(vol).astype("<u2").tobytes())
+ok("nrrd", "u16", vol, "nrrd", [os.path.join(f, "vol.nrrd")], spacing=(0.5, 0.75, 2.0),
+   spsrc="header,header,header")
+import gzip
+with open(os.path.join(f, "vol_gz.nrrd"), "wb") as fh:
+    fh.write(("NRRD0004\ntype: short\ndimension: 3\nsizes: %d %d %d\nencoding: gzip\n"
+              "endian: big\n\n" % (NX, NY, 5)).encode())
+    vol = rand((5, NY, NX), np.int16, -32768, 32767)
+    fh.write(gzip.compress(np.ascontiguousarray(vol).astype(">i2").tobytes()))
+ok("nrrd_gzip_be", "i16", vol, "nrrd", [os.path.join(f, "vol_gz.nrrd")])
+
 # ---- bad stacks ------------------------------------------------------------------------------
 
 def gray_folder(name, n=3, dt=np.uint8, fmt="uint8", compression="none", ext="tif"):

@@ -155,6 +155,14 @@ static void test_good(char **f, int nf) {
             CHECK_EQ_INT(sps[a], ISOMEND_IO_SPACING_DEFAULT);
         }
     }
+    /* analysis: streamed (or from the loaded volume), consistent with the data */
+    isomend_io_summary sum;
+    CHECK_EQ_INT(isomend_io_analyse(src, &sum), ISOMEND_IO_OK);
+    uint64_t total = sum.nan_samples;
+    for (int b = 0; b < ISOMEND_IO_HISTOGRAM_BINS; b++) total += sum.histogram[b];
+    CHECK_EQ_INT(sum.samples, (uint64_t)want[0] * (uint64_t)want[1] * (uint64_t)want[2]);
+    CHECK_EQ_INT(total, sum.samples);
+    CHECK(sum.min <= sum.suggested_iso && sum.suggested_iso <= sum.max);
     CHECK(isomend_io_slice_path(src, 0) != NULL);
     CHECK(isomend_io_slice_path(src, dims[2]) == NULL);
     CHECK(strlen(isomend_io_format(src)) > 0);
@@ -492,6 +500,46 @@ static void test_misuse(void) {
     printf("ok   misuse and options\n");
 }
 
+/* ---- a headerless raw file, through io/common's reader ---- */
+
+static void test_raw(void) {
+    size_t n;
+    char *p = join("u16_pattern_all.expected.raw");
+    unsigned char *expected = read_file(p, &n);
+    isomend_io_options o;
+    isomend_io_options_init(&o);
+    o.raw_dims[0] = 13;
+    o.raw_dims[1] = 9;
+    o.raw_dims[2] = 13;
+    o.raw_type = ISOMEND_U16;
+    const char *paths[1] = {p};
+    isomend_io_source *src = NULL;
+    CHECK_EQ_INT(isomend_io_create(&src), ISOMEND_IO_OK);
+    CHECK_EQ_INT(isomend_io_open(src, paths, 1, &o), ISOMEND_IO_OK);
+    CHECK_EQ_INT(isomend_io_source_kind(src), ISOMEND_IO_KIND_RAW);
+    CHECK_EQ_INT(isomend_io_volume_bytes(src), n);
+    unsigned char *buf = malloc(n);
+    CHECK_EQ_INT(isomend_io_read(src, buf, n), ISOMEND_IO_OK);
+    CHECK(memcmp(buf, expected, n) == 0);
+    size_t sb = (size_t)isomend_io_slice_bytes(src);
+    CHECK_EQ_INT(isomend_io_read_slice(src, 7, buf, sb), ISOMEND_IO_OK);
+    CHECK(memcmp(buf, expected + 7 * sb, sb) == 0);
+    isomend_io_summary sum;
+    CHECK_EQ_INT(isomend_io_analyse(src, &sum), ISOMEND_IO_OK);
+    CHECK_EQ_INT(sum.samples, 13 * 9 * 13);
+    isomend_io_destroy(src);
+    /* wrong dimensions: the reader's message names the file and the sizes */
+    o.raw_dims[2] = 14;
+    CHECK_EQ_INT(isomend_io_create(&src), ISOMEND_IO_OK);
+    CHECK(isomend_io_open(src, paths, 1, &o) != ISOMEND_IO_OK);
+    CHECK(strstr(isomend_io_message(src), "u16_pattern_all.expected.raw") != NULL);
+    printf("ok   raw through io/common: %s\n", isomend_io_message(src));
+    isomend_io_destroy(src);
+    free(buf);
+    free(expected);
+    free(p);
+}
+
 int main(int argc, char **argv) {
     if (argc != 2) {
         fprintf(stderr, "usage: %s DIR\n", argv[0]);
@@ -522,6 +570,7 @@ int main(int argc, char **argv) {
     fclose(m);
     CHECK(cases >= 30);
     test_misuse();
+    test_raw();
     test_progress();
     test_analyse();
     test_mesh_equals_raw("u16_pattern/slice_%04d.tif", "u16_pattern_all.expected.raw", ISOMEND_U16,

@@ -310,6 +310,8 @@ double otsu(const uint64_t *h, int bins, double mn, double mx, bool integer) {
     return t;
 }
 
+void do_load(isomend_io_source *s, isomend_volume *vol, double *seconds);
+
 // Calls f(data, samples) for every slice: from the loaded volume, else
 // streamed (worker threads for image stacks, flat memory).
 template <typename F> void for_each_slice(isomend_io_source *s, F &&f, double base, double part) {
@@ -317,6 +319,11 @@ template <typename F> void for_each_slice(isomend_io_source *s, F &&f, double ba
     const size_t sb = (size_t)slice_bytes(s);
     isomend_io_progress_fn fn = s->opts.progress;
     void *user = s->opts.progress_user;
+    if (!s->loaded && s->is_file_volume && s->file_info.encoding == ISOMEND_FILEIO_ENC_GZIP) {
+        // Slice k of a gzip stream costs decompressing slices 0..k: load once
+        // (with the memory check) rather than stream in quadratic time.
+        do_load(s, nullptr, nullptr);
+    }
     if (s->loaded) {
         for (int64_t k = 0; k < dim(s, 2); k++) f(s->volume.get() + (size_t)k * sb, n);
         return;
