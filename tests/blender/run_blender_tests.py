@@ -124,6 +124,15 @@ def main():
                   "params": dict(base, spacing=(1.0, 1.0, 1.0), unit_scale=0.01, method="MC",
                                  gradient_normals=False),
                   "cli_source": [os.path.join(folder, n) for n in names]})
+    # methods added to the library after the thesis's three appear in the enum
+    sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(args.zip)), "isomend_import"))
+    import isomend  # the staged wrapper next to the zip
+    extra = [m for m in isomend.available_methods() if m not in ("dmc", "mc", "durst")]
+    if extra:
+        pick = "mc33" if "mc33" in extra else extra[0]
+        cases.append({"name": "foam_stack", "directory": folder, "files": [],
+                      "params": dict(base, spacing=(1.0, 1.0, 1.0), unit_scale=0.01, method=pick.upper()),
+                      "cli_source": [folder]})
     # 2. float32 multi-page TIFF, suggested iso, Durst
     multi = os.path.join(work, "peanut.tif")
     tifffile.imwrite(multi, blob())

@@ -180,6 +180,15 @@ def test_f1_methods_mc_leaves_holes_dmc_mends_them_durst_adds_polygons():
     same_mesh(by_id, dmc)
 
 
+def test_every_available_method_runs_by_name_and_closes_a_padded_sphere():
+    vol = sphere()
+    for name in isomend.available_methods():
+        m = isomend.extract(vol, 0.0, method=name, pad=True)
+        assert m.method == name and m.triangle_count > 0
+        rep = m.check()
+        assert rep["hole_edges"] == 0 and rep["border_edges"] == 0, (name, rep)
+
+
 def test_spacing_and_origin_place_the_mesh_in_world_units():
     vol = sphere()
     a = isomend.extract(vol, 0.0)
