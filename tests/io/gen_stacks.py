@@ -326,6 +326,11 @@ err("one_slice_file", TOO_FEW, "b_00.tif", [paths[0]])
 err("glob_no_match", NOT_FOUND, "nomatch_*.tif", [os.path.join(OUT, "u8_folder", "nomatch_*.tif")])
 err("pattern_missing", NOT_FOUND, "slice_0013.tif", [os.path.join(OUT, "u16_pattern", "slice_%04d.tif")],
     first=10, count=5)
+# an ImageJ hyperstack with 2 channels: its pages alternate channels, not slices
+f = d("hyperstack")
+tifffile.imwrite(os.path.join(f, "hs.tif"), rand((3, 2, NY, NX), np.uint8, 0, 255), imagej=True,
+                 metadata={"axes": "ZCYX"})
+err("hyperstack", UNSUPPORTED, "2 channels", [os.path.join(f, "hs.tif")])
 err("rgb_no_channel", UNSUPPORTED, "--channel", [os.path.join(OUT, "rgb")])
 err("rgb_bad_channel", UNSUPPORTED, "no channel 5", [os.path.join(OUT, "rgb")], channel=5)
 

@@ -176,6 +176,24 @@ static void spacing_from_metadata(const ImageSpec &spec, StackInfo &info) {
     }
 }
 
+// An ImageJ hyperstack stores its pages in channel, slice, frame order: taking
+// the pages as slices would interleave channels or time points silently.
+static void refuse_imagej_hyperstack(const Slice &s, const ImageSpec &spec) {
+    std::string desc = spec.get_string_attribute("ImageDescription");
+    if (desc.rfind("ImageJ=", 0) != 0) return;
+    for (const char *key : {"channels", "frames"}) {
+        std::string k = std::string("\n") + key + "=";
+        size_t p = desc.find(k);
+        if (p == std::string::npos) continue;
+        long n = std::strtol(desc.c_str() + p + k.size(), nullptr, 10);
+        if (n > 1)
+            throw IoError(ISOMEND_IO_ERR_UNSUPPORTED,
+                          s.path + ": an ImageJ hyperstack with " + std::to_string(n) + " " + key +
+                              "; its pages interleave them (save one " +
+                              (key[0] == 'c' ? "channel" : "time point") + " as a stack in ImageJ)");
+    }
+}
+
 static void describe_first(const Slice &s, const ImageSpec &spec, int channel,
                            StackInfo &info) {
     std::string name = slice_name(s);
@@ -248,6 +266,7 @@ static void describe_first(const Slice &s, const ImageSpec &spec, int channel,
     if (unsigned_int && info.bits > 0 && info.bits < container_bits)
         info.shift = container_bits - info.bits;
     spacing_from_metadata(spec, info);
+    if (s.multipage) refuse_imagej_hyperstack(s, spec);
 }
 
 static void check_against_first(const Slice &s, const ImageSpec &spec,
