@@ -197,6 +197,18 @@ for i, case in enumerate(SPEC["cases"]):
               "case %d: dimensions %s are not case %d's %s scaled by %s"
               % (i, dims_by_case[-1], ref, dims_by_case[ref], ratio))
 
+# ------------------------------------------------------------ filepath alone (as a script would)
+peanut = [c for c in SPEC["cases"] if c["name"] == "peanut"]
+if peanut:
+    c = peanut[0]
+    reset()
+    bpy.ops.import_mesh.slice_stack(filepath=c["directory"] + "/" + c["files"][0], method="DURST",
+                                    smooth=False)
+    objs = list(bpy.data.objects)
+    check(len(objs) == 1 and objs[0].name == "peanut"
+          and len(objs[0].data.polygons) == c["cli"]["triangles"],
+          "filepath= import: %s" % [(o.name, len(o.data.polygons)) for o in objs])
+
 # ------------------------------------------------------------ errors leave nothing behind
 for err in SPEC["errors"]:
     reset()

@@ -413,3 +413,23 @@ def test_raw_source(stack, tmp_path):
     with isomend.open_source(str(path), raw_dims=(16, 14, 12), raw_type="u16", raw_big_endian=True) as src:
         assert src.kind == "raw"
         np.testing.assert_array_equal(src.read(), stack["volume"])
+
+
+def test_channels_of_an_rgb_stack(tmp_path):
+    rng = np.random.default_rng(5)
+    rgb = rng.integers(0, 255, (4, 6, 7, 3), dtype=np.uint8)  # z, y, x, channel
+    for k in range(4):
+        tifffile.imwrite(str(tmp_path / ("c_%d.tif" % k)), rgb[k], photometric="rgb")
+    with isomend.open_source(str(tmp_path), channel=1) as src:
+        assert src.dims == (7, 6, 4)
+        np.testing.assert_array_equal(src.read(), rgb[..., 1])
+    with isomend.open_source(str(tmp_path), channel="luma") as src:
+        assert np.dtype(src.dtype) == np.float32
+        luma = src.read()
+    want = rgb.astype(np.float64) @ np.array([0.2126, 0.7152, 0.0722])
+    assert np.abs(luma - want).max() < 1e-3  # Rec.709 weights, in the samples' own units
+    with pytest.raises(isomend.IsomendError) as err:
+        isomend.open_source(str(tmp_path))  # channel "auto" with three channels
+    assert err.value.status_name == "UNSUPPORTED"
+    assert "c_0.tif" in str(err.value) and "channel" in str(err.value)
+
