@@ -119,8 +119,18 @@ typedef struct rowinfo {
  * vectorises them: restrict pointers, the threshold in a local, 32-bit
  * counters.  A strided or misaligned row takes the memcpy loop.
  */
+/*
+ * On x86-64 the hot loops are also compiled for AVX2 and picked at load time
+ * (GCC function multiversioning); the baseline build stays SSE2.
+ */
+#if defined(__GNUC__) && !defined(__clang__) && defined(__x86_64__) && defined(__linux__)
+#define ISOMEND_HOT_LOOP __attribute__((target_clones("avx2", "default")))
+#else
+#define ISOMEND_HOT_LOOP
+#endif
+
 #define DEFINE_CLASSIFY(NAME, T)                                                       \
-    static uint64_t NAME(const char *row, int64_t n, int64_t st, T t, int count_nans,  \
+    ISOMEND_HOT_LOOP static uint64_t NAME(const char *row, int64_t n, int64_t st, T t, int count_nans,  \
                          uint8_t *restrict o)                                          \
     {                                                                                  \
         uint32_t nn = 0;                                                               \
@@ -153,7 +163,8 @@ DEFINE_CLASSIFY(classify_i32, int32_t)
 DEFINE_CLASSIFY(classify_f32, float)
 DEFINE_CLASSIFY(classify_f64, double)
 
-/* Classifies row (j, k) of the marched grid into s[0..N0-1]; adds NaNs to *nans. */
+/* Classifies row (j, k) of the marched grid into s[0..N0-1]; adds its NaNs to
+ * *nans unless nans is NULL (then they are not counted). */
 static void classify_row(const grid *g, int64_t j, int64_t k, uint8_t *s, rowinfo *ri,
                          uint64_t *nans)
 {
@@ -173,6 +184,7 @@ static void classify_row(const grid *g, int64_t j, int64_t k, uint8_t *s, rowinf
     uint8_t *o = s + p;
     const int64_t n = g->n[0], st = g->st[0];
     const char *row = g->data + rj * g->st[1] + rk * g->st[2];
+    uint64_t nn = 0;
     if (g->constant >= 0) {
         memset(o, g->constant, (size_t)n);
     } else {
@@ -182,10 +194,12 @@ static void classify_row(const grid *g, int64_t j, int64_t k, uint8_t *s, rowinf
         case ISOMEND_U16: classify_u16(row, n, st, (uint16_t)g->ithr, 0, o); break;
         case ISOMEND_I16: classify_i16(row, n, st, (int16_t)g->ithr, 0, o); break;
         case ISOMEND_I32: classify_i32(row, n, st, (int32_t)g->ithr, 0, o); break;
-        case ISOMEND_F32: *nans += classify_f32(row, n, st, g->fthr, 1, o); break;
-        case ISOMEND_F64: *nans += classify_f64(row, n, st, g->iso, 1, o); break;
+        case ISOMEND_F32: nn = classify_f32(row, n, st, g->fthr, nans != NULL, o); break;
+        case ISOMEND_F64: nn = classify_f64(row, n, st, g->iso, nans != NULL, o); break;
         }
     }
+    if (nans)
+        *nans += nn;
     ri->first = s[0];
     ri->last = s[N0 - 1];
     const uint8_t *d = memchr(s, s[0] ^ 1, (size_t)N0);
@@ -450,7 +464,8 @@ static const uint8_t *signs(worker *w, int64_t k, const rowinfo **ri)
     if (w->sk[r] != k) {
         uint64_t nans = 0;
         for (int64_t j = 0; j < g->N[1]; j++)
-            classify_row(g, j, k, w->sg[r] + j * g->N[0], &w->ri[r][j], &nans);
+            classify_row(g, j, k, w->sg[r] + j * g->N[0], &w->ri[r][j],
+                         w->c->pass == 1 ? &nans : NULL);
         w->nan[r] = nans;
         w->sk[r] = k;
     }
@@ -523,7 +538,7 @@ static uint64_t number_crossings(const ctx *c, const uint8_t *a, const uint8_t *
 }
 
 /* Number of i in [from, to] with a[i] != b[i]; vectorises. */
-static uint64_t count_differences(const uint8_t *restrict a, const uint8_t *restrict b,
+ISOMEND_HOT_LOOP static uint64_t count_differences(const uint8_t *restrict a, const uint8_t *restrict b,
                                   int64_t from, int64_t to)
 {
     uint32_t n = 0;
@@ -533,7 +548,7 @@ static uint64_t count_differences(const uint8_t *restrict a, const uint8_t *rest
 }
 
 /* Configurations of the cubes [from, to] of a row from its four sample rows. */
-static void row_cases(const uint8_t *restrict a, const uint8_t *restrict b,
+ISOMEND_HOT_LOOP static void row_cases(const uint8_t *restrict a, const uint8_t *restrict b,
                       const uint8_t *restrict c, const uint8_t *restrict d, int64_t from,
                       int64_t to, uint8_t *restrict cases)
 {
