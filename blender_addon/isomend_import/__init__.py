@@ -403,13 +403,16 @@ def _make_object(context, name, mesh, unit_scale, smooth):
         me.loops.foreach_set("vertex_index", mesh.triangles.reshape(-1).view(np.int32))
         me.polygons.add(nt)
         me.polygons.foreach_set("loop_start", np.arange(0, 3 * nt, 3, dtype=np.int32))
-        me.polygons.foreach_set("loop_total", np.full(nt, 3, dtype=np.int32))
+        if not bpy.types.MeshPolygon.bl_rna.properties["loop_total"].is_readonly:
+            # Blender < 4.0 stores sizes; 4.0+ derives them from loop_start.
+            me.polygons.foreach_set("loop_total", np.full(nt, 3, dtype=np.int32))
         me.update(calc_edges=True)
         if smooth and nt:
             me.polygons.foreach_set("use_smooth", np.ones(nt, dtype=bool))
         if smooth and mesh.normals is not None and nt:
-            me.use_auto_smooth = True
-            me.auto_smooth_angle = np.pi  # never split: the gradient normals are per vertex
+            if hasattr(me, "use_auto_smooth"):  # Blender < 4.1 needs it for custom normals
+                me.use_auto_smooth = True
+                me.auto_smooth_angle = np.pi  # never split: the gradient normals are per vertex
             # A list is parsed ~3x faster than a numpy array (element by element) here.
             me.normals_split_custom_set_from_vertices(mesh.normals.tolist())
         obj = bpy.data.objects.new(me.name, me)
