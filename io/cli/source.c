@@ -281,6 +281,10 @@ int cli_source_open(const char *const *paths, int n, const cli_source_opts *o, c
         for (int a = 0; a < 3; a++) src->spacing_from[a] = "default";
         return apply_overrides(o, src);
     }
+    if (strncmp(paths[0], "builtin:", 8) == 0) {
+        cli_error("%s: unknown built-in volume (builtin:f1 or builtin:f2)", paths[0]);
+        return CLI_EXIT_USAGE;
+    }
     if (n == 1 && (o->have_raw || isomend_fileio_is_nrrd_path(paths[0]))) {
         if (stack_opts) {
             cli_error("%s: --first/--count/--step/--channel only apply to slice stacks", paths[0]);

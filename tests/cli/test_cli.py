@@ -678,8 +678,8 @@ def test_errors(r, have_io):
     E(r, "check option for extract", ["extract", "f1.nrrd", *ok, "--box", "0,0,0,1,1,1", "-o", "o.ply"], 2,
       ["--box"], ["o.ply"])
     E(r, "unknown command", ["extrude", "f1.nrrd"], 2, ["extrude"], [])
-    E(r, "builtin unknown", ["extract", "builtin:f3", *ok, "-o", "o.ply"], 1 if have_io else 2,
-      ["builtin:f3"], ["o.ply"])
+    E(r, "builtin unknown", ["extract", "builtin:f3", *ok, "-o", "o.ply"], 2,
+      ["builtin:f3", "builtin:f1"], ["o.ply"])
     E(r, "builtin with --raw", ["extract", "builtin:f1", "--raw", "4,4,4:f32", *ok, "-o", "o.ply"], 2,
       ["builtin:f1", "--raw"], ["o.ply"])
     if have_io:
