@@ -84,7 +84,7 @@ static const char *const usage_extract =
     "  --channel N|luma         channel of multi-channel images\n"
 #endif
     "\n"
-    "Exit status: 0 written, 1 failure, 2 usage error.\n";
+    "Exit status: 0 written, 1 failure, 2 usage error, 130 interrupted (nothing written).\n";
 
 static const char *const usage_check =
     "usage: isomend check MESH [--box MINX,MINY,MINZ,MAXX,MAXY,MAXZ] [--json FILE|-] [--quiet]\n"
