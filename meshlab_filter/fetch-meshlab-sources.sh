@@ -4,11 +4,15 @@
 # installed (Debian ships no meshlab-dev package).  The sources are never
 # committed: they live in a cache folder, by default in the build tree.
 #
-# Usage: fetch-meshlab-sources.sh CACHE_DIR [VERSION]
-#   CACHE_DIR  where to keep the download and the unpacked tree
+# Usage: fetch-meshlab-sources.sh CACHE_DIR [VERSION [SUITE]]
+#   CACHE_DIR  where to keep the unpacked tree
 #   VERSION    Debian version of the source package (default: the installed
 #              meshlab package's version, e.g. 2020.09+dfsg1-2)
-# Prints the unpacked tree's path (holding src/ and vcglib/) on stdout.
+#   SUITE      take the package from this Debian suite of the same archive
+#              instead of the system's suites (e.g. "trixie" for MeshLab
+#              2022.02, used to compile-check the newer-API adapter).  Only the
+#              upstream tarball is unpacked then (no Debian patches).
+# Prints the unpacked tree's path on stdout.
 #
 # Idempotent: a finished tree (marked by CACHE_DIR/<tree>/.isomend-complete)
 # is reused without touching the network.  A tree is unpacked under a
@@ -20,15 +24,18 @@
 # entries), a private list/cache folder inside CACHE_DIR and no locking, so
 # it does not interfere with the system's apt.  apt checks the downloaded
 # files against the hashes of the signed Sources index (Signed-By keyring);
-# dpkg-source then unpacks them and applies Debian's patches.
-# Measured on this machine: ~3 s (10 MB Sources index, 11.6 MB tarball).
+# dpkg-source then unpacks them and applies Debian's patches.  Afterwards only
+# the unpacked tree is kept.
+# Measured on this machine: 3-9 s (10 MB Sources index, 11.6 MB tarball,
+# 45 MB unpacked).
 set -euo pipefail
 
 die() { echo "fetch-meshlab-sources: $*" >&2; exit 1; }
 
-[ $# -ge 1 ] && [ $# -le 2 ] || die "usage: $0 CACHE_DIR [VERSION]"
+[ $# -ge 1 ] && [ $# -le 3 ] || die "usage: $0 CACHE_DIR [VERSION [SUITE]]"
 cache="$1"
 version="${2:-}"
+suite="${3:-}"
 if [ -z "$version" ]; then
   version="$(dpkg-query -W -f='${Version}' meshlab 2>/dev/null || true)"
   [ -n "$version" ] || die "the meshlab package is not installed and no VERSION was given"
@@ -41,7 +48,7 @@ if [ -f "$tree/.isomend-complete" ]; then
   exit 0
 fi
 
-for tool in apt-get dpkg-source; do
+for tool in apt-get dpkg-source tar; do
   command -v "$tool" >/dev/null || die "'$tool' not found (install apt and dpkg-dev)"
 done
 
@@ -51,22 +58,35 @@ tree="$cache/meshlab-$upstream"
 apt_dir="$cache/apt"
 mkdir -p "$apt_dir/parts" "$apt_dir/lists/partial" "$apt_dir/cache/archives/partial"
 
-# The deb-src twin of the system's Debian entries (deb822 and one-line forms).
+# The deb-src twin of the system's Debian entries (deb822 and one-line
+# forms); with SUITE, the first Debian entry with its suites replaced.
 src_list="$apt_dir/parts/isomend-deb-src.sources"
+oneline="$apt_dir/parts/isomend-deb-src.list"
 : >"$src_list.tmp"
+: >"$oneline.tmp"
 for f in /etc/apt/sources.list.d/*.sources; do
   [ -f "$f" ] || continue
   grep -q 'debian' "$f" || continue
+  if [ -n "$suite" ]; then
+    # first stanza only (the main archive, not -security)
+    awk 'BEGIN{RS=""; ORS="\n\n"} NR==1' "$f" \
+      | sed -e 's/^Types:.*$/Types: deb-src/' -e "s/^Suites:.*\$/Suites: $suite/" >>"$src_list.tmp"
+    break
+  fi
   sed -e 's/^Types:.*$/Types: deb-src/' "$f" >>"$src_list.tmp"
   echo >>"$src_list.tmp"
 done
-oneline="$apt_dir/parts/isomend-deb-src.list"
-: >"$oneline.tmp"
-for f in /etc/apt/sources.list /etc/apt/sources.list.d/*.list; do
-  [ -f "$f" ] || continue
-  grep -E '^[[:space:]]*deb[[:space:]].*debian' "$f" | sed -E 's/^[[:space:]]*deb[[:space:]]/deb-src /' \
-    >>"$oneline.tmp" || true
-done
+if [ ! -s "$src_list.tmp" ]; then
+  for f in /etc/apt/sources.list /etc/apt/sources.list.d/*.list; do
+    [ -f "$f" ] || continue
+    grep -E '^[[:space:]]*deb[[:space:]].*debian' "$f" | sed -E 's/^[[:space:]]*deb[[:space:]]/deb-src /' \
+      >>"$oneline.tmp" || true
+  done
+  if [ -n "$suite" ] && [ -s "$oneline.tmp" ]; then
+    head -n 1 "$oneline.tmp" | awk -v s="$suite" '{ $3 = s; print }' >"$oneline.tmp2"
+    mv "$oneline.tmp2" "$oneline.tmp"
+  fi
+fi
 [ -s "$src_list.tmp" ] || [ -s "$oneline.tmp" ] || die "no Debian entry found in /etc/apt/sources.list*"
 mv "$src_list.tmp" "$src_list"
 mv "$oneline.tmp" "$oneline"
@@ -80,25 +100,36 @@ if [ "$(id -u)" = 0 ]; then
   apt_opts+=(-o "APT::Sandbox::User=root")
 fi
 
-echo "fetch-meshlab-sources: downloading meshlab $version source package into $cache" >&2
+echo "fetch-meshlab-sources: downloading meshlab $version source package${suite:+ ($suite)} into $cache" >&2
 apt-get "${apt_opts[@]}" -qq update >&2 || die "apt-get update (deb-src) failed"
 dl="$cache/download"
+rm -rf "$dl"
 mkdir -p "$dl"
-(cd "$dl" && apt-get "${apt_opts[@]}" -qq source --download-only "meshlab=$version" >&2) \
-  || die "apt-get source meshlab=$version failed"
-dsc="$(ls "$dl"/meshlab_"${version#*:}".dsc 2>/dev/null | head -n 1)"
-[ -n "$dsc" ] || die "no .dsc for meshlab $version in $dl"
-
 partial="$tree.partial.$$"
 rm -rf "$partial"
-dpkg-source -x "$dsc" "$partial" >"$cache/dpkg-source.log" 2>&1 \
-  || { cat "$cache/dpkg-source.log" >&2; rm -rf "$partial"; die "dpkg-source -x $dsc failed"; }
-[ -f "$partial/src/common/interfaces.h" ] || { rm -rf "$partial"; die "unexpected tree: no src/common/interfaces.h"; }
-[ -d "$partial/vcglib/vcg" ] || { rm -rf "$partial"; die "unexpected tree: no vcglib/vcg"; }
+if [ -z "$suite" ]; then
+  (cd "$dl" && apt-get "${apt_opts[@]}" -qq source --download-only "meshlab=$version" >&2) \
+    || die "apt-get source meshlab=$version failed"
+  dsc="$(ls "$dl"/meshlab_"${version#*:}".dsc 2>/dev/null | head -n 1)"
+  [ -n "$dsc" ] || die "no .dsc for meshlab $version in $dl"
+  dpkg-source -x "$dsc" "$partial" >"$cache/dpkg-source.log" 2>&1 \
+    || { cat "$cache/dpkg-source.log" >&2; rm -rf "$partial"; die "dpkg-source -x $dsc failed"; }
+else
+  (cd "$dl" && apt-get "${apt_opts[@]}" -qq source --download-only --tar-only "meshlab=$version" >&2) \
+    || die "apt-get source --tar-only meshlab=$version ($suite) failed"
+  orig="$(ls "$dl"/meshlab_*.orig.tar.* 2>/dev/null | head -n 1)"
+  [ -n "$orig" ] || die "no upstream tarball for meshlab $version in $dl"
+  mkdir -p "$partial"
+  tar -xf "$orig" -C "$partial" --strip-components=1 || { rm -rf "$partial"; die "cannot unpack $orig"; }
+fi
+# 2020.09 keeps vcglib at the top, later versions in src/
+[ -f "$partial/src/common/interfaces.h" ] || [ -f "$partial/src/common/plugins/interfaces/filter_plugin.h" ] \
+  || { rm -rf "$partial"; die "unexpected tree: no MeshLab plugin interface header"; }
+[ -d "$partial/vcglib/vcg" ] || [ -d "$partial/src/vcglib/vcg" ] \
+  || { rm -rf "$partial"; die "unexpected tree: no vcglib/vcg"; }
 echo "$version" >"$partial/.isomend-complete"
 rm -rf "$tree"
 mv "$partial" "$tree"
-# Only the unpacked tree is needed from now on (~45 MB); drop the index and
-# the tarballs (~40 MB).
+# Only the unpacked tree is needed from now on; drop the index and tarballs.
 rm -rf "$apt_dir" "$dl" "$cache"/meshlab_*.orig.tar.* "$cache/dpkg-source.log"
 echo "$tree"

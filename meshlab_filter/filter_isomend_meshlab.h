@@ -1,0 +1,113 @@
+/*
+ * filter_isomend_meshlab.h - the MeshLab code shared by both adapters
+ *
+ * Parameter list, parameter reading and the mesh copy are written once here
+ * and compiled against each MeshLab's own headers: the RichParameter
+ * constructors, RichParameterList getters and the vcg allocator are source
+ * compatible between MeshLab 2020.09 (filter_isomend.cpp,
+ * MeshFilterInterface) and 2021.05+ (filter_isomend_2022.cpp, FilterPlugin).
+ * Include it after the MeshLab interface header of the adapter.
+ */
+#ifndef ISOMEND_FILTER_ISOMEND_MESHLAB_H
+#define ISOMEND_FILTER_ISOMEND_MESHLAB_H
+
+#include <cstdint>
+#include <string>
+
+#include "isomend_filter_job.h"
+
+namespace isomend_meshlab {
+
+inline QString qs(const char *s)
+{
+    return QString::fromUtf8(s);
+}
+
+/* Adds the filter's parameters (names from isomend_filter_job.h) to `par`. */
+inline void fill_parameters(RichParameterList &par)
+{
+    namespace job = isomend_filter;
+    const job::Params d = job::default_params();
+    auto label = [](const char *name) { return qs(job::param_text(name).label); };
+    auto tip = [](const char *name) { return qs(job::param_text(name).tooltip); };
+
+    par.addParam(RichString(job::kParamSource, qs(d.source.c_str()), label(job::kParamSource),
+                            tip(job::kParamSource)));
+    par.addParam(RichFloat(job::kParamIso, static_cast<float>(d.iso), label(job::kParamIso),
+                           tip(job::kParamIso)));
+    QStringList methods;
+    for (const job::MethodChoice &m : job::method_choices())
+        methods << qs(m.display.c_str());
+    par.addParam(RichEnum(job::kParamMethod, d.method_index, methods, label(job::kParamMethod),
+                          tip(job::kParamMethod)));
+    for (int axis = 0; axis < 3; ++axis)
+        par.addParam(RichFloat(job::kParamSpacing[axis], static_cast<float>(d.spacing[axis]),
+                               label(job::kParamSpacing[axis]), tip(job::kParamSpacing[axis])));
+    par.addParam(RichInt(job::kParamChannel, d.channel, label(job::kParamChannel),
+                         tip(job::kParamChannel)));
+    par.addParam(RichBool(job::kParamPad, d.pad, label(job::kParamPad), tip(job::kParamPad)));
+    par.addParam(RichBool(job::kParamFlip, d.flip_normals, label(job::kParamFlip),
+                          tip(job::kParamFlip)));
+    par.addParam(RichString(job::kParamRawDims, qs(d.raw_dims.c_str()), label(job::kParamRawDims),
+                            tip(job::kParamRawDims)));
+    QStringList types;
+    for (const std::string &t : job::raw_type_choices())
+        types << qs(t.c_str());
+    par.addParam(RichEnum(job::kParamRawType, d.raw_type_index, types, label(job::kParamRawType),
+                          tip(job::kParamRawType)));
+}
+
+/* Reads the values back. */
+inline isomend_filter::Params read_parameters(const RichParameterList &par)
+{
+    namespace job = isomend_filter;
+    job::Params p;
+    p.source = par.getString(job::kParamSource).toStdString();
+    p.iso = par.getFloat(job::kParamIso);
+    p.method_index = par.getEnum(job::kParamMethod);
+    for (int axis = 0; axis < 3; ++axis)
+        p.spacing[axis] = par.getFloat(job::kParamSpacing[axis]);
+    p.channel = par.getInt(job::kParamChannel);
+    p.pad = par.getBool(job::kParamPad);
+    p.flip_normals = par.getBool(job::kParamFlip);
+    p.raw_dims = par.getString(job::kParamRawDims).toStdString();
+    p.raw_type_index = par.getEnum(job::kParamRawType);
+    return p;
+}
+
+/*
+ * Copies an isomend mesh (positions, unit normals, triangles) into an empty
+ * CMeshO.  The vertex normals stay the core's gradient normals (unit
+ * length); UpdateBoxAndNormals() would replace them by unnormalised face
+ * averages, so only the box and the face normals are computed.  May throw
+ * std::bad_alloc.
+ */
+inline void copy_mesh(const isomend_mesh *src, CMeshO &cm, vcg::CallBackPos *cb)
+{
+    const size_t nv = isomend_mesh_vertex_count(src);
+    const size_t nt = isomend_mesh_triangle_count(src);
+    const float *pos = isomend_mesh_positions(src);
+    const float *nrm = isomend_mesh_normals(src);
+    const uint32_t *tri = isomend_mesh_triangles(src);
+
+    auto vi = vcg::tri::Allocator<CMeshO>::AddVertices(cm, nv);
+    for (size_t i = 0; i < nv; ++i, ++vi) {
+        vi->P() = Point3m(pos[3 * i], pos[3 * i + 1], pos[3 * i + 2]);
+        if (nrm)
+            vi->N() = Point3m(nrm[3 * i], nrm[3 * i + 1], nrm[3 * i + 2]);
+    }
+    if (cb)
+        cb(97, "isomend: building the layer");
+    auto fi = vcg::tri::Allocator<CMeshO>::AddFaces(cm, nt);
+    for (size_t t = 0; t < nt; ++t, ++fi)
+        for (int c = 0; c < 3; ++c)
+            fi->V(c) = &cm.vert[tri[3 * t + c]];
+    vcg::tri::UpdateBounding<CMeshO>::Box(cm);
+    vcg::tri::UpdateNormal<CMeshO>::PerFaceNormalized(cm);
+    if (!nrm)
+        vcg::tri::UpdateNormal<CMeshO>::PerVertexNormalized(cm);
+}
+
+} // namespace isomend_meshlab
+
+#endif /* ISOMEND_FILTER_ISOMEND_MESHLAB_H */
