@@ -10,12 +10,12 @@
  *       in Euler characteristic or components (tests/topology/oracle.h),
  *       or is not a closed 2-manifold;
  *   triangles  summed.
- * Speed: (cube_ns) nanoseconds per surface cube of a smooth 128^3 field (sum
+ * Speed: (cube_ns) nanoseconds per surface cube of a smooth 160^3 field (sum
  * of Gaussians) to get the method's triangles from isomend_method_cube()
  * (MC: the table lookup isomend_case_triangles), corners already read, one
- * thread, best of 5; cube_ratio = that over MC's.  extract_ratio (MC, Durst,
+ * thread, best of 9; cube_ratio = that over MC's.  extract_ratio (MC, Durst,
  * DMC only, the methods isomend_extract() runs today): the whole extraction
- * over MC's, one thread, normals off, best of 5.
+ * over MC's, one thread, normals off, best of 9.
  * F1 and F2 (thesis chapter 5.2): triangles, hole loops, edges used 3+
  * times, closed-manifold, topology match.
  *
@@ -131,7 +131,7 @@ static double time_core(const double *v, int n, isomend_method m)
     o.threads = 1;
     o.flags = ISOMEND_FLAG_PAD | ISOMEND_FLAG_NO_NORMALS | ISOMEND_FLAG_NO_ORIGINS;
     double best = 1e30;
-    for (int rep = 0; rep < 5; rep++) {
+    for (int rep = 0; rep < 9; rep++) {
         isomend_mesh *mesh = NULL;
         double t0 = now();
         if (isomend_extract(&vol, &o, &mesh, NULL) != ISOMEND_OK)
@@ -202,14 +202,14 @@ static int collect_cubes(const double *v, int n, cube_list *l)
 }
 
 /* Seconds per surface cube to get a method's triangles (MC: the table),
- * one thread, best of 5 passes over the list. */
+ * one thread, best of 9 passes over the list. */
 static double time_cubes(const cube_list *l, isomend_method m)
 {
     double best = 1e30;
     long sink = 0;
     unsigned char slots[3 * METHODS_MAX_TRI];
     int edges[15];
-    for (int rep = 0; rep < 5; rep++) {
+    for (int rep = 0; rep < 9; rep++) {
         double t0 = now();
         for (size_t i = 0; i < l->n; i++) {
             if (m == ISOMEND_METHOD_MC) {
@@ -256,7 +256,7 @@ int main(int argc, char **argv)
     }
     free(v);
 
-    const int sn = 128;
+    const int sn = 160;
     double *field = smooth_field(sn);
     if (!field)
         return 1;
