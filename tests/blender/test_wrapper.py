@@ -243,6 +243,29 @@ def test_threads_do_not_change_the_mesh():
     same_mesh(isomend.extract(vol, 0.0, threads=1), isomend.extract(vol, 0.0, threads=2))
 
 
+def test_concurrent_calls_from_python_threads_agree():
+    # ctypes releases the GIL: two extractions run at once on the same array
+    import threading
+    vol = sphere(40, r=14, centre=(19.2, 20.1, 18.7))
+    want = isomend.extract(vol, 0.0, threads=1)
+    results, errors = [None] * 4, []
+
+    def work(i):
+        try:
+            results[i] = isomend.extract(vol, 0.0, threads=1, method="dmc")
+        except Exception as exc:  # reported below
+            errors.append(exc)
+
+    workers = [threading.Thread(target=work, args=(i,)) for i in range(4)]
+    for t in workers:
+        t.start()
+    for t in workers:
+        t.join()
+    assert not errors
+    for got in results:
+        same_mesh(got, want)
+
+
 def test_optional_outputs_can_be_switched_off():
     m = isomend.extract(sphere(), 0.0, normals=False, origins=False)
     assert m.normals is None and m.origins is None and m.triangle_count > 0
