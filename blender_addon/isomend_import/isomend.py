@@ -594,10 +594,10 @@ class Mesh:
     positions (V, 3) float32; normals (V, 3) float32 or None; triangles (T, 3)
     uint32; origins (T,) uint8 or None (ORIGIN_TABLE/DURST/MEND); grid_box
     (min x, y, z, max x, y, z) of the sampled grid (padded if pad=True); stats
-    dict; iso and method used.  From Source.extract also volume_origin and
-    volume_spacing (x, y, z) of the volume as delivered (the world position of
-    its sample (0, 0, 0), which differs from Source.origin for a file whose
-    axis points the negative way) and read_seconds.
+    dict; iso and method used; volume_origin and volume_spacing (x, y, z) of
+    the volume as extracted (the world position of its sample (0, 0, 0): from
+    Source.extract it may differ from Source.origin for a file whose axis
+    points the negative way); read_seconds (Source.extract only).
     """
 
     def __init__(self, positions, normals, triangles, origins, grid_box, stats, iso, method):
@@ -609,7 +609,7 @@ class Mesh:
         self.stats = stats
         self.iso = iso
         self.method = method
-        # set by Source.extract: the delivered volume's sample (0, 0, 0) and spacing
+        # the volume's sample (0, 0, 0) in world units and its spacing
         self.volume_origin = None
         self.volume_spacing = None
         self.read_seconds = None
@@ -692,7 +692,10 @@ def extract(volume, iso, method="dmc", spacing=None, origin=None, pad=False, fli
         if handle.value:
             _core_lib().isomend_mesh_destroy(handle)
         _raise_core(status, "isomend_extract")
-    return _take_mesh(handle, stats, opts.iso, opts.method, normals, origins)
+    mesh = _take_mesh(handle, stats, opts.iso, opts.method, normals, origins)
+    mesh.volume_origin = tuple(vol.origin)
+    mesh.volume_spacing = tuple(vol.spacing)
+    return mesh
 
 
 def check(positions, triangles, box=None):

@@ -195,6 +195,7 @@ def test_spacing_and_origin_place_the_mesh_in_world_units():
     b = isomend.extract(vol, 0.0, spacing=(0.5, 2.0, 3.0), origin=(10, -20, 30))
     np.testing.assert_allclose(b.positions, a.positions * [0.5, 2.0, 3.0] + [10, -20, 30], rtol=1e-5, atol=1e-4)
     np.testing.assert_allclose(b.grid_box, (10, -20, 30, 10 + 23 * 0.5, -20 + 23 * 2, 30 + 23 * 3))
+    assert b.volume_origin == (10, -20, 30) and b.volume_spacing == (0.5, 2.0, 3.0)
     c = isomend.extract(vol, 0.0, spacing=2.0)
     np.testing.assert_allclose(c.positions, a.positions * 2, rtol=1e-6)
 
