@@ -29,15 +29,18 @@
 
 #ifdef ISOMEND_HAVE_IO
 #include <dlfcn.h>
+#include <unistd.h>
 
 #include "isomend_io.h"
 
 /*
  * The importer is loaded with dlopen() only when a slice-stack source needs
  * it: linking it would load OpenImageIO's ~260 shared libraries (~0.3-0.7 s)
- * on every start, even for `isomend check` or a NRRD file.  Search order:
- * $ISOMEND_IO_LIBRARY, the build tree's library (ISOMEND_IO_BUILD_PATH),
- * then the installed soname through the normal library search.
+ * on every start, even for `isomend check` or a NRRD file.  Search order,
+ * relative to this executable so that a build tree and an installation never
+ * mix: $ISOMEND_IO_LIBRARY; <exe dir>/slices/<file> (the build tree:
+ * build/io/isomend next to build/io/slices/); <exe dir>/../<libdir>/<soname>
+ * (an installation); then the soname through the normal library search.
  */
 static struct io_api {
     void *handle;
@@ -60,11 +63,24 @@ static struct io_api {
 static int io_load_api(char *why, size_t why_size)
 {
     if (io_api.handle) return 1;
-    const char *candidates[3] = {getenv("ISOMEND_IO_LIBRARY"), ISOMEND_IO_BUILD_PATH,
-                                 "libisomend_io.so.0"};
+    char exe[1024], build_path[1200] = "", install_path[1200] = "";
+    ssize_t n = readlink("/proc/self/exe", exe, sizeof exe - 1);
+    if (n > 0) {
+        exe[n] = '\0';
+        char *slash = strrchr(exe, '/');
+        if (slash) {
+            *slash = '\0';
+            snprintf(build_path, sizeof build_path, "%s/slices/%s", exe, ISOMEND_IO_FILE_NAME);
+            snprintf(install_path, sizeof install_path, "%s/../%s/%s", exe, ISOMEND_IO_LIBDIR,
+                     ISOMEND_IO_SONAME);
+        }
+    }
+    const char *candidates[4] = {getenv("ISOMEND_IO_LIBRARY"), build_path, install_path,
+                                 ISOMEND_IO_SONAME};
     void *h = NULL;
     why[0] = '\0';
-    for (int i = 0; i < 3 && !h; i++) {
+    for (int i = 0; i < 4 && !h; i++) {
+        if (i > 0 && i < 3 && candidates[i] && access(candidates[i], F_OK) != 0) continue;
         if (!candidates[i] || !*candidates[i]) continue;
         h = dlopen(candidates[i], RTLD_NOW | RTLD_LOCAL);
         if (!h && !why[0]) {
