@@ -361,10 +361,13 @@ class IMPORT_MESH_OT_slice_stack(Operator, ImportHelper):
         obj["isomend_method"] = mesh.method
         obj["isomend_mending_triangles"] = int(mesh.stats["mending_triangles"])
         obj["isomend_spacing_mm"] = list(info["spacing"])
-        msg = ("Imported %s: %d vertices, %d triangles (%d mending), iso %g%s, %s, %dx%dx%d samples"
+        sp = info["spacing"]
+        msg = ("Imported %s: %d vertices, %d triangles (%d mending), iso %g%s, %s, %dx%dx%d samples, "
+               "spacing %g x %g x %g mm (%s)"
                % (obj.name, mesh.vertex_count, mesh.triangle_count, mesh.stats["mending_triangles"],
                   mesh.iso, " (suggested)" if job.iso is None else "", mesh.method.upper(),
-                  info["dims"][0], info["dims"][1], info["dims"][2]))
+                  info["dims"][0], info["dims"][1], info["dims"][2], sp[0], sp[1], sp[2],
+                  ", ".join(info["spacing_sources"])))
         self.report({'INFO'}, msg)
         if bpy.app.background:
             print("isomend: %s (read + extract %.2f s, Blender mesh %.2f s)"
