@@ -71,7 +71,7 @@ def table(rows):
     out.append("")
     out.append("Time per surface cube: %d surface cubes of a smooth %d^3 field, MC's table "
                "lookup %.1f ns per cube; extraction: isomend_extract() on the same field, one "
-               "thread, MC %.1f ms (only MC, Durst and DMC run inside isomend_extract() so far)."
+               "thread, no normals, MC %.1f ms."
                % (ref["surface_cubes"], ref["n"], ref["mc_cube_ns"],
                   1000 * ref["extract_mc_seconds"]))
     out.append("")

@@ -46,7 +46,9 @@
  * e > 0, so the surface is that of a generic level, and both cubes of a face
  * apply the rule to the same numbers in the same order.  NaN samples (and
  * padding) are outside and infinitely low: a face with a NaN corner never
- * joins its positive corners, and a cube with a NaN corner gets no tube.
+ * joins its positive corners, and a cube with a NaN or infinite corner gets
+ * no tube.  Infinite samples and overflowing products give the same numbers
+ * in both cubes of a face, so even they cannot open a hole.
  *
  * The interior sweep.  Cut the cube by planes z = s.  Each slice is a
  * bilinear function on the unit square whose corners move linearly with s;
@@ -437,10 +439,10 @@ int methods_cube_components(const double v[8], double iso, int sign, int label[8
 
 /* ------------------------------------------------------------- per cube */
 
-static int any_nan(const double *v)
+static int any_nonfinite(const double *v)
 {
     for (int c = 0; c < 8; c++)
-        if (isnan(v[c]))
+        if (!isfinite(v[c]))
             return 1;
     return 0;
 }
@@ -467,7 +469,7 @@ int isomend_method_cube(isomend_method method, const methods_cube *cube, unsigne
     int tube = -1;
     if (method == ISOMEND_METHOD_MC33) {
         const methods_entry *en = &methods_entries[entry_index(config, join)];
-        if (en->tube_count && !any_nan(cube->v)) {
+        if (en->tube_count && !any_nonfinite(cube->v) && isfinite(cube->iso)) {
             int label[2][8], have[2] = {0, 0};
             for (int t = 0; t < en->tube_count && tube < 0; t++) {
                 const methods_tube *tb = &methods_tubes[en->tube_first + t];

@@ -304,7 +304,7 @@ int mk_extract(const double *vals, int nx, int ny, int nz, double iso, isomend_m
                int pad, mk_mesh *out)
 {
     memset(out, 0, sizeof *out);
-    if (method == ISOMEND_METHOD_MC || method == ISOMEND_METHOD_DURST || method == ISOMEND_METHOD_DMC)
+    if (isomend_method_available(method))
         return via_core(vals, nx, ny, nz, iso, method, pad, out);
     if (!methods_handles(method))
         return -1;

@@ -2,12 +2,13 @@
  * meshkit.h - tests only: meshes of small grids by every method, and their
  * combinatorial topology.
  *
- * mk_extract marches a grid of doubles.  MC, Durst and DMC go through the
- * public isomend_extract(); the other methods through a small reference
- * loop over isomend_method_cube() (libcore/src/methods.h), one vertex per
- * grid edge, face diagonal or cube centre, the way the extraction loop is
- * asked to do it.  `pad` surrounds the grid with outside samples (NaN), as
- * ISOMEND_FLAG_PAD does.
+ * mk_extract marches a grid of doubles with the public isomend_extract()
+ * (one thread, no normals; `pad` sets ISOMEND_FLAG_PAD).  mk_extract_loop
+ * uses instead a small independent reference loop over
+ * isomend_method_cube() (libcore/src/methods.h) with one vertex per grid
+ * edge, face diagonal, cube centre or ring slot, padding with NaN samples:
+ * the tests compare the two, so a fault in the extraction's handling of the
+ * hook (vertex numbering, private vertices, threads) shows up.
  */
 #ifndef ISOMEND_TEST_MESHKIT_H
 #define ISOMEND_TEST_MESHKIT_H

@@ -13,9 +13,8 @@
  * Speed: (cube_ns) nanoseconds per surface cube of a smooth 160^3 field (sum
  * of Gaussians) to get the method's triangles from isomend_method_cube()
  * (MC: the table lookup isomend_case_triangles), corners already read, one
- * thread, best of 9; cube_ratio = that over MC's.  extract_ratio (MC, Durst,
- * DMC only, the methods isomend_extract() runs today): the whole extraction
- * over MC's, one thread, normals off, best of 9.
+ * thread, best of 9; cube_ratio = that over MC's.  extract_ratio: the whole
+ * isomend_extract() over MC's, one thread, normals off, best of 9.
  * F1 and F2 (thesis chapter 5.2): triangles, hole loops, edges used 3+
  * times, closed-manifold, topology match.
  *
@@ -273,7 +272,7 @@ int main(int argc, char **argv)
             snprintf(cube_ns, sizeof cube_ns, "%.1f", 1e9 * cube_t);
             snprintf(cube_ratio, sizeof cube_ratio, "%.2f", cube_t / cube_mc);
         }
-        if (!per_cube || methods[k] == ISOMEND_METHOD_MC)
+        if (isomend_method_available(methods[k]))
             snprintf(extract_ratio, sizeof extract_ratio, "%.2f",
                      (methods[k] == ISOMEND_METHOD_MC ? core_mc : time_core(field, sn, methods[k])) /
                          core_mc);

@@ -2,9 +2,11 @@
  * test_methods.c - every method's meshes against the trilinear topology
  * oracle (oracle.h), the way Etiene et al. (2012) verify isosurfaces.
  *
- * For each grid the mesh is extracted with padding (a closed surface) and
- * its Euler characteristic and components are compared with chi(S) and
- * b0(S) of the interpolant's isosurface.  What each method is held to:
+ * For each grid the mesh is extracted by isomend_extract() with padding (a
+ * closed surface) and its Euler characteristic and components are compared
+ * with chi(S) and b0(S) of the interpolant's isosurface; for the methods of
+ * methods.c the mesh of the reference loop (meshkit.c) must agree with it in
+ * triangles, vertices, chi and components.  What each method is held to:
  *
  *   mc33                closed oriented 2-manifold AND the interpolant's
  *                       topology on every grid (asserted);
@@ -26,7 +28,8 @@
  * corner values each (positive corners in (0, 1], negative in [-1, 0));
  * (2) random 5x5x5 grids; (3) smooth random closed-surface grids (sums of
  * Gaussians); (4) F1 and F2 of the thesis; (5) integer data in 0..4 with
- * the iso level equal to sample values (ties).
+ * the iso level equal to sample values (ties); (6) grids with NaN,
+ * infinities, huge and denormal values (closed 2-manifold only).
  *
  * Usage: test_topology_methods [grids-per-configuration]   (default 1000)
  */
@@ -85,6 +88,16 @@ static void run_grid(const char *what, const double *v, int nx, int ny, int nz, 
         mk_topo tp;
         int closed = mk_analyse(&mesh, &tp);
         t[i].grids++;
+        if (methods_handles(m)) {
+            /* The extraction and the reference loop agree exactly. */
+            mk_mesh ref;
+            mk_topo rt;
+            CHECK(mk_extract_loop(v, nx, ny, nz, iso, m, 1, &ref) == 0);
+            int rclosed = mk_analyse(&ref, &rt);
+            CHECK(rclosed == closed && rt.chi == tp.chi && rt.components == tp.components &&
+                  ref.nt == mesh.nt && rt.v == tp.v);
+            mk_free(&ref);
+        }
         if (!closed) {
             t[i].not_manifold++;
             if (must_be_manifold(m) && t[i].not_manifold <= 3)
@@ -120,8 +133,13 @@ static void report(const char *what, const tally *t, int core_methods)
     for (int i = 0; i < NMETHODS; i++) {
         if (!t[i].grids)
             continue;
-        printf("  %-10s grids %7ld  not closed-manifold %7ld  topology mismatches %7ld\n",
-               isomend_method_name(all_methods[i]), t[i].grids, t[i].not_manifold, t[i].mismatch);
+        if (t[i].mismatch < 0)
+            printf("  %-10s grids %7ld  not closed-manifold %7ld\n",
+                   isomend_method_name(all_methods[i]), t[i].grids, t[i].not_manifold);
+        else
+            printf("  %-10s grids %7ld  not closed-manifold %7ld  topology mismatches %7ld\n",
+                   isomend_method_name(all_methods[i]), t[i].grids, t[i].not_manifold,
+                   t[i].mismatch);
     }
     (void)core_methods;
 }
@@ -285,6 +303,45 @@ static void integer_ties(int count, int n)
     free(v);
 }
 
+/* (6) Hostile values: NaN, infinities, huge and tiny magnitudes, values
+ * equal to iso.  No oracle (the interpolant is undefined there), but every
+ * method except mc and durst must still give a closed oriented 2-manifold. */
+static void hostile_values(int count, int n)
+{
+    tally t[NMETHODS];
+    memset(t, 0, sizeof t);
+    static const double special[] = {NAN, INFINITY, -INFINITY, 1e300, -1e300, 1e-310, -1e-310,
+                                     0.0, -0.0, 1.0, -1.0};
+    const int nspecial = (int)(sizeof special / sizeof special[0]);
+    double *v = malloc((size_t)n * n * n * sizeof *v);
+    for (int g = 0; g < count; g++) {
+        for (int i = 0; i < n * n * n; i++)
+            v[i] = urand() < 0.5 ? special[(int)(urand() * nspecial)] : 2 * urand() - 1;
+        for (int i = 0; i < NMETHODS; i++) {
+            const isomend_method m = all_methods[i];
+            if (!must_be_manifold(m) || m == ISOMEND_METHOD_DMC)
+                continue;
+            mk_mesh mesh;
+            if (mk_extract(v, n, n, n, 0.0, m, 1, &mesh) != 0) {
+                CHECK(!"extraction failed");
+                continue;
+            }
+            mk_topo tp;
+            int closed = mk_analyse(&mesh, &tp);
+            t[i].grids++;
+            t[i].not_manifold += !closed;
+            CHECK(closed);
+            mk_free(&mesh);
+        }
+    }
+    char title[96];
+    snprintf(title, sizeof title, "%d %d^3 grids with NaN, infinities, 1e300, denormals:", count, n);
+    for (int i = 0; i < NMETHODS; i++)
+        t[i].mismatch = -1; /* not measured */
+    report(title, t, 0);
+    free(v);
+}
+
 int main(int argc, char **argv)
 {
     int per_config = argc > 1 ? atoi(argv[1]) : 1000;
@@ -297,5 +354,6 @@ int main(int argc, char **argv)
     smooth_grids(per_config / 20 + 1, 12);
     thesis_functions();
     integer_ties(per_config, 5);
+    hostile_values(per_config / 4 + 1, 5);
     TEST_EXIT();
 }
