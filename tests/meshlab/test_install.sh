@@ -4,7 +4,7 @@
 # install libdir, and a MeshLab prefix holding the *installed* file (libisomend
 # found through LD_LIBRARY_PATH, since the DESTDIR is not the real prefix)
 # runs the filter.
-# Usage: test_install.sh BUILD_DIR PLUGIN_DIR INSTALL_LIBDIR LIB_DIRS WORK   (under xvfb-run)
+# Usage: test_install.sh BUILD_DIR PLUGIN_DIR INSTALL_LIBDIR LIB_DIRS WORK   (with $DISPLAY set, e.g. under with_xvfb.py)
 set -euo pipefail
 build="$1" plugin_dir="$2" libdir="$3" lib_dirs="$4" work="$5"
 src="$(cd "$(dirname "$0")/../.." && pwd)"

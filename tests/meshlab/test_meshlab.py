@@ -4,7 +4,7 @@
 Topological Measures") on stacks generated here, and the results are compared
 with the `isomend extract` command line on the same input and options.
 
-Usage (run by ctest under `xvfb-run -a`, which provides $DISPLAY):
+Usage (run by ctest under with_xvfb.py, which provides $DISPLAY):
     test_meshlab.py counts|topology|holes|errors --prefix PREFIX --cli ISOMEND --work DIR
 
   counts    folder / pattern / multi-page TIFF / NRRD / raw sources, the three
@@ -537,7 +537,7 @@ def main():
     ap.add_argument("--work", required=True)
     a = ap.parse_args()
     if not os.environ.get("DISPLAY"):
-        print("no DISPLAY: run under xvfb-run -a (meshlabserver needs a GLX context)")
+        print("no DISPLAY: run under with_xvfb.py or xvfb-run -a (meshlabserver needs a GLX context)")
         return 1
     if os.path.isdir(a.work):
         shutil.rmtree(a.work)
