@@ -19,12 +19,15 @@ What is timed (the library call only: no file I/O, volumes already in memory)
 
 How it is measured
 
-  Every (volume, extractor, thread count) runs in a fresh child process pinned to N
-  cores (sched_setaffinity: TBB, used by VTK and OpenVDB, and isomend then see N cores;
-  VTK also gets vtkSMPTools.Initialize(N), isomend options.threads = N).  The child
-  loads the volume from a .npy file, then for each repetition resets its peak-RSS mark
-  (/proc/self/clear_refs = 5) and records wall time and the peak RSS above what it held
-  before the call (the "extra" memory: output, temporaries).  Times are medians.
+  Every timed call runs in a fresh child process pinned to N cores (sched_setaffinity:
+  TBB, used by VTK and OpenVDB, and isomend then see N cores; VTK also gets
+  vtkSMPTools.Initialize(N), isomend options.threads = N).  The child loads the volume
+  from a .npy file, warms the extractor up on a 16^3 corner of it (thread pools, lazy
+  binding), measures the floor, resets its peak-RSS mark (/proc/self/clear_refs = 5)
+  and times one call: wall time, CPU time and the peak RSS above what it held before
+  the call (the "extra" memory: output, temporaries).  The runs are made in rounds --
+  every extractor once, then again -- so that the extractors compared take turns on a
+  shared machine.  Times are medians over the rounds.
 
 Modes: --smoke (seconds, for ctest), --quick (under two minutes: the goal volumes),
 default full (every field, size, type, thread count, and the Colin27 MRI).
@@ -420,6 +423,12 @@ def child_main(args):
     a = np.load(args.child_volume)
     rss_input = _status_kb("VmRSS")
     run, measure = setup(a, args.child_iso, threads, args)
+    # One untimed call on a small corner of the volume first: thread pools (TBB),
+    # lazy symbol binding and first-call allocations are not what is measured.
+    small = np.ascontiguousarray(a[:16, :16, :16])
+    warm_run, warm_measure = setup(small, args.child_iso, threads, args)
+    warm_measure(warm_run())
+    del warm_run, warm_measure
 
     # The floor, in this process, on this array, before the extractor.
     floor_times, numpy_times = [], []
@@ -562,6 +571,62 @@ def machine_info():
     return info
 
 
+def measure_volume(args, peers, field, n, dtype, vol_path, iso, t, thread_counts, repeats):
+    """Measures every extractor on one volume at t threads, in rounds: round r runs
+    each extractor once, in a fresh child, so that the extractors being compared
+    take turns and a change of load on a shared machine hits them alike."""
+    jobs = []
+    for ext in peers:
+        label, _setup, parallel = EXTRACTORS[ext]
+        wanted, forced = quick_policy(args, ext, field, n, dtype)
+        if not wanted:
+            continue
+        if not parallel and t != thread_counts[0]:
+            continue  # single-threaded: its 1-thread time stands for every count
+        if forced == 1 and t != (thread_counts[-1] if ext == "isomend" else thread_counts[0]):
+            continue  # measured once: at 1 thread (isomend: all threads)
+        jobs.append((ext, forced or repeats))
+    acc = {}
+    for rnd in range(max([reps for _e, reps in jobs] or [0])):
+        for ext, reps in jobs:
+            if rnd >= reps or "error" in acc.get(ext, {}):
+                continue
+            r = run_child(args, ext, vol_path, iso, t, 1)
+            a = acc.setdefault(ext, {})
+            if "error" in r:
+                a.clear()
+                a["error"] = r["error"]
+            elif not a:
+                a.update(r)
+            elif (r["triangles"], r["vertices"]) != (a["triangles"], a["vertices"]):
+                a.clear()
+                a["error"] = "output changed between runs"
+            else:
+                for key in ("times", "cpu_times", "floor_times", "numpy_sum_times"):
+                    a[key] = a[key] + r[key]
+                if a["peak_extra_kb"] is not None and r["peak_extra_kb"] is not None:
+                    a["peak_extra_kb"] = max(a["peak_extra_kb"], r["peak_extra_kb"])
+    out = []
+    for ext, reps in jobs:
+        label, _setup, parallel = EXTRACTORS[ext]
+        r = acc[ext]
+        r.update({"field": field, "size": n, "dtype": dtype, "extractor": ext, "label": label,
+                  "threads": t, "iso": iso, "parallel": parallel, "repeats": reps})
+        if "times" in r:
+            r["median"] = statistics.median(r["times"])
+            r["min"] = min(r["times"])
+            r["cpu"] = statistics.median(r["cpu_times"])
+            r["floor"] = statistics.median(r["floor_times"])
+            print("[bench]   %-32s %d thr: %8.1f ms (CPU %7.1f ms) %9d tri  floor %.1f ms"
+                  % (label, t, 1e3 * r["median"], 1e3 * r["cpu"], r["triangles"],
+                     1e3 * r["floor"]), file=sys.stderr, flush=True)
+        else:
+            print("[bench]   %-32s %d thr: FAILED: %s" % (label, t, r["error"]),
+                  file=sys.stderr, flush=True)
+        out.append(r)
+    return out
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0],
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -622,7 +687,7 @@ def main(argv=None):
             return 2
     else:
         thread_counts = sorted({1, ncpu})
-    repeats = args.repeats or (2 if args.smoke else 3 if args.quick else 5)
+    repeats = args.repeats or (1 if args.smoke else 3 if args.quick else 5)
     if repeats < 1:
         print("bench.py: --repeats must be >= 1", file=sys.stderr)
         return 2
@@ -655,34 +720,9 @@ def main(argv=None):
                 continue
             print("[bench] %s %s %s (ready in %.1f s)" % (field, n or "", dtype, gen),
                   file=sys.stderr, flush=True)
-            for ext in peers:
-                label, _setup, parallel = EXTRACTORS[ext]
-                for t in thread_counts:
-                    wanted, forced = quick_policy(args, ext, field, n, dtype)
-                    if not wanted:
-                        continue
-                    reps = forced or repeats
-                    if not parallel and t != thread_counts[0]:
-                        continue  # single-threaded: its 1-thread time stands for every count
-                    if forced == 1 and t != (thread_counts[-1] if ext == "isomend"
-                                             else thread_counts[0]):
-                        continue  # measured once: at 1 thread (isomend: all threads)
-                    r = run_child(args, ext, vol_path, iso, t, reps)
-                    r.update({"field": field, "size": n, "dtype": dtype, "extractor": ext,
-                              "label": label, "threads": t, "iso": iso, "parallel": parallel,
-                              "repeats": reps})
-                    if "times" in r:
-                        r["median"] = statistics.median(r["times"])
-                        r["min"] = min(r["times"])
-                        r["cpu"] = statistics.median(r["cpu_times"])
-                        r["floor"] = statistics.median(r["floor_times"])
-                        print("[bench]   %-32s %d thr: %8.1f ms  %9d tri  floor %.1f ms"
-                              % (label, t, 1e3 * r["median"], r["triangles"],
-                                 1e3 * r["floor"]), file=sys.stderr, flush=True)
-                    else:
-                        print("[bench]   %-32s %d thr: FAILED: %s" % (label, t, r["error"]),
-                              file=sys.stderr, flush=True)
-                    results.append(r)
+            for t in thread_counts:
+                results += measure_volume(args, peers, field, n, dtype, vol_path, iso, t,
+                                          thread_counts, repeats)
     finally:
         if tmp_cache:
             shutil.rmtree(tmp_cache, ignore_errors=True)
