@@ -320,6 +320,10 @@ class IMPORT_MESH_OT_slice_stack(Operator, ImportHelper):
             job.cancel = True  # the worker stops at the library's next progress callback
         if event.type == 'TIMER':
             wm.progress_update(int(1000 * _overall(job.stage, job.fraction)))
+            if context.workspace is not None:
+                context.workspace.status_text_set(
+                    "isomend: %s %d%%%s" % (job.stage, int(100 * job.fraction),
+                                            " (cancelling)" if job.cancel else " - Esc to cancel"))
             if not self._thread.is_alive():
                 self._thread.join()
                 wm.event_timer_remove(self._timer)
@@ -328,6 +332,8 @@ class IMPORT_MESH_OT_slice_stack(Operator, ImportHelper):
                     return self._finish(context, job)  # builds the mesh: progress stays up
                 finally:
                     wm.progress_end()
+                    if context.workspace is not None:
+                        context.workspace.status_text_set(None)
             return {'RUNNING_MODAL'}
         if event.type == 'ESC':
             return {'RUNNING_MODAL'}
