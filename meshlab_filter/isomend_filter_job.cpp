@@ -422,7 +422,9 @@ bool Job::run_unguarded(const Params &params, const ProgressFn &progress)
             st = ISOMEND_IO_OK;
             luma = true;
         } else {
-            return fail(std::string("source: ") + first_message);
+            /* e.g. grey + alpha: neither one channel nor R, G, B */
+            return fail(std::string("source: ") + first_message +
+                        " [in MeshLab: set the channel parameter to 0, 1, ...]");
         }
     }
     if (state.cancelled)

@@ -491,6 +491,11 @@ def test_errors(run):
     write_tiff_folder(mismatched, np.zeros((3, 8, 8), np.uint8))
     import tifffile
     tifffile.imwrite(os.path.join(mismatched, "s_003.tif"), np.zeros((9, 8), np.uint8))
+    grey_alpha = os.path.join(work, "grey_alpha")
+    os.makedirs(grey_alpha, exist_ok=True)
+    for k in range(3):
+        tifffile.imwrite(os.path.join(grey_alpha, "s_%d.tif" % k), np.zeros((8, 8, 2), np.uint8),
+                         photometric="minisblack", planarconfig="contig", extrasamples=["unassalpha"])
     empty = os.path.join(work, "empty")
     os.makedirs(empty, exist_ok=True)
     truncated = os.path.join(work, "truncated.raw")
@@ -510,6 +515,7 @@ def test_errors(run):
         ("malformed rawDims", {"source": truncated, "rawDims": "10 x"}, "rawDims"),
         ("negative spacingY", {"source": good, "spacingY": -1.0}, "spacingY"),
         ("channel out of range", {"source": good, "channel": 3}, "channel"),
+        ("grey + alpha with channel -1", {"source": grey_alpha}, "set the channel parameter"),
         ("no surface at the iso level", {"source": good, "iso": 1000.0}, "no surface"),
         ("empty source", {"source": ""}, "source"),
     ]
