@@ -46,9 +46,21 @@ banner "the same with plain marching cubes, for comparison"
 "$ISOMEND" check "$OUT_DIR/anatomical_mc.ply" || echo "(plain MC leaves holes: exit status $?)"
 
 # ---- slice stacks (io engineer) -----------------------------------------------
-# >>> SLICE-STACK STEP: placeholder for the OpenImageIO importer's demo
-#     (build the isomend_io target, write or fetch a small image stack,
-#     `isomend info STACK` and `isomend extract STACK ...`).
+# >>> SLICE-STACK STEP (io engineer): the same MRI as a folder of TIFF slices
+if cmake --build "$BUILD_DIR" -j "$JOBS" --target isomend_io >/dev/null 2>&1; then
+  banner "slice stack: samples/anatomical.nrrd written as 25 TIFF slices, then read back"
+  rm -rf "$OUT_DIR/anatomical_slices"
+  /usr/bin/python3 io/slices/tools/nrrd_to_tiff_slices.py samples/anatomical.nrrd "$OUT_DIR/anatomical_slices"
+  "$ISOMEND" info "$OUT_DIR/anatomical_slices"
+  "$ISOMEND" extract "$OUT_DIR/anatomical_slices" --pad \
+    -o "$OUT_DIR/anatomical_slices_dmc.ply" --json "$OUT_DIR/anatomical_slices_dmc.json"
+  banner "a printf pattern with a range: slices 5, 7, ..., 19 only"
+  "$ISOMEND" extract "$OUT_DIR/anatomical_slices/slice_%04d.tif" --first 5 --count 8 --step 2 \
+    --pad --quiet -o "$OUT_DIR/anatomical_slices_part.ply" --json "$OUT_DIR/anatomical_slices_part.json"
+  echo "wrote $OUT_DIR/anatomical_slices_part.ply"
+else
+  banner "slice stacks skipped: the OpenImageIO importer (isomend_io) is not built"
+fi
 # <<< SLICE-STACK STEP
 
 banner "summary"

@@ -58,9 +58,13 @@
  * and the reason.
  *
  * Spacing: options.spacing if set (all three > 0), else the files' metadata
- * (ImageJ's "spacing=" in ImageDescription for z, TIFF XResolution /
- * YResolution with ResolutionUnit for x/y; NRRD "spacings"/"space
+ * (ImageJ's "spacing=" in ImageDescription for z and its resolution tags as
+ * pixels per unit for x/y; else TIFF XResolution / YResolution with
+ * ResolutionUnit inch or cm, in mm, except 72 and 96 dpi, the defaults image
+ * programs write, which count as unknown; NRRD "spacings"/"space
  * directions"), else 1.  isomend_io_spacing() says where each value came from.
+ * Spacings from TIFF resolution tags (which OIIO gives as float) are rounded
+ * to 6 significant digits (1/1.3333334f -> 0.75, not 0.74999996).
  *
  * Thread safety: a source handle must be used by one thread at a time;
  * different handles are independent.  Functions that read may start worker

@@ -138,6 +138,15 @@ static std::string channel_names(const ImageSpec &s) {
 //   TIFF: XResolution/YResolution with ResolutionUnit inch or cm -> mm.  72 and
 //     96 pixels per inch are the defaults image programs write when nothing is
 //     known (screen resolutions), so they are treated as "no information".
+// OIIO hands resolution tags over as float (~7 digits): 1/1.3333334f is
+// 0.74999996.  Rounding the spacing to 6 significant digits restores the
+// decimal value that was written (0.75) without inventing precision.
+static double round_significant(double v) {
+    if (!(v > 0) || !std::isfinite(v)) return v;
+    double scale = std::pow(10.0, 5 - (int)std::floor(std::log10(v)));
+    return std::round(v * scale) / scale;
+}
+
 static void spacing_from_metadata(const ImageSpec &spec, StackInfo &info) {
     std::string desc = spec.get_string_attribute("ImageDescription");
     bool imagej = desc.rfind("ImageJ=", 0) == 0;
@@ -156,8 +165,8 @@ static void spacing_from_metadata(const ImageSpec &spec, StackInfo &info) {
         }
         if (xres > 0 && yres > 0 && std::isfinite(xres) && std::isfinite(yres) &&
             !(xres == 1 && yres == 1 && info.spacing_source[2] == 0)) {
-            info.spacing[0] = 1.0 / xres;
-            info.spacing[1] = 1.0 / yres;
+            info.spacing[0] = round_significant(1.0 / xres);
+            info.spacing[1] = round_significant(1.0 / yres);
             info.spacing_source[0] = info.spacing_source[1] = ISOMEND_IO_SPACING_IMAGEJ;
         }
         return;
@@ -169,8 +178,8 @@ static void spacing_from_metadata(const ImageSpec &spec, StackInfo &info) {
     if (per_unit_mm > 0 && xres > 0 && yres > 0 && std::isfinite(xres) && std::isfinite(yres)) {
         bool screen_default = per_unit_mm == 25.4 && xres == yres && (xres == 72.0f || xres == 96.0f);
         if (!screen_default) {
-            info.spacing[0] = per_unit_mm / xres;
-            info.spacing[1] = per_unit_mm / yres;
+            info.spacing[0] = round_significant(per_unit_mm / xres);
+            info.spacing[1] = round_significant(per_unit_mm / yres);
             info.spacing_source[0] = info.spacing_source[1] = ISOMEND_IO_SPACING_TIFF;
         }
     }
