@@ -92,8 +92,9 @@ void read_slice(const Slice &slice, const StackInfo &info, void *out);
 // Reads slices [0, n) with `threads` workers; each decoded slice is handed to
 // `sink(k, data)` on the worker thread (sink must be thread-safe for distinct
 // k).  The calling thread calls `progress(fraction)` and stops everything when
-// it returns true (then throws IoError CANCELLED).  The first error (lowest
-// slice index) is rethrown after all workers stopped.
+// it returns true (then throws IoError CANCELLED).  On an error the workers
+// stop taking slices; the error of the lowest slice index among those read
+// is rethrown after all workers have stopped.
 // `target(k)` (may be empty, or return nullptr) gives where slice k is decoded
 // directly; otherwise it is decoded into a per-worker buffer.
 void read_parallel(const std::vector<Slice> &slices, const StackInfo &info, int threads,

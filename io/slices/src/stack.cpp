@@ -495,7 +495,6 @@ void read_parallel(const std::vector<Slice> &slices, const StackInfo &info, int 
             }
             stop.store(true);
         }
-        done.fetch_add(0);
         cv.notify_one();
     };
 
