@@ -343,8 +343,17 @@ void test_errors(const std::string &dir)
 
 } // namespace
 
-int main()
+int main(int argc, char **argv)
 {
+    /* --methods: the method menu as the plugin builds it (index, core name,
+     * display name), for test_meshlab.py's "methods" test. */
+    if (argc == 2 && std::strcmp(argv[1], "--methods") == 0) {
+        const auto choices = job::method_choices();
+        for (size_t i = 0; i < choices.size(); ++i)
+            std::printf("%zu\t%s\t%s\n", i, isomend_method_name(choices[i].method),
+                        choices[i].display.c_str());
+        return 0;
+    }
     TempDir dir;
     CHECK(!dir.path.empty());
     if (dir.path.empty())

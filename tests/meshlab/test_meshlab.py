@@ -21,6 +21,9 @@ Usage (run by ctest under with_xvfb.py, which provides $DISPLAY):
   realdata  the ITK T1 MRI (scripts/get-test-data.sh): at the suggested level
             MeshLab counts MC's hole edges as boundary edges and finds DMC's
             result closed and two-manifold.
+  methods   every method the menu lists after the first three (facial,
+            gradient, asymptotic, tetra, mc33 when the core builds them), by
+            index: the CLI's mesh for that method, closed on the tiled F1.
   errors    bad sources and parameters: exit 255 (never 134/abort), the
             reason in the log, no output file; the filter is listed by
             meshlabserver's plugin dump with its menu text.
@@ -115,7 +118,8 @@ def mlx(params, topology=False):
     p = {"source": "", "iso": 0.5, "method": 0, "spacingX": 0, "spacingY": 0, "spacingZ": 0,
          "channel": -1, "pad": True, "flipNormals": False, "rawDims": "", "rawType": 0}
     p.update(params)
-    enum_methods = " ".join('enum_val%d=%s' % (i, quoteattr(m)) for i, m in enumerate(METHODS))
+    names = p.pop("enum_names", METHODS)
+    enum_methods = " ".join('enum_val%d=%s' % (i, quoteattr(m)) for i, m in enumerate(names))
     enum_types = " ".join('enum_val%d=%s' % (i, quoteattr(t)) for i, t in enumerate(TYPES))
     b = lambda v: "true" if v else "false"
     lines = [
@@ -123,7 +127,7 @@ def mlx(params, topology=False):
         '  <Param type="RichString" name="source" value=%s/>' % quoteattr(str(p["source"])),
         '  <Param type="RichFloat" name="iso" value="%r"/>' % float(p["iso"]),
         '  <Param type="RichEnum" name="method" value="%d" enum_cardinality="%d" %s/>'
-        % (p["method"], len(METHODS), enum_methods),
+        % (p["method"], len(names), enum_methods),
         '  <Param type="RichFloat" name="spacingX" value="%r"/>' % float(p["spacingX"]),
         '  <Param type="RichFloat" name="spacingY" value="%r"/>' % float(p["spacingY"]),
         '  <Param type="RichFloat" name="spacingZ" value="%r"/>' % float(p["spacingZ"]),
@@ -472,6 +476,38 @@ def test_realdata(run, get_data):
                   % (t.get("boundary_edges"), t["two_manifold"], holes))
 
 
+def test_methods(run, job):
+    """Every method of the plugin's menu beyond the thesis's three (they come
+    from the core's isomend_method_available()), called by index from a
+    script, gives the CLI's mesh for that method name."""
+    lines = subprocess.run([job, "--methods"], stdout=subprocess.PIPE, check=True,
+                           universal_newlines=True).stdout.splitlines()
+    menu = [l.split("\t") for l in lines if l.strip()]
+    check([m[2] for m in menu[:3]] == METHODS and [m[1] for m in menu[:3]] == CLI_METHOD,
+          "the menu starts with %s" % ", ".join(METHODS))
+    extra = menu[3:]
+    print("menu: " + ", ".join("%s %s (%s)" % tuple(m) for m in menu))
+    vol = np.round(blobs(17, 19, 21, seed=5) * 255).astype(np.uint8)
+    folder = os.path.join(run.work, "stack")
+    write_tiff_folder(folder, vol)
+    f1 = os.path.join(run.work, "f1_tiled")
+    write_tiff_folder(f1, f1_tiled(2))
+    for index, name, display in extra:
+        params = {"method": int(index), "enum_names": [m[2] for m in menu]}
+        compare(run, "method %s: %s (%s)" % (index, display, name), folder,
+                dict(params, iso=127.5), ["--iso", "127.5", "--pad", "--method", name])
+        print("F1 tiled, %s, padded:" % display)
+        ref, _ = run.isomend(f1, ["--iso", "0", "--pad", "--method", name])
+        rc, log, out = run.meshlab(dict(params, source=f1, iso=0.0), topology=True, save=False)
+        t = parse_topology(log)
+        check(rc == 0 and t.get("F") == ref["triangles"] and t.get("boundary_edges") == 0
+              and t["two_manifold"],
+              "MeshLab: F %s = CLI's %d, Boundary Edges %s, two-manifold %s"
+              % (t.get("F"), ref["triangles"], t.get("boundary_edges"), t["two_manifold"]))
+    if not extra:
+        print("this core builds only the thesis's three methods")
+
+
 def test_errors(run):
     work = run.work
     # the plugin is loaded and listed with its description and parameters
@@ -536,7 +572,8 @@ def test_errors(run):
 
 def main():
     ap = argparse.ArgumentParser()
-    ap.add_argument("test", choices=["counts", "topology", "holes", "errors", "realdata"])
+    ap.add_argument("test", choices=["counts", "topology", "holes", "errors", "realdata", "methods"])
+    ap.add_argument("--job", help="test_meshlab_job (methods)")
     ap.add_argument("--get-data", help="scripts/get-test-data.sh (realdata)")
     ap.add_argument("--prefix", required=True)
     ap.add_argument("--cli", required=True)
@@ -551,6 +588,8 @@ def main():
     run = Runner(a.prefix, a.cli, a.work)
     if a.test == "realdata":
         test_realdata(run, a.get_data)
+    elif a.test == "methods":
+        test_methods(run, a.job)
     else:
         {"counts": test_counts, "topology": test_topology, "holes": test_holes,
          "errors": test_errors}[a.test](run)
