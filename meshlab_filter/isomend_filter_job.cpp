@@ -206,7 +206,10 @@ ParamText param_text(const char *name)
                 "Disambiguated MC: marching cubes plus a mending quad only on ambiguous faces "
                 "shared by an inverted combination (hole-free, no extraneous polygons). "
                 "Original MC: Lorensen & Cline's table only (can leave holes). Durst: a quad on "
-                "every ambiguous face (hole-free, with extraneous polygons)."};
+                "every ambiguous face (hole-free, with extraneous polygons). Further methods, when this "
+                "build has them: Facial average, Center-pointing gradient and Asymptotic decider "
+                "(face decisions shared by both cubes), Tetrahedra (five mirrored tetrahedra per "
+                "cube), Marching Cubes 33 (also resolves interior ambiguities)."};
     if (n == kParamSpacing[0])
         return {"Spacing X", "World distance between columns. 0 = from the files' metadata "
                              "(TIFF resolution, NRRD header), else 1."};
