@@ -206,8 +206,8 @@ ParamText param_text(const char *name)
                 "Disambiguated MC: marching cubes plus a mending quad only on ambiguous faces "
                 "shared by an inverted combination (hole-free, no extraneous polygons). "
                 "Original MC: Lorensen & Cline's table only (can leave holes). Durst: a quad on "
-                "every ambiguous face (hole-free, with extraneous polygons). Further methods, when this "
-                "build has them: Facial average, Center-pointing gradient and Asymptotic decider "
+                "every ambiguous face (hole-free, with extraneous polygons). Further methods, "
+                "when this build has them: Facial average, Center-pointing gradient and Asymptotic decider "
                 "(face decisions shared by both cubes), Tetrahedra (five mirrored tetrahedra per "
                 "cube), Marching Cubes 33 (also resolves interior ambiguities)."};
     if (n == kParamSpacing[0])
@@ -496,7 +496,8 @@ bool Job::run_unguarded(const Params &params, const ProgressFn &progress)
     opts.progress_user = &state;
     log_.push_back(format("method %s (%s), iso %g%s%s", method.display.c_str(),
                           isomend_method_name(method.method), params.iso,
-                          params.pad ? ", padded" : "", params.flip_normals ? ", normals flipped" : ""));
+                          params.pad ? ", padded" : "",
+                          params.flip_normals ? ", normals flipped" : ""));
     const auto t_extract = std::chrono::steady_clock::now();
     isomend_mesh *mesh = nullptr;
     const isomend_status cst = isomend_extract(&vol, &opts, &mesh, &stats_);

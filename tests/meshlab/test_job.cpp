@@ -213,8 +213,8 @@ void test_run(const std::string &dir)
                 continue;
             }
             isomend_stats ref{};
-            isomend_mesh *mesh = direct(v, nx, ny, nz, iso, choices[mi].method,
-                                        pad ? static_cast<unsigned>(ISOMEND_FLAG_PAD) : 0u, unit, &ref);
+            const unsigned flags = pad ? static_cast<unsigned>(ISOMEND_FLAG_PAD) : 0u;
+            isomend_mesh *mesh = direct(v, nx, ny, nz, iso, choices[mi].method, flags, unit, &ref);
             check_same_mesh(run.mesh(), mesh);
             CHECK(std::memcmp(&ref.case_histogram, &run.stats().case_histogram,
                               sizeof ref.case_histogram) == 0);
