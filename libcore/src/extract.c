@@ -432,6 +432,9 @@ typedef struct ctx {
     int general;           /* a method of methods.h: per-cube hook        */
     int tetra;             /* ... with face-diagonal vertices             */
     int planes;            /* id-map planes per slice: 3, or 6 for tetra  */
+    uint64_t *bits;        /* sign cache: the counting pass's signs, 1 bit a */
+    rowinfo *rows;         /*   sample, and row spans; NULL when too large   */
+    int64_t words;         /*   64-bit words per row                          */
     float *pos, *nrm;
     uint32_t *tri;
     uint8_t *org;
@@ -457,16 +460,93 @@ typedef struct worker {
     int is_main;
 } worker;
 
+/* 8 sign bytes (0/1, memory order) -> 8 bits, bit i = byte i. */
+static inline uint64_t pack8(uint64_t w)
+{
+    return (w * UINT64_C(0x0102040810204080)) >> 56;
+}
+
+/* 8 bits -> 8 sign bytes (0/1), byte i = bit i, as a little-endian word. */
+static inline uint64_t unpack8(uint64_t x)
+{
+    const uint64_t m = UINT64_C(0x7F7F7F7F7F7F7F7F);
+    uint64_t t = (x * UINT64_C(0x0101010101010101)) & UINT64_C(0x8040201008040201);
+    return (((((t & m) + m) | t) & ~m) >> 7);
+}
+
+static inline void store8(uint8_t *p, uint64_t v)
+{
+#if defined(__BYTE_ORDER__) && __BYTE_ORDER__ == __ORDER_BIG_ENDIAN__
+    v = __builtin_bswap64(v);
+#endif
+    memcpy(p, &v, sizeof v);
+}
+
+static inline uint64_t load8(const uint8_t *p);
+
+/* Saves slice k's signs (held by the worker) in the sign cache. */
+static void cache_store(worker *w, int64_t k)
+{
+    const ctx *c = w->c;
+    const int64_t N0 = c->g.N[0], N1 = c->g.N[1];
+    const int r = (int)(k % 3);
+    for (int64_t j = 0; j < N1; j++) {
+        const rowinfo *ri = &w->ri[r][j];
+        c->rows[k * N1 + j] = *ri;
+        if (ri->lo >= N0)
+            continue; /* uniform: the span says it all */
+        const uint8_t *s = w->sg[r] + j * N0;
+        uint64_t *b = c->bits + (k * N1 + j) * c->words;
+        for (int64_t q = 0; q < c->words; q++) {
+            uint64_t word = 0;
+            for (int64_t h = 0; h < 8; h++) {
+                const int64_t i = 64 * q + 8 * h;
+                if (i >= N0)
+                    break;
+                uint64_t v = N0 - i >= 8 ? load8(s + i) : 0;
+                if (N0 - i < 8)
+                    for (int64_t x = 0; x < N0 - i; x++)
+                        v |= (uint64_t)s[i + x] << (8 * x);
+                word |= pack8(v) << (8 * h);
+            }
+            b[q] = word;
+        }
+    }
+}
+
+/* Refills slice k from the sign cache. */
+static void cache_load(worker *w, int64_t k, int r)
+{
+    const ctx *c = w->c;
+    const int64_t N0 = c->g.N[0], N1 = c->g.N[1];
+    for (int64_t j = 0; j < N1; j++) {
+        const rowinfo *ri = &c->rows[k * N1 + j];
+        uint8_t *s = w->sg[r] + j * N0;
+        w->ri[r][j] = *ri;
+        if (ri->lo >= N0) {
+            memset(s, ri->first, (size_t)N0);
+            continue;
+        }
+        const uint64_t *b = c->bits + (k * N1 + j) * c->words;
+        for (int64_t i = 0; i < N0; i += 8) /* writes up to 7 bytes of slack past N0 */
+            store8(s + i, unpack8((b[i >> 6] >> (i & 63)) & 0xFF));
+    }
+}
+
 static const uint8_t *signs(worker *w, int64_t k, const rowinfo **ri)
 {
     const grid *g = &w->c->g;
     int r = (int)(k % 3);
     if (w->sk[r] != k) {
-        uint64_t nans = 0;
-        for (int64_t j = 0; j < g->N[1]; j++)
-            classify_row(g, j, k, w->sg[r] + j * g->N[0], &w->ri[r][j],
-                         w->c->pass == 1 ? &nans : NULL);
-        w->nan[r] = nans;
+        if (w->c->pass == 2 && w->c->bits) {
+            cache_load(w, k, r);
+        } else {
+            uint64_t nans = 0;
+            for (int64_t j = 0; j < g->N[1]; j++)
+                classify_row(g, j, k, w->sg[r] + j * g->N[0], &w->ri[r][j],
+                             w->c->pass == 1 ? &nans : NULL);
+            w->nan[r] = nans;
+        }
         w->sk[r] = k;
     }
     *ri = w->ri[r];
@@ -978,9 +1058,13 @@ static void run_chunk(worker *w, int64_t chunk)
         for (int64_t k = k0; k < k1; k++) {
             c->slice_first[k] = scan_slice(w, k, 0, 0, 0);
             w->stats.nan_samples += w->nan[k % 3];
+            if (c->bits)
+                cache_store(w, k);
             if (k == N2 - 2) {
                 c->slice_first[N2 - 1] = scan_slice(w, N2 - 1, 0, 0, 0);
                 w->stats.nan_samples += w->nan[(N2 - 1) % 3];
+                if (c->bits)
+                    cache_store(w, N2 - 1);
             }
             c->layer_first[k] = march_layer(w, k, 0, 0);
             c->layer_private[k] = w->private_count;
@@ -1185,6 +1269,29 @@ isomend_status isomend_extract(const isomend_volume *vol, const isomend_options 
         }
     ws[0].is_main = 1;
 
+    /* The sign cache spares the fill pass a second read of the volume.  It
+     * costs 1 bit a sample plus a span per row: skipped (the fill pass then
+     * classifies again) when that would exceed half the input's size. */
+    {
+        const uint64_t rows = (uint64_t)N1 * (uint64_t)N2;
+        const uint64_t words = (uint64_t)(N0 + 63) / 64;
+        const uint64_t cache = rows * (8 * words + sizeof(rowinfo));
+        const uint64_t input =
+            (uint64_t)g->n[0] * (uint64_t)g->n[1] * (uint64_t)g->n[2] * (uint64_t)size;
+        if (cache <= input / 2 && rows <= SIZE_MAX / sizeof(rowinfo) &&
+            rows * words <= SIZE_MAX / 8) {
+            c->words = (int64_t)words;
+            c->bits = malloc((size_t)(rows * words) * 8);
+            c->rows = malloc((size_t)rows * sizeof(rowinfo));
+            if (!c->bits || !c->rows) {
+                free(c->bits);
+                free(c->rows);
+                c->bits = NULL;
+                c->rows = NULL;
+            }
+        }
+    }
+
     c->pass = 1;
     status = run_pass(c, ws, nthreads);
     if (status != ISOMEND_OK)
@@ -1277,6 +1384,8 @@ done:
     free(c->slice_first);
     free(c->layer_first);
     free(c->layer_private);
+    free(c->bits);
+    free(c->rows);
     free(c);
     return status;
 }
