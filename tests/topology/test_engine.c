@@ -13,6 +13,9 @@
  * 3. Candidate tubes (every pair of same-sign regions next to one region of
  *    the other sign) are listed; which of them the interpolant really
  *    produces is decided at run time and checked by test_methods.c.
+ * 4. The tables commute with the 24 rotations of the cube: rotating a
+ *    configuration and its face decisions rotates the entry's loops and its
+ *    candidate tubes.
  */
 #include "cube.h"
 #include "isomend.h"
@@ -55,6 +58,102 @@ static unsigned ambiguous(unsigned config)
             m |= 1u << f;
     }
     return m;
+}
+
+/* The rotation group as corner permutations, from two quarter-turns. */
+static int rotations(int rot[24][8])
+{
+    int n = 1;
+    for (int c = 0; c < 8; c++)
+        rot[0][c] = c;
+    for (int i = 0; i < n; i++)
+        for (int g = 0; g < 2; g++) {
+            int r[8];
+            for (int c = 0; c < 8; c++) {
+                int x = CUBE_CORNER_X(c), y = CUBE_CORNER_Y(c), z = CUBE_CORNER_Z(c), X, Y, Z;
+                if (g == 0) { /* about z */
+                    X = 1 - y;
+                    Y = x;
+                    Z = z;
+                } else { /* about x */
+                    X = x;
+                    Y = 1 - z;
+                    Z = y;
+                }
+                r[c] = rot[i][X + 2 * Y + 4 * Z];
+            }
+            int seen = 0;
+            for (int k = 0; k < n && !seen; k++)
+                seen = memcmp(rot[k], r, sizeof r) == 0;
+            if (!seen) {
+                if (n == 24)
+                    return 25;
+                memcpy(rot[n++], r, sizeof r);
+            }
+        }
+    return n;
+}
+
+static void rotation_check(void)
+{
+    int rot[24][8];
+    CHECK_EQ_INT(rotations(rot), 24);
+    int checked = 0;
+    unsigned char s1[3 * METHODS_MAX_TRI], s2[3 * METHODS_MAX_TRI];
+    for (int r = 0; r < 24; r++) {
+        const int *R = rot[r];
+        int emap[12], fmap[6];
+        for (int e = 0; e < 12; e++) {
+            int a = R[cube_edge_corner[e][0]], b = R[cube_edge_corner[e][1]];
+            emap[e] = -1;
+            for (int k = 0; k < 12; k++)
+                if ((cube_edge_corner[k][0] == a && cube_edge_corner[k][1] == b) ||
+                    (cube_edge_corner[k][0] == b && cube_edge_corner[k][1] == a))
+                    emap[e] = k;
+            CHECK(emap[e] >= 0);
+        }
+        for (int f = 0; f < 6; f++) {
+            unsigned m = 0;
+            for (int i = 0; i < 4; i++)
+                m |= 1u << R[cube_face_corner[f][i]];
+            fmap[f] = -1;
+            for (int k = 0; k < 6; k++) {
+                unsigned mk = 0;
+                for (int i = 0; i < 4; i++)
+                    mk |= 1u << cube_face_corner[k][i];
+                if (mk == m)
+                    fmap[f] = k;
+            }
+            CHECK(fmap[f] >= 0);
+        }
+        for (unsigned config = 1; config < 255; config++) {
+            unsigned rc = 0, amb = ambiguous(config);
+            for (int c = 0; c < 8; c++)
+                if ((config >> c) & 1)
+                    rc |= 1u << R[c];
+            for (unsigned join = 0; join < 64; join++) {
+                if (join & ~amb)
+                    continue;
+                unsigned rj = 0;
+                for (int f = 0; f < 6; f++)
+                    if ((join >> f) & 1)
+                        rj |= 1u << fmap[f];
+                int n1 = methods_table_triangles(config, join, -1, s1);
+                int n2 = methods_table_triangles(rc, rj, -1, s2);
+                CHECK(n1 > 0 && n2 > 0);
+                for (int q = 0; q < 3 * n1; q++)
+                    if (s1[q] < 12)
+                        s1[q] = (unsigned char)emap[s1[q]];
+                int a[METHODS_SLOT_COUNT][METHODS_SLOT_COUNT], b[METHODS_SLOT_COUNT][METHODS_SLOT_COUNT];
+                boundary(s1, n1, a);
+                boundary(s2, n2, b);
+                CHECK(memcmp(a, b, sizeof a) == 0);
+                CHECK_EQ_INT(methods_tube_count(config, join), methods_tube_count(rc, rj));
+                checked++;
+            }
+        }
+    }
+    printf("%d (rotation, configuration, decision) triples commute with the tables\n", checked);
 }
 
 int main(void)
@@ -151,5 +250,6 @@ int main(void)
     /* No tube is possible with fewer than two regions of one sign. */
     CHECK(!(tube_cases & (1u << 1)));
     printf("%d table entries checked, %d of them with a tube\n", entries, tubes);
+    rotation_check();
     TEST_EXIT();
 }
