@@ -24,7 +24,7 @@
  * one-sided differences make its estimate the facial average), so it equals
  * facial there; it differs on the larger grids.
  *
- * Grids: (1) all 254 non-trivial configurations of one cube x N random
+ * Grids: (1) all 256 configurations of one cube x N random
  * corner values each (positive corners in (0, 1], negative in [-1, 0));
  * (2) random 5x5x5 grids; (3) smooth random closed-surface grids (sums of
  * Gaussians); (4) F1 and F2 of the thesis; (5) integer data in 0..4 with
@@ -153,7 +153,7 @@ static void configurations(int per_config)
     tally t[NMETHODS];
     memset(t, 0, sizeof t);
     long tunnels = 0, no_tube = 0, tubes_used = 0, tube_cases[15] = {0};
-    for (unsigned config = 1; config < 255; config++)
+    for (unsigned config = 0; config < 256; config++)
         for (int n = 0; n < per_config; n++) {
             double v[8];
             for (int c = 0; c < 8; c++) {
@@ -192,7 +192,7 @@ static void configurations(int per_config)
         }
     char title[128];
     snprintf(title, sizeof title,
-             "254 configurations x %d random cubes (%ld with a tunnel, surface chi 0):", per_config,
+             "256 configurations x %d random cubes (%ld with a tunnel, surface chi 0):", per_config,
              tunnels);
     report(title, t, 0);
     printf("  mc33 used a tube in %ld cubes; asymptotic matched in all %ld others\n", tubes_used,
