@@ -34,7 +34,7 @@
  *           p0),  t = (iso - f0) / (f1 - f0),  p0 the end with the lower
  *           linear sample index, NaN/padding ends cut at the middle (as for
  *           edges).  Shared by the two cubes on the face: key it by the face.
- *   18      mc33 and the face-decision methods, rarely: a vertex private to
+ *   18      mc33 and the face-decision methods, when needed: a vertex private to
  *           the cube, at the mean of the positions (and normals, renormalised)
  *           of the cube's intersected edges (slots 0..11 cut in this cube).
  *           The triangles use it only for polygons that no triangulation
@@ -44,7 +44,7 @@
  *           renormalised).  A tunnel whose two polygons cannot be joined
  *           without a chord inside a face goes through a ring of these.
  *
-  * Per cube at most METHODS_MAX_TRI triangles.  Every method here keeps the
+ * Per cube at most METHODS_MAX_TRI triangles.  Every method here keeps the
  * neighbours consistent: the face decisions read only samples of the shared
  * face's plane, in an order fixed by the face, never by the cube; the MC33
  * interior test and the centre vertex concern the cube alone.
