@@ -331,6 +331,13 @@ f = d("hyperstack")
 tifffile.imwrite(os.path.join(f, "hs.tif"), rand((3, 2, NY, NX), np.uint8, 0, 255), imagej=True,
                  metadata={"axes": "ZCYX"})
 err("hyperstack", UNSUPPORTED, "2 channels", [os.path.join(f, "hs.tif")])
+# 1-bit TIFFs as tifffile (and Pillow) write them, without a BitsPerSample tag: OIIO 2.4 misreads
+f = d("bilevel")
+for k in range(2):
+    m = np.zeros((NY, NX), bool)
+    m[2:5, 3:9 + k] = True
+    tifffile.imwrite(os.path.join(f, "mask_%d.tif" % k), m)
+err("bilevel", UNSUPPORTED, "mask_0.tif: a 1-bit", [f])
 err("rgb_no_channel", UNSUPPORTED, "--channel", [os.path.join(OUT, "rgb")])
 err("rgb_bad_channel", UNSUPPORTED, "no channel 5", [os.path.join(OUT, "rgb")], channel=5)
 

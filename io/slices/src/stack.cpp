@@ -24,6 +24,7 @@
 #include <chrono>
 #include <cmath>
 #include <condition_variable>
+#include <cstdio>
 #include <cstdlib>
 #include <cstring>
 #include <memory>
@@ -220,6 +221,52 @@ static void refuse_imagej_hyperstack(const Slice &s, const ImageSpec &spec) {
     }
 }
 
+// OpenImageIO 2.4.7 reads a TIFF without a BitsPerSample tag (legal: the
+// default is 1, bilevel; tifffile and Pillow write 1-bit images that way) as
+// 8-bit and returns the packed bits as bytes, silently.  We read the tag
+// ourselves: for every page of `path`, whether tag 258 is absent.  Classic
+// and BigTIFF, either byte order; an unreadable structure returns what was
+// read so far (OIIO reports real damage itself).
+static std::vector<bool> tiff_pages_without_bits_tag(const std::string &path) {
+    std::vector<bool> out;
+    FILE *f = std::fopen(path.c_str(), "rb");
+    if (!f) return out;
+    unsigned char h[16];
+    bool be = false;
+    auto un = [&](const unsigned char *b, int n) -> uint64_t {
+        uint64_t v = 0;
+        for (int i = 0; i < n; i++) v |= (uint64_t)b[be ? n - 1 - i : i] << (8 * i);
+        return v;
+    };
+    if (std::fread(h, 1, 16, f) >= 8 && h[0] == h[1] && (h[0] == 'I' || h[0] == 'M')) {
+        be = h[0] == 'M';
+        uint64_t magic = un(h + 2, 2);
+        bool big_tiff = magic == 43;
+        uint64_t ifd = magic == 42 ? un(h + 4, 4) : big_tiff ? un(h + 8, 8) : 0;
+        const int count_size = big_tiff ? 8 : 2, entry_size = big_tiff ? 20 : 12;
+        const int next_size = big_tiff ? 8 : 4;
+        while (ifd != 0 && ifd < (1ull << 62) && out.size() < (1u << 24)) {
+            unsigned char c[8];
+            if (std::fseek(f, (long)ifd, SEEK_SET) != 0 ||
+                std::fread(c, 1, (size_t)count_size, f) != (size_t)count_size)
+                break;
+            uint64_t n = un(c, count_size);
+            if (n == 0 || n > 4096) break;
+            std::vector<unsigned char> e((size_t)n * (size_t)entry_size + (size_t)next_size);
+            if (std::fread(e.data(), 1, e.size(), f) != e.size()) break;
+            bool has_bits = false;
+            for (uint64_t i = 0; i < n; i++)
+                if (un(e.data() + i * (uint64_t)entry_size, 2) == 258) has_bits = true;
+            out.push_back(!has_bits);
+            uint64_t next = un(e.data() + n * (uint64_t)entry_size, next_size);
+            if (next <= ifd) break; // IFDs go forward in practice; this stops loops
+            ifd = next;
+        }
+    }
+    std::fclose(f);
+    return out;
+}
+
 static void describe_first(const Slice &s, const ImageSpec &spec, int channel,
                            StackInfo &info) {
     std::string name = slice_name(s);
@@ -330,6 +377,8 @@ void scan_stack(const std::vector<Slice> &slices, int channel, StackInfo &info,
     std::string first_name;
     std::unique_ptr<ImageInput> in;
     std::string open_path;
+    std::string bits_tag_path;
+    std::vector<bool> bits_tag_missing;
     for (size_t k = 0; k < slices.size(); k++) {
         const Slice &s = slices[k];
         if (!in || open_path != s.path) {
@@ -356,6 +405,18 @@ void scan_stack(const std::vector<Slice> &slices, int channel, StackInfo &info,
         if (!in->seek_subimage(s.subimage, 0, spec))
             throw IoError(ISOMEND_IO_ERR_CORRUPT,
                           slice_name(s) + ": cannot read the header: " + take_oiio_error(in.get()));
+        if (spec.format == TypeDesc::UINT8 && spec.get_int_attribute("oiio:BitsPerSample", 0) == 8 &&
+            std::string(in->format_name()) == "tiff") {
+            if (bits_tag_path != s.path) {
+                bits_tag_missing = tiff_pages_without_bits_tag(s.path);
+                bits_tag_path = s.path;
+            }
+            if ((size_t)s.subimage < bits_tag_missing.size() && bits_tag_missing[(size_t)s.subimage])
+                throw IoError(ISOMEND_IO_ERR_UNSUPPORTED,
+                              slice_name(s) + ": a 1-bit (bilevel) TIFF without a BitsPerSample tag, "
+                                              "which OpenImageIO 2.4 misreads as 8-bit; save the mask "
+                                              "as 8-bit");
+        }
         if (k == 0) {
             describe_first(s, spec, channel, info);
             info.format = in->format_name();
