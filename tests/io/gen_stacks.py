@@ -138,6 +138,15 @@ for k in range(3):
     oiio_write(os.path.join(f, "t_%02d.tif" % k), vol[k] << 4, "uint16", "none", bits=12)
 ok("u12_folder", "u16", vol, "folder", [f])
 
+# 1-bit and 4-bit TIFF with an explicit BitsPerSample (OIIO's writer takes them scaled to 8 bits)
+for bits in (1, 4):
+    f = d("u%dbit" % bits)
+    vol = rand((3, NY, NX), np.uint8, 0, (1 << bits) - 1)
+    for k in range(3):
+        oiio_write(os.path.join(f, "b%d.tif" % k), vol[k] * (255 // ((1 << bits) - 1)), "uint8", "none",
+                   bits=bits)
+    ok("u%dbit" % bits, "u8", vol, "folder", [f])
+
 # OpenEXR half (values beyond 1 and negative) and float
 f = d("exr_half")
 vol = (RNG.normal(0, 300, size=(3, NY, NX))).astype(np.float16)
