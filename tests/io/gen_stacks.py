@@ -295,6 +295,20 @@ with open(paths[1], "r+b") as fh:
     fh.write(bytes(RNG.integers(0, 255, size=64, endpoint=True).astype(np.uint8)))
 err("deflate_corrupt", CORRUPT, "z_1.tif", [f])
 
+# the same in a tiled deflate TIFF (OIIO's tile path)
+f = d("tiled_corrupt")
+paths = []
+for k in range(3):
+    paths.append(os.path.join(f, "t_%d.tif" % k))
+    tifffile.imwrite(paths[-1], big[k], photometric="minisblack", compression="zlib", tile=(16, 16))
+with tifffile.TiffFile(paths[2]) as t:
+    off = t.pages[0].dataoffsets[5]
+    cnt = t.pages[0].databytecounts[5]
+with open(paths[2], "r+b") as fh:
+    fh.seek(off + cnt // 2)
+    fh.write(bytes(RNG.integers(0, 255, size=64, endpoint=True).astype(np.uint8)))
+err("tiled_corrupt", CORRUPT, "t_2.tif", [f])
+
 f, paths = gray_folder("size_mismatch")
 oiio_write(paths[1], rand((NY - 1, NX), np.uint8, 0, 9), "uint8")
 err("size_mismatch", MISMATCH, "b_01.tif", [f])

@@ -29,7 +29,9 @@
  *     .nhdr): read by io/common's readers, see isomend_io_options.
  * Every 2D format OpenImageIO reads is accepted.  Tested: TIFF u8, u16, i16
  * (negative values kept), f32, packed 12-bit (restored to its real 0..4095
- * values, not OIIO's bit-replicated 16-bit ones), OpenEXR half and float, PNG.
+ * values, not OIIO's scaled 16-bit ones; likewise 1- and 4-bit), tiled TIFF,
+ * OpenEXR half and float, PNG.  A TIFF Orientation tag is not applied: pixels
+ * are taken as stored (row 0 first).
  *
  * Sample types are kept as stored (no normalisation to 0..1): u8, i8, u16,
  * i16, i32, f32, f64; half becomes f32 and u32 becomes f64 (both exact);
