@@ -251,6 +251,15 @@ with open(os.path.join(f, "vol_gz.nrrd"), "wb") as fh:
     vol = rand((5, NY, NX), np.int16, -32768, 32767)
     fh.write(gzip.compress(np.ascontiguousarray(vol).astype(">i2").tobytes()))
 ok("nrrd_gzip_be", "i16", vol, "nrrd", [os.path.join(f, "vol_gz.nrrd")])
+# NRRD with x and y pointing backwards (RAS data from NIfTI): delivered reversed along them
+vol = rand((4, NY, NX), np.uint8, 0, 255)
+with open(os.path.join(f, "neg.nrrd"), "wb") as fh:
+    fh.write(("NRRD0004\ntype: uchar\ndimension: 3\nsizes: %d %d %d\nencoding: raw\n"
+              "space: right-anterior-superior\nspace directions: (-0.5,0,0) (0,-0.75,0) (0,0,2)\n"
+              "space origin: (10,20,30)\n\n" % (NX, NY, 4)).encode())
+    fh.write(np.ascontiguousarray(vol).tobytes())
+ok("nrrd_negative_axes", "u8", np.ascontiguousarray(vol[:, ::-1, ::-1]), "nrrd", [os.path.join(f, "neg.nrrd")],
+   spacing=(0.5, 0.75, 2.0), spsrc="header,header,header")
 
 # ---- bad stacks ------------------------------------------------------------------------------
 

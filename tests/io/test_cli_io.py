@@ -119,9 +119,10 @@ with tempfile.TemporaryDirectory() as tmp:
         spacing_arg = ",".join(repr(s) for s in sp)
         a, b = os.path.join(tmp, name + "_stack.ply"), os.path.join(tmp, name + "_raw.ply")
         r1 = run(["extract"] + srcs + opts + ["-o", a, "--iso", repr(iso), "--pad", "--quiet",
-                                              "--spacing", spacing_arg])
+                                              "--spacing", spacing_arg, "--origin", "0,0,0"])
         r2 = run(["extract", os.path.join(STACKS, exp), "--raw", "%d,%d,%d:%s" % (nx, ny, nz, tname),
-                  "-o", b, "--iso", repr(iso), "--pad", "--quiet", "--spacing", spacing_arg])
+                  "-o", b, "--iso", repr(iso), "--pad", "--quiet", "--spacing", spacing_arg,
+                  "--origin", "0,0,0"])
         check(r1.returncode == 0 and r2.returncode == 0, "%s: extract failed: %s %s" % (name, r1.stderr, r2.stderr))
         if r1.returncode == 0 and r2.returncode == 0:
             da, db = open(a, "rb").read(), open(b, "rb").read()

@@ -535,6 +535,19 @@ static void test_raw(void) {
     CHECK(strstr(isomend_io_message(src), "u16_pattern_all.expected.raw") != NULL);
     printf("ok   raw through io/common: %s\n", isomend_io_message(src));
     isomend_io_destroy(src);
+    /* NRRD with backwards x and y: origin moved to the stored last sample */
+    char *q = join("nrrd/neg.nrrd");
+    paths[0] = q;
+    CHECK_EQ_INT(isomend_io_create(&src), ISOMEND_IO_OK);
+    CHECK_EQ_INT(isomend_io_open(src, paths, 1, NULL), ISOMEND_IO_OK);
+    double org[3];
+    CHECK_EQ_INT(isomend_io_origin(src, org), ISOMEND_IO_OK);
+    CHECK(org[0] == 10 - 12 * 0.5 && org[1] == 20 - 8 * 0.75 && org[2] == 30);
+    isomend_volume vol;
+    CHECK_EQ_INT(isomend_io_load(src, &vol, NULL), ISOMEND_IO_OK);
+    CHECK(vol.origin[0] == 4 && vol.origin[1] == 14 && vol.spacing[0] == 0.5 && vol.spacing[1] == 0.75);
+    free(q);
+    isomend_io_destroy(src);
     free(buf);
     free(expected);
     free(p);

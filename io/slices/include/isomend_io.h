@@ -59,6 +59,12 @@
  * size before anything is allocated).  Every message names the slice file
  * and the reason.
  *
+ * A NRRD whose "space directions" point an axis backwards (NIfTI-derived RAS
+ * data) is delivered reversed along that axis, with the origin moved to the
+ * stored last sample, so that world = origin + index * spacing (spacing > 0)
+ * holds for every source: the mesh lands where the samples are, unmirrored,
+ * as the isomend command line places it.
+ *
  * Spacing: options.spacing if set (all three > 0), else the files' metadata
  * (ImageJ's "spacing=" in ImageDescription for z and its resolution tags as
  * pixels per unit for x/y; else TIFF XResolution / YResolution with

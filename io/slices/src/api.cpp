@@ -197,6 +197,67 @@ void read_file_slices(isomend_io_source *s, int64_t first, int64_t count, void *
                  msg);
 }
 
+// A NRRD whose "space directions" point an axis backwards (NIfTI-derived
+// RAS data) is delivered reversed along that axis, so that for every source
+// world = origin + index * spacing with positive spacing, as io/common's
+// isomend_fileio_describe() presents it to the CLI: same mesh, unmirrored.
+// Reverses x and y inside `count` consecutive slices.
+void reverse_in_slices(const isomend_io_source *s, void *buf, int64_t count) {
+    const int *neg = s->file_info.axis_negative;
+    if (!neg[0] && !neg[1]) return;
+    const size_t es = isomend_type_size(src_type(s));
+    const size_t nx = (size_t)dim(s, 0), ny = (size_t)dim(s, 1), row = nx * es;
+    std::vector<unsigned char> tmp(std::max(row, es));
+    for (int64_t k = 0; k < count; k++) {
+        unsigned char *slice = (unsigned char *)buf + (size_t)k * ny * row;
+        if (neg[1]) {
+            for (size_t y = 0; y < ny / 2; y++) {
+                unsigned char *a = slice + y * row, *b = slice + (ny - 1 - y) * row;
+                std::memcpy(tmp.data(), a, row);
+                std::memcpy(a, b, row);
+                std::memcpy(b, tmp.data(), row);
+            }
+        }
+        if (neg[0]) {
+            for (size_t y = 0; y < ny; y++) {
+                unsigned char *r = slice + y * row;
+                for (size_t x = 0; x < nx / 2; x++) {
+                    unsigned char *a = r + x * es, *b = r + (nx - 1 - x) * es;
+                    std::memcpy(tmp.data(), a, es);
+                    std::memcpy(a, b, es);
+                    std::memcpy(b, tmp.data(), es);
+                }
+            }
+        }
+    }
+}
+
+// Reads delivered slice k of a raw/NRRD source (stored slice nz-1-k along a negative z).
+void read_file_slice(isomend_io_source *s, int64_t k, void *buf, size_t size) {
+    int64_t stored = s->file_info.axis_negative[2] ? dim(s, 2) - 1 - k : k;
+    read_file_slices(s, stored, 1, buf, size, nullptr, nullptr);
+    reverse_in_slices(s, buf, 1);
+}
+
+// Reads the whole raw/NRRD volume in delivered order.
+void read_file_volume(isomend_io_source *s, void *buffer, size_t size, isomend_io_progress_fn fn,
+                      void *user) {
+    read_file_slices(s, 0, dim(s, 2), buffer, size, fn, user);
+    reverse_in_slices(s, buffer, dim(s, 2));
+    if (s->file_info.axis_negative[2]) {
+        const size_t sb = (size_t)slice_bytes(s);
+        const int64_t nz = dim(s, 2);
+        std::vector<unsigned char> tmp(sb);
+        for (int64_t k = 0; k < nz / 2; k++) {
+            unsigned char *a = (unsigned char *)buffer + (size_t)k * sb;
+            unsigned char *b = (unsigned char *)buffer + (size_t)(nz - 1 - k) * sb;
+            std::memcpy(tmp.data(), a, sb);
+            std::memcpy(a, b, sb);
+            std::memcpy(b, tmp.data(), sb);
+        }
+    }
+}
+
 void do_read(isomend_io_source *s, void *buffer, size_t size, isomend_io_progress_fn fn, void *user) {
     uint64_t need = volume_bytes(s);
     if (!buffer || size < need)
@@ -204,7 +265,7 @@ void do_read(isomend_io_source *s, void *buffer, size_t size, isomend_io_progres
                       "buffer of " + std::to_string(size) + " bytes is too small for " + dims_text(s) +
                           " (" + std::to_string(need) + " bytes)");
     if (s->is_file_volume) {
-        read_file_slices(s, 0, dim(s, 2), buffer, size, fn, user);
+        read_file_volume(s, buffer, size, fn, user);
         return;
     }
     const size_t sb = (size_t)slice_bytes(s);
@@ -337,7 +398,7 @@ template <typename F> void for_each_slice(isomend_io_source *s, F &&f, double ba
     if (s->is_file_volume) {
         std::vector<char> buf(sb);
         for (int64_t k = 0; k < dim(s, 2); k++) {
-            read_file_slices(s, k, 1, buf.data(), buf.size(), nullptr, nullptr);
+            read_file_slice(s, k, buf.data(), buf.size());
             f(buf.data(), n);
             if (fn && fn(user, ISOMEND_IO_STAGE_ANALYSE, base + part * (double)(k + 1) / (double)dim(s, 2)))
                 throw IoError(ISOMEND_IO_ERR_CANCELLED, "cancelled while analysing");
@@ -425,8 +486,16 @@ void apply_overrides(isomend_io_source *s) {
         }
     }
     bool origin_given = o.origin[0] != 0 || o.origin[1] != 0 || o.origin[2] != 0;
-    for (int a = 0; a < 3; a++)
-        s->origin[a] = origin_given || !s->is_file_volume ? o.origin[a] : s->file_info.origin[a];
+    for (int a = 0; a < 3; a++) {
+        if (origin_given || !s->is_file_volume) {
+            s->origin[a] = o.origin[a];
+        } else {
+            // samples are delivered reversed along a negative axis (see
+            // reverse_negative_axes): sample 0 is the stored last one
+            double last = (double)(s->file_info.dims[a] - 1) * s->file_info.spacing[a];
+            s->origin[a] = s->file_info.origin[a] - (s->file_info.axis_negative[a] ? last : 0.0);
+        }
+    }
 }
 
 void open_file_volume(isomend_io_source *s, const std::string &path, bool nrrd) {
@@ -693,7 +762,7 @@ ISOMEND_IO_API isomend_io_status isomend_io_read_slice(isomend_io_source *src, i
             throw IoError(ISOMEND_IO_ERR_INVALID_ARGUMENT,
                           "buffer of " + std::to_string(buffer_size) + " bytes is too small for one slice (" +
                               std::to_string(slice_bytes(src)) + " bytes)");
-        if (src->is_file_volume) read_file_slices(src, k, 1, buffer, buffer_size, nullptr, nullptr);
+        if (src->is_file_volume) read_file_slice(src, k, buffer, buffer_size);
         else read_slice(src->slices[(size_t)k], src->info, buffer);
     });
 }
