@@ -155,7 +155,8 @@ typedef struct isomend_io_options {
     int channel;
     /* spacing override: used when all three are > 0 (default all 0) */
     double spacing[3];
-    /* world position of sample (0, 0, 0) (default 0, 0, 0) */
+    /* world position of sample (0, 0, 0); all three 0 (the default) means
+     * the file's own origin (NRRD "space origin"), else 0 */
     double origin[3];
     /* reader threads, 0 = one per core (max 8) */
     int threads;
