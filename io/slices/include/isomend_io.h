@@ -53,11 +53,14 @@
  * every decode): a missing, unreadable or unknown file; truncated or corrupt
  * data (has_error() after every read, and per-scanline decoding so that
  * broken compressed strips are reported); a slice whose size, data window,
- * channel count or sample type differs from the first slice's; a 3D image
- * (depth > 1); an empty folder or a pattern/glob with no match; fewer than
- * two slices; a volume larger than the memory available (refused with its
- * size before anything is allocated).  Every message names the slice file
- * and the reason.
+ * channel count, sample type or bit depth differs from the first slice's; a
+ * 3D image (depth > 1); a multi-page file inside a folder or list; an ImageJ
+ * hyperstack with several channels or frames (pages interleave them); a
+ * 1-bit TIFF without a BitsPerSample tag (OIIO 2.4.7 returns its packed bits
+ * as bytes); an empty folder or a pattern/glob with no match; fewer than two
+ * slices; a volume larger than the memory available (refused with its size
+ * before anything is allocated).  Every message names the slice file and the
+ * reason.
  *
  * A NRRD whose "space directions" point an axis backwards (NIfTI-derived RAS
  * data) is delivered reversed along that axis, with the origin moved to the
