@@ -388,10 +388,7 @@ void scan_stack(const std::vector<Slice> &slices, int channel, StackInfo &info,
             if (!multipage) {
                 // A multi-page file inside a folder/list would lose its pages silently.
                 if (in->seek_subimage(1, 0)) {
-                    int pages = 2;
-                    while (pages < (1 << 24) && in->seek_subimage(pages, 0)) pages++;
-                    (void)in->geterror();
-                    (void)OIIO::geterror();
+                    int pages = count_subimages(s.path);
                     throw IoError(ISOMEND_IO_ERR_UNSUPPORTED,
                                   s.path + ": has " + std::to_string(pages) +
                                       " pages/parts; a stack of files needs one image per file "
