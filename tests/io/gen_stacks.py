@@ -370,6 +370,8 @@ for k in range(2):
     m[2:5, 3:9 + k] = True
     tifffile.imwrite(os.path.join(f, "mask_%d.tif" % k), m)
 err("bilevel", UNSUPPORTED, "mask_0.tif: a 1-bit", [f])
+err("multipage_in_list", UNSUPPORTED, "stack.tif: has 5 pages",
+    [os.path.join(OUT, "multipage", "stack.tif"), os.path.join(OUT, "u16_pattern", "slice_0000.tif")])
 err("rgb_no_channel", UNSUPPORTED, "--channel", [os.path.join(OUT, "rgb")])
 err("rgb_bad_channel", UNSUPPORTED, "no channel 5", [os.path.join(OUT, "rgb")], channel=5)
 
