@@ -153,8 +153,13 @@ static void configurations(int per_config)
     tally t[NMETHODS];
     memset(t, 0, sizeof t);
     long tunnels = 0, no_tube = 0, tubes_used = 0, tube_cases[15] = {0};
-    for (unsigned config = 0; config < 256; config++)
-        for (int n = 0; n < per_config; n++) {
+    long cubes = 0;
+    for (unsigned config = 0; config < 256; config++) {
+        /* Case 13 (alternating corners: six ambiguous faces, where MC33's
+         * subcases 13.1-13.5.2 and the classical interior test's failures
+         * live) gets 20 times more cubes. */
+        const int reps = isomend_case_of(config) == 13 ? 20 * per_config : per_config;
+        for (int n = 0; n < reps; n++, cubes++) {
             double v[8];
             for (int c = 0; c < 8; c++) {
                 double u = 1.0 - urand(); /* (0, 1] */
@@ -190,10 +195,12 @@ static void configurations(int per_config)
                 tube_cases[isomend_case_of(config)]++;
             }
         }
-    char title[128];
+    }
+    char title[160];
     snprintf(title, sizeof title,
-             "256 configurations x %d random cubes (%ld with a tunnel, surface chi 0):", per_config,
-             tunnels);
+             "256 configurations x %d random cubes, case 13 x %d (%ld cubes, %ld with a tunnel, "
+             "surface chi 0):",
+             per_config, 20 * per_config, cubes, tunnels);
     report(title, t, 0);
     printf("  mc33 used a tube in %ld cubes; asymptotic matched in all %ld others\n", tubes_used,
            no_tube);
