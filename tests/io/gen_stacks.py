@@ -261,6 +261,17 @@ with open(os.path.join(f, "neg.nrrd"), "wb") as fh:
 ok("nrrd_negative_axes", "u8", np.ascontiguousarray(vol[:, ::-1, ::-1]), "nrrd", [os.path.join(f, "neg.nrrd")],
    spacing=(0.5, 0.75, 2.0), spsrc="header,header,header")
 
+# long stacks (headers are then checked by several threads): 150 files, 200 pages
+f = d("many")
+vol = rand((150, NY, NX), np.uint8, 0, 255)
+for k in range(150):
+    tifffile.imwrite(os.path.join(f, "m_%03d.tif" % k), vol[k], photometric="minisblack")
+ok("many_files", "u8", vol, "folder", [f])
+f = d("many_pages")
+vol = rand((200, NY, NX), np.uint16, 0, 65535)
+tifffile.imwrite(os.path.join(f, "pages.tif"), vol, photometric="minisblack")
+ok("many_pages", "u16", vol, "multipage", [os.path.join(f, "pages.tif")])
+
 # ---- bad stacks ------------------------------------------------------------------------------
 
 def gray_folder(name, n=3, dt=np.uint8, fmt="uint8", compression="none", ext="tif"):
@@ -321,6 +332,10 @@ err("tiled_corrupt", CORRUPT, "t_2.tif", [f])
 f, paths = gray_folder("size_mismatch")
 oiio_write(paths[1], rand((NY - 1, NX), np.uint8, 0, 9), "uint8")
 err("size_mismatch", MISMATCH, "b_01.tif", [f])
+
+f, paths = gray_folder("many_mismatch", n=150)
+oiio_write(paths[141], rand((NY, NX + 1), np.uint8, 0, 9), "uint8")
+err("many_mismatch", MISMATCH, "b_141.tif: size 14x9", [f])
 
 f, paths = gray_folder("type_mismatch")
 oiio_write(paths[2], rand((NY, NX), np.uint16, 0, 9), "uint16")

@@ -277,6 +277,26 @@ static void test_progress(void) {
     CHECK_EQ_INT(log.wrong_thread, 0);
     isomend_io_destroy(src);
 
+    /* cancel while the headers of a long stack are checked by worker threads */
+    memset(&log, 0, sizeof log);
+    log.caller = pthread_self();
+    log.cancel_at_stage = ISOMEND_IO_STAGE_OPEN;
+    {
+        isomend_io_options o;
+        isomend_io_options_init(&o);
+        o.progress = on_progress;
+        o.progress_user = &log;
+        o.threads = 3;
+        char *p = join("many_pages/pages.tif");
+        const char *paths[1] = {p};
+        CHECK_EQ_INT(isomend_io_create(&src), ISOMEND_IO_OK);
+        CHECK_EQ_INT(isomend_io_open(src, paths, 1, &o), ISOMEND_IO_ERR_CANCELLED);
+        CHECK(strstr(isomend_io_message(src), "cancel") != NULL);
+        CHECK_EQ_INT(log.wrong_thread, 0);
+        isomend_io_destroy(src);
+        free(p);
+    }
+
     /* cancel during extraction */
     memset(&log, 0, sizeof log);
     log.caller = pthread_self();

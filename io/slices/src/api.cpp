@@ -584,7 +584,7 @@ void do_open(isomend_io_source *s, const char *const *paths, size_t count, const
                           " slice found; a stack needs at least two");
     isomend_io_progress_fn fn = o.progress;
     void *user = o.progress_user;
-    scan_stack(s->slices, o.channel, s->info, [&](double f) {
+    scan_stack(s->slices, o.channel, o.threads, s->info, [&](double f) {
         if (fn && fn(user, ISOMEND_IO_STAGE_OPEN, f))
             throw IoError(ISOMEND_IO_ERR_CANCELLED, "cancelled while opening slices");
     });

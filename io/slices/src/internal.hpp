@@ -79,8 +79,9 @@ struct StackInfo {
 
 // Opens every slice's header and checks that it agrees with the first;
 // fills `info` (spacing from the first slice's metadata).  `channel` is the
-// option (ISOMEND_IO_CHANNEL_*).  `progress` is called with 0..1, may throw.
-void scan_stack(const std::vector<Slice> &slices, int channel, StackInfo &info,
+// option (ISOMEND_IO_CHANNEL_*); `threads` as for read_parallel.  `progress`
+// is called on the calling thread with 0..1 and may throw to cancel.
+void scan_stack(const std::vector<Slice> &slices, int channel, int threads, StackInfo &info,
                 const std::function<void(double)> &progress);
 
 // Counts the subimages of one file (1 for an ordinary image).

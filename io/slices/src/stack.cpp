@@ -371,59 +371,149 @@ static void check_against_first(const Slice &s, const ImageSpec &spec,
                           std::to_string(info.bits) + tail);
 }
 
-void scan_stack(const std::vector<Slice> &slices, int channel, StackInfo &info,
-                const std::function<void(double)> &progress) {
-    bool multipage = !slices.empty() && slices[0].multipage;
-    std::string first_name;
+// Per-thread state of the header scan: the open file and its page flags.
+struct ScanCursor {
     std::unique_ptr<ImageInput> in;
     std::string open_path;
     std::string bits_tag_path;
     std::vector<bool> bits_tag_missing;
-    for (size_t k = 0; k < slices.size(); k++) {
-        const Slice &s = slices[k];
-        if (!in || open_path != s.path) {
-            if (in) in->close();
-            in = open_input(s.path);
-            open_path = s.path;
-            if (!multipage) {
-                // A multi-page file inside a folder/list would lose its pages silently.
-                if (in->seek_subimage(1, 0)) {
-                    int pages = count_subimages(s.path);
-                    throw IoError(ISOMEND_IO_ERR_UNSUPPORTED,
-                                  s.path + ": has " + std::to_string(pages) +
-                                      " pages/parts; a stack of files needs one image per file "
-                                      "(open a multi-page file on its own)");
-                }
-                (void)in->geterror();
-                (void)OIIO::geterror();
-            }
-        }
-        ImageSpec spec;
-        if (!in->seek_subimage(s.subimage, 0, spec))
-            throw IoError(ISOMEND_IO_ERR_CORRUPT,
-                          slice_name(s) + ": cannot read the header: " + take_oiio_error(in.get()));
-        if (spec.format == TypeDesc::UINT8 && spec.get_int_attribute("oiio:BitsPerSample", 0) == 8 &&
-            std::string(in->format_name()) == "tiff") {
-            if (bits_tag_path != s.path) {
-                bits_tag_missing = tiff_pages_without_bits_tag(s.path);
-                bits_tag_path = s.path;
-            }
-            if ((size_t)s.subimage < bits_tag_missing.size() && bits_tag_missing[(size_t)s.subimage])
-                throw IoError(ISOMEND_IO_ERR_UNSUPPORTED,
-                              slice_name(s) + ": a 1-bit (bilevel) TIFF without a BitsPerSample tag, "
-                                              "which OpenImageIO 2.4 misreads as 8-bit; save the mask "
-                                              "as 8-bit");
-        }
-        if (k == 0) {
-            describe_first(s, spec, channel, info);
-            info.format = in->format_name();
-            first_name = slice_name(s);
-        } else {
-            check_against_first(s, spec, info, first_name);
-        }
-        if (progress && (k & 31) == 31) progress((double)(k + 1) / (double)slices.size());
+    ~ScanCursor() {
+        if (in) in->close();
     }
-    if (in) in->close();
+};
+
+// Opens slice s's header (reusing the cursor's file) and runs the checks that
+// need the file itself; returns its spec.
+static ImageSpec scan_header(ScanCursor &c, const Slice &s) {
+    if (!c.in || c.open_path != s.path) {
+        if (c.in) c.in->close();
+        c.in = open_input(s.path);
+        c.open_path = s.path;
+        if (!s.multipage) {
+            // A multi-page file inside a folder/list would lose its pages silently.
+            if (c.in->seek_subimage(1, 0)) {
+                int pages = count_subimages(s.path);
+                throw IoError(ISOMEND_IO_ERR_UNSUPPORTED,
+                              s.path + ": has " + std::to_string(pages) +
+                                  " pages/parts; a stack of files needs one image per file "
+                                  "(open a multi-page file on its own)");
+            }
+            (void)c.in->geterror();
+            (void)OIIO::geterror();
+        }
+    }
+    ImageSpec spec;
+    if (!c.in->seek_subimage(s.subimage, 0, spec))
+        throw IoError(ISOMEND_IO_ERR_CORRUPT,
+                      slice_name(s) + ": cannot read the header: " + take_oiio_error(c.in.get()));
+    if (spec.format == TypeDesc::UINT8 && spec.get_int_attribute("oiio:BitsPerSample", 0) == 8 &&
+        std::string(c.in->format_name()) == "tiff") {
+        if (c.bits_tag_path != s.path) {
+            c.bits_tag_missing = tiff_pages_without_bits_tag(s.path);
+            c.bits_tag_path = s.path;
+        }
+        if ((size_t)s.subimage < c.bits_tag_missing.size() && c.bits_tag_missing[(size_t)s.subimage])
+            throw IoError(ISOMEND_IO_ERR_UNSUPPORTED,
+                          slice_name(s) + ": a 1-bit (bilevel) TIFF without a BitsPerSample tag, "
+                                          "which OpenImageIO 2.4 misreads as 8-bit; save the mask "
+                                          "as 8-bit");
+    }
+    return spec;
+}
+
+// Slice 0 defines the stack on the calling thread; the other headers are
+// checked against it by up to `threads` workers, each on a contiguous run of
+// slices (pages of one file are then visited in order, which is what a TIFF
+// seek is fast at).  The calling thread reports progress; the error of the
+// lowest slice index among those checked is rethrown after all workers stop.
+void scan_stack(const std::vector<Slice> &slices, int channel, int threads, StackInfo &info,
+                const std::function<void(double)> &progress) {
+    if (slices.empty()) return;
+    const std::string first_name = slice_name(slices[0]);
+    {
+        ScanCursor c;
+        ImageSpec spec = scan_header(c, slices[0]);
+        describe_first(slices[0], spec, channel, info);
+        info.format = c.in->format_name();
+    }
+    const size_t n = slices.size();
+    if (threads <= 0) {
+        unsigned hc = std::thread::hardware_concurrency();
+        threads = hc ? (int)std::min(hc, 8u) : 2;
+    }
+    size_t workers = std::min<size_t>((size_t)threads, (n - 1 + 63) / 64); // >= 64 headers each
+    if (workers <= 1) {
+        ScanCursor c;
+        for (size_t k = 1; k < n; k++) {
+            ImageSpec spec = scan_header(c, slices[k]);
+            check_against_first(slices[k], spec, info, first_name);
+            if (progress && (k & 31) == 31) progress((double)(k + 1) / (double)n);
+        }
+        return;
+    }
+    std::atomic<size_t> done{1};
+    std::atomic<bool> stop{false};
+    std::mutex mu;
+    size_t error_index = SIZE_MAX;
+    isomend_io_status error_status = ISOMEND_IO_OK;
+    std::string error_message;
+    auto fail = [&](size_t k, isomend_io_status st, const std::string &msg) {
+        std::lock_guard<std::mutex> lock(mu);
+        if (k < error_index) {
+            error_index = k;
+            error_status = st;
+            error_message = msg;
+        }
+        stop.store(true);
+    };
+    const size_t per = (n - 1 + workers - 1) / workers;
+    auto worker = [&](size_t begin, size_t end) {
+        try {
+            ScanCursor c;
+            for (size_t k = begin; k < end && !stop.load(); k++) {
+                try {
+                    ImageSpec spec = scan_header(c, slices[k]);
+                    check_against_first(slices[k], spec, info, first_name);
+                } catch (const IoError &e) {
+                    fail(k, e.status, e.what());
+                    return;
+                }
+                done.fetch_add(1);
+            }
+        } catch (const std::bad_alloc &) {
+            fail(n, ISOMEND_IO_ERR_OUT_OF_MEMORY, "out of memory while scanning slices");
+        } catch (const std::exception &e) {
+            fail(n, ISOMEND_IO_ERR_INTERNAL, std::string("internal error while scanning slices: ") + e.what());
+        }
+    };
+    std::vector<std::thread> pool;
+    auto join_all = [&] {
+        stop.store(true);
+        for (auto &t : pool)
+            if (t.joinable()) t.join();
+    };
+    try {
+        for (size_t w = 0; w < workers; w++) {
+            size_t begin = 1 + w * per, end = std::min(n, begin + per);
+            if (begin < end) pool.emplace_back(worker, begin, end);
+        }
+    } catch (const std::system_error &) {
+        join_all();
+        throw IoError(ISOMEND_IO_ERR_INTERNAL, "cannot start header scan threads");
+    }
+    try {
+        for (;;) {
+            // at least one report, before any wait: a cancel is always seen
+            if (progress) progress((double)done.load() / (double)n); // may throw (cancel)
+            if (stop.load() || done.load() >= n) break;
+            std::this_thread::sleep_for(std::chrono::milliseconds(20));
+        }
+    } catch (...) {
+        join_all();
+        throw;
+    }
+    for (auto &t : pool) t.join();
+    if (error_index != SIZE_MAX) throw IoError(error_status, error_message);
 }
 
 // Reads channels [cb, ce) of one slice in type `t` into `dst` (packed).
