@@ -51,6 +51,9 @@
 #include <stdlib.h>
 #include <string.h>
 #include <unistd.h>
+#if defined(__SSE2__) && !defined(ISOMEND_NO_SIMD)
+#include <emmintrin.h>
+#endif
 
 struct isomend_mesh {
     size_t nv, nt;
@@ -554,11 +557,11 @@ static const uint8_t *signs(worker *w, int64_t k, const rowinfo **ri)
 }
 
 /*
- * Word-at-a-time scanning: 8 sign bytes (or cube configurations) per step,
- * so long stretches without a crossing cost one load and a test.  Buffers
+ * Scanning 16 sign bytes (or cube configurations) per step (SSE2, or two
+ * 64-bit words), so long stretches without a crossing cost a compare.  Buffers
  * carry SCAN_PAD bytes of slack for the reads past a row's last column.
  */
-#define SCAN_PAD 16
+#define SCAN_PAD 32
 
 static inline uint64_t load8(const uint8_t *p)
 {
@@ -570,27 +573,169 @@ static inline uint64_t load8(const uint8_t *p)
     return v;
 }
 
-/* Keeps bytes 0..n-1 (n < 8) of a word, in memory order. */
-static inline uint64_t first_bytes(uint64_t w, int64_t n)
+/* Bit x set when a[x] != b[x], x in 0..15. */
+static inline uint32_t diff16(const uint8_t *a, const uint8_t *b)
 {
-    return w & ((UINT64_C(1) << (8 * n)) - 1);
+#if defined(__SSE2__) && !defined(ISOMEND_NO_SIMD)
+    const __m128i va = _mm_loadu_si128((const __m128i *)(const void *)a);
+    const __m128i vb = _mm_loadu_si128((const __m128i *)(const void *)b);
+    return (uint32_t)_mm_movemask_epi8(_mm_cmpeq_epi8(va, vb)) ^ 0xFFFFu;
+#else
+    const uint64_t m = UINT64_C(0x0101010101010101);
+    return (uint32_t)(((load8(a) ^ load8(b)) & m) * UINT64_C(0x0102040810204080) >> 56) |
+           (uint32_t)(((load8(a + 8) ^ load8(b + 8)) & m) * UINT64_C(0x0102040810204080) >> 56) << 8;
+#endif
 }
 
-/* High bit of each byte set iff the byte is neither 0x00 nor 0xFF. */
-static inline uint64_t mixed_bytes(uint64_t w)
+/* Bit x set when cube configuration c[x] is neither 0 nor 255, x in 0..15. */
+static inline uint32_t mixed16(const uint8_t *c)
 {
-    const uint64_t m = UINT64_C(0x7F7F7F7F7F7F7F7F);
-    uint64_t nonzero = (((w & m) + m) | w) & ~m;
-    uint64_t v = ~w;
-    uint64_t notff = (((v & m) + m) | v) & ~m;
-    return nonzero & notff;
+#if defined(__SSE2__) && !defined(ISOMEND_NO_SIMD)
+    const __m128i v = _mm_loadu_si128((const __m128i *)(const void *)c);
+    const __m128i trivial = _mm_or_si128(_mm_cmpeq_epi8(v, _mm_setzero_si128()),
+                                         _mm_cmpeq_epi8(v, _mm_set1_epi8(-1)));
+    return (uint32_t)_mm_movemask_epi8(trivial) ^ 0xFFFFu;
+#else
+    uint32_t r = 0;
+    for (int x = 0; x < 16; x++)
+        r |= (uint32_t)(c[x] != 0 && c[x] != 255) << x;
+    return r;
+#endif
 }
 
-/* Index of the first byte flagged in a non-zero mask. */
-static inline int64_t first_flag(uint64_t mask)
+/* Keeps bits 0..n-1 (n < 16). */
+static inline uint32_t first_bits(uint32_t mask, int64_t n)
 {
-    return (int64_t)(__builtin_ctzll(mask) >> 3);
+    return mask & ((1u << n) - 1u);
 }
+
+
+/*
+ * The vertices of one row of crossings, specialised per voxel type: typed
+ * loads, the interior test hoisted out of the loop.  Vertices near the border,
+ * next to NaN or padding take the general path (make_vertex); both compute
+ * t = (iso - f0) / (f1 - f0) and the position in the same way.
+ */
+#define DEFINE_ROW_VERTICES(NAME, LD, T, AXIS)                                         \
+    static uint64_t NAME(const ctx *c, const uint8_t *a, const uint8_t *b, int64_t from, \
+                         int64_t to, int64_t j, int64_t m, uint32_t *ids, uint64_t id) \
+    {                                                                                  \
+        enum { axis = AXIS };                                                          \
+        const grid *g = &c->g;                                                         \
+        const int64_t sx = g->st[0], sy = g->st[1], sz = g->st[2], sa = g->st[axis];   \
+        const int row_inner = j >= g->inner_lo[1] && j + (axis == 1) <= g->inner_hi[1] && \
+                              m >= g->inner_lo[2] && m + (axis == 2) <= g->inner_hi[2]; \
+        const int64_t x_lo = g->inner_lo[0], x_hi = g->inner_hi[0] - (axis == 0);      \
+        const char *row = row_inner ? g->data + (j - g->pad) * sy + (m - g->pad) * sz : NULL; \
+        const double iso = g->iso, ox = g->o[0], hx = g->h[0];                         \
+        const double oy = g->o[1] + (double)j * g->h[1], oz = g->o[2] + (double)m * g->h[2]; \
+        const double ix = g->inv2h[0], iy = g->inv2h[1], iz = g->inv2h[2];             \
+        const double sgn = c->flip ? -1.0 : 1.0;                                       \
+        for (int64_t i = from; i <= to; i += 16) {                                     \
+            uint32_t diff = diff16(a + i, b + i);                                      \
+            if (to - i < 15)                                                           \
+                diff = first_bits(diff, to - i + 1);                                   \
+            while (diff) {                                                             \
+                const int64_t x = i + __builtin_ctz(diff);                             \
+                diff &= diff - 1;                                                      \
+                float *pos = c->pos + 3 * id, *nrm = c->nrm ? c->nrm + 3 * id : NULL;  \
+                int done = 0;                                                          \
+                if (row && x >= x_lo && x <= x_hi) {                                   \
+                    const char *p = row + (x - g->pad) * sx, *q = p + sa;              \
+                    T v0, v1;                                                          \
+                    memcpy(&v0, p, sizeof v0);                                         \
+                    memcpy(&v1, q, sizeof v1);                                         \
+                    const double f0 = (double)v0, f1 = (double)v1;                     \
+                    const double t = (iso - f0) / (f1 - f0);                           \
+                    double n0 = 0, n1 = 0, n2 = 0, len = 1.0;                          \
+                    if (nrm) {                                                         \
+                        double g0[3], g1[3];                                           \
+                        g0[0] = (axis == 0 ? f1 : LD(p + sx)) - LD(p - sx); \
+                        g0[1] = (axis == 1 ? f1 : LD(p + sy)) - LD(p - sy); \
+                        g0[2] = (axis == 2 ? f1 : LD(p + sz)) - LD(p - sz); \
+                        g1[0] = LD(q + sx) - (axis == 0 ? f0 : LD(q - sx)); \
+                        g1[1] = LD(q + sy) - (axis == 1 ? f0 : LD(q - sy)); \
+                        g1[2] = LD(q + sz) - (axis == 2 ? f0 : LD(q - sz)); \
+                        n0 = -((1.0 - t) * g0[0] + t * g1[0]) * ix;                    \
+                        n1 = -((1.0 - t) * g0[1] + t * g1[1]) * iy;                    \
+                        n2 = -((1.0 - t) * g0[2] + t * g1[2]) * iz;                    \
+                        len = sqrt(n0 * n0 + n1 * n1 + n2 * n2);                       \
+                    }                                                                  \
+                    if (isfinite(t) && len > 0.0 && isfinite(len)) {                   \
+                        double px = (double)x, py = 0.0, pz = 0.0;                     \
+                        if (axis == 0)                                                 \
+                            px += t;                                                   \
+                        else if (axis == 1)                                            \
+                            py = t;                                                    \
+                        else                                                           \
+                            pz = t;                                                    \
+                        pos[0] = (float)(ox + px * hx);                                \
+                        pos[1] = (float)(axis == 1 ? g->o[1] + ((double)j + py) * g->h[1] : oy); \
+                        pos[2] = (float)(axis == 2 ? g->o[2] + ((double)m + pz) * g->h[2] : oz); \
+                        if (nrm) {                                                     \
+                            const double sc = sgn / len;                               \
+                            nrm[0] = (float)(sc * n0);                                 \
+                            nrm[1] = (float)(sc * n1);                                 \
+                            nrm[2] = (float)(sc * n2);                                 \
+                        }                                                              \
+                        done = 1;                                                      \
+                    }                                                                  \
+                }                                                                      \
+                if (!done)                                                             \
+                    make_vertex(g, c->flip, x, j, m, axis, pos, nrm);                  \
+                ids[x] = (uint32_t)id++;                                               \
+            }                                                                          \
+        }                                                                              \
+        return id;                                                                     \
+    }
+#define DEFINE_ROW_LOAD(NAME, T)                                                       \
+    static inline double NAME##_ld(const char *p)                                      \
+    {                                                                                  \
+        T v;                                                                           \
+        memcpy(&v, p, sizeof v);                                                       \
+        return (double)v;                                                              \
+    }
+DEFINE_ROW_LOAD(row_vertices_u8, uint8_t)
+DEFINE_ROW_LOAD(row_vertices_i8, int8_t)
+DEFINE_ROW_LOAD(row_vertices_u16, uint16_t)
+DEFINE_ROW_LOAD(row_vertices_i16, int16_t)
+DEFINE_ROW_LOAD(row_vertices_i32, int32_t)
+DEFINE_ROW_LOAD(row_vertices_f32, float)
+DEFINE_ROW_LOAD(row_vertices_f64, double)
+DEFINE_ROW_VERTICES(row_vertices_u8_0, row_vertices_u8_ld, uint8_t, 0)
+DEFINE_ROW_VERTICES(row_vertices_u8_1, row_vertices_u8_ld, uint8_t, 1)
+DEFINE_ROW_VERTICES(row_vertices_u8_2, row_vertices_u8_ld, uint8_t, 2)
+DEFINE_ROW_VERTICES(row_vertices_i8_0, row_vertices_i8_ld, int8_t, 0)
+DEFINE_ROW_VERTICES(row_vertices_i8_1, row_vertices_i8_ld, int8_t, 1)
+DEFINE_ROW_VERTICES(row_vertices_i8_2, row_vertices_i8_ld, int8_t, 2)
+DEFINE_ROW_VERTICES(row_vertices_u16_0, row_vertices_u16_ld, uint16_t, 0)
+DEFINE_ROW_VERTICES(row_vertices_u16_1, row_vertices_u16_ld, uint16_t, 1)
+DEFINE_ROW_VERTICES(row_vertices_u16_2, row_vertices_u16_ld, uint16_t, 2)
+DEFINE_ROW_VERTICES(row_vertices_i16_0, row_vertices_i16_ld, int16_t, 0)
+DEFINE_ROW_VERTICES(row_vertices_i16_1, row_vertices_i16_ld, int16_t, 1)
+DEFINE_ROW_VERTICES(row_vertices_i16_2, row_vertices_i16_ld, int16_t, 2)
+DEFINE_ROW_VERTICES(row_vertices_i32_0, row_vertices_i32_ld, int32_t, 0)
+DEFINE_ROW_VERTICES(row_vertices_i32_1, row_vertices_i32_ld, int32_t, 1)
+DEFINE_ROW_VERTICES(row_vertices_i32_2, row_vertices_i32_ld, int32_t, 2)
+DEFINE_ROW_VERTICES(row_vertices_f32_0, row_vertices_f32_ld, float, 0)
+DEFINE_ROW_VERTICES(row_vertices_f32_1, row_vertices_f32_ld, float, 1)
+DEFINE_ROW_VERTICES(row_vertices_f32_2, row_vertices_f32_ld, float, 2)
+DEFINE_ROW_VERTICES(row_vertices_f64_0, row_vertices_f64_ld, double, 0)
+DEFINE_ROW_VERTICES(row_vertices_f64_1, row_vertices_f64_ld, double, 1)
+DEFINE_ROW_VERTICES(row_vertices_f64_2, row_vertices_f64_ld, double, 2)
+
+/* [type][axis] */
+typedef uint64_t (*row_vertices_fn)(const ctx *, const uint8_t *, const uint8_t *, int64_t,
+                                    int64_t, int64_t, int64_t, uint32_t *, uint64_t);
+static const row_vertices_fn row_vertices[ISOMEND_TYPE_COUNT][3] = {
+    {row_vertices_u8_0, row_vertices_u8_1, row_vertices_u8_2},
+    {row_vertices_i8_0, row_vertices_i8_1, row_vertices_i8_2},
+    {row_vertices_u16_0, row_vertices_u16_1, row_vertices_u16_2},
+    {row_vertices_i16_0, row_vertices_i16_1, row_vertices_i16_2},
+    {row_vertices_i32_0, row_vertices_i32_1, row_vertices_i32_2},
+    {row_vertices_f32_0, row_vertices_f32_1, row_vertices_f32_2},
+    {row_vertices_f64_0, row_vertices_f64_1, row_vertices_f64_2},
+};
 
 /*
  * Numbers (and, if `write`, computes) the vertices on the edges along
@@ -601,16 +746,15 @@ static uint64_t number_crossings(const ctx *c, const uint8_t *a, const uint8_t *
                                  int64_t to, int64_t j, int64_t m, int axis, uint32_t *ids,
                                  uint64_t id, int write)
 {
-    for (int64_t i = from; i <= to; i += 8) {
-        uint64_t diff = (load8(a + i) ^ load8(b + i)) & UINT64_C(0x0101010101010101);
-        if (to - i < 7)
-            diff = first_bytes(diff, to - i + 1);
+    if (write)
+        return row_vertices[c->g.type][axis](c, a, b, from, to, j, m, ids, id);
+    for (int64_t i = from; i <= to; i += 16) {
+        uint32_t diff = diff16(a + i, b + i);
+        if (to - i < 15)
+            diff = first_bits(diff, to - i + 1);
         while (diff) {
-            const int64_t x = i + first_flag(diff);
+            const int64_t x = i + __builtin_ctz(diff);
             diff &= diff - 1;
-            if (write)
-                make_vertex(&c->g, c->flip, x, j, m, axis, c->pos + 3 * id,
-                            c->nrm ? c->nrm + 3 * id : NULL);
             ids[x] = (uint32_t)id++;
         }
     }
@@ -952,12 +1096,12 @@ static uint64_t march_layer(worker *w, int64_t k, int mode, uint64_t first)
             ep[10] = mk0 + 2 * plane + o + N0;
             ep[11] = mk0 + 2 * plane + o + N0 + 1;
         }
-        for (int64_t word = i0; word <= i1; word += 8) {
-          uint64_t mixed = mixed_bytes(load8(cases + word));
-          if (i1 - word < 7)
-              mixed = first_bytes(mixed, i1 - word + 1);
+        for (int64_t word = i0; word <= i1; word += 16) {
+          uint32_t mixed = mixed16(cases + word);
+          if (i1 - word < 15)
+              mixed = first_bits(mixed, i1 - word + 1);
           while (mixed) {
-            const int64_t i = word + first_flag(mixed);
+            const int64_t i = word + __builtin_ctz(mixed);
             mixed &= mixed - 1;
             const unsigned cfg = cases[i];
             busy++;
