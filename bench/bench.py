@@ -471,7 +471,8 @@ def child_main(args):
             raise RuntimeError("%s: output changed between repetitions" % label)
     ntri, nvert, nbytes, extra = result
     extra.pop("keep", None)
-    json.dump({"times": times, "cpu_times": cpus, "peak_extra_kb": None if None in peaks else max(peaks),
+    json.dump({"times": times, "cpu_times": cpus,
+               "peak_extra_kb": None if None in peaks else max(peaks),
                "triangles": ntri, "vertices": nvert, "output_bytes": nbytes,
                "input_bytes": int(a.nbytes), "rss_input_kb": rss_input - rss_before_input,
                "floor_times": floor_times, "floor_sum": fsum, "numpy_sum": nsum,

@@ -10,8 +10,9 @@
  * uint16, int16, int32, float32 or float64 in little-endian order, then runs
  * the extraction N times and prints one line per run (wall and process CPU
  * time, triangles, vertices) and the medians.  On a shared machine the CPU
- * time of a 1-thread run is the figure least disturbed by other jobs.  Exit status 0 on success, 1 on bad input (with a
- * message naming the file or option), 2 when the extraction fails.
+ * time of a 1-thread run is the figure least disturbed by other jobs.
+ * Exit status 0 on success, 1 on bad input (with a message naming the file
+ * or option), 2 when the extraction fails.
  */
 #define _POSIX_C_SOURCE 200809L /* clock_gettime */
 #include "isomend.h"
