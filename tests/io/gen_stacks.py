@@ -271,6 +271,13 @@ f = d("many_pages")
 vol = rand((200, NY, NX), np.uint16, 0, 65535)
 tifffile.imwrite(os.path.join(f, "pages.tif"), vol, photometric="minisblack")
 ok("many_pages", "u16", vol, "multipage", [os.path.join(f, "pages.tif")])
+# pages are opened directly at their IFD (a patched header): big-endian and BigTIFF layouts
+vol = rand((70, NY, NX), np.int16, -32768, 32767)
+tifffile.imwrite(os.path.join(f, "pages_be.tif"), vol, photometric="minisblack", byteorder=">")
+ok("many_pages_be", "i16", vol, "multipage", [os.path.join(f, "pages_be.tif")])
+vol = rand((70, NY, NX), np.uint8, 0, 255)
+tifffile.imwrite(os.path.join(f, "pages_big.tif"), vol, photometric="minisblack", bigtiff=True)
+ok("many_pages_bigtiff", "u8", vol, "multipage", [os.path.join(f, "pages_big.tif")])
 
 # ---- bad stacks ------------------------------------------------------------------------------
 

@@ -564,6 +564,7 @@ void do_open(isomend_io_source *s, const char *const *paths, size_t count, const
                                   "folder, a glob, a pattern, a list or a multi-page file)");
             s->kind = ISOMEND_IO_KIND_MULTIPAGE;
             for (int k = 0; k < pages; k++) s->slices.push_back(Slice{p, k, true});
+            locate_tiff_pages(s->slices); // TIFF: open each page directly
         } else if (is_printf_pattern(p)) {
             s->kind = ISOMEND_IO_KIND_PATTERN;
             files = expand_pattern(p, o.first, o.count, o.step);

@@ -17,7 +17,9 @@
 //     compare the whole data window, the channel count, the channel's type,
 //     the bit depth and the depth with the first slice's.
 //   - Multi-page TIFFs do not set oiio:subimages: pages are counted with
-//     seek_subimage() until it fails, and the pending error is cleared.
+//     seek_subimage() probes (and the pending error is cleared).  Reaching
+//     page k walks k IFDs in OIIO, so pages are opened directly instead
+//     (TiffPageProxy): O(n) instead of O(n^2) for an n-page file.
 #include "internal.hpp"
 
 #include <algorithm>
@@ -31,6 +33,7 @@
 #include <mutex>
 #include <thread>
 
+#include <OpenImageIO/filesystem.h>
 #include <OpenImageIO/imageio.h>
 
 namespace isomend_io {
@@ -77,6 +80,74 @@ static std::unique_ptr<ImageInput> open_input(const std::string &path) {
 // Stepping through pages one by one costs a full header parse per page
 // (0.76 s for 600 TIFF pages); a seek straight to page k is cheap, so probe
 // 1, 2, 4, ... and bisect: O(log n) seeks.
+// OIIO 2.4 reaches TIFF page k by walking the k IFDs before it, so visiting
+// every page of an n-page file costs O(n^2) (8 s for 2000 pages).  A page is
+// opened directly instead: this proxy serves the file unchanged except for the
+// header's first-IFD offset, which points at the page, so OIIO sees that page
+// as page 0 of the file (and reports its own errors with the real path).
+class TiffPageProxy final : public OIIO::Filesystem::IOFile {
+  public:
+    TiffPageProxy(const Slice &s) : IOFile(s.path, Read) {
+        at_ = s.big_tiff ? 8 : 4;
+        len_ = s.big_tiff ? 8 : 4;
+        for (size_t i = 0; i < len_; i++) {
+            size_t shift = 8 * (s.big_endian ? len_ - 1 - i : i);
+            patch_[i] = (unsigned char)(s.ifd >> shift);
+        }
+    }
+    size_t read(void *buf, size_t size) override {
+        int64_t pos = tell();
+        size_t n = IOFile::read(buf, size);
+        fix(buf, n, pos);
+        return n;
+    }
+    size_t pread(void *buf, size_t size, int64_t offset) override {
+        size_t n = IOFile::pread(buf, size, offset);
+        fix(buf, n, offset);
+        return n;
+    }
+
+  private:
+    void fix(void *buf, size_t n, int64_t pos) const {
+        for (size_t i = 0; i < len_; i++) {
+            int64_t q = at_ + (int64_t)i;
+            if (q >= pos && q < pos + (int64_t)n) ((unsigned char *)buf)[q - pos] = patch_[i];
+        }
+    }
+    unsigned char patch_[8] = {};
+    int64_t at_ = 4;
+    size_t len_ = 4;
+};
+
+// An open slice: the input and, for a directly opened TIFF page, its proxy
+// (declared first: destroyed after the input that reads through it).
+struct SliceInput {
+    std::unique_ptr<TiffPageProxy> proxy;
+    std::unique_ptr<ImageInput> in;
+    int subimage = 0; // the subimage to pass to OIIO
+    ~SliceInput() {
+        if (in) in->close();
+        in.reset();
+    }
+};
+
+static void open_slice(const Slice &s, SliceInput &si) {
+    if (s.ifd == 0) {
+        si.in = open_input(s.path);
+        si.subimage = s.subimage;
+        return;
+    }
+    init_oiio();
+    if (!is_regular_file(s.path)) throw IoError(ISOMEND_IO_ERR_NOT_FOUND, s.path + ": file not found");
+    si.proxy.reset(new TiffPageProxy(s));
+    if (!si.proxy->opened())
+        throw IoError(ISOMEND_IO_ERR_UNREADABLE, s.path + ": cannot open the file");
+    si.in = ImageInput::open(s.path, nullptr, si.proxy.get());
+    if (!si.in)
+        throw IoError(ISOMEND_IO_ERR_CORRUPT, slice_name(s) + ": cannot read the page: " + take_oiio_error(nullptr));
+    si.subimage = 0;
+}
+
 int count_subimages(const std::string &path) {
     auto in = open_input(path);
     auto exists = [&](int k) {
@@ -227,10 +298,34 @@ static void refuse_imagej_hyperstack(const Slice &s, const ImageSpec &spec) {
 // ourselves: for every page of `path`, whether tag 258 is absent.  Classic
 // and BigTIFF, either byte order; an unreadable structure returns what was
 // read so far (OIIO reports real damage itself).
+struct TiffLayout {
+    bool big_tiff = false, big_endian = false;
+    std::vector<uint64_t> ifd;   // offset of every page's IFD
+    std::vector<bool> no_bits;   // page lacks BitsPerSample
+};
+
+static TiffLayout tiff_layout(const std::string &path);
+
 static std::vector<bool> tiff_pages_without_bits_tag(const std::string &path) {
-    std::vector<bool> out;
+    return tiff_layout(path).no_bits;
+}
+
+void locate_tiff_pages(std::vector<Slice> &slices) {
+    if (slices.size() < 2) return;
+    TiffLayout t = tiff_layout(slices[0].path);
+    if (t.ifd.size() != slices.size()) return;
+    for (size_t k = 0; k < slices.size(); k++) {
+        slices[k].ifd = t.ifd[k];
+        slices[k].big_tiff = t.big_tiff;
+        slices[k].big_endian = t.big_endian;
+    }
+}
+
+static TiffLayout tiff_layout(const std::string &path) {
+    TiffLayout layout;
+    std::vector<bool> &out = layout.no_bits;
     FILE *f = std::fopen(path.c_str(), "rb");
-    if (!f) return out;
+    if (!f) return layout;
     unsigned char h[16];
     bool be = false;
     auto un = [&](const unsigned char *b, int n) -> uint64_t {
@@ -242,6 +337,8 @@ static std::vector<bool> tiff_pages_without_bits_tag(const std::string &path) {
         be = h[0] == 'M';
         uint64_t magic = un(h + 2, 2);
         bool big_tiff = magic == 43;
+        layout.big_tiff = big_tiff;
+        layout.big_endian = be;
         uint64_t ifd = magic == 42 ? un(h + 4, 4) : big_tiff ? un(h + 8, 8) : 0;
         const int count_size = big_tiff ? 8 : 2, entry_size = big_tiff ? 20 : 12;
         const int next_size = big_tiff ? 8 : 4;
@@ -258,13 +355,14 @@ static std::vector<bool> tiff_pages_without_bits_tag(const std::string &path) {
             for (uint64_t i = 0; i < n; i++)
                 if (un(e.data() + i * (uint64_t)entry_size, 2) == 258) has_bits = true;
             out.push_back(!has_bits);
+            layout.ifd.push_back(ifd);
             uint64_t next = un(e.data() + n * (uint64_t)entry_size, next_size);
             if (next <= ifd) break; // IFDs go forward in practice; this stops loops
             ifd = next;
         }
     }
     std::fclose(f);
-    return out;
+    return layout;
 }
 
 static void describe_first(const Slice &s, const ImageSpec &spec, int channel,
@@ -373,41 +471,40 @@ static void check_against_first(const Slice &s, const ImageSpec &spec,
 
 // Per-thread state of the header scan: the open file and its page flags.
 struct ScanCursor {
-    std::unique_ptr<ImageInput> in;
+    std::unique_ptr<SliceInput> si;
     std::string open_path;
     std::string bits_tag_path;
     std::vector<bool> bits_tag_missing;
-    ~ScanCursor() {
-        if (in) in->close();
-    }
 };
 
 // Opens slice s's header (reusing the cursor's file) and runs the checks that
 // need the file itself; returns its spec.
 static ImageSpec scan_header(ScanCursor &c, const Slice &s) {
-    if (!c.in || c.open_path != s.path) {
-        if (c.in) c.in->close();
-        c.in = open_input(s.path);
+    // pages opened directly (s.ifd) get their own input each; files are reused
+    if (!c.si || c.open_path != s.path || s.ifd != 0) {
+        c.si.reset();
+        c.si.reset(new SliceInput);
+        open_slice(s, *c.si);
         c.open_path = s.path;
         if (!s.multipage) {
             // A multi-page file inside a folder/list would lose its pages silently.
-            if (c.in->seek_subimage(1, 0)) {
+            if (c.si->in->seek_subimage(1, 0)) {
                 int pages = count_subimages(s.path);
                 throw IoError(ISOMEND_IO_ERR_UNSUPPORTED,
                               s.path + ": has " + std::to_string(pages) +
                                   " pages/parts; a stack of files needs one image per file "
                                   "(open a multi-page file on its own)");
             }
-            (void)c.in->geterror();
+            (void)c.si->in->geterror();
             (void)OIIO::geterror();
         }
     }
     ImageSpec spec;
-    if (!c.in->seek_subimage(s.subimage, 0, spec))
+    if (!c.si->in->seek_subimage(c.si->subimage, 0, spec))
         throw IoError(ISOMEND_IO_ERR_CORRUPT,
-                      slice_name(s) + ": cannot read the header: " + take_oiio_error(c.in.get()));
+                      slice_name(s) + ": cannot read the header: " + take_oiio_error(c.si->in.get()));
     if (spec.format == TypeDesc::UINT8 && spec.get_int_attribute("oiio:BitsPerSample", 0) == 8 &&
-        std::string(c.in->format_name()) == "tiff") {
+        std::string(c.si->in->format_name()) == "tiff") {
         if (c.bits_tag_path != s.path) {
             c.bits_tag_missing = tiff_pages_without_bits_tag(s.path);
             c.bits_tag_path = s.path;
@@ -434,7 +531,7 @@ void scan_stack(const std::vector<Slice> &slices, int channel, int threads, Stac
         ScanCursor c;
         ImageSpec spec = scan_header(c, slices[0]);
         describe_first(slices[0], spec, channel, info);
-        info.format = c.in->format_name();
+        info.format = c.si->in->format_name();
     }
     const size_t n = slices.size();
     if (threads <= 0) {
@@ -517,19 +614,19 @@ void scan_stack(const std::vector<Slice> &slices, int channel, int threads, Stac
 }
 
 // Reads channels [cb, ce) of one slice in type `t` into `dst` (packed).
-static void decode(ImageInput *in, const Slice &s, const ImageSpec &spec, int cb,
+static void decode(ImageInput *in, const Slice &s, int sub, const ImageSpec &spec, int cb,
                    int ce, TypeDesc t, void *dst) {
     bool ok;
     if (spec.tile_width == 0) {
         // Row 0 alone, then the rest: forces OIIO's per-scanline decoding,
         // the path that reports errors in compressed strips.
         size_t row = (size_t)spec.width * (size_t)(ce - cb) * t.size();
-        ok = in->read_scanlines(s.subimage, 0, spec.y, spec.y + 1, spec.z, cb, ce, t, dst);
+        ok = in->read_scanlines(sub, 0, spec.y, spec.y + 1, spec.z, cb, ce, t, dst);
         if (ok && spec.height > 1)
-            ok = in->read_scanlines(s.subimage, 0, spec.y + 1, spec.y + spec.height, spec.z, cb, ce, t,
+            ok = in->read_scanlines(sub, 0, spec.y + 1, spec.y + spec.height, spec.z, cb, ce, t,
                                     (char *)dst + row);
     } else {
-        ok = in->read_image(s.subimage, 0, cb, ce, t, dst);
+        ok = in->read_image(sub, 0, cb, ce, t, dst);
     }
     if (!ok || in->has_error())
         throw IoError(ISOMEND_IO_ERR_CORRUPT,
@@ -554,18 +651,20 @@ static double sample_as_double(unsigned bt, const void *p, size_t i) {
 }
 
 void read_slice(const Slice &s, const StackInfo &info, void *out) {
-    auto in = open_input(s.path);
+    SliceInput si;
+    open_slice(s, si);
+    ImageInput *in = si.in.get();
     ImageSpec spec;
-    if (!in->seek_subimage(s.subimage, 0, spec))
+    if (!in->seek_subimage(si.subimage, 0, spec))
         throw IoError(ISOMEND_IO_ERR_CORRUPT,
-                      slice_name(s) + ": cannot read the header: " + take_oiio_error(in.get()));
+                      slice_name(s) + ": cannot read the header: " + take_oiio_error(in));
     // The file may have changed since isomend_io_open(): check again (cheap).
     check_against_first(s, spec, info, "as opened");
     size_t n = (size_t)info.width * (size_t)info.height;
     TypeDesc t = read_type(info.file_type);
     if (info.luma) {
         std::vector<char> tmp(n * (size_t)info.file_channels * t.size());
-        decode(in.get(), s, spec, 0, info.file_channels, t, tmp.data());
+        decode(in, s, si.subimage, spec, 0, info.file_channels, t, tmp.data());
         float *o = (float *)out;
         size_t nc = (size_t)info.file_channels;
         for (size_t i = 0; i < n; i++) {
@@ -576,11 +675,11 @@ void read_slice(const Slice &s, const StackInfo &info, void *out) {
         }
     } else if (info.u32_to_f64) {
         std::vector<uint32_t> tmp(n);
-        decode(in.get(), s, spec, info.channel, info.channel + 1, t, tmp.data());
+        decode(in, s, si.subimage, spec, info.channel, info.channel + 1, t, tmp.data());
         double *o = (double *)out;
         for (size_t i = 0; i < n; i++) o[i] = (double)tmp[i];
     } else {
-        decode(in.get(), s, spec, info.channel, info.channel + 1, t, out);
+        decode(in, s, si.subimage, spec, info.channel, info.channel + 1, t, out);
         if (info.shift > 0) {
             if (info.file_type == TypeDesc::UINT16) {
                 uint16_t *o = (uint16_t *)out;
@@ -594,7 +693,7 @@ void read_slice(const Slice &s, const StackInfo &info, void *out) {
     in->close();
     if (in->has_error())
         throw IoError(ISOMEND_IO_ERR_CORRUPT,
-                      slice_name(s) + ": error while closing: " + take_oiio_error(in.get()));
+                      slice_name(s) + ": error while closing: " + take_oiio_error(in));
 }
 
 void read_parallel(const std::vector<Slice> &slices, const StackInfo &info, int threads,
