@@ -40,6 +40,7 @@ import gc
 import json
 import os
 import platform
+import resource
 import shutil
 import statistics
 import subprocess
@@ -447,7 +448,6 @@ def child_main(args):
         nsum = float(a.sum(dtype=np.float64))
         numpy_times.append(time.perf_counter() - t0)
 
-    import resource
     times, cpus, peaks = [], [], []
     result = None
     for r in range(args.repeats):
