@@ -626,15 +626,20 @@ static inline uint32_t first_bits(uint32_t mask, int64_t n)
     {                                                                                  \
         enum { axis = AXIS };                                                          \
         const grid *g = &c->g;                                                         \
+        float *const P = c->pos, *const NR = c->nrm;                                   \
+        const int flip = c->flip;                                                      \
         const int64_t sx = g->st[0], sy = g->st[1], sz = g->st[2], sa = g->st[axis];   \
         const int row_inner = j >= g->inner_lo[1] && j + (axis == 1) <= g->inner_hi[1] && \
                               m >= g->inner_lo[2] && m + (axis == 2) <= g->inner_hi[2]; \
         const int64_t x_lo = g->inner_lo[0], x_hi = g->inner_hi[0] - (axis == 0);      \
-        const char *row = row_inner ? g->data + (j - g->pad) * sy + (m - g->pad) * sz : NULL; \
+        const int64_t pad = g->pad;                                                    \
+        const char *row = row_inner ? g->data + (j - pad) * sy + (m - pad) * sz : NULL; \
         const double iso = g->iso, ox = g->o[0], hx = g->h[0];                         \
-        const double oy = g->o[1] + (double)j * g->h[1], oz = g->o[2] + (double)m * g->h[2]; \
+        const double py0 = (double)j, pz0 = (double)m;                                 \
+        const double oy = g->o[1], hy = g->h[1], oz = g->o[2], hz = g->h[2];           \
+        const float fy = (float)(oy + py0 * hy), fz = (float)(oz + pz0 * hz);          \
         const double ix = g->inv2h[0], iy = g->inv2h[1], iz = g->inv2h[2];             \
-        const double sgn = c->flip ? -1.0 : 1.0;                                       \
+        const double sgn = flip ? -1.0 : 1.0;                                          \
         for (int64_t i = from; i <= to; i += 16) {                                     \
             uint32_t diff = diff16(a + i, b + i);                                      \
             if (to - i < 15)                                                           \
@@ -642,40 +647,27 @@ static inline uint32_t first_bits(uint32_t mask, int64_t n)
             while (diff) {                                                             \
                 const int64_t x = i + __builtin_ctz(diff);                             \
                 diff &= diff - 1;                                                      \
-                float *pos = c->pos + 3 * id, *nrm = c->nrm ? c->nrm + 3 * id : NULL;  \
+                float *pos = P + 3 * id, *nrm = NR ? NR + 3 * id : NULL;               \
                 int done = 0;                                                          \
                 if (row && x >= x_lo && x <= x_hi) {                                   \
-                    const char *p = row + (x - g->pad) * sx, *q = p + sa;              \
-                    T v0, v1;                                                          \
-                    memcpy(&v0, p, sizeof v0);                                         \
-                    memcpy(&v1, q, sizeof v1);                                         \
-                    const double f0 = (double)v0, f1 = (double)v1;                     \
+                    const char *p = row + (x - pad) * sx, *q = p + sa;                 \
+                    const double f0 = LD(p), f1 = LD(q);                               \
                     const double t = (iso - f0) / (f1 - f0);                           \
                     double n0 = 0, n1 = 0, n2 = 0, len = 1.0;                          \
                     if (nrm) {                                                         \
-                        double g0[3], g1[3];                                           \
-                        g0[0] = (axis == 0 ? f1 : LD(p + sx)) - LD(p - sx); \
-                        g0[1] = (axis == 1 ? f1 : LD(p + sy)) - LD(p - sy); \
-                        g0[2] = (axis == 2 ? f1 : LD(p + sz)) - LD(p - sz); \
-                        g1[0] = LD(q + sx) - (axis == 0 ? f0 : LD(q - sx)); \
-                        g1[1] = LD(q + sy) - (axis == 1 ? f0 : LD(q - sy)); \
-                        g1[2] = LD(q + sz) - (axis == 2 ? f0 : LD(q - sz)); \
-                        n0 = -((1.0 - t) * g0[0] + t * g1[0]) * ix;                    \
-                        n1 = -((1.0 - t) * g0[1] + t * g1[1]) * iy;                    \
-                        n2 = -((1.0 - t) * g0[2] + t * g1[2]) * iz;                    \
+                        const double u = 1.0 - t;                                      \
+                        n0 = -(u * ((axis == 0 ? f1 : LD(p + sx)) - LD(p - sx)) +      \
+                               t * (LD(q + sx) - (axis == 0 ? f0 : LD(q - sx)))) * ix; \
+                        n1 = -(u * ((axis == 1 ? f1 : LD(p + sy)) - LD(p - sy)) +      \
+                               t * (LD(q + sy) - (axis == 1 ? f0 : LD(q - sy)))) * iy; \
+                        n2 = -(u * ((axis == 2 ? f1 : LD(p + sz)) - LD(p - sz)) +      \
+                               t * (LD(q + sz) - (axis == 2 ? f0 : LD(q - sz)))) * iz; \
                         len = sqrt(n0 * n0 + n1 * n1 + n2 * n2);                       \
                     }                                                                  \
-                    if (isfinite(t) && len > 0.0 && isfinite(len)) {                   \
-                        double px = (double)x, py = 0.0, pz = 0.0;                     \
-                        if (axis == 0)                                                 \
-                            px += t;                                                   \
-                        else if (axis == 1)                                            \
-                            py = t;                                                    \
-                        else                                                           \
-                            pz = t;                                                    \
-                        pos[0] = (float)(ox + px * hx);                                \
-                        pos[1] = (float)(axis == 1 ? g->o[1] + ((double)j + py) * g->h[1] : oy); \
-                        pos[2] = (float)(axis == 2 ? g->o[2] + ((double)m + pz) * g->h[2] : oz); \
+                    if (t >= 0.0 && t <= 1.0 && len > 0.0 && len < INFINITY) {         \
+                        pos[0] = (float)(ox + ((double)x + (axis == 0 ? t : 0.0)) * hx); \
+                        pos[1] = axis == 1 ? (float)(oy + (py0 + t) * hy) : fy;        \
+                        pos[2] = axis == 2 ? (float)(oz + (pz0 + t) * hz) : fz;        \
                         if (nrm) {                                                     \
                             const double sc = sgn / len;                               \
                             nrm[0] = (float)(sc * n0);                                 \
@@ -686,7 +678,7 @@ static inline uint32_t first_bits(uint32_t mask, int64_t n)
                     }                                                                  \
                 }                                                                      \
                 if (!done)                                                             \
-                    make_vertex(g, c->flip, x, j, m, axis, pos, nrm);                  \
+                    make_vertex(g, flip, x, j, m, axis, pos, nrm);                     \
                 ids[x] = (uint32_t)id++;                                               \
             }                                                                          \
         }                                                                              \
