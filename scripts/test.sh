@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # The README's test command: installs what is missing, builds everything with
 # warnings as errors, runs every test (ctest), then rebuilds the C core, the
-# command line and their tests under AddressSanitizer + UBSan and runs them again.
+# command line, the slice-stack importer and their tests under AddressSanitizer
+# + UBSan and runs the tests labelled "sanitize" again.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 bash scripts/deps.sh all
@@ -13,7 +14,7 @@ ctest --test-dir build --output-on-failure -j "$JOBS" --timeout 1500
 rc1=$?
 set -e
 cmake -S . -B build-asan -DCMAKE_BUILD_TYPE=Debug -DISOMEND_SANITIZE=ON -DISOMEND_WERROR=ON \
-  -DISOMEND_BUILD_IO=OFF -DISOMEND_BUILD_MESHLAB=OFF -DISOMEND_BUILD_BLENDER=OFF \
+  -DISOMEND_BUILD_MESHLAB=OFF -DISOMEND_BUILD_BLENDER=OFF \
   -DISOMEND_BUILD_BENCH=OFF -DISOMEND_PEER_TESTS=OFF >/dev/null
 cmake --build build-asan -j "$JOBS"
 set +e
