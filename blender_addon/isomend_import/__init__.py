@@ -348,6 +348,11 @@ class IMPORT_MESH_OT_slice_stack(Operator, ImportHelper):
         return {status}
 
     def _finish_inner(self, context, job):
+        # Esc pressed while the worker was finishing: nothing is created yet, so
+        # the import is cancelled as the user asked (not built after the fact).
+        if job.cancel and job.error is None:
+            self.report({'WARNING'}, "Import cancelled")
+            return 'CANCELLED', "Import cancelled"
         if job.error is not None:
             exc = job.error
             if isinstance(exc, isomend.Cancelled):
