@@ -8,7 +8,7 @@ the trilinear topology oracle, then formats its JSON lines as Markdown.
 Usage:
   scripts/methods_table.py                       # configure + build in build-methods-table/
   scripts/methods_table.py --bench PATH          # use an already built bench
-  scripts/methods_table.py --update docs/readme-methods.md
+  scripts/methods_table.py --update README.md
       (replaces the text between <!-- methods-table:begin --> and
        <!-- methods-table:end --> in that file, through a temporary file)
 Options: --grids N (default 10000), --n N (grid size, default 4), --jobs N.
