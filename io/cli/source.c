@@ -427,34 +427,8 @@ int cli_source_summary(cli_source *src, cli_summary *sum)
                 sum->histogram[bin_of(x, lo, hi, 16)]++;
                 fine[bin_of(x, lo, hi, BINS)]++;
             }
-    /* Otsu: maximise w0*w1*(m0-m1)^2 over the split after bin i; empty bins
-     * between the two classes give the same value: take the middle of that
-     * plateau (exactly the importer's rule, so both give the same level) */
-    const double w = (hi - lo) / BINS;
-    double total = 0, total_mass = 0;
-    for (int b = 0; b < BINS; b++) {
-        total += (double)fine[b];
-        total_mass += (double)fine[b] * (lo + (b + 0.5) * w);
-    }
-    double w0 = 0, m0 = 0, best = -1;
-    int best_first = 0, best_last = 0;
-    for (int b = 0; b < BINS - 1; b++) {
-        w0 += (double)fine[b];
-        m0 += (double)fine[b] * (lo + (b + 0.5) * w);
-        double w1 = total - w0;
-        if (w0 <= 0 || w1 <= 0) continue;
-        double d = m0 / w0 - (total_mass - m0) / w1;
-        double between = w0 * w1 * d * d;
-        if (between > best * (1 + 1e-12)) {
-            best = between;
-            best_first = best_last = b;
-        } else if (between >= best * (1 - 1e-12) && fine[b] == 0 && best_last == b - 1) {
-            best_last = b;
-        }
-    }
-    double t = lo + ((best_first + best_last) / 2.0 + 1) * w;
-    if (is_integer_type(v->type)) t = floor(t) + 0.5;
-    sum->suggested_iso = t;
+    /* Otsu, exactly as the importer does it (io/common) */
+    sum->suggested_iso = isomend_fileio_otsu(fine, BINS, lo, hi, is_integer_type(v->type));
     sum->has_suggestion = 1;
     return CLI_EXIT_OK;
 }

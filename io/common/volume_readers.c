@@ -957,3 +957,34 @@ isomend_fileio_status isomend_fileio_write_nrrd(const char *path, const isomend_
     }
     return isomend_atomic_commit(&af, msg, msg_size);
 }
+
+double isomend_fileio_otsu(const uint64_t *hist, int bins, double min, double max, int integer)
+{
+    if (!(max > min) || bins < 2)
+        return min;
+    const double w = (max - min) / bins;
+    double total = 0, total_mass = 0;
+    for (int b = 0; b < bins; b++) {
+        total += (double)hist[b];
+        total_mass += (double)hist[b] * (min + (b + 0.5) * w);
+    }
+    double w0 = 0, m0 = 0, best = -1;
+    int best_first = 0, best_last = 0;
+    for (int b = 0; b < bins - 1; b++) {
+        w0 += (double)hist[b];
+        m0 += (double)hist[b] * (min + (b + 0.5) * w);
+        double w1 = total - w0;
+        if (w0 <= 0 || w1 <= 0)
+            continue;
+        double d = m0 / w0 - (total_mass - m0) / w1;
+        double between = w0 * w1 * d * d;
+        if (between > best * (1 + 1e-12)) {
+            best = between;
+            best_first = best_last = b;
+        } else if (between >= best * (1 - 1e-12) && hist[b] == 0 && best_last == b - 1) {
+            best_last = b;
+        }
+    }
+    double t = min + ((best_first + best_last) / 2.0 + 1) * w;
+    return integer ? floor(t) + 0.5 : t;
+}

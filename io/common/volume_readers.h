@@ -159,6 +159,18 @@ void isomend_fileio_describe(const isomend_fileio_info *info, const void *data,
                              isomend_volume *vol);
 
 /*
+ * Otsu's threshold (1979) on a histogram of `bins` equal bins spanning
+ * [min, max]: the split that maximises the between-class variance.  When
+ * empty bins between two classes give the same variance, the level goes to
+ * the middle of that gap (not its first bin).  With `integer` non-zero the
+ * level is moved to floor(t) + 0.5, so that no sample equals it.  Returns
+ * min when max <= min.  The command line and the slice-stack importer both
+ * suggest iso levels with it, so a volume gets the same suggestion as raw,
+ * NRRD or image stack.
+ */
+double isomend_fileio_otsu(const uint64_t *hist, int bins, double min, double max, int integer);
+
+/*
  * Writes a NRRD0004 file with attached data (gzip level 6 when `gzip` is
  * non-zero, else raw), little endian, "spacings" and "space origin" from
  * `vol`.  The volume may have any strides.  The file is written to a

@@ -339,36 +339,9 @@ void hist_any(isomend_type t, const void *p, size_t n, double mn, double mx, His
 
 bool is_integer_type(isomend_type t) { return t != ISOMEND_F32 && t != ISOMEND_F64; }
 
-// Otsu (1979) on the fine histogram; see isomend_io_analyse() in the header.
+// Otsu (1979) on the fine histogram, shared with the command line (io/common).
 double otsu(const uint64_t *h, int bins, double mn, double mx, bool integer) {
-    if (!(mx > mn)) return mn;
-    const double w = (mx - mn) / bins;
-    double total = 0, total_mass = 0;
-    for (int i = 0; i < bins; i++) {
-        total += (double)h[i];
-        total_mass += (double)h[i] * (mn + (i + 0.5) * w);
-    }
-    // Empty bins between two classes give the same between-class variance:
-    // take the middle of that plateau, not its first bin.
-    double w0 = 0, m0 = 0, best = -1;
-    int best_first = 0, best_last = 0;
-    for (int i = 0; i < bins - 1; i++) {
-        w0 += (double)h[i];
-        m0 += (double)h[i] * (mn + (i + 0.5) * w);
-        double w1 = total - w0;
-        if (w0 <= 0 || w1 <= 0) continue;
-        double d = m0 / w0 - (total_mass - m0) / w1;
-        double between = w0 * w1 * d * d;
-        if (between > best * (1 + 1e-12)) {
-            best = between;
-            best_first = best_last = i;
-        } else if (between >= best * (1 - 1e-12) && h[i] == 0 && best_last == i - 1) {
-            best_last = i;
-        }
-    }
-    double t = mn + ((best_first + best_last) / 2.0 + 1) * w;
-    if (integer) t = std::floor(t) + 0.5;
-    return t;
+    return isomend_fileio_otsu(h, bins, mn, mx, integer ? 1 : 0);
 }
 
 void do_load(isomend_io_source *s, isomend_volume *vol, double *seconds);
