@@ -1065,6 +1065,10 @@ static uint64_t march_layer(worker *w, int64_t k, int mode, uint64_t first)
     uint32_t *out = mode ? c->tri + 3 * first : NULL;
     uint8_t *org = mode && c->org ? c->org + first : NULL;
     uint8_t *cases = w->cases;
+    uint64_t cfg_count[256]; /* counting pass: cubes per configuration */
+    uint64_t general_tri = 0;
+    if (!mode)
+        memset(cfg_count, 0, sizeof cfg_count);
     w->private_count = 0;
     if (mode && c->general)
         w->private_next = c->slice_first[N2] + c->layer_private[k];
@@ -1110,11 +1114,12 @@ static uint64_t march_layer(worker *w, int64_t k, int mode, uint64_t first)
                         org += nt;
                 }
             } else {
-                nt = isomend_mc_tri_count[cfg];
+                nt = mode ? isomend_mc_tri_count[cfg] : 0; /* counted per layer */
             }
             if (!mode) {
-                st->case_histogram[isomend_mc_case_of[cfg]]++;
-                st->triangles_by_origin[ISOMEND_ORIGIN_TABLE] += nt;
+                cfg_count[cfg]++; /* folded into the statistics once per layer */
+                if (c->general)
+                    general_tri += nt;
             } else if (!c->general) {
                 const signed char *te = isomend_mc_tri_edges[cfg];
                 for (unsigned q = 0; q < nt; q++, te += 3) {
@@ -1180,8 +1185,17 @@ static uint64_t march_layer(worker *w, int64_t k, int mode, uint64_t first)
           }
         }
     }
-    if (!mode)
+    if (!mode) {
+        uint64_t table_tri = 0;
+        for (int q = 1; q < 255; q++) {
+            st->case_histogram[isomend_mc_case_of[q]] += cfg_count[q];
+            table_tri += cfg_count[q] * isomend_mc_tri_count[q];
+        }
         st->case_histogram[0] += (uint64_t)(N0 - 1) * (uint64_t)(N1 - 1) - busy;
+        st->triangles_by_origin[ISOMEND_ORIGIN_TABLE] += c->general ? general_tri : table_tri;
+        if (!c->general)
+            ntri += table_tri;
+    }
     return ntri;
 }
 
