@@ -114,11 +114,15 @@ static double fetch(const grid *g, int64_t i, int64_t j, int64_t k)
  * its span: `lo`, the first column whose sign differs from column 0 (N0 when
  * the row is uniform), and `hi`, the last column whose sign differs from the
  * last column (-1 when uniform).  Outside [lo - 1, hi] the row is constant,
- * which is what lets every loop below skip the empty parts of a row.
+ * which is what lets every loop below skip the empty parts of a row.  A
+ * `simple` row is one run [lo, hi] of the other sign in a constant row (a
+ * chord through a blob): rows of cubes between four simple rows are empty
+ * inside the runs' overlap too.
  */
 typedef struct rowinfo {
     int64_t lo, hi;
     uint8_t first, last;
+    uint8_t simple; /* one run [lo, hi] of the other sign, constant around it */
 } rowinfo;
 
 /*
@@ -182,6 +186,7 @@ static void classify_row(const grid *g, int64_t j, int64_t k, uint8_t *s, rowinf
         ri->lo = N0;
         ri->hi = -1;
         ri->first = ri->last = 0;
+        ri->simple = 0;
         return;
     }
     if (p) {
@@ -213,6 +218,7 @@ static void classify_row(const grid *g, int64_t j, int64_t k, uint8_t *s, rowinf
     if (!d) {
         ri->lo = N0;
         ri->hi = -1;
+        ri->simple = 0;
         return;
     }
     ri->lo = d - s;
@@ -220,20 +226,70 @@ static void classify_row(const grid *g, int64_t j, int64_t k, uint8_t *s, rowinf
     while (s[h] == ri->last)
         h--;
     ri->hi = h;
+    ri->simple = 0;
+    if (ri->first == ri->last) {
+        const uint8_t *e = memchr(s + ri->lo, ri->first, (size_t)(N0 - ri->lo));
+        ri->simple = e && e - s == h + 1;
+    }
 }
 
-/* Columns [*from, *to] outside which rows a and b agree; 0 if they agree everywhere. */
-static inline int pair_span(const rowinfo *a, const rowinfo *b, int64_t N0, int64_t *from,
-                            int64_t *to)
+/*
+ * The columns where rows a and b may differ, as 0, 1 or 2 ascending
+ * intervals in span[0..2n): outside them the rows agree.  Two simple rows with
+ * the same outside sign differ only on the symmetric difference of their runs.
+ */
+static inline int pair_spans(const rowinfo *a, const rowinfo *b, int64_t N0, int64_t span[4])
 {
+    if (a->simple && b->simple && a->first == b->first) {
+        int n = 0;
+        int64_t iv[4];
+        if (a->lo <= b->hi && b->lo <= a->hi) { /* overlapping runs */
+            iv[0] = a->lo < b->lo ? a->lo : b->lo;
+            iv[1] = (a->lo > b->lo ? a->lo : b->lo) - 1;
+            iv[2] = (a->hi < b->hi ? a->hi : b->hi) + 1;
+            iv[3] = a->hi > b->hi ? a->hi : b->hi;
+        } else { /* disjoint runs: both, in column order */
+            const rowinfo *l = a->lo < b->lo ? a : b, *r = l == a ? b : a;
+            iv[0] = l->lo;
+            iv[1] = l->hi;
+            iv[2] = r->lo;
+            iv[3] = r->hi;
+        }
+        for (int q = 0; q < 4; q += 2)
+            if (iv[q] <= iv[q + 1]) {
+                span[2 * n] = iv[q];
+                span[2 * n + 1] = iv[q + 1];
+                n++;
+            }
+        return n;
+    }
     int64_t f = 0, t = N0 - 1;
     if (a->first == b->first)
         f = a->lo < b->lo ? a->lo : b->lo;
     if (a->last == b->last)
         t = a->hi > b->hi ? a->hi : b->hi;
-    *from = f;
-    *to = t;
+    span[0] = f;
+    span[1] = t;
     return f <= t;
+}
+
+/*
+ * The columns i where row a's sample i differs from sample i + 1 may lie
+ * (x edges), as intervals like pair_spans: a simple row crosses exactly at
+ * lo - 1 and hi.
+ */
+static inline int row_spans(const rowinfo *a, int64_t N0, int64_t span[4])
+{
+    if (a->lo >= N0)
+        return 0;
+    if (a->simple) {
+        span[0] = span[1] = a->lo - 1;
+        span[2] = span[3] = a->hi;
+        return 2;
+    }
+    span[0] = a->lo - 1;
+    span[1] = a->hi;
+    return 1;
 }
 
 /* Sets the exact per-type threshold: inside iff sample >= iso. */
@@ -881,31 +937,31 @@ static uint64_t scan_slice(worker *w, int64_t m, int mode, uint64_t first, int w
                 count = scan_diagonals(c, s, t, j, m, NULL, count, 0);
         }
         const uint8_t *a = s + j * N0;
-        int64_t x0 = ra[j].lo - 1, x1 = ra[j].hi, y0 = 0, y1 = -1, z0 = 0, z1 = -1;
-        const int has_x = x0 <= x1 && ra[j].lo < N0;
-        const int has_y = j + 1 < N1 && pair_span(&ra[j], &ra[j + 1], N0, &y0, &y1);
-        const int has_z = t && pair_span(&ra[j], &rn[j], N0, &z0, &z1);
-        if (!has_x && !has_y && !has_z)
+        int64_t xs[4], ys[4], zs[4];
+        const int nx = row_spans(&ra[j], N0, xs);
+        const int ny = j + 1 < N1 ? pair_spans(&ra[j], &ra[j + 1], N0, ys) : 0;
+        const int nz = t ? pair_spans(&ra[j], &rn[j], N0, zs) : 0;
+        if (!nx && !ny && !nz)
             continue;
-        const uint8_t *b = a + N0; /* row j + 1, read only when has_y */
-        const uint8_t *d = has_z ? t + j * N0 : NULL;
+        const uint8_t *b = a + N0; /* row j + 1, read only when ny */
+        const uint8_t *d = nz ? t + j * N0 : NULL;
         if (!mode) {
-            if (has_x)
-                count += count_differences(a, a + 1, x0, x1);
-            if (has_y)
-                count += count_differences(a, b, y0, y1);
-            if (has_z)
-                count += count_differences(a, d, z0, z1);
+            for (int q = 0; q < nx; q++)
+                count += count_differences(a, a + 1, xs[2 * q], xs[2 * q + 1]);
+            for (int q = 0; q < ny; q++)
+                count += count_differences(a, b, ys[2 * q], ys[2 * q + 1]);
+            for (int q = 0; q < nz; q++)
+                count += count_differences(a, d, zs[2 * q], zs[2 * q + 1]);
             continue;
         }
         /* Vertex order within a row: x edges, then y edges, then z edges. */
         const int64_t at = j * N0;
-        if (has_x)
-            id = number_crossings(c, a, a + 1, x0, x1, j, m, 0, mx + at, id, write);
-        if (has_y)
-            id = number_crossings(c, a, b, y0, y1, j, m, 1, my + at, id, write);
-        if (has_z)
-            id = number_crossings(c, a, d, z0, z1, j, m, 2, mz + at, id, write);
+        for (int q = 0; q < nx; q++)
+            id = number_crossings(c, a, a + 1, xs[2 * q], xs[2 * q + 1], j, m, 0, mx + at, id, write);
+        for (int q = 0; q < ny; q++)
+            id = number_crossings(c, a, b, ys[2 * q], ys[2 * q + 1], j, m, 1, my + at, id, write);
+        for (int q = 0; q < nz; q++)
+            id = number_crossings(c, a, d, zs[2 * q], zs[2 * q + 1], j, m, 2, mz + at, id, write);
     }
     return mode ? id - first : count;
 }
@@ -915,23 +971,44 @@ static uint64_t scan_slice(worker *w, int64_t m, int mode, uint64_t first, int w
      (unsigned)(r1)[(i) + 1] << 3 | (unsigned)(r2)[i] << 4 | (unsigned)(r2)[(i) + 1] << 5 | \
      (unsigned)(r3)[i] << 6 | (unsigned)(r3)[(i) + 1] << 7)
 
-/* Columns of cubes [*from, *to] outside which the row of cubes between the
- * four sample rows is empty (all cubes inside or all outside). */
-static int cube_span(const rowinfo *r[4], int64_t N0, int64_t *from, int64_t *to)
+/*
+ * The columns of cubes of a row (between four sample rows) that can hold a
+ * non-empty cube: one interval, or two when the four rows are simple with the
+ * same outside sign (the cubes inside all four runs are then empty too).
+ * Fills span[0..2n) with n intervals and returns n (0, 1 or 2).
+ */
+static inline int cube_spans(const rowinfo *r[4], int64_t N0, int64_t span[4])
 {
-    int same_first = 1, same_last = 1;
-    int64_t lo = N0, hi = -1;
+    int same_first = 1, same_last = 1, simple = 1;
+    int64_t lo = N0, hi = -1, lo_max = -1, hi_min = N0;
     for (int q = 0; q < 4; q++) {
         same_first &= r[q]->first == r[0]->first;
         same_last &= r[q]->last == r[0]->last;
+        simple &= r[q]->simple;
         if (r[q]->lo < lo)
             lo = r[q]->lo;
         if (r[q]->hi > hi)
             hi = r[q]->hi;
+        if (r[q]->lo > lo_max)
+            lo_max = r[q]->lo;
+        if (r[q]->hi < hi_min)
+            hi_min = r[q]->hi;
     }
-    *from = same_first ? (lo > 0 ? lo - 1 : 0) : 0;
-    *to = same_last ? (hi < N0 - 2 ? hi : N0 - 2) : N0 - 2;
-    return *from <= *to;
+    const int64_t from = same_first ? (lo > 0 ? lo - 1 : 0) : 0;
+    const int64_t to = same_last ? (hi < N0 - 2 ? hi : N0 - 2) : N0 - 2;
+    if (from > to)
+        return 0;
+    if (simple && same_first && lo_max <= hi_min - 1) {
+        /* cubes in [lo_max, hi_min - 1] have all 8 corners inside the runs */
+        span[0] = from;
+        span[1] = lo_max - 1;
+        span[2] = hi_min;
+        span[3] = to;
+        return 2;
+    }
+    span[0] = from;
+    span[1] = to;
+    return 1;
 }
 
 /*
@@ -1075,11 +1152,11 @@ static uint64_t march_layer(worker *w, int64_t k, int mode, uint64_t first)
 
     for (int64_t j = 0; j + 1 < N1; j++) {
         const rowinfo *rows[4] = {&r0[j], &r0[j + 1], &r1[j], &r1[j + 1]};
-        int64_t i0, i1;
-        if (!cube_span(rows, N0, &i0, &i1))
+        int64_t span[4];
+        const int nspans = cube_spans(rows, N0, span);
+        if (!nspans)
             continue;
         const uint8_t *a = S0 + j * N0, *b = a + N0, *cc = S1 + j * N0, *d = cc + N0;
-        row_cases(a, b, cc, d, i0, i1, cases);
         const uint32_t *ep[12] = {NULL};
         if (mode) {
             const int64_t o = j * N0;
@@ -1096,6 +1173,11 @@ static uint64_t march_layer(worker *w, int64_t k, int mode, uint64_t first)
             ep[10] = mk0 + 2 * plane + o + N0;
             ep[11] = mk0 + 2 * plane + o + N0 + 1;
         }
+        for (int sp = 0; sp < nspans; sp++) {
+        const int64_t i0 = span[2 * sp], i1 = span[2 * sp + 1];
+        if (i0 > i1)
+            continue;
+        row_cases(a, b, cc, d, i0, i1, cases);
         for (int64_t word = i0; word <= i1; word += 16) {
           uint32_t mixed = mixed16(cases + word);
           if (i1 - word < 15)
@@ -1183,6 +1265,7 @@ static uint64_t march_layer(worker *w, int64_t k, int mode, uint64_t first)
                 ntri += 2;
             }
           }
+        }
         }
     }
     if (!mode) {
