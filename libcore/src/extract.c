@@ -18,11 +18,21 @@
  *      fixed order (slice, row, axis x/y/z, column), computes those vertices
  *      (position, normal) once, and writes its layers' triangles.
  *
- * Each pass classifies samples row by row into sign bytes (sample >= iso,
- * with a threshold chosen per voxel type so the comparison is exact and the
- * loop vectorises) and skips every row of cubes whose four sample rows are
- * uniformly inside or uniformly outside.  Only samples around emitted
- * vertices are read as numbers.
+ * The counting pass classifies samples row by row into sign bytes (sample
+ * >= iso, with a threshold chosen per voxel type so the comparison is exact
+ * and the loop vectorises, AVX2 where available) and keeps them, 1 bit a
+ * sample, in a sign cache that the fill pass reads instead of the volume.
+ * Each row carries its span (where its sign changes) so that rows of cubes
+ * whose four sample rows are uniform are skipped, and rows that are one run
+ * in a constant background (chords through a blob) are scanned only at the
+ * runs' ends.  Crossings and busy cubes are found 16 columns at a time.
+ * Only samples around emitted vertices are read as numbers, by per-type,
+ * per-axis loops (make_vertex is the general path near borders and NaN).
+ * Output arrays of 2 MiB and more go on transparent huge pages.
+ *
+ * Methods of methods.h (facial, gradient, asymptotic, tetra, mc33) replace
+ * the table by a per-cube hook: face-diagonal vertices (tetra) are numbered
+ * with their slice, cube-private vertices after all the slices' vertices.
  *
  * Mending (thesis chapter 4.2.2).  Each face of the grid is judged once, by
  * the cube for which it is the +x, +y or +z face.  If the face is ambiguous
