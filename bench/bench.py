@@ -23,9 +23,10 @@ How it is measured
   TBB, used by VTK and OpenVDB, and isomend then see N cores; VTK also gets
   vtkSMPTools.Initialize(N), isomend options.threads = N).  The child loads the volume
   from a .npy file, warms the extractor up on a 16^3 subsample of it (thread pools, lazy
-  binding), measures the floor, resets its peak-RSS mark (/proc/self/clear_refs = 5)
-  and times one call: wall time, CPU time and the peak RSS above what it held before
-  the call (the "extra" memory: output, temporaries).  The runs are made in rounds --
+  binding), measures the floor, then makes two full-size calls, resetting its peak-RSS
+  mark (/proc/self/clear_refs = 5) before each: the first is reported apart ("first
+  call"), the second is the measurement: wall time, CPU time and the peak RSS above
+  what it held before the call (the "extra" memory: output, temporaries).  The runs are made in rounds --
   every extractor once, then again -- so that the extractors compared take turns on a
   shared machine.  Times are medians over the rounds.
 
@@ -450,7 +451,8 @@ def child_main(args):
 
     times, cpus, peaks = [], [], []
     result = None
-    for r in range(args.repeats):
+    first_times, first_cpus = [], []
+    for r in range(args.repeats + 1):
         gc.collect()
         have_peak = _reset_peak()
         base = _status_kb("VmRSS")
@@ -463,15 +465,20 @@ def child_main(args):
         peak = _status_kb("VmHWM") - base if have_peak else None
         res = measure(out)
         del out
-        times.append(dt)
         peaks.append(peak)
+        if r == 0:  # the first full-size call of the process, reported apart
+            first_times.append(dt)
+            first_cpus.append(cpus.pop())
+        else:
+            times.append(dt)
         if result is None:
             result = res
         elif (res[0], res[1]) != (result[0], result[1]):
             raise RuntimeError("%s: output changed between repetitions" % label)
     ntri, nvert, nbytes, extra = result
     extra.pop("keep", None)
-    json.dump({"times": times, "cpu_times": cpus,
+    json.dump({"times": times, "cpu_times": cpus, "first_times": first_times,
+               "first_cpu_times": first_cpus,
                "peak_extra_kb": None if None in peaks else max(peaks),
                "triangles": ntri, "vertices": nvert, "output_bytes": nbytes,
                "input_bytes": int(a.nbytes), "rss_input_kb": rss_input - rss_before_input,
@@ -608,7 +615,8 @@ def measure_volume(args, peers, field, n, dtype, vol_path, iso, t, thread_counts
                 a.clear()
                 a["error"] = "output changed between runs"
             else:
-                for key in ("times", "cpu_times", "floor_times", "numpy_sum_times"):
+                for key in ("times", "cpu_times", "first_times", "first_cpu_times",
+                            "floor_times", "numpy_sum_times"):
                     a[key] = a[key] + r[key]
                 if a["peak_extra_kb"] is not None and r["peak_extra_kb"] is not None:
                     a["peak_extra_kb"] = max(a["peak_extra_kb"], r["peak_extra_kb"])
@@ -623,6 +631,7 @@ def measure_volume(args, peers, field, n, dtype, vol_path, iso, t, thread_counts
             r["min"] = min(r["times"])
             r["cpu"] = statistics.median(r["cpu_times"])
             r["floor"] = statistics.median(r["floor_times"])
+            r["first"] = statistics.median(r["first_times"])
             print("[bench]   %-32s %d thr: %8.1f ms (CPU %7.1f ms) %9d tri  floor %.1f ms"
                   % (label, t, 1e3 * r["median"], 1e3 * r["cpu"], r["triangles"],
                      1e3 * r["floor"]), file=sys.stderr, flush=True)
@@ -920,7 +929,10 @@ def render(info, results, thread_counts):
 
     # Details per volume.
     w("## Every extractor, per volume\n")
-    w("Times in ms (median). *speed-up* = the extractor's time / isomend DMC+normals' time at "
+    w("Times in ms (median). Each child process makes two full-size calls and times the "
+      "second: *first call* is the first one, which on this virtual machine also pays for "
+      "fresh memory (isomend's huge-page output arrays are slow to obtain the first time in "
+      "a process, see the README). *speed-up* = the extractor's time / isomend DMC+normals' time at "
       "the same thread count (> 1: isomend is faster). *extra MB* = the largest RSS increase "
       "during the call (output and temporaries; the input is already resident). "
       "Single-threaded peers (vtkMarchingCubes, scikit-image) run once at 1 thread: that time "
@@ -938,9 +950,9 @@ def render(info, results, thread_counts):
         head = "| extractor |"
         for t in thread_counts:
             head += " %d thr ms | speed-up | × floor |" % t
-        head += " triangles | vertices | extra MB |"
+        head += " triangles | vertices | extra MB | first call, %d thr ms |" % thread_counts[0]
         w(head)
-        w("|---" * (1 + 3 * len(thread_counts) + 3) + "|")
+        w("|---" * (1 + 3 * len(thread_counts) + 4) + "|")
         exts = []
         for r in rows:
             if r["extractor"] not in exts:
@@ -967,11 +979,13 @@ def render(info, results, thread_counts):
                                                   "%.1f" % (r["median"] / fl) if fl else "—")
             peak = max([x["peak_extra_kb"] for x in rows if x["extractor"] == ext
                         and x["peak_extra_kb"] is not None] or [None], key=lambda x: x or 0)
-            line += " %s | %s | %s |" % (_count(any_r["triangles"]), _count(any_r["vertices"]),
-                                         _mb(peak))
+            r1 = by.get(v + (ext, thread_counts[0]))
+            line += " %s | %s | %s | %s |" % (_count(any_r["triangles"]),
+                                              _count(any_r["vertices"]), _mb(peak),
+                                              _ms(r1["first"]) if r1 else "—")
             w(line)
         w("| memory-read floor (%s sum) |" % rows[0]["floor_impl"] +
-          "".join(" %s | | |" % _ms(floors.get(t)) for t in thread_counts) + " | | |")
+          "".join(" %s | | |" % _ms(floors.get(t)) for t in thread_counts) + " | | | |")
         np_t = statistics.median([min(r["numpy_sum_times"]) for r in rows])
         w("\nnumpy `a.sum(dtype=float64)` of the same array: %s ms (1 thread).\n" % _ms(np_t))
         for r in errs:
