@@ -11,7 +11,8 @@ BUILD_PKGS=(build-essential cmake pkg-config zlib1g-dev
   qtbase5-dev libqt5opengl5-dev libglew-dev libeigen3-dev dpkg-dev meshlab
   python3-numpy)
 TEST_PKGS=(python3-pytest python3-vtk9 python3-skimage python3-openimageio python3-tifffile
-  xvfb xauth blender libtiff-tools libopenvdb-dev python3-openvdb python3-nibabel)
+  xvfb xauth blender libtiff-tools libopenvdb-dev python3-openvdb python3-nibabel
+  python3-scipy)
 pkgs=("${BUILD_PKGS[@]}")
 [ "$what" = build ] || pkgs+=("${TEST_PKGS[@]}")
 missing=()
