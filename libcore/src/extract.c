@@ -1538,15 +1538,17 @@ isomend_status isomend_extract(const isomend_volume *vol, const isomend_options 
     ws[0].is_main = 1;
 
     /* The sign cache spares the fill pass a second read of the volume.  It
-     * costs 1 bit a sample plus a span per row: skipped (the fill pass then
-     * classifies again) when that would exceed half the input's size. */
+     * costs 1 bit a sample plus a span per row: kept only when that is at most
+     * 1/16 of the input (float volumes), so that peak memory stays within
+     * input + mesh + 10 % even for a small mesh; for 8- and 16-bit samples the
+     * fill pass classifies again, which costs little. */
     {
         const uint64_t rows = (uint64_t)N1 * (uint64_t)N2;
         const uint64_t words = (uint64_t)(N0 + 63) / 64;
         const uint64_t cache = rows * (8 * words + sizeof(rowinfo));
         const uint64_t input =
             (uint64_t)g->n[0] * (uint64_t)g->n[1] * (uint64_t)g->n[2] * (uint64_t)size;
-        if (cache <= input / 2 && rows <= SIZE_MAX / sizeof(rowinfo) &&
+        if (cache <= input / 16 && rows <= SIZE_MAX / sizeof(rowinfo) &&
             rows * words <= SIZE_MAX / 8) {
             c->words = (int64_t)words;
             c->bits = malloc((size_t)(rows * words) * 8);
