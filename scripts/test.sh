@@ -15,7 +15,7 @@ rc1=$?
 set -e
 cmake -S . -B build-asan -DCMAKE_BUILD_TYPE=Debug -DISOMEND_SANITIZE=ON -DISOMEND_WERROR=ON \
   -DISOMEND_BUILD_MESHLAB=OFF -DISOMEND_BUILD_BLENDER=OFF \
-  -DISOMEND_BUILD_BENCH=OFF -DISOMEND_PEER_TESTS=OFF >/dev/null
+  -DISOMEND_PEER_TESTS=OFF >/dev/null
 cmake --build build-asan -j "$JOBS"
 set +e
 ASAN_OPTIONS=detect_leaks=1 UBSAN_OPTIONS=print_stacktrace=1 \
