@@ -1,7 +1,7 @@
 /*
  * extract_npy.c - times isomend_extract() on a volume saved by numpy (.npy),
  * without Python in the process: the driver for perf and callgrind when
- * profiling the core (see docs/readme-bench.md, "Profiling").
+ * profiling the core (see the README, "Profiling the core").
  *
  *   isomend_bench_extract FILE.npy ISO [--threads N] [--repeats N]
  *                         [--method mc|durst|dmc] [--no-normals] [--pad]
