@@ -1139,6 +1139,9 @@ static uint64_t march_layer(worker *w, int64_t k, int mode, uint64_t first)
     const uint8_t *S1 = signs(w, k + 1, &r1);
     const uint8_t *S0 = signs(w, k, &r0);
     const int quads = c->method == ISOMEND_METHOD_DMC || c->method == ISOMEND_METHOD_DURST;
+    /* Locals, not c->...: the byte stores to the origins may alias the context,
+     * which would make the compiler reload these for every triangle. */
+    const int flip = c->flip, general = c->general;
     const int durst = c->method == ISOMEND_METHOD_DURST;
     const uint8_t quad_origin = durst ? ISOMEND_ORIGIN_DURST : ISOMEND_ORIGIN_MEND;
     isomend_stats *st = &w->stats;
@@ -1157,7 +1160,7 @@ static uint64_t march_layer(worker *w, int64_t k, int mode, uint64_t first)
     if (!mode)
         memset(cfg_count, 0, sizeof cfg_count);
     w->private_count = 0;
-    if (mode && c->general)
+    if (mode && general)
         w->private_next = c->slice_first[N2] + c->layer_private[k];
 
     for (int64_t j = 0; j + 1 < N1; j++) {
@@ -1198,7 +1201,7 @@ static uint64_t march_layer(worker *w, int64_t k, int mode, uint64_t first)
             const unsigned cfg = cases[i];
             busy++;
             unsigned nt;
-            if (c->general) {
+            if (general) {
                 nt = method_cube(w, i, j, k, cfg, mode, ep, mk0, mk1, out, org);
                 if (mode) {
                     out += 3 * nt;
@@ -1210,15 +1213,15 @@ static uint64_t march_layer(worker *w, int64_t k, int mode, uint64_t first)
             }
             if (!mode) {
                 cfg_count[cfg]++; /* folded into the statistics once per layer */
-                if (c->general)
+                if (general)
                     general_tri += nt;
-            } else if (!c->general) {
+            } else if (!general) {
                 const signed char *te = isomend_mc_tri_edges[cfg];
                 for (unsigned q = 0; q < nt; q++, te += 3) {
                     uint32_t v0 = ep[te[0]][i], v1 = ep[te[1]][i], v2 = ep[te[2]][i];
                     out[0] = v0;
-                    out[1] = c->flip ? v2 : v1;
-                    out[2] = c->flip ? v1 : v2;
+                    out[1] = flip ? v2 : v1;
+                    out[2] = flip ? v1 : v2;
                     out += 3;
                     if (org)
                         *org++ = ISOMEND_ORIGIN_TABLE;
@@ -1265,8 +1268,8 @@ static uint64_t march_layer(worker *w, int64_t k, int mode, uint64_t first)
                     const uint32_t quad[6] = {s, r, q, s, q, p};
                     for (int h = 0; h < 6; h += 3) {
                         out[0] = quad[h];
-                        out[1] = c->flip ? quad[h + 2] : quad[h + 1];
-                        out[2] = c->flip ? quad[h + 1] : quad[h + 2];
+                        out[1] = flip ? quad[h + 2] : quad[h + 1];
+                        out[2] = flip ? quad[h + 1] : quad[h + 2];
                         out += 3;
                         if (org)
                             *org++ = quad_origin;
@@ -1285,8 +1288,8 @@ static uint64_t march_layer(worker *w, int64_t k, int mode, uint64_t first)
             table_tri += cfg_count[q] * isomend_mc_tri_count[q];
         }
         st->case_histogram[0] += (uint64_t)(N0 - 1) * (uint64_t)(N1 - 1) - busy;
-        st->triangles_by_origin[ISOMEND_ORIGIN_TABLE] += c->general ? general_tri : table_tri;
-        if (!c->general)
+        st->triangles_by_origin[ISOMEND_ORIGIN_TABLE] += general ? general_tri : table_tri;
+        if (!general)
             ntri += table_tri;
     }
     return ntri;
