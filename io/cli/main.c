@@ -463,6 +463,23 @@ static void print_source_line(FILE *fp, const cli_source *s)
 
 /* ------------------------------------------------------------------ extract */
 
+/*
+ * The start shared by `extract` and `info`: prepares the --json output, sets
+ * up the progress bar (stderr a terminal and not --quiet) and opens SOURCE.
+ * On failure nothing is left open and the exit code is returned.
+ */
+static int open_source_for(args *a, int quiet, json_out *jo, cli_progress *bar, cli_source *src)
+{
+    int rc = json_prepare(jo, a->json);
+    if (rc) return rc;
+    cli_progress_init(bar, !quiet && isatty(STDERR_FILENO));
+    cli_active_progress = bar;
+    a->src.progress = bar;
+    rc = cli_source_open(a->positional, a->npositional, &a->src, src);
+    if (rc) json_abort(jo);
+    return rc;
+}
+
 static int cmd_extract(int argc, char **argv)
 {
     args a;
@@ -505,20 +522,10 @@ static int cmd_extract(int argc, char **argv)
     }
     isomend_atomic_abort(&probe);
     json_out jo;
-    rc = json_prepare(&jo, a.json);
-    if (rc) return rc;
-
     cli_progress bar;
-    cli_progress_init(&bar, !quiet && isatty(STDERR_FILENO));
-    cli_active_progress = &bar;
-    a.src.progress = &bar;
-
     cli_source src;
-    rc = cli_source_open(a.positional, a.npositional, &a.src, &src);
-    if (rc) {
-        json_abort(&jo);
-        return rc;
-    }
+    rc = open_source_for(&a, quiet, &jo, &bar, &src);
+    if (rc) return rc;
     int iso_suggested = 0;
     if (!(a.seen & OPT_ISO)) {
         cli_summary sum;
@@ -750,20 +757,12 @@ static int cmd_info(int argc, char **argv)
         cli_error("info: missing SOURCE (see isomend info --help)");
         return CLI_EXIT_USAGE;
     }
-    json_out jo;
-    rc = json_prepare(&jo, a.json);
-    if (rc) return rc;
     int quiet = (a.seen & OPT_QUIET) != 0;
+    json_out jo;
     cli_progress bar;
-    cli_progress_init(&bar, !quiet && isatty(STDERR_FILENO));
-    cli_active_progress = &bar;
-    a.src.progress = &bar;
     cli_source src;
-    rc = cli_source_open(a.positional, a.npositional, &a.src, &src);
-    if (rc) {
-        json_abort(&jo);
-        return rc;
-    }
+    rc = open_source_for(&a, quiet, &jo, &bar, &src);
+    if (rc) return rc;
     cli_summary sum;
     rc = cli_source_summary(&src, &sum);
     cli_progress_clear(&bar);
