@@ -568,8 +568,8 @@ static void cache_store(worker *w, int64_t k)
     for (int64_t j = 0; j < N1; j++) {
         const rowinfo *ri = &w->ri[r][j];
         c->rows[k * N1 + j] = *ri;
-        if (ri->lo >= N0)
-            continue; /* uniform: the span says it all */
+        if (ri->lo >= N0 || ri->simple)
+            continue; /* uniform or one run: the span says it all */
         const uint8_t *s = w->sg[r] + j * N0;
         uint64_t *b = c->bits + (k * N1 + j) * c->words;
         for (int64_t q = 0; q < c->words; q++) {
@@ -600,6 +600,11 @@ static void cache_load(worker *w, int64_t k, int r)
         w->ri[r][j] = *ri;
         if (ri->lo >= N0) {
             memset(s, ri->first, (size_t)N0);
+            continue;
+        }
+        if (ri->simple) {
+            memset(s, ri->first, (size_t)N0);
+            memset(s + ri->lo, ri->first ^ 1, (size_t)(ri->hi - ri->lo + 1));
             continue;
         }
         const uint64_t *b = c->bits + (k * N1 + j) * c->words;
