@@ -184,6 +184,25 @@ DEFINE_CLASSIFY(classify_i32, int32_t)
 DEFINE_CLASSIFY(classify_f32, float)
 DEFINE_CLASSIFY(classify_f64, double)
 
+/* The last index h < n with s[h] != v, or -1: 16 bytes a step from the end
+ * (a row's span ends where a blob's chord does, often far from the end). */
+static inline int64_t last_not(const uint8_t *s, int64_t n, uint8_t v)
+{
+    int64_t h = n;
+#if defined(__SSE2__) && !defined(ISOMEND_NO_SIMD)
+    const __m128i vv = _mm_set1_epi8((char)v);
+    for (; h >= 16; h -= 16) {
+        const __m128i x = _mm_loadu_si128((const __m128i *)(const void *)(s + h - 16));
+        const uint32_t m = (uint32_t)_mm_movemask_epi8(_mm_cmpeq_epi8(x, vv)) ^ 0xFFFFu;
+        if (m)
+            return h - 16 + (31 - __builtin_clz(m));
+    }
+#endif
+    while (h > 0 && s[h - 1] == v)
+        h--;
+    return h - 1;
+}
+
 /* Classifies row (j, k) of the marched grid into s[0..N0-1]; adds its NaNs to
  * *nans unless nans is NULL (then they are not counted). */
 static void classify_row(const grid *g, int64_t j, int64_t k, uint8_t *s, rowinfo *ri,
@@ -232,14 +251,11 @@ static void classify_row(const grid *g, int64_t j, int64_t k, uint8_t *s, rowinf
         return;
     }
     ri->lo = d - s;
-    int64_t h = N0 - 1;
-    while (s[h] == ri->last)
-        h--;
-    ri->hi = h;
+    ri->hi = last_not(s, N0, ri->last);
     ri->simple = 0;
     if (ri->first == ri->last) {
         const uint8_t *e = memchr(s + ri->lo, ri->first, (size_t)(N0 - ri->lo));
-        ri->simple = e && e - s == h + 1;
+        ri->simple = e && e - s == ri->hi + 1;
     }
 }
 
