@@ -19,12 +19,12 @@ What is timed (the library call only: no file I/O, volumes already in memory)
 
 How it is measured
 
-  Every timed call runs in a fresh child process pinned to N cores (sched_setaffinity:
+  Every round runs in a fresh child process pinned to N cores (sched_setaffinity:
   TBB, used by VTK and OpenVDB, and isomend then see N cores; VTK also gets
   vtkSMPTools.Initialize(N), isomend options.threads = N).  The child loads the volume
   from a .npy file, warms the extractor up on a 16^3 subsample of it (thread pools, lazy
   binding), measures the floor, then makes 1 + C full-size calls (C = --calls, 3 by
-  default), resetting its peak-RSS mark (/proc/self/clear_refs = 5) before each: the
+  default, 2 in quick mode), resetting its peak-RSS mark (/proc/self/clear_refs = 5) before each: the
   first is reported apart ("first call"), the other C are the measurement: wall time,
   CPU time and the peak RSS above what it held before the call (the "extra" memory:
   output, temporaries).  The first call of a process pays for memory the kernel hands
@@ -536,8 +536,9 @@ def plan(args):
 
 def quick_policy(args, name, field, size, dtype):
     """Which measurements quick mode makes, so that it stays under two minutes:
-    the goal's comparison (isomend DMC against Flying Edges) everywhere, with 3 runs;
-    the other extractors once, at one thread, on the 256^3 sphere only;
+    the goal's comparison (isomend DMC against Flying Edges) everywhere, with 3 rounds;
+    isomend without normals and Flying Edges with normals once, at one thread, on the
+    256^3 fields; the other extractors once, at one thread, on the 256^3 sphere only;
     at 512^3 the sphere with isomend and Flying Edges geometry only, and the uint8
     noise volume of the memory goal with isomend alone, once.
     Returns (measure?, repeats or None for the default)."""
@@ -547,8 +548,10 @@ def quick_policy(args, name, field, size, dtype):
         if (field, dtype) == ("noise", "u8"):
             return name == "isomend", 1
         return name in ("isomend", "fe"), None
-    if name in ("isomend", "isomend-geom", "fe", "fe-normals"):
+    if name in ("isomend", "fe"):
         return True, None
+    if name in ("isomend-geom", "fe-normals"):
+        return True, 1
     return (size == 256 and field == "sphere"), 1
 
 
@@ -661,7 +664,7 @@ def main(argv=None):
     ap.add_argument("--repeats", type=int, help="rounds (child processes) per measurement")
     ap.add_argument("--calls", type=int,
                     help="timed calls per child process, after its first call (default 3; "
-                         "1 with --smoke)")
+                         "2 with --quick, 1 with --smoke)")
     ap.add_argument("--peers", default="all",
                     help="comma list of %s, or all"
                     % ",".join(ALL_PEERS))
@@ -713,7 +716,7 @@ def main(argv=None):
         thread_counts = sorted({1, ncpu})
     repeats = args.repeats or (1 if args.smoke else 3 if args.quick else 5)
     if args.calls is None:
-        args.calls = 1 if args.smoke else 3
+        args.calls = 1 if args.smoke else 2 if args.quick else 3
     if args.calls < 1:
         print("bench.py: --calls must be >= 1", file=sys.stderr)
         return 2
