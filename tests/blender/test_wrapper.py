@@ -275,6 +275,38 @@ def test_optional_outputs_can_be_switched_off():
     assert empty.positions.shape == (0, 3) and empty.triangles.shape == (0, 3)
 
 
+def test_mesh_arrays_are_views_of_the_c_mesh_freed_with_the_last_of_them():
+    import gc
+    import weakref
+    vol = sphere(40, r=14, centre=(19.2, 20.1, 18.7))
+    m = isomend.extract(vol, 0.0, threads=1)
+    want = {k: getattr(m, k).copy() for k in ("positions", "normals", "triangles", "origins")}
+    # no copy: every array is a view whose base holds the C mesh
+    owners = set()
+    for k in want:
+        a = getattr(m, k)
+        assert not a.flags.owndata and a.flags.c_contiguous and a.flags.writeable
+        owners.add(id(a.base._owner))
+    del a
+    assert len(owners) == 1
+    owner = weakref.ref(m.positions.base._owner)
+    kept = m.triangles
+    del m
+    gc.collect()
+    assert owner() is not None  # one array left: the mesh lives on
+    # other extractions reuse freed memory; the kept array must not change
+    for _ in range(3):
+        isomend.extract(vol, 0.0, threads=1)
+    np.testing.assert_array_equal(kept, want["triangles"])
+    del kept
+    gc.collect()
+    assert owner() is None  # the last array gone: isomend_mesh_destroy ran
+    # the same values as before
+    again = isomend.extract(vol, 0.0, threads=2)
+    for k, v in want.items():
+        np.testing.assert_array_equal(getattr(again, k), v)
+
+
 def test_bad_arguments_raise_clear_errors():
     vol = sphere()
     with pytest.raises(ValueError, match="method: unknown method 'marching'"):
