@@ -24,10 +24,10 @@ How it is measured
   vtkSMPTools.Initialize(N), isomend options.threads = N).  The child loads the volume
   from a .npy file, warms the extractor up on a 16^3 subsample of it (thread pools, lazy
   binding), measures the floor, then makes 1 + C full-size calls (C = --calls, 3 by
-  default, 2 in quick mode), resetting its peak-RSS mark (/proc/self/clear_refs = 5) before each: the
-  first is reported apart ("first call"), the other C are the measurement: wall time,
-  CPU time and the peak RSS above what it held before the call (the "extra" memory:
-  output, temporaries).  The first call of a process pays for memory the kernel hands
+  default, 2 in quick mode), resetting its peak-RSS mark (/proc/self/clear_refs = 5)
+  before each: the first is reported apart ("first call"), the other C are the
+  measurement: wall time, CPU time (and its system part) and the peak RSS above what it
+  held before the call (the "extra" memory: output, temporaries).  The first call of a process pays for memory the kernel hands
   out afresh; on a virtual machine that returns freed memory to its host (virtio-balloon
   free page reporting, as on the machine of docs/bench-results.md) that cost depends on
   what the previous process did, and two threads faulting at once contend for the
@@ -280,7 +280,7 @@ def setup_isomend(a, iso, threads, args, normals):
 
 def setup_wrapper(a, iso, threads, args):
     """isomend through the Python wrapper of the Blender add-on: the same call plus
-    the copy of the mesh into numpy arrays (isomend_mesh_copy)."""
+    its argument checks and the numpy views of the mesh's arrays (no copy)."""
     if args.lib_dir:
         os.environ["ISOMEND_LIB_DIR"] = args.lib_dir
     sys.path.insert(0, os.path.join(ROOT, "blender_addon", "isomend_import"))
@@ -932,8 +932,7 @@ def render(info, results, thread_counts):
                 return "%.2f%s" % (x, (" ✔" if x >= 2 else " ✘") if mark and goal_size else "")
             fl = i["median"] / i["floor"]
             fmark = (" ✔" if fl <= 4 else " ✘") if v[0] == "sphere" and goal_size else ""
-            kernel = "%s / %s" % (_ms(i["sys"]) if "sys" in i else "—",
-                                  _ms(fe["sys"]) if fe and "sys" in fe else "—")
+            kernel = "%s / %s" % (_ms(i["sys"]), _ms(fe["sys"]) if fe else "—")
             w("| %s | %d | %s | %s | %s | %s | %s | %s | %s | %.1f%s | %s |" % (
                 _vol_name(*v), t, _ms(i["median"]), _ms(fe["median"]) if fe else "—",
                 ratio("median", True), ratio("min", False), ratio("cpu", False), kernel,

@@ -313,8 +313,6 @@ def _core_lib():
         _declare(lib, "isomend_mesh_triangles", P(ctypes.c_uint32), [ctypes.c_void_p])
         _declare(lib, "isomend_mesh_triangle_origins", P(ctypes.c_uint8), [ctypes.c_void_p])
         _declare(lib, "isomend_mesh_grid_box", None, [ctypes.c_void_p, P(c_double)])
-        _declare(lib, "isomend_mesh_copy", c_int,
-                 [ctypes.c_void_p, ctypes.c_void_p, ctypes.c_void_p, ctypes.c_void_p, ctypes.c_void_p])
         _declare(lib, "isomend_check", c_int,
                  [ctypes.c_void_p, c_size, ctypes.c_void_p, c_size, P(c_double), P(CheckReport)])
         _declare(lib, "isomend_mesh_check", c_int, [ctypes.c_void_p, P(CheckReport)])
