@@ -4,7 +4,7 @@
  * profiling the core (see the README, "Profiling the core").
  *
  *   isomend_bench_extract FILE.npy ISO [--threads N] [--repeats N]
- *                         [--method mc|durst|dmc] [--no-normals] [--pad]
+ *                         [--method mc|durst|dmc] [--no-normals] [--pad] [--floor]
  *
  * Reads a C-order 3-D array (shape (nz, ny, nx), x fastest) of uint8, int8,
  * uint16, int16, int32, float32 or float64 in little-endian order, then runs
@@ -13,11 +13,19 @@
  * the medians.  On a shared machine the CPU time of a 1-thread run is the
  * figure least disturbed by other jobs; the system time is the kernel's share
  * (page faults of the output arrays).
+ * With --floor (float32 and uint8 volumes) each run is preceded by the
+ * benchmark's memory-read floor (floor.c: the sum of all voxels, same thread
+ * count, the median of 3 consecutive sums as in bench.py) and the line shows the ratio of the two; the median ratio closes
+ * the output.  Alternating the two in one process keeps a noisy machine's
+ * slow phases out of the ratio.
  * Exit status 0 on success, 1 on bad input (with a message naming the file
  * or option), 2 when the extraction fails.
  */
 #define _DEFAULT_SOURCE /* clock_gettime, posix_memalign, madvise */
 #include "isomend.h"
+
+double isomend_bench_sum_f32(const float *data, size_t n, int threads); /* floor.c */
+double isomend_bench_sum_u8(const uint8_t *data, size_t n, int threads);
 
 #include <errno.h>
 #include <stdio.h>
@@ -25,6 +33,7 @@
 #include <string.h>
 #include <sys/resource.h>
 #include <time.h>
+#include <unistd.h>
 #if defined(__linux__)
 #include <sys/mman.h>
 #endif
@@ -156,7 +165,7 @@ done:
 static int usage(void)
 {
     fprintf(stderr, "usage: isomend_bench_extract FILE.npy ISO [--threads N] [--repeats N] "
-                    "[--method mc|durst|dmc] [--no-normals] [--pad]\n");
+                    "[--method mc|durst|dmc] [--no-normals] [--pad] [--floor]\n");
     return 1;
 }
 
@@ -173,13 +182,15 @@ int main(int argc, char **argv)
         fprintf(stderr, "isomend_bench_extract: ISO %s is not a number\n", argv[2]);
         return 1;
     }
-    int repeats = 5;
+    int repeats = 5, floor = 0;
     for (int i = 3; i < argc; i++) {
         const char *a = argv[i];
         if (!strcmp(a, "--no-normals")) {
             o.flags |= ISOMEND_FLAG_NO_NORMALS;
         } else if (!strcmp(a, "--pad")) {
             o.flags |= ISOMEND_FLAG_PAD;
+        } else if (!strcmp(a, "--floor")) {
+            floor = 1;
         } else if ((!strcmp(a, "--threads") || !strcmp(a, "--repeats")) && i + 1 < argc) {
             long v = strtol(argv[++i], &end, 10);
             if (*end || v < (a[2] == 't' ? 0 : 1) || v > 1000) {
@@ -204,15 +215,36 @@ int main(int argc, char **argv)
     npy v = {0};
     if (!read_npy(path, &v))
         return 1;
+    if (floor && v.type != ISOMEND_F32 && v.type != ISOMEND_U8) {
+        fprintf(stderr, "isomend_bench_extract: --floor: %s is %s, the floor reads float32 or "
+                        "uint8\n", path, isomend_type_name(v.type));
+        free(v.data);
+        return 1;
+    }
+    const size_t samples = (size_t)v.shape[0] * (size_t)v.shape[1] * (size_t)v.shape[2];
+    const int floor_threads = o.threads > 0 ? o.threads : (int)sysconf(_SC_NPROCESSORS_ONLN);
     isomend_volume vol;
     isomend_volume_init(&vol, v.data, v.type, v.shape[2], v.shape[1], v.shape[0]);
     double *times = calloc((size_t)repeats, sizeof(double));
     double *cpu = calloc((size_t)repeats, sizeof(double));
-    int rc = times && cpu ? 0 : 2;
+    double *ratio = calloc((size_t)repeats, sizeof(double));
+    int rc = times && cpu && ratio ? 0 : 2;
     for (int r = 0; r < repeats && rc == 0; r++) {
         isomend_mesh *mesh = NULL;
         isomend_stats st;
-        double u0, s0, u1, s1;
+        double u0, s0, u1, s1, floor_time = 0.0, ft[3];
+        for (int q = 0; floor && q < 3; q++) { /* the median of 3, like bench.py's */
+            const double f0 = now(CLOCK_MONOTONIC);
+            volatile double sum = v.type == ISOMEND_F32
+                ? isomend_bench_sum_f32(v.data, samples, floor_threads)
+                : isomend_bench_sum_u8(v.data, samples, floor_threads);
+            (void)sum;
+            ft[q] = now(CLOCK_MONOTONIC) - f0;
+            if (q == 2) {
+                qsort(ft, 3, sizeof(double), cmp_double);
+                floor_time = ft[1];
+            }
+        }
         usage_times(&u0, &s0);
         double t0 = now(CLOCK_MONOTONIC), c0 = now(CLOCK_PROCESS_CPUTIME_ID);
         isomend_status s = isomend_extract(&vol, &o, &mesh, &st);
@@ -225,11 +257,16 @@ int main(int argc, char **argv)
             break;
         }
         printf("run %d: %.2f ms (CPU %.2f ms: user %.0f, system %.0f), %llu triangles, "
-               "%llu vertices, %llu mended\n",
+               "%llu vertices, %llu mended",
                r, 1e3 * times[r], 1e3 * cpu[r], 1e3 * (u1 - u0), 1e3 * (s1 - s0),
                (unsigned long long)st.triangles,
                (unsigned long long)st.vertices,
                (unsigned long long)st.triangles_by_origin[ISOMEND_ORIGIN_MEND]);
+        if (floor) {
+            ratio[r] = times[r] / floor_time;
+            printf("; floor %.2f ms, ratio %.2f", 1e3 * floor_time, ratio[r]);
+        }
+        printf("\n");
         isomend_mesh_destroy(mesh);
     }
     if (rc == 0) {
@@ -241,7 +278,12 @@ int main(int argc, char **argv)
                (long long)v.shape[2],
                (long long)v.shape[1], (long long)v.shape[0], isomend_type_name(v.type),
                o.threads);
+        if (floor) {
+            qsort(ratio, (size_t)repeats, sizeof(double), cmp_double);
+            printf("median ratio to the floor %.2f (min %.2f)\n", ratio[repeats / 2], ratio[0]);
+        }
     }
+    free(ratio);
     free(times);
     free(cpu);
     free(v.data);
