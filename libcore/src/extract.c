@@ -696,6 +696,38 @@ static inline uint32_t mixed16(const uint8_t *c)
 #endif
 }
 
+/*
+ * Bit x set when the cube between rows a, b (slice k) and c, d (slice k + 1)
+ * at column x, x in 0..15, has corners of both signs: for narrow spans,
+ * where computing every configuration first (row_cases) costs more than the
+ * few busy cubes do.
+ */
+static inline uint32_t busy16(const uint8_t *a, const uint8_t *b, const uint8_t *c,
+                              const uint8_t *d)
+{
+#if defined(__SSE2__) && !defined(ISOMEND_NO_SIMD)
+#define LD16(p) _mm_loadu_si128((const __m128i *)(const void *)(p))
+    const __m128i a0 = LD16(a), a1 = LD16(a + 1), b0 = LD16(b), b1 = LD16(b + 1);
+    const __m128i c0 = LD16(c), c1 = LD16(c + 1), d0 = LD16(d), d1 = LD16(d + 1);
+#undef LD16
+    const __m128i any = _mm_or_si128(_mm_or_si128(_mm_or_si128(a0, a1), _mm_or_si128(b0, b1)),
+                                     _mm_or_si128(_mm_or_si128(c0, c1), _mm_or_si128(d0, d1)));
+    const __m128i all = _mm_and_si128(_mm_and_si128(_mm_and_si128(a0, a1), _mm_and_si128(b0, b1)),
+                                      _mm_and_si128(_mm_and_si128(c0, c1), _mm_and_si128(d0, d1)));
+    /* sign bytes are 0 or 1: any ^ all is 1 exactly where the corners differ */
+    const __m128i mixed = _mm_xor_si128(any, all);
+    return (uint32_t)_mm_movemask_epi8(_mm_cmpeq_epi8(mixed, _mm_setzero_si128())) ^ 0xFFFFu;
+#else
+    uint32_t r = 0;
+    for (int x = 0; x < 16; x++) {
+        const unsigned any = a[x] | a[x + 1] | b[x] | b[x + 1] | c[x] | c[x + 1] | d[x] | d[x + 1];
+        const unsigned all = a[x] & a[x + 1] & b[x] & b[x + 1] & c[x] & c[x + 1] & d[x] & d[x + 1];
+        r |= (uint32_t)(any != all) << x;
+    }
+    return r;
+#endif
+}
+
 /* Keeps bits 0..n-1 (n < 16). */
 static inline uint32_t first_bits(uint32_t mask, int64_t n)
 {
@@ -730,6 +762,7 @@ enum {
     VERTEX_LIST = 2048,   /* items the lists hold before they are computed (plus a row) */
     VERTEX_PREFETCH = 6,  /* prefetch distance, in items (4-8 measured alike)          */
     LIST_SPAN = 32,       /* spans narrower than this go to the lists                  */
+    NARROW_CUBES = 16,    /* spans of fewer cubes skip row_cases (march_layer)         */
 };
 
 static inline void prefetch_at(const char *base, int64_t off)
@@ -1075,6 +1108,9 @@ static uint64_t scan_slice(worker *w, int64_t m, int mode, uint64_t first, int w
             else
                 count = scan_diagonals(c, s, t, j, m, NULL, count, 0);
         }
+        if (ra[j].lo >= N0 && (j + 1 >= N1 || (ra[j + 1].lo >= N0 && ra[j + 1].first == ra[j].first)) &&
+            (!t || (rn[j].lo >= N0 && rn[j].first == ra[j].first)))
+            continue; /* uniform, like the rows it pairs with: no crossing */
         const uint8_t *a = s + j * N0;
         int64_t xs[4], ys[4], zs[4];
         const int nx = row_spans(&ra[j], N0, xs);
@@ -1297,6 +1333,10 @@ static uint64_t march_layer(worker *w, int64_t k, int mode, uint64_t first)
         w->private_next = c->slice_first[N2] + c->layer_private[k];
 
     for (int64_t j = 0; j + 1 < N1; j++) {
+        if (r0[j].lo >= N0 && r0[j + 1].lo >= N0 && r1[j].lo >= N0 && r1[j + 1].lo >= N0 &&
+            r0[j].first == r0[j + 1].first && r0[j].first == r1[j].first &&
+            r0[j].first == r1[j + 1].first)
+            continue; /* four uniform rows of one sign (most rows, around a blob) */
         const rowinfo *rows[4] = {&r0[j], &r0[j + 1], &r1[j], &r1[j + 1]};
         int64_t span[4];
         const int nspans = cube_spans(rows, N0, span);
@@ -1323,15 +1363,20 @@ static uint64_t march_layer(worker *w, int64_t k, int mode, uint64_t first)
         const int64_t i0 = span[2 * sp], i1 = span[2 * sp + 1];
         if (i0 > i1)
             continue;
-        row_cases(a, b, cc, d, i0, i1, cases);
+        /* A narrow span (the rim of a blob) finds its busy cubes from the sign
+         * rows and builds only their configurations. */
+        const int narrow = i1 - i0 < NARROW_CUBES;
+        if (!narrow)
+            row_cases(a, b, cc, d, i0, i1, cases);
         for (int64_t word = i0; word <= i1; word += 16) {
-          uint32_t mixed = mixed16(cases + word);
+          uint32_t mixed = narrow ? busy16(a + word, b + word, cc + word, d + word)
+                                  : mixed16(cases + word);
           if (i1 - word < 15)
               mixed = first_bits(mixed, i1 - word + 1);
           while (mixed) {
             const int64_t i = word + __builtin_ctz(mixed);
             mixed &= mixed - 1;
-            const unsigned cfg = cases[i];
+            const unsigned cfg = narrow ? CUBE_CASE(a, b, cc, d, i) : cases[i];
             busy++;
             unsigned nt;
             if (general) {
@@ -1373,7 +1418,7 @@ static uint64_t march_layer(worker *w, int64_t k, int mode, uint64_t first)
                 if (axis == 0) {
                     if (i + 2 >= N0)
                         continue;
-                    nb = i + 1 <= i1 ? cases[i + 1] : CUBE_CASE(a, b, cc, d, i + 1);
+                    nb = !narrow && i + 1 <= i1 ? cases[i + 1] : CUBE_CASE(a, b, cc, d, i + 1);
                 } else if (axis == 1) {
                     if (j + 2 >= N1)
                         continue;
