@@ -856,13 +856,14 @@ static inline void prefetch_at(const char *base, int64_t off)
     static void NAME(const ctx *c, const vitem *it, size_t n, int64_t m)               \
     {                                                                                  \
         VERTEX_SETUP(AXIS);                                                            \
-        const size_t ahead = slice_inner ? VERTEX_PREFETCH : n;                        \
+        const size_t ahead = slice_inner ? VERTEX_PREFETCH : 0; /* 0: no prefetching */ \
         const int32_t line = 64 / (int32_t)sizeof(T); /* samples a cache line */       \
-        for (size_t e = 0; e < n; e++) {                                               \
-            if (n - e > ahead && (it[e + ahead].j != it[e + ahead - 1].j ||            \
-                                  it[e + ahead].x - it[e + ahead - 1].x >= line)) {    \
-                const int64_t o = ((int64_t)it[e + ahead].x - pad) * sx +              \
-                                  ((int64_t)it[e + ahead].j - pad) * sy;               \
+        /* Step e prefetches item e and computes item e - ahead. */                    \
+        for (size_t e = 0; e < n + ahead; e++) {                                       \
+            if (ahead && e < n &&                                                      \
+                (e == 0 || it[e].j != it[e - 1].j || it[e].x - it[e - 1].x >= line)) { \
+                const int64_t o = ((int64_t)it[e].x - pad) * sx +                      \
+                                  ((int64_t)it[e].j - pad) * sy;                       \
                 prefetch_at(slice, o);                                                 \
                 prefetch_at(slice, o + sa);                                            \
                 if (NR) {                                                              \
@@ -879,7 +880,10 @@ static inline void prefetch_at(const char *base, int64_t off)
                     }                                                                  \
                 }                                                                      \
             }                                                                          \
-            VERTEX_ONE(LD, it[e].x, it[e].j, it[e].id);                                \
+            if (e >= ahead) {                                                          \
+                const vitem *v = &it[e - ahead];                                       \
+                VERTEX_ONE(LD, v->x, v->j, v->id);                                     \
+            }                                                                          \
         }                                                                              \
     }
 #define DEFINE_LIST_LOAD(NAME, T)                                                      \
