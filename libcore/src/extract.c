@@ -696,33 +696,39 @@ static inline uint32_t mixed16(const uint8_t *c)
 #endif
 }
 
+/* The configuration of cube i between rows r0, r1 (slice k) and r2, r3 (slice k + 1). */
+#define CUBE_CASE(r0, r1, r2, r3, i)                                                   \
+    ((unsigned)(r0)[i] | (unsigned)(r0)[(i) + 1] << 1 | (unsigned)(r1)[i] << 2 |       \
+     (unsigned)(r1)[(i) + 1] << 3 | (unsigned)(r2)[i] << 4 | (unsigned)(r2)[(i) + 1] << 5 | \
+     (unsigned)(r3)[i] << 6 | (unsigned)(r3)[(i) + 1] << 7)
+
 /*
- * Bit x set when the cube between rows a, b (slice k) and c, d (slice k + 1)
- * at column x, x in 0..15, has corners of both signs: for narrow spans,
- * where computing every configuration first (row_cases) costs more than the
- * few busy cubes do.
+ * The configurations of the 16 cubes between rows a, b (slice k) and c, d
+ * (slice k + 1) at columns 0..15, stored to out[0..15]; returns the mask of
+ * those that are neither 0 nor 255 (bit x: column x).  For narrow spans, where
+ * row_cases' setup costs more than the few cubes do.  Sign bytes are 0 or 1,
+ * so a 16-bit lane shift by up to 7 moves each byte's bit within its byte.
  */
-static inline uint32_t busy16(const uint8_t *a, const uint8_t *b, const uint8_t *c,
-                              const uint8_t *d)
+static inline uint32_t cases16(const uint8_t *a, const uint8_t *b, const uint8_t *c,
+                               const uint8_t *d, uint8_t *out)
 {
 #if defined(__SSE2__) && !defined(ISOMEND_NO_SIMD)
 #define LD16(p) _mm_loadu_si128((const __m128i *)(const void *)(p))
-    const __m128i a0 = LD16(a), a1 = LD16(a + 1), b0 = LD16(b), b1 = LD16(b + 1);
-    const __m128i c0 = LD16(c), c1 = LD16(c + 1), d0 = LD16(d), d1 = LD16(d + 1);
+    const __m128i v = _mm_or_si128(
+        _mm_or_si128(_mm_or_si128(LD16(a), _mm_slli_epi16(LD16(a + 1), 1)),
+                     _mm_or_si128(_mm_slli_epi16(LD16(b), 2), _mm_slli_epi16(LD16(b + 1), 3))),
+        _mm_or_si128(_mm_or_si128(_mm_slli_epi16(LD16(c), 4), _mm_slli_epi16(LD16(c + 1), 5)),
+                     _mm_or_si128(_mm_slli_epi16(LD16(d), 6), _mm_slli_epi16(LD16(d + 1), 7))));
 #undef LD16
-    const __m128i any = _mm_or_si128(_mm_or_si128(_mm_or_si128(a0, a1), _mm_or_si128(b0, b1)),
-                                     _mm_or_si128(_mm_or_si128(c0, c1), _mm_or_si128(d0, d1)));
-    const __m128i all = _mm_and_si128(_mm_and_si128(_mm_and_si128(a0, a1), _mm_and_si128(b0, b1)),
-                                      _mm_and_si128(_mm_and_si128(c0, c1), _mm_and_si128(d0, d1)));
-    /* sign bytes are 0 or 1: any ^ all is 1 exactly where the corners differ */
-    const __m128i mixed = _mm_xor_si128(any, all);
-    return (uint32_t)_mm_movemask_epi8(_mm_cmpeq_epi8(mixed, _mm_setzero_si128())) ^ 0xFFFFu;
+    _mm_storeu_si128((__m128i *)(void *)out, v);
+    const __m128i trivial = _mm_or_si128(_mm_cmpeq_epi8(v, _mm_setzero_si128()),
+                                         _mm_cmpeq_epi8(v, _mm_set1_epi8(-1)));
+    return (uint32_t)_mm_movemask_epi8(trivial) ^ 0xFFFFu;
 #else
     uint32_t r = 0;
     for (int x = 0; x < 16; x++) {
-        const unsigned any = a[x] | a[x + 1] | b[x] | b[x + 1] | c[x] | c[x + 1] | d[x] | d[x + 1];
-        const unsigned all = a[x] & a[x + 1] & b[x] & b[x + 1] & c[x] & c[x + 1] & d[x] & d[x + 1];
-        r |= (uint32_t)(any != all) << x;
+        out[x] = (uint8_t)CUBE_CASE(a, b, c, d, x);
+        r |= (uint32_t)(out[x] != 0 && out[x] != 255) << x;
     }
     return r;
 #endif
@@ -1149,11 +1155,6 @@ static uint64_t scan_slice(worker *w, int64_t m, int mode, uint64_t first, int w
     return mode ? id - first : count;
 }
 
-#define CUBE_CASE(r0, r1, r2, r3, i)                                                   \
-    ((unsigned)(r0)[i] | (unsigned)(r0)[(i) + 1] << 1 | (unsigned)(r1)[i] << 2 |       \
-     (unsigned)(r1)[(i) + 1] << 3 | (unsigned)(r2)[i] << 4 | (unsigned)(r2)[(i) + 1] << 5 | \
-     (unsigned)(r3)[i] << 6 | (unsigned)(r3)[(i) + 1] << 7)
-
 /*
  * The columns of cubes of a row (between four sample rows) that can hold a
  * non-empty cube: one interval, or two when the four rows are simple with the
@@ -1367,20 +1368,21 @@ static uint64_t march_layer(worker *w, int64_t k, int mode, uint64_t first)
         const int64_t i0 = span[2 * sp], i1 = span[2 * sp + 1];
         if (i0 > i1)
             continue;
-        /* A narrow span (the rim of a blob) finds its busy cubes from the sign
-         * rows and builds only their configurations. */
+        /* A narrow span (the rim of a blob) builds its configurations 16 at a
+         * time as it goes; cases[] then holds columns word..word + 15 only. */
         const int narrow = i1 - i0 < NARROW_CUBES;
         if (!narrow)
             row_cases(a, b, cc, d, i0, i1, cases);
         for (int64_t word = i0; word <= i1; word += 16) {
-          uint32_t mixed = narrow ? busy16(a + word, b + word, cc + word, d + word)
+          uint32_t mixed = narrow ? cases16(a + word, b + word, cc + word, d + word, cases + word)
                                   : mixed16(cases + word);
+          const int64_t known = narrow ? word + 15 : i1; /* cases[] holds up to here */
           if (i1 - word < 15)
               mixed = first_bits(mixed, i1 - word + 1);
           while (mixed) {
             const int64_t i = word + __builtin_ctz(mixed);
             mixed &= mixed - 1;
-            const unsigned cfg = narrow ? CUBE_CASE(a, b, cc, d, i) : cases[i];
+            const unsigned cfg = cases[i];
             busy++;
             unsigned nt;
             if (general) {
@@ -1422,7 +1424,7 @@ static uint64_t march_layer(worker *w, int64_t k, int mode, uint64_t first)
                 if (axis == 0) {
                     if (i + 2 >= N0)
                         continue;
-                    nb = !narrow && i + 1 <= i1 ? cases[i + 1] : CUBE_CASE(a, b, cc, d, i + 1);
+                    nb = i + 1 <= known ? cases[i + 1] : CUBE_CASE(a, b, cc, d, i + 1);
                 } else if (axis == 1) {
                     if (j + 2 >= N1)
                         continue;
