@@ -259,14 +259,21 @@ static void classify_row(const grid *g, int64_t j, int64_t k, uint8_t *s, rowinf
     }
 }
 
+/* Two simple rows with the same outside sign: pair_spans is then exact. */
+static inline int simple_pair(const rowinfo *a, const rowinfo *b)
+{
+    return a->simple && b->simple && a->first == b->first;
+}
+
 /*
  * The columns where rows a and b may differ, as 0, 1 or 2 ascending
  * intervals in span[0..2n): outside them the rows agree.  Two simple rows with
- * the same outside sign differ only on the symmetric difference of their runs.
+ * the same outside sign differ exactly on the symmetric difference of their
+ * runs, which is what the intervals are then.
  */
 static inline int pair_spans(const rowinfo *a, const rowinfo *b, int64_t N0, int64_t span[4])
 {
-    if (a->simple && b->simple && a->first == b->first) {
+    if (simple_pair(a, b)) {
         int n = 0;
         int64_t iv[4];
         if (a->lo <= b->hi && b->lo <= a->hi) { /* overlapping runs */
@@ -1131,12 +1138,19 @@ static uint64_t scan_slice(worker *w, int64_t m, int mode, uint64_t first, int w
         const uint8_t *b = a + N0; /* row j + 1, read only when ny */
         const uint8_t *d = nz ? t + j * N0 : NULL;
         if (!mode) {
+            /* Spans between one-run rows are exact: every column in them is a
+             * crossing (row_spans, pair_spans), so they are counted, not scanned. */
             for (int q = 0; q < nx; q++)
-                count += count_differences(a, a + 1, xs[2 * q], xs[2 * q + 1]);
+                count += ra[j].simple ? (uint64_t)(xs[2 * q + 1] - xs[2 * q] + 1)
+                                      : count_differences(a, a + 1, xs[2 * q], xs[2 * q + 1]);
+            const int yexact = ny && simple_pair(&ra[j], &ra[j + 1]);
             for (int q = 0; q < ny; q++)
-                count += count_differences(a, b, ys[2 * q], ys[2 * q + 1]);
+                count += yexact ? (uint64_t)(ys[2 * q + 1] - ys[2 * q] + 1)
+                                : count_differences(a, b, ys[2 * q], ys[2 * q + 1]);
+            const int zexact = nz && simple_pair(&ra[j], &rn[j]);
             for (int q = 0; q < nz; q++)
-                count += count_differences(a, d, zs[2 * q], zs[2 * q + 1]);
+                count += zexact ? (uint64_t)(zs[2 * q + 1] - zs[2 * q] + 1)
+                                : count_differences(a, d, zs[2 * q], zs[2 * q + 1]);
             continue;
         }
         /* Vertex order within a row: x edges, then y edges, then z edges. */
