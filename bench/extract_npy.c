@@ -4,7 +4,8 @@
  * profiling the core (see the README, "Profiling the core").
  *
  *   isomend_bench_extract FILE.npy ISO [--threads N] [--repeats N]
- *                         [--method mc|durst|dmc] [--no-normals] [--pad] [--floor]
+ *                         [--method mc|durst|dmc] [--no-normals] [--pad]
+ *                         [--floor | --versus LIBISOMEND.so]
  *
  * Reads a C-order 3-D array (shape (nz, ny, nx), x fastest) of uint8, int8,
  * uint16, int16, int32, float32 or float64 in little-endian order, then runs
@@ -18,11 +19,22 @@
  * count, the median of 3 consecutive sums as in bench.py) and the line shows the ratio of the two; the median ratio closes
  * the output.  Alternating the two in one process keeps a noisy machine's
  * slow phases out of the ratio.
+ * With --versus, every run also calls isomend_extract() of another build of
+ * the library (a libisomend.so loaded with dlmopen, e.g. a worktree at the
+ * commit before a change), the two in alternating order, and the line shows
+ * the ratio this / other; the median and quartiles of those per-run ratios
+ * close the output, and the two last meshes are compared byte for byte.  Two
+ * calls a few milliseconds apart see the same machine, so the ratio holds on
+ * a machine whose speed drifts (this is how the core's changes are measured,
+ * README "Profiling the core").  The other build must have this header's ABI.
  * Exit status 0 on success, 1 on bad input (with a message naming the file
- * or option), 2 when the extraction fails.
+ * or option), 2 when an extraction fails, 3 when --versus finds the meshes
+ * differ.
  */
-#define _DEFAULT_SOURCE /* clock_gettime, posix_memalign, madvise */
+#define _GNU_SOURCE /* dlmopen; also clock_gettime, posix_memalign, madvise */
 #include "isomend.h"
+
+#include <dlfcn.h>
 
 double isomend_bench_sum_f32(const float *data, size_t n, int threads); /* floor.c */
 double isomend_bench_sum_u8(const uint8_t *data, size_t n, int threads);
@@ -165,8 +177,66 @@ done:
 static int usage(void)
 {
     fprintf(stderr, "usage: isomend_bench_extract FILE.npy ISO [--threads N] [--repeats N] "
-                    "[--method mc|durst|dmc] [--no-normals] [--pad] [--floor]\n");
+                    "[--method mc|durst|dmc] [--no-normals] [--pad] "
+                    "[--floor | --versus LIBISOMEND.so]\n");
     return 1;
+}
+
+/* The entry points of another build of the library (--versus). */
+typedef struct other_lib {
+    isomend_status (*extract)(const isomend_volume *, const isomend_options *, isomend_mesh **,
+                              isomend_stats *);
+    void (*destroy)(isomend_mesh *);
+    size_t (*vertex_count)(const isomend_mesh *);
+    size_t (*triangle_count)(const isomend_mesh *);
+    const float *(*positions)(const isomend_mesh *);
+    const float *(*normals)(const isomend_mesh *);
+    const uint32_t *(*triangles)(const isomend_mesh *);
+    const char *(*version)(void);
+} other_lib;
+
+/* Loads `path` in a namespace of its own, so that its symbols do not resolve
+ * to this program's static copy of the library. */
+static int load_other(const char *path, other_lib *l)
+{
+    void *h = dlmopen(LM_ID_NEWLM, path, RTLD_NOW | RTLD_LOCAL);
+    if (!h) {
+        fprintf(stderr, "isomend_bench_extract: --versus %s: %s\n", path, dlerror());
+        return 0;
+    }
+    void *sym[8];
+    static const char *const names[8] = {
+        "isomend_extract", "isomend_mesh_destroy", "isomend_mesh_vertex_count",
+        "isomend_mesh_triangle_count", "isomend_mesh_positions", "isomend_mesh_normals",
+        "isomend_mesh_triangles", "isomend_version"};
+    for (int i = 0; i < 8; i++)
+        if (!(sym[i] = dlsym(h, names[i]))) {
+            fprintf(stderr, "isomend_bench_extract: --versus %s: no symbol %s\n", path, names[i]);
+            return 0;
+        }
+    /* POSIX: object pointers from dlsym convert to function pointers */
+    memcpy(&l->extract, &sym[0], sizeof sym[0]);
+    memcpy(&l->destroy, &sym[1], sizeof sym[1]);
+    memcpy(&l->vertex_count, &sym[2], sizeof sym[2]);
+    memcpy(&l->triangle_count, &sym[3], sizeof sym[3]);
+    memcpy(&l->positions, &sym[4], sizeof sym[4]);
+    memcpy(&l->normals, &sym[5], sizeof sym[5]);
+    memcpy(&l->triangles, &sym[6], sizeof sym[6]);
+    memcpy(&l->version, &sym[7], sizeof sym[7]);
+    return 1;
+}
+
+/* Whether two meshes (this build's, the other's) are the same byte for byte. */
+static int same_mesh(const isomend_mesh *m, const other_lib *l, const isomend_mesh *n)
+{
+    const size_t nv = isomend_mesh_vertex_count(m), nt = isomend_mesh_triangle_count(m);
+    if (nv != l->vertex_count(n) || nt != l->triangle_count(n))
+        return 0;
+    const float *a = isomend_mesh_normals(m), *b = l->normals(n);
+    if ((a == NULL) != (b == NULL) || (a && memcmp(a, b, 3 * sizeof(float) * nv)))
+        return 0;
+    return !memcmp(isomend_mesh_positions(m), l->positions(n), 3 * sizeof(float) * nv) &&
+           !memcmp(isomend_mesh_triangles(m), l->triangles(n), 3 * sizeof(uint32_t) * nt);
 }
 
 int main(int argc, char **argv)
@@ -183,6 +253,7 @@ int main(int argc, char **argv)
         return 1;
     }
     int repeats = 5, floor = 0;
+    const char *versus = NULL;
     for (int i = 3; i < argc; i++) {
         const char *a = argv[i];
         if (!strcmp(a, "--no-normals")) {
@@ -191,6 +262,8 @@ int main(int argc, char **argv)
             o.flags |= ISOMEND_FLAG_PAD;
         } else if (!strcmp(a, "--floor")) {
             floor = 1;
+        } else if (!strcmp(a, "--versus") && i + 1 < argc) {
+            versus = argv[++i];
         } else if ((!strcmp(a, "--threads") || !strcmp(a, "--repeats")) && i + 1 < argc) {
             long v = strtol(argv[++i], &end, 10);
             if (*end || v < (a[2] == 't' ? 0 : 1) || v > 1000) {
@@ -212,6 +285,14 @@ int main(int argc, char **argv)
             return usage();
         }
     }
+    if (floor && versus) {
+        fprintf(stderr, "isomend_bench_extract: --floor and --versus: one ratio at a time\n");
+        return 1;
+    }
+    other_lib other;
+    memset(&other, 0, sizeof other);
+    if (versus && !load_other(versus, &other))
+        return 1;
     npy v = {0};
     if (!read_npy(path, &v))
         return 1;
@@ -229,10 +310,34 @@ int main(int argc, char **argv)
     double *cpu = calloc((size_t)repeats, sizeof(double));
     double *ratio = calloc((size_t)repeats, sizeof(double));
     int rc = times && cpu && ratio ? 0 : 2;
+    if (versus && rc == 0) { /* a first call of each, untimed */
+        isomend_mesh *m = NULL, *n = NULL;
+        if (isomend_extract(&vol, &o, &m, NULL) != ISOMEND_OK ||
+            other.extract(&vol, &o, &n, NULL) != ISOMEND_OK) {
+            fprintf(stderr, "isomend_bench_extract: %s: the warm-up extraction failed\n", path);
+            rc = 2;
+        }
+        isomend_mesh_destroy(m);
+        if (n)
+            other.destroy(n); /* the other build frees with its own allocator */
+    }
     for (int r = 0; r < repeats && rc == 0; r++) {
-        isomend_mesh *mesh = NULL;
+        isomend_mesh *mesh = NULL, *other_mesh = NULL;
         isomend_stats st;
-        double u0, s0, u1, s1, floor_time = 0.0, ft[3];
+        double u0, s0, u1, s1, floor_time = 0.0, ft[3], other_time = 0.0;
+        if (versus && r % 2 == 0) { /* the other build first on even runs */
+            const double t0 = now(CLOCK_MONOTONIC);
+            if (other.extract(&vol, &o, &other_mesh, NULL) != ISOMEND_OK) {
+                fprintf(stderr, "isomend_bench_extract: %s: the --versus build failed\n", path);
+                rc = 2;
+                break;
+            }
+            other_time = now(CLOCK_MONOTONIC) - t0;
+            if (r + 2 < repeats) { /* keep the last pair's meshes to compare */
+                other.destroy(other_mesh);
+                other_mesh = NULL;
+            }
+        }
         for (int q = 0; floor && q < 3; q++) { /* the median of 3, like bench.py's */
             const double f0 = now(CLOCK_MONOTONIC);
             volatile double sum = v.type == ISOMEND_F32
@@ -253,8 +358,20 @@ int main(int argc, char **argv)
         usage_times(&u1, &s1);
         if (s != ISOMEND_OK) {
             fprintf(stderr, "isomend_bench_extract: %s: %s\n", path, isomend_status_string(s));
+            if (other_mesh)
+                other.destroy(other_mesh);
             rc = 2;
             break;
+        }
+        if (versus && r % 2 == 1) {
+            const double o0 = now(CLOCK_MONOTONIC);
+            if (other.extract(&vol, &o, &other_mesh, NULL) != ISOMEND_OK) {
+                fprintf(stderr, "isomend_bench_extract: %s: the --versus build failed\n", path);
+                isomend_mesh_destroy(mesh);
+                rc = 2;
+                break;
+            }
+            other_time = now(CLOCK_MONOTONIC) - o0;
         }
         printf("run %d: %.2f ms (CPU %.2f ms: user %.0f, system %.0f), %llu triangles, "
                "%llu vertices, %llu mended",
@@ -266,7 +383,20 @@ int main(int argc, char **argv)
             ratio[r] = times[r] / floor_time;
             printf("; floor %.2f ms, ratio %.2f", 1e3 * floor_time, ratio[r]);
         }
+        if (versus) {
+            ratio[r] = times[r] / other_time;
+            printf("; versus %.2f ms, ratio %.3f", 1e3 * other_time, ratio[r]);
+        }
         printf("\n");
+        if (versus && r >= repeats - 2 && other_mesh) { /* the last pair or two */
+            if (!same_mesh(mesh, &other, other_mesh)) {
+                fprintf(stderr, "isomend_bench_extract: %s: the meshes of this build and of %s "
+                                "differ\n", path, versus);
+                rc = 3;
+            }
+        }
+        if (other_mesh)
+            other.destroy(other_mesh);
         isomend_mesh_destroy(mesh);
     }
     if (rc == 0) {
@@ -282,6 +412,12 @@ int main(int argc, char **argv)
             qsort(ratio, (size_t)repeats, sizeof(double), cmp_double);
             printf("median ratio to the floor %.2f (min %.2f)\n", ratio[repeats / 2], ratio[0]);
         }
+    }
+    if (versus && rc != 2) {
+        qsort(ratio, (size_t)repeats, sizeof(double), cmp_double);
+        printf("median ratio to %s (%s) %.3f, quartiles %.3f..%.3f; meshes %s\n", versus,
+               other.version(), ratio[repeats / 2], ratio[repeats / 4],
+               ratio[(3 * repeats) / 4], rc == 3 ? "DIFFER" : "identical");
     }
     free(ratio);
     free(times);
