@@ -5,7 +5,7 @@
  *
  *   isomend_bench_extract FILE.npy ISO [--threads N] [--repeats N]
  *                         [--method mc|durst|dmc] [--no-normals] [--pad]
- *                         [--floor | --versus LIBISOMEND.so]
+ *                         [--floor | --ab LIB_A.so LIB_B.so]
  *
  * Reads a C-order 3-D array (shape (nz, ny, nx), x fastest) of uint8, int8,
  * uint16, int16, int32, float32 or float64 in little-endian order, then runs
@@ -19,17 +19,19 @@
  * count, the median of 3 consecutive sums as in bench.py) and the line shows the ratio of the two; the median ratio closes
  * the output.  Alternating the two in one process keeps a noisy machine's
  * slow phases out of the ratio.
- * With --versus, every run also calls isomend_extract() of another build of
- * the library (a libisomend.so loaded with dlmopen, e.g. a worktree at the
- * commit before a change), the two in alternating order, and the line shows
- * the ratio this / other; the median and quartiles of those per-run ratios
- * close the output, and the two last meshes are compared byte for byte.  Two
- * calls a few milliseconds apart see the same machine, so the ratio holds on
- * a machine whose speed drifts (this is how the core's changes are measured,
- * README "Profiling the core").  The other build must have this header's ABI.
+ * With --ab, each run calls isomend_extract() of two builds of the library
+ * instead (two libisomend.so, e.g. from a worktree at the commit before a
+ * change and from the change, each loaded with dlmopen in a namespace of its
+ * own), in alternating order, and the line shows the ratio B / A; the median
+ * and quartiles of those per-run ratios close the output, and the last two
+ * meshes are compared byte for byte.  Two calls a few milliseconds apart see
+ * the same machine, so the ratio holds on a machine whose speed drifts (this
+ * is how the core's changes are measured, README "Profiling the core").  Both
+ * builds are loaded alike on purpose: this program's static copy of the
+ * library measured 12-20 % slower than the same code loaded with dlmopen
+ * (another libc, another heap).  The builds must have this header's ABI.
  * Exit status 0 on success, 1 on bad input (with a message naming the file
- * or option), 2 when an extraction fails, 3 when --versus finds the meshes
- * differ.
+ * or option), 2 when an extraction fails, 3 when --ab finds the meshes differ.
  */
 #define _GNU_SOURCE /* dlmopen; also clock_gettime, posix_memalign, madvise */
 #include "isomend.h"
@@ -178,11 +180,11 @@ static int usage(void)
 {
     fprintf(stderr, "usage: isomend_bench_extract FILE.npy ISO [--threads N] [--repeats N] "
                     "[--method mc|durst|dmc] [--no-normals] [--pad] "
-                    "[--floor | --versus LIBISOMEND.so]\n");
+                    "[--floor | --ab LIB_A.so LIB_B.so]\n");
     return 1;
 }
 
-/* The entry points of another build of the library (--versus). */
+/* The entry points of a build of the library loaded with dlmopen (--ab). */
 typedef struct other_lib {
     isomend_status (*extract)(const isomend_volume *, const isomend_options *, isomend_mesh **,
                               isomend_stats *);
@@ -201,7 +203,7 @@ static int load_other(const char *path, other_lib *l)
 {
     void *h = dlmopen(LM_ID_NEWLM, path, RTLD_NOW | RTLD_LOCAL);
     if (!h) {
-        fprintf(stderr, "isomend_bench_extract: --versus %s: %s\n", path, dlerror());
+        fprintf(stderr, "isomend_bench_extract: --ab %s: %s\n", path, dlerror());
         return 0;
     }
     void *sym[8];
@@ -211,7 +213,7 @@ static int load_other(const char *path, other_lib *l)
         "isomend_mesh_triangles", "isomend_version"};
     for (int i = 0; i < 8; i++)
         if (!(sym[i] = dlsym(h, names[i]))) {
-            fprintf(stderr, "isomend_bench_extract: --versus %s: no symbol %s\n", path, names[i]);
+            fprintf(stderr, "isomend_bench_extract: --ab %s: no symbol %s\n", path, names[i]);
             return 0;
         }
     /* POSIX: object pointers from dlsym convert to function pointers */
@@ -226,17 +228,74 @@ static int load_other(const char *path, other_lib *l)
     return 1;
 }
 
-/* Whether two meshes (this build's, the other's) are the same byte for byte. */
-static int same_mesh(const isomend_mesh *m, const other_lib *l, const isomend_mesh *n)
+/* Whether mesh m of build l and mesh n of build k are the same byte for byte. */
+static int same_mesh(const other_lib *l, const isomend_mesh *m, const other_lib *k,
+                     const isomend_mesh *n)
 {
-    const size_t nv = isomend_mesh_vertex_count(m), nt = isomend_mesh_triangle_count(m);
-    if (nv != l->vertex_count(n) || nt != l->triangle_count(n))
+    const size_t nv = l->vertex_count(m), nt = l->triangle_count(m);
+    if (nv != k->vertex_count(n) || nt != k->triangle_count(n))
         return 0;
-    const float *a = isomend_mesh_normals(m), *b = l->normals(n);
+    const float *a = l->normals(m), *b = k->normals(n);
     if ((a == NULL) != (b == NULL) || (a && memcmp(a, b, 3 * sizeof(float) * nv)))
         return 0;
-    return !memcmp(isomend_mesh_positions(m), l->positions(n), 3 * sizeof(float) * nv) &&
-           !memcmp(isomend_mesh_triangles(m), l->triangles(n), 3 * sizeof(uint32_t) * nt);
+    return !memcmp(l->positions(m), k->positions(n), 3 * sizeof(float) * nv) &&
+           !memcmp(l->triangles(m), k->triangles(n), 3 * sizeof(uint32_t) * nt);
+}
+
+/*
+ * --ab: `repeats` runs of build A and build B in alternating order (A first
+ * on even runs), after one untimed call of each.  Returns the exit status.
+ */
+static int run_ab(const char *path, const isomend_volume *vol, const isomend_options *o,
+                  int repeats, const char *const names[2], const other_lib lib[2])
+{
+    double *ratio = calloc((size_t)repeats, sizeof(double));
+    double *tm[2] = {calloc((size_t)repeats, sizeof(double)),
+                     calloc((size_t)repeats, sizeof(double))};
+    int rc = ratio && tm[0] && tm[1] ? 0 : 2;
+    for (int r = -1; r < repeats && rc == 0; r++) { /* r = -1: the untimed first calls */
+        isomend_mesh *mesh[2] = {NULL, NULL};
+        double t[2];
+        for (int q = 0; q < 2 && rc == 0; q++) {
+            const int b = (r & 1) ? 1 - q : q;
+            const double t0 = now(CLOCK_MONOTONIC);
+            if (lib[b].extract(vol, o, &mesh[b], NULL) != ISOMEND_OK) {
+                fprintf(stderr, "isomend_bench_extract: %s: build %c (%s) failed\n", path,
+                        'A' + b, names[b]);
+                rc = 2;
+            }
+            t[b] = now(CLOCK_MONOTONIC) - t0;
+        }
+        if (rc == 0 && r >= 0) {
+            tm[0][r] = t[0];
+            tm[1][r] = t[1];
+            ratio[r] = t[1] / t[0];
+            printf("run %d: A %.2f ms, B %.2f ms, B / A %.3f, %zu triangles\n", r, 1e3 * t[0],
+                   1e3 * t[1], ratio[r], lib[0].triangle_count(mesh[0]));
+            if (r == repeats - 1 && !same_mesh(&lib[0], mesh[0], &lib[1], mesh[1])) {
+                fprintf(stderr, "isomend_bench_extract: %s: the meshes of %s and %s differ\n",
+                        path, names[0], names[1]);
+                rc = 3;
+            }
+        }
+        for (int b = 0; b < 2; b++)
+            if (mesh[b])
+                lib[b].destroy(mesh[b]); /* each build frees with its own allocator */
+    }
+    if (rc != 2) {
+        qsort(ratio, (size_t)repeats, sizeof(double), cmp_double);
+        for (int b = 0; b < 2; b++)
+            qsort(tm[b], (size_t)repeats, sizeof(double), cmp_double);
+        printf("A %s (%s): median %.2f ms; B %s (%s): median %.2f ms\n", names[0],
+               lib[0].version(), 1e3 * tm[0][repeats / 2], names[1], lib[1].version(),
+               1e3 * tm[1][repeats / 2]);
+        printf("median ratio B / A %.3f, quartiles %.3f..%.3f; meshes %s\n", ratio[repeats / 2],
+               ratio[repeats / 4], ratio[(3 * repeats) / 4], rc == 3 ? "DIFFER" : "identical");
+    }
+    free(ratio);
+    free(tm[0]);
+    free(tm[1]);
+    return rc;
 }
 
 int main(int argc, char **argv)
@@ -253,7 +312,7 @@ int main(int argc, char **argv)
         return 1;
     }
     int repeats = 5, floor = 0;
-    const char *versus = NULL;
+    const char *ab[2] = {NULL, NULL};
     for (int i = 3; i < argc; i++) {
         const char *a = argv[i];
         if (!strcmp(a, "--no-normals")) {
@@ -262,8 +321,9 @@ int main(int argc, char **argv)
             o.flags |= ISOMEND_FLAG_PAD;
         } else if (!strcmp(a, "--floor")) {
             floor = 1;
-        } else if (!strcmp(a, "--versus") && i + 1 < argc) {
-            versus = argv[++i];
+        } else if (!strcmp(a, "--ab") && i + 2 < argc) {
+            ab[0] = argv[++i];
+            ab[1] = argv[++i];
         } else if ((!strcmp(a, "--threads") || !strcmp(a, "--repeats")) && i + 1 < argc) {
             long v = strtol(argv[++i], &end, 10);
             if (*end || v < (a[2] == 't' ? 0 : 1) || v > 1000) {
@@ -285,13 +345,13 @@ int main(int argc, char **argv)
             return usage();
         }
     }
-    if (floor && versus) {
-        fprintf(stderr, "isomend_bench_extract: --floor and --versus: one ratio at a time\n");
+    if (floor && ab[0]) {
+        fprintf(stderr, "isomend_bench_extract: --floor and --ab: one ratio at a time\n");
         return 1;
     }
-    other_lib other;
-    memset(&other, 0, sizeof other);
-    if (versus && !load_other(versus, &other))
+    other_lib lib[2];
+    memset(lib, 0, sizeof lib);
+    if (ab[0] && (!load_other(ab[0], &lib[0]) || !load_other(ab[1], &lib[1])))
         return 1;
     npy v = {0};
     if (!read_npy(path, &v))
@@ -310,34 +370,18 @@ int main(int argc, char **argv)
     double *cpu = calloc((size_t)repeats, sizeof(double));
     double *ratio = calloc((size_t)repeats, sizeof(double));
     int rc = times && cpu && ratio ? 0 : 2;
-    if (versus && rc == 0) { /* a first call of each, untimed */
-        isomend_mesh *m = NULL, *n = NULL;
-        if (isomend_extract(&vol, &o, &m, NULL) != ISOMEND_OK ||
-            other.extract(&vol, &o, &n, NULL) != ISOMEND_OK) {
-            fprintf(stderr, "isomend_bench_extract: %s: the warm-up extraction failed\n", path);
-            rc = 2;
-        }
-        isomend_mesh_destroy(m);
-        if (n)
-            other.destroy(n); /* the other build frees with its own allocator */
+    if (ab[0] && rc == 0) {
+        free(times);
+        free(cpu);
+        free(ratio);
+        rc = run_ab(path, &vol, &o, repeats, ab, lib);
+        free(v.data);
+        return rc;
     }
     for (int r = 0; r < repeats && rc == 0; r++) {
-        isomend_mesh *mesh = NULL, *other_mesh = NULL;
+        isomend_mesh *mesh = NULL;
         isomend_stats st;
-        double u0, s0, u1, s1, floor_time = 0.0, ft[3], other_time = 0.0;
-        if (versus && r % 2 == 0) { /* the other build first on even runs */
-            const double t0 = now(CLOCK_MONOTONIC);
-            if (other.extract(&vol, &o, &other_mesh, NULL) != ISOMEND_OK) {
-                fprintf(stderr, "isomend_bench_extract: %s: the --versus build failed\n", path);
-                rc = 2;
-                break;
-            }
-            other_time = now(CLOCK_MONOTONIC) - t0;
-            if (r + 2 < repeats) { /* keep the last pair's meshes to compare */
-                other.destroy(other_mesh);
-                other_mesh = NULL;
-            }
-        }
+        double u0, s0, u1, s1, floor_time = 0.0, ft[3];
         for (int q = 0; floor && q < 3; q++) { /* the median of 3, like bench.py's */
             const double f0 = now(CLOCK_MONOTONIC);
             volatile double sum = v.type == ISOMEND_F32
@@ -358,20 +402,8 @@ int main(int argc, char **argv)
         usage_times(&u1, &s1);
         if (s != ISOMEND_OK) {
             fprintf(stderr, "isomend_bench_extract: %s: %s\n", path, isomend_status_string(s));
-            if (other_mesh)
-                other.destroy(other_mesh);
             rc = 2;
             break;
-        }
-        if (versus && r % 2 == 1) {
-            const double o0 = now(CLOCK_MONOTONIC);
-            if (other.extract(&vol, &o, &other_mesh, NULL) != ISOMEND_OK) {
-                fprintf(stderr, "isomend_bench_extract: %s: the --versus build failed\n", path);
-                isomend_mesh_destroy(mesh);
-                rc = 2;
-                break;
-            }
-            other_time = now(CLOCK_MONOTONIC) - o0;
         }
         printf("run %d: %.2f ms (CPU %.2f ms: user %.0f, system %.0f), %llu triangles, "
                "%llu vertices, %llu mended",
@@ -383,20 +415,7 @@ int main(int argc, char **argv)
             ratio[r] = times[r] / floor_time;
             printf("; floor %.2f ms, ratio %.2f", 1e3 * floor_time, ratio[r]);
         }
-        if (versus) {
-            ratio[r] = times[r] / other_time;
-            printf("; versus %.2f ms, ratio %.3f", 1e3 * other_time, ratio[r]);
-        }
         printf("\n");
-        if (versus && r >= repeats - 2 && other_mesh) { /* the last pair or two */
-            if (!same_mesh(mesh, &other, other_mesh)) {
-                fprintf(stderr, "isomend_bench_extract: %s: the meshes of this build and of %s "
-                                "differ\n", path, versus);
-                rc = 3;
-            }
-        }
-        if (other_mesh)
-            other.destroy(other_mesh);
         isomend_mesh_destroy(mesh);
     }
     if (rc == 0) {
@@ -412,12 +431,6 @@ int main(int argc, char **argv)
             qsort(ratio, (size_t)repeats, sizeof(double), cmp_double);
             printf("median ratio to the floor %.2f (min %.2f)\n", ratio[repeats / 2], ratio[0]);
         }
-    }
-    if (versus && rc != 2) {
-        qsort(ratio, (size_t)repeats, sizeof(double), cmp_double);
-        printf("median ratio to %s (%s) %.3f, quartiles %.3f..%.3f; meshes %s\n", versus,
-               other.version(), ratio[repeats / 2], ratio[repeats / 4],
-               ratio[(3 * repeats) / 4], rc == 3 ? "DIFFER" : "identical");
     }
     free(ratio);
     free(times);
