@@ -27,9 +27,10 @@ How it is measured
   default, 2 in quick mode), resetting its peak-RSS mark (/proc/self/clear_refs = 5)
   before each: the first is reported apart ("first call"), the other C are the
   measurement: wall time, CPU time (and its system part) and the peak RSS above what it
-  held before the call (the "extra" memory: output, temporaries).  The first call of a process pays for memory the kernel hands
-  out afresh; on a virtual machine that returns freed memory to its host (virtio-balloon
-  free page reporting, as on the machine of docs/bench-results.md) that cost depends on
+  held before the call (the "extra" memory: output, temporaries).  The first call of a
+  process pays for memory the kernel hands out afresh; on a virtual machine that
+  returns freed memory to its host (virtio-balloon free page reporting, as on the
+  machine of docs/bench-results.md) that cost depends on
   what the previous process did, and two threads faulting at once contend for the
   host's page tables; the later calls measure the extractor in steady state, reusing
   memory, as a program extracting many surfaces does.  The runs are made in rounds --

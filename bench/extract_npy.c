@@ -16,9 +16,9 @@
  * (page faults of the output arrays).
  * With --floor (float32 and uint8 volumes) each run is preceded by the
  * benchmark's memory-read floor (floor.c: the sum of all voxels, same thread
- * count, the median of 3 consecutive sums as in bench.py) and the line shows the ratio of the two; the median ratio closes
- * the output.  Alternating the two in one process keeps a noisy machine's
- * slow phases out of the ratio.
+ * count, the median of 3 consecutive sums as in bench.py) and the line shows
+ * the ratio of the two; the median ratio closes the output.  Alternating the
+ * two in one process keeps a noisy machine's slow phases out of the ratio.
  * With --ab, each run calls isomend_extract() of two builds of the library
  * instead (two libisomend.so, e.g. from a worktree at the commit before a
  * change and from the change, each loaded with dlmopen in a namespace of its
@@ -186,7 +186,7 @@ static int usage(void)
 }
 
 /* The entry points of a build of the library loaded with dlmopen (--ab). */
-typedef struct other_lib {
+typedef struct built_lib {
     isomend_status (*extract)(const isomend_volume *, const isomend_options *, isomend_mesh **,
                               isomend_stats *);
     void (*destroy)(isomend_mesh *);
@@ -196,11 +196,12 @@ typedef struct other_lib {
     const float *(*normals)(const isomend_mesh *);
     const uint32_t *(*triangles)(const isomend_mesh *);
     const char *(*version)(void);
-} other_lib;
+} built_lib;
 
-/* Loads `path` in a namespace of its own, so that its symbols do not resolve
- * to this program's static copy of the library. */
-static int load_other(const char *path, other_lib *l)
+/* Loads the build at `path` in a namespace of its own, so that its symbols
+ * resolve neither to this program's static copy of the library nor to the
+ * other build. */
+static int load_build(const char *path, built_lib *l)
 {
     void *h = dlmopen(LM_ID_NEWLM, path, RTLD_NOW | RTLD_LOCAL);
     if (!h) {
@@ -230,7 +231,7 @@ static int load_other(const char *path, other_lib *l)
 }
 
 /* Whether mesh m of build l and mesh n of build k are the same byte for byte. */
-static int same_mesh(const other_lib *l, const isomend_mesh *m, const other_lib *k,
+static int same_mesh(const built_lib *l, const isomend_mesh *m, const built_lib *k,
                      const isomend_mesh *n)
 {
     const size_t nv = l->vertex_count(m), nt = l->triangle_count(m);
@@ -243,12 +244,30 @@ static int same_mesh(const other_lib *l, const isomend_mesh *m, const other_lib 
            !memcmp(l->triangles(m), k->triangles(n), 3 * sizeof(uint32_t) * nt);
 }
 
+/* The memory-read floor of the volume: the median of 3 consecutive sums, like
+ * bench.py's. */
+static double floor_time(const npy *v, int threads)
+{
+    const size_t samples = (size_t)v->shape[0] * (size_t)v->shape[1] * (size_t)v->shape[2];
+    double t[3];
+    for (int q = 0; q < 3; q++) {
+        const double t0 = now(CLOCK_MONOTONIC);
+        volatile double sum = v->type == ISOMEND_F32
+            ? isomend_bench_sum_f32(v->data, samples, threads)
+            : isomend_bench_sum_u8(v->data, samples, threads);
+        (void)sum;
+        t[q] = now(CLOCK_MONOTONIC) - t0;
+    }
+    qsort(t, 3, sizeof(double), cmp_double);
+    return t[1];
+}
+
 /*
  * --ab: `repeats` runs of build A and build B in alternating order (A first
  * on even runs), after one untimed call of each.  Returns the exit status.
  */
 static int run_ab(const char *path, const isomend_volume *vol, const isomend_options *o,
-                  int repeats, const char *const names[2], const other_lib lib[2])
+                  int repeats, const char *const names[2], const built_lib lib[2])
 {
     double *ratio = calloc((size_t)repeats, sizeof(double));
     double *tm[2] = {calloc((size_t)repeats, sizeof(double)),
@@ -350,9 +369,9 @@ int main(int argc, char **argv)
         fprintf(stderr, "isomend_bench_extract: --floor and --ab: one ratio at a time\n");
         return 1;
     }
-    other_lib lib[2];
+    built_lib lib[2];
     memset(lib, 0, sizeof lib);
-    if (ab[0] && (!load_other(ab[0], &lib[0]) || !load_other(ab[1], &lib[1])))
+    if (ab[0] && (!load_build(ab[0], &lib[0]) || !load_build(ab[1], &lib[1])))
         return 1;
     npy v = {0};
     if (!read_npy(path, &v))
@@ -363,38 +382,23 @@ int main(int argc, char **argv)
         free(v.data);
         return 1;
     }
-    const size_t samples = (size_t)v.shape[0] * (size_t)v.shape[1] * (size_t)v.shape[2];
     const int floor_threads = o.threads > 0 ? o.threads : (int)sysconf(_SC_NPROCESSORS_ONLN);
     isomend_volume vol;
     isomend_volume_init(&vol, v.data, v.type, v.shape[2], v.shape[1], v.shape[0]);
+    if (ab[0]) {
+        const int ab_rc = run_ab(path, &vol, &o, repeats, ab, lib);
+        free(v.data);
+        return ab_rc;
+    }
     double *times = calloc((size_t)repeats, sizeof(double));
     double *cpu = calloc((size_t)repeats, sizeof(double));
     double *ratio = calloc((size_t)repeats, sizeof(double));
     int rc = times && cpu && ratio ? 0 : 2;
-    if (ab[0] && rc == 0) {
-        free(times);
-        free(cpu);
-        free(ratio);
-        rc = run_ab(path, &vol, &o, repeats, ab, lib);
-        free(v.data);
-        return rc;
-    }
     for (int r = 0; r < repeats && rc == 0; r++) {
         isomend_mesh *mesh = NULL;
         isomend_stats st;
-        double u0, s0, u1, s1, floor_time = 0.0, ft[3];
-        for (int q = 0; floor && q < 3; q++) { /* the median of 3, like bench.py's */
-            const double f0 = now(CLOCK_MONOTONIC);
-            volatile double sum = v.type == ISOMEND_F32
-                ? isomend_bench_sum_f32(v.data, samples, floor_threads)
-                : isomend_bench_sum_u8(v.data, samples, floor_threads);
-            (void)sum;
-            ft[q] = now(CLOCK_MONOTONIC) - f0;
-            if (q == 2) {
-                qsort(ft, 3, sizeof(double), cmp_double);
-                floor_time = ft[1];
-            }
-        }
+        double u0, s0, u1, s1;
+        const double floor_s = floor ? floor_time(&v, floor_threads) : 0.0;
         usage_times(&u0, &s0);
         double t0 = now(CLOCK_MONOTONIC), c0 = now(CLOCK_PROCESS_CPUTIME_ID);
         isomend_status s = isomend_extract(&vol, &o, &mesh, &st);
@@ -413,8 +417,8 @@ int main(int argc, char **argv)
                (unsigned long long)st.vertices,
                (unsigned long long)st.triangles_by_origin[ISOMEND_ORIGIN_MEND]);
         if (floor) {
-            ratio[r] = times[r] / floor_time;
-            printf("; floor %.2f ms, ratio %.2f", 1e3 * floor_time, ratio[r]);
+            ratio[r] = times[r] / floor_s;
+            printf("; floor %.2f ms, ratio %.2f", 1e3 * floor_s, ratio[r]);
         }
         printf("\n");
         isomend_mesh_destroy(mesh);

@@ -259,6 +259,12 @@ static void classify_row(const grid *g, int64_t j, int64_t k, uint8_t *s, rowinf
     }
 }
 
+/* Row r is uniform with sign v (its span is empty). */
+static inline int uniform_as(const rowinfo *r, int64_t N0, uint8_t v)
+{
+    return r->lo >= N0 && r->first == v;
+}
+
 /* Two simple rows with the same outside sign: pair_spans is then exact. */
 static inline int simple_pair(const rowinfo *a, const rowinfo *b)
 {
@@ -1012,6 +1018,21 @@ ISOMEND_HOT_LOOP static uint64_t count_differences(const uint8_t *restrict a, co
     return n;
 }
 
+/*
+ * The crossings between rows a and b in the n spans span[0..2n).  Exact spans
+ * (between one-run rows: row_spans, pair_spans) are crossings in every column,
+ * so they are counted, not scanned.
+ */
+static uint64_t count_spans(const uint8_t *a, const uint8_t *b, const int64_t *span, int n,
+                            int exact)
+{
+    uint64_t count = 0;
+    for (int q = 0; q < n; q++)
+        count += exact ? (uint64_t)(span[2 * q + 1] - span[2 * q] + 1)
+                       : count_differences(a, b, span[2 * q], span[2 * q + 1]);
+    return count;
+}
+
 /* Configurations of the cubes [from, to] of a row from its four sample rows. */
 ISOMEND_HOT_LOOP static void row_cases(const uint8_t *restrict a, const uint8_t *restrict b,
                       const uint8_t *restrict c, const uint8_t *restrict d, int64_t from,
@@ -1125,8 +1146,9 @@ static uint64_t scan_slice(worker *w, int64_t m, int mode, uint64_t first, int w
             else
                 count = scan_diagonals(c, s, t, j, m, NULL, count, 0);
         }
-        if (ra[j].lo >= N0 && (j + 1 >= N1 || (ra[j + 1].lo >= N0 && ra[j + 1].first == ra[j].first)) &&
-            (!t || (rn[j].lo >= N0 && rn[j].first == ra[j].first)))
+        const uint8_t v = ra[j].first;
+        if (uniform_as(&ra[j], N0, v) && (j + 1 >= N1 || uniform_as(&ra[j + 1], N0, v)) &&
+            (!t || uniform_as(&rn[j], N0, v)))
             continue; /* uniform, like the rows it pairs with: no crossing */
         const uint8_t *a = s + j * N0;
         int64_t xs[4], ys[4], zs[4];
@@ -1138,19 +1160,9 @@ static uint64_t scan_slice(worker *w, int64_t m, int mode, uint64_t first, int w
         const uint8_t *b = a + N0; /* row j + 1, read only when ny */
         const uint8_t *d = nz ? t + j * N0 : NULL;
         if (!mode) {
-            /* Spans between one-run rows are exact: every column in them is a
-             * crossing (row_spans, pair_spans), so they are counted, not scanned. */
-            for (int q = 0; q < nx; q++)
-                count += ra[j].simple ? (uint64_t)(xs[2 * q + 1] - xs[2 * q] + 1)
-                                      : count_differences(a, a + 1, xs[2 * q], xs[2 * q + 1]);
-            const int yexact = ny && simple_pair(&ra[j], &ra[j + 1]);
-            for (int q = 0; q < ny; q++)
-                count += yexact ? (uint64_t)(ys[2 * q + 1] - ys[2 * q] + 1)
-                                : count_differences(a, b, ys[2 * q], ys[2 * q + 1]);
-            const int zexact = nz && simple_pair(&ra[j], &rn[j]);
-            for (int q = 0; q < nz; q++)
-                count += zexact ? (uint64_t)(zs[2 * q + 1] - zs[2 * q] + 1)
-                                : count_differences(a, d, zs[2 * q], zs[2 * q + 1]);
+            count += count_spans(a, a + 1, xs, nx, ra[j].simple);
+            count += count_spans(a, b, ys, ny, ny && simple_pair(&ra[j], &ra[j + 1]));
+            count += count_spans(a, d, zs, nz, nz && simple_pair(&ra[j], &rn[j]));
             continue;
         }
         /* Vertex order within a row: x edges, then y edges, then z edges. */
@@ -1352,9 +1364,9 @@ static uint64_t march_layer(worker *w, int64_t k, int mode, uint64_t first)
         w->private_next = c->slice_first[N2] + c->layer_private[k];
 
     for (int64_t j = 0; j + 1 < N1; j++) {
-        if (r0[j].lo >= N0 && r0[j + 1].lo >= N0 && r1[j].lo >= N0 && r1[j + 1].lo >= N0 &&
-            r0[j].first == r0[j + 1].first && r0[j].first == r1[j].first &&
-            r0[j].first == r1[j + 1].first)
+        const uint8_t v = r0[j].first;
+        if (uniform_as(&r0[j], N0, v) && uniform_as(&r0[j + 1], N0, v) &&
+            uniform_as(&r1[j], N0, v) && uniform_as(&r1[j + 1], N0, v))
             continue; /* four uniform rows of one sign (most rows, around a blob) */
         const rowinfo *rows[4] = {&r0[j], &r0[j + 1], &r1[j], &r1[j + 1]};
         int64_t span[4];
