@@ -1397,6 +1397,12 @@ static uint64_t march_layer(worker *w, int64_t k, int mode, uint64_t first)
         /* A narrow span (the rim of a blob) builds its configurations 16 at a
          * time as it goes; cases[] then holds columns word..word + 15 only. */
         const int narrow = i1 - i0 < NARROW_CUBES;
+        /* The fill pass reads the twelve edges' ids; their map lines were
+         * written a slice ago and, on a large grid, the vertices computed
+         * since have pushed them out of the near caches. */
+        if (mode)
+            for (int e = 0; e < 12; e++)
+                __builtin_prefetch(ep[e] + i0);
         if (!narrow)
             row_cases(a, b, cc, d, i0, i1, cases);
         for (int64_t word = i0; word <= i1; word += 16) {
@@ -1405,6 +1411,9 @@ static uint64_t march_layer(worker *w, int64_t k, int mode, uint64_t first)
           const int64_t known = narrow ? word + 15 : i1; /* cases[] holds up to here */
           if (i1 - word < 15)
               mixed = first_bits(mixed, i1 - word + 1);
+          if (mode && word + 16 <= i1) /* the next 16 cubes' id lines */
+              for (int e = 0; e < 12; e++)
+                  __builtin_prefetch(ep[e] + word + 16);
           while (mixed) {
             const int64_t i = word + __builtin_ctz(mixed);
             mixed &= mixed - 1;
