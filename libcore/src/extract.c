@@ -27,7 +27,8 @@
  * in a constant background (chords through a blob) are scanned only at the
  * runs' ends.  Crossings and busy cubes are found 16 columns at a time.
  * Only samples around emitted vertices are read as numbers, by per-type,
- * per-axis loops (make_vertex is the general path near borders and NaN).
+ * per-axis loops, four vertices at a time on AVX2 (make_vertex is the general
+ * path near borders and NaN).
  * Output arrays of 2 MiB and more go on transparent huge pages.
  *
  * Methods of methods.h (facial, gradient, asymptotic, tetra, mc33) replace
@@ -67,6 +68,12 @@
 #endif
 #if defined(__SSE2__) && !defined(ISOMEND_NO_SIMD)
 #include <emmintrin.h>
+#endif
+/* Four vertices at once on AVX2 (vertex4 below), chosen at run time. */
+#if defined(__x86_64__) && (defined(__GNUC__) || defined(__clang__)) && \
+    !defined(ISOMEND_NO_SIMD)
+#define ISOMEND_VERTEX4 1
+#include <immintrin.h>
 #endif
 
 struct isomend_mesh {
@@ -526,6 +533,7 @@ typedef struct ctx {
     int flip;
     int want_normals;
     int want_origins;
+    int vertex4;           /* vertices four at a time (AVX2, with normals)  */
     int64_t nchunks;
     int64_t chunk_layers;
     uint64_t *slice_first; /* [N2 + 1]: vertex count, then first vertex */
@@ -867,6 +875,27 @@ static inline void prefetch_at(const char *base, int64_t off)
         return id;                                                                     \
     }
 
+/* Prefetches the samples vertex item ITEM will read (in a vertex loop). */
+#define PREFETCH_ITEM(ITEM)                                                            \
+    do {                                                                               \
+        const int64_t o = ((int64_t)(ITEM).x - pad) * sx + ((int64_t)(ITEM).j - pad) * sy; \
+        prefetch_at(slice, o);                                                         \
+        prefetch_at(slice, o + sa);                                                    \
+        if (NR) {                                                                      \
+            prefetch_at(slice, o - sy);                                                \
+            prefetch_at(slice, o + (axis == 1 ? 2 : 1) * sy);                          \
+            prefetch_at(slice, o - sz);                                                \
+            prefetch_at(slice, o + (axis == 2 ? 2 : 1) * sz);                          \
+            if (axis == 1) {                                                           \
+                prefetch_at(slice, o + sy - sz);                                       \
+                prefetch_at(slice, o + sy + sz);                                       \
+            } else if (axis == 2) {                                                    \
+                prefetch_at(slice, o + sz - sy);                                       \
+                prefetch_at(slice, o + sz + sy);                                       \
+            }                                                                          \
+        }                                                                              \
+    } while (0)
+
 /*
  * Computes listed vertices, prefetching the samples of the item
  * VERTEX_PREFETCH places ahead when it lies off its predecessor's cache line.
@@ -880,25 +909,8 @@ static inline void prefetch_at(const char *base, int64_t off)
         /* Step e prefetches item e and computes item e - ahead. */                    \
         for (size_t e = 0; e < n + ahead; e++) {                                       \
             if (ahead && e < n &&                                                      \
-                (e == 0 || it[e].j != it[e - 1].j || it[e].x - it[e - 1].x >= line)) { \
-                const int64_t o = ((int64_t)it[e].x - pad) * sx +                      \
-                                  ((int64_t)it[e].j - pad) * sy;                       \
-                prefetch_at(slice, o);                                                 \
-                prefetch_at(slice, o + sa);                                            \
-                if (NR) {                                                              \
-                    prefetch_at(slice, o - sy);                                        \
-                    prefetch_at(slice, o + (axis == 1 ? 2 : 1) * sy);                  \
-                    prefetch_at(slice, o - sz);                                        \
-                    prefetch_at(slice, o + (axis == 2 ? 2 : 1) * sz);                  \
-                    if (axis == 1) {                                                   \
-                        prefetch_at(slice, o + sy - sz);                               \
-                        prefetch_at(slice, o + sy + sz);                               \
-                    } else if (axis == 2) {                                            \
-                        prefetch_at(slice, o + sz - sy);                               \
-                        prefetch_at(slice, o + sz + sy);                               \
-                    }                                                                  \
-                }                                                                      \
-            }                                                                          \
+                (e == 0 || it[e].j != it[e - 1].j || it[e].x - it[e - 1].x >= line))   \
+                PREFETCH_ITEM(it[e]);                                                  \
             if (e >= ahead) {                                                          \
                 const vitem *v = &it[e - ahead];                                       \
                 VERTEX_ONE(LD, v->x, v->j, v->id);                                     \
@@ -926,6 +938,256 @@ DEFINE_LIST_LOAD(list_vertices_i32, int32_t)
 DEFINE_LIST_LOAD(list_vertices_f32, float)
 DEFINE_LIST_LOAD(list_vertices_f64, double)
 
+#if ISOMEND_VERTEX4
+/*
+ * Four vertices at a time, on machines with AVX2, when normals are wanted
+ * (the arithmetic is then most of a vertex's cost: 171 instructions a vertex
+ * on the gyroid 256^3 for the scalar path, 112 this way).  The lanes do
+ * VERTEX_ONE's operations in its order on doubles, with no fused
+ * multiply-add, so the mesh is bit for bit the scalar path's (the test
+ * core_simd_identical compares them on every sample type).  Four interior
+ * vertices that all come out valid are stored at once; otherwise the four
+ * take VERTEX_ONE.  Rows of a wide span group their crossings in column order,
+ * lists group consecutive items.
+ */
+
+/* Four (x, y, z) float lanes to four consecutive triples at out[0..11]. */
+__attribute__((target("avx2"))) static inline void store_xyz4(float *out, __m128 x, __m128 y,
+                                                              __m128 z)
+{
+    __m128 w = _mm_setzero_ps();
+    _MM_TRANSPOSE4_PS(x, y, z, w); /* rows: (x_l, y_l, z_l, 0) */
+    _mm_storeu_ps(out, x);
+    _mm_storeu_ps(out + 3, y); /* each store's fourth float is overwritten */
+    _mm_storeu_ps(out + 6, z); /* by the next, and the last is kept out    */
+    _mm_storel_pi((__m64 *)(void *)(out + 9), w);
+    _mm_store_ss(out + 11, _mm_movehl_ps(w, w));
+}
+
+/*
+ * Four samples of type T as doubles, converted in one instruction: integers
+ * through 32-bit lanes, floats through single-precision lanes (both exact,
+ * as the scalar conversions are).
+ */
+#define DEFINE_LD4(NAME, T)                                                            \
+    __attribute__((target("avx2"))) static inline __m256d NAME(                        \
+        const char *p0, const char *p1, const char *p2, const char *p3)                \
+    {                                                                                  \
+        T v0, v1, v2, v3;                                                              \
+        memcpy(&v0, p0, sizeof v0);                                                    \
+        memcpy(&v1, p1, sizeof v1);                                                    \
+        memcpy(&v2, p2, sizeof v2);                                                    \
+        memcpy(&v3, p3, sizeof v3);                                                    \
+        if ((T)0.5 == 0) /* an integer type */                                         \
+            return _mm256_cvtepi32_pd(                                                 \
+                _mm_setr_epi32((int32_t)v0, (int32_t)v1, (int32_t)v2, (int32_t)v3));   \
+        if (sizeof(T) == sizeof(float))                                                \
+            return _mm256_cvtps_pd(_mm_setr_ps((float)v0, (float)v1, (float)v2, (float)v3)); \
+        return _mm256_setr_pd((double)v0, (double)v1, (double)v2, (double)v3);         \
+    }
+DEFINE_LD4(ld4_u8, uint8_t)
+DEFINE_LD4(ld4_i8, int8_t)
+DEFINE_LD4(ld4_u16, uint16_t)
+DEFINE_LD4(ld4_i16, int16_t)
+DEFINE_LD4(ld4_i32, int32_t)
+DEFINE_LD4(ld4_f32, float)
+DEFINE_LD4(ld4_f64, double)
+
+/* Sample at byte offset `off` from each lane's lower endpoint, as doubles. */
+#define LD4(LD, off) LD(p0 + (off), p1 + (off), p2 + (off), p3 + (off))
+
+/* Gradient component along axis C at the four vertices: VERTEX_ONE's n_C. */
+#define GRADIENT4(LD, C, S, INV)                                                       \
+    _mm256_mul_pd(                                                                     \
+        _mm256_xor_pd(                                                                 \
+            _mm256_add_pd(                                                             \
+                _mm256_mul_pd(u, axis == (C) ? _mm256_sub_pd(f1, LD4(LD, -(S)))        \
+                                             : _mm256_sub_pd(LD4(LD, S), LD4(LD, -(S)))), \
+                _mm256_mul_pd(t, axis == (C) ? _mm256_sub_pd(LD4(LD, sa + (S)), f0)    \
+                                             : _mm256_sub_pd(LD4(LD, sa + (S)),        \
+                                                             LD4(LD, sa - (S))))),     \
+            negz),                                                                     \
+        _mm256_set1_pd(INV))
+
+/*
+ * The four vertices on the edges from (xs[l], js[l], m) along the axis, all
+ * interior: position (px, py, pz) and normal (nx, ny, nz) lanes; vertex4_ok
+ * is set when all four are valid (VERTEX_ONE's test), else nothing is kept.
+ */
+#define VERTEX4(LD, xs, js)                                                            \
+    const char *p0 = slice + ((xs)[0] - pad) * sx + ((js)[0] - pad) * sy;              \
+    const char *p1 = slice + ((xs)[1] - pad) * sx + ((js)[1] - pad) * sy;              \
+    const char *p2 = slice + ((xs)[2] - pad) * sx + ((js)[2] - pad) * sy;              \
+    const char *p3 = slice + ((xs)[3] - pad) * sx + ((js)[3] - pad) * sy;              \
+    const __m256d negz = _mm256_set1_pd(-0.0);                                         \
+    const __m256d f0 = LD4(LD, 0), f1 = LD4(LD, sa);                                   \
+    const __m256d t = _mm256_div_pd(_mm256_sub_pd(_mm256_set1_pd(iso), f0),            \
+                                    _mm256_sub_pd(f1, f0));                            \
+    const __m256d u = _mm256_sub_pd(_mm256_set1_pd(1.0), t);                           \
+    const __m256d n0 = GRADIENT4(LD, 0, sx, ix);                                       \
+    const __m256d n1 = GRADIENT4(LD, 1, sy, iy);                                       \
+    const __m256d n2 = GRADIENT4(LD, 2, sz, iz);                                       \
+    const __m256d len = _mm256_sqrt_pd(_mm256_add_pd(                                  \
+        _mm256_add_pd(_mm256_mul_pd(n0, n0), _mm256_mul_pd(n1, n1)), _mm256_mul_pd(n2, n2))); \
+    const __m256d zero = _mm256_setzero_pd();                                          \
+    const __m256d valid = _mm256_and_pd(                                               \
+        _mm256_and_pd(_mm256_cmp_pd(t, zero, _CMP_GE_OQ),                              \
+                      _mm256_cmp_pd(t, _mm256_set1_pd(1.0), _CMP_LE_OQ)),              \
+        _mm256_and_pd(_mm256_cmp_pd(len, zero, _CMP_GT_OQ),                            \
+                      _mm256_cmp_pd(len, _mm256_set1_pd(INFINITY), _CMP_LT_OQ)));      \
+    const int vertex4_ok = _mm256_movemask_pd(valid) == 0xF;                           \
+    __m256d xd = _mm256_cvtepi32_pd(                                                   \
+        _mm_setr_epi32((int)(xs)[0], (int)(xs)[1], (int)(xs)[2], (int)(xs)[3]));       \
+    __m256d yd = _mm256_cvtepi32_pd(                                                   \
+        _mm_setr_epi32((int)(js)[0], (int)(js)[1], (int)(js)[2], (int)(js)[3]));       \
+    if (axis == 0)                                                                     \
+        xd = _mm256_add_pd(xd, t);                                                     \
+    if (axis == 1)                                                                     \
+        yd = _mm256_add_pd(yd, t);                                                     \
+    const __m128 px = _mm256_cvtpd_ps(                                                 \
+        _mm256_add_pd(_mm256_set1_pd(ox), _mm256_mul_pd(xd, _mm256_set1_pd(hx))));     \
+    const __m128 py = _mm256_cvtpd_ps(                                                 \
+        _mm256_add_pd(_mm256_set1_pd(oy), _mm256_mul_pd(yd, _mm256_set1_pd(hy))));     \
+    const __m128 pz =                                                                  \
+        axis == 2 ? _mm256_cvtpd_ps(_mm256_add_pd(                                     \
+                        _mm256_set1_pd(oz),                                            \
+                        _mm256_mul_pd(_mm256_add_pd(_mm256_set1_pd(pz0), t), _mm256_set1_pd(hz)))) \
+                  : _mm_set1_ps(fz);                                                   \
+    const __m256d sc = _mm256_div_pd(_mm256_set1_pd(sgn), len);                        \
+    const __m128 nx = _mm256_cvtpd_ps(_mm256_mul_pd(sc, n0));                          \
+    const __m128 ny = _mm256_cvtpd_ps(_mm256_mul_pd(sc, n1));                          \
+    const __m128 nz = _mm256_cvtpd_ps(_mm256_mul_pd(sc, n2))
+
+/* The wide-span rows (DEFINE_ROW_VERTICES), four crossings at a time. */
+#define DEFINE_ROW_VERTICES4(NAME, LD, LDV, AXIS)                                      \
+    __attribute__((target("avx2"))) static uint64_t NAME(                              \
+        const ctx *c, const uint8_t *a, const uint8_t *b, int64_t from, int64_t to,    \
+        int64_t j0, int64_t m, uint32_t *ids, uint64_t id)                             \
+    {                                                                                  \
+        VERTEX_SETUP(AXIS);                                                            \
+        const int row_inner = NR && slice_inner && j0 >= y_lo && j0 <= y_hi;           \
+        const int64_t js[4] = {j0, j0, j0, j0};                                        \
+        int64_t pend[16 + 3]; /* crossings not yet computed, in column order */        \
+        int np = 0;                                                                    \
+        for (int64_t i = from; i <= to; i += 16) {                                     \
+            uint32_t diff = diff16(a + i, b + i);                                      \
+            if (to - i < 15)                                                           \
+                diff = first_bits(diff, to - i + 1);                                   \
+            while (diff) {                                                             \
+                pend[np++] = i + __builtin_ctz(diff);                                  \
+                diff &= diff - 1;                                                      \
+            }                                                                          \
+            int g4 = 0;                                                                \
+            for (; np - g4 >= 4; g4 += 4, id += 4) {                                   \
+                const int64_t *x4 = pend + g4;                                         \
+                int done = 0;                                                          \
+                if (row_inner && x4[0] >= x_lo && x4[3] <= x_hi) {                     \
+                    VERTEX4(LDV, x4, js);                                              \
+                    if (vertex4_ok) {                                                  \
+                        store_xyz4(P + 3 * id, px, py, pz);                            \
+                        store_xyz4(NR + 3 * id, nx, ny, nz);                           \
+                        done = 1;                                                      \
+                    }                                                                  \
+                }                                                                      \
+                for (int l = 0; l < 4; l++) {                                          \
+                    if (!done)                                                         \
+                        VERTEX_ONE(LD, x4[l], j0, id + (uint64_t)l);                   \
+                    ids[x4[l]] = (uint32_t)(id + (uint64_t)l);                         \
+                }                                                                      \
+            }                                                                          \
+            if (g4) {                                                                  \
+                for (int r = g4; r < np; r++)                                          \
+                    pend[r - g4] = pend[r];                                            \
+                np -= g4;                                                              \
+            }                                                                          \
+        }                                                                              \
+        for (int r = 0; r < np; r++, id++) {                                           \
+            VERTEX_ONE(LD, pend[r], j0, id);                                           \
+            ids[pend[r]] = (uint32_t)id;                                               \
+        }                                                                              \
+        return id;                                                                     \
+    }
+
+/* One (x, y, z) lane of three float vectors to out[0..2]. */
+__attribute__((target("avx2"))) static inline void store_lane(float *out, __m128 row)
+{
+    _mm_storel_pi((__m64 *)(void *)out, row);
+    _mm_store_ss(out + 2, _mm_movehl_ps(row, row));
+}
+
+/*
+ * The lists (DEFINE_LIST_VERTICES), four items at a time, with the same
+ * prefetching: a group is computed once its last item was prefetched
+ * VERTEX_PREFETCH steps before.  Ids are not consecutive here: each lane is
+ * stored on its own (a 16-byte store could reach another thread's vertex).
+ */
+#define DEFINE_LIST_VERTICES4(NAME, LD, LDV, T, AXIS)                                  \
+    __attribute__((target("avx2"))) static void NAME(const ctx *c, const vitem *it, size_t n, \
+                                                     int64_t m)                        \
+    {                                                                                  \
+        VERTEX_SETUP(AXIS);                                                            \
+        const size_t ahead = slice_inner ? VERTEX_PREFETCH : 0;                        \
+        const int32_t line = 64 / (int32_t)sizeof(T);                                  \
+        size_t done = 0;                                                               \
+        for (size_t e = 0; e < n + ahead + 3; e++) {                                   \
+            if (ahead && e < n &&                                                      \
+                (e == 0 || it[e].j != it[e - 1].j || it[e].x - it[e - 1].x >= line))   \
+                PREFETCH_ITEM(it[e]);                                                  \
+            if (e < done + 3 + ahead)                                                  \
+                continue;                                                              \
+            const size_t left = n - done;                                              \
+            if (left == 0)                                                             \
+                break;                                                                 \
+            const vitem *v = it + done;                                                \
+            int ok = 0;                                                                \
+            if (left >= 4 && NR && slice_inner) {                                      \
+                const int64_t xs[4] = {v[0].x, v[1].x, v[2].x, v[3].x};                \
+                const int64_t js[4] = {v[0].j, v[1].j, v[2].j, v[3].j};                \
+                int inner = 1;                                                         \
+                for (int l = 0; l < 4; l++)                                            \
+                    inner &= xs[l] >= x_lo && xs[l] <= x_hi && js[l] >= y_lo && js[l] <= y_hi; \
+                if (inner) {                                                           \
+                    VERTEX4(LDV, xs, js);                                              \
+                    if (vertex4_ok) {                                                  \
+                        __m128 w = _mm_setzero_ps(), x = px, y = py, z = pz;           \
+                        _MM_TRANSPOSE4_PS(x, y, z, w);                                 \
+                        store_lane(P + 3 * (uint64_t)v[0].id, x);                      \
+                        store_lane(P + 3 * (uint64_t)v[1].id, y);                      \
+                        store_lane(P + 3 * (uint64_t)v[2].id, z);                      \
+                        store_lane(P + 3 * (uint64_t)v[3].id, w);                      \
+                        w = _mm_setzero_ps(), x = nx, y = ny, z = nz;                  \
+                        _MM_TRANSPOSE4_PS(x, y, z, w);                                 \
+                        store_lane(NR + 3 * (uint64_t)v[0].id, x);                     \
+                        store_lane(NR + 3 * (uint64_t)v[1].id, y);                     \
+                        store_lane(NR + 3 * (uint64_t)v[2].id, z);                     \
+                        store_lane(NR + 3 * (uint64_t)v[3].id, w);                     \
+                        ok = 1;                                                        \
+                    }                                                                  \
+                }                                                                      \
+            }                                                                          \
+            const size_t grp = left >= 4 ? 4 : left;                                   \
+            if (!ok)                                                                   \
+                for (size_t l = 0; l < grp; l++)                                       \
+                    VERTEX_ONE(LD, v[l].x, v[l].j, v[l].id);                           \
+            done += grp;                                                               \
+        }                                                                              \
+    }
+#define DEFINE_VERTICES4_TYPE(NAME, T, LDV)                                            \
+    DEFINE_ROW_VERTICES4(NAME##_v0, NAME##_ld, LDV, 0)                                 \
+    DEFINE_ROW_VERTICES4(NAME##_v1, NAME##_ld, LDV, 1)                                 \
+    DEFINE_ROW_VERTICES4(NAME##_v2, NAME##_ld, LDV, 2)                                 \
+    DEFINE_LIST_VERTICES4(NAME##_w0, NAME##_ld, LDV, T, 0)                             \
+    DEFINE_LIST_VERTICES4(NAME##_w1, NAME##_ld, LDV, T, 1)                             \
+    DEFINE_LIST_VERTICES4(NAME##_w2, NAME##_ld, LDV, T, 2)
+DEFINE_VERTICES4_TYPE(list_vertices_u8, uint8_t, ld4_u8)
+DEFINE_VERTICES4_TYPE(list_vertices_i8, int8_t, ld4_i8)
+DEFINE_VERTICES4_TYPE(list_vertices_u16, uint16_t, ld4_u16)
+DEFINE_VERTICES4_TYPE(list_vertices_i16, int16_t, ld4_i16)
+DEFINE_VERTICES4_TYPE(list_vertices_i32, int32_t, ld4_i32)
+DEFINE_VERTICES4_TYPE(list_vertices_f32, float, ld4_f32)
+DEFINE_VERTICES4_TYPE(list_vertices_f64, double, ld4_f64)
+#endif /* ISOMEND_VERTEX4 */
+
 /* [type][axis] */
 typedef void (*list_vertices_fn)(const ctx *, const vitem *, size_t, int64_t);
 static const list_vertices_fn list_vertices[ISOMEND_TYPE_COUNT][3] = {
@@ -948,13 +1210,41 @@ static const row_vertices_fn row_vertices[ISOMEND_TYPE_COUNT][3] = {
     {list_vertices_f32_r0, list_vertices_f32_r1, list_vertices_f32_r2},
     {list_vertices_f64_r0, list_vertices_f64_r1, list_vertices_f64_r2},
 };
+#if ISOMEND_VERTEX4
+static const list_vertices_fn list_vertices4[ISOMEND_TYPE_COUNT][3] = {
+    {list_vertices_u8_w0, list_vertices_u8_w1, list_vertices_u8_w2},
+    {list_vertices_i8_w0, list_vertices_i8_w1, list_vertices_i8_w2},
+    {list_vertices_u16_w0, list_vertices_u16_w1, list_vertices_u16_w2},
+    {list_vertices_i16_w0, list_vertices_i16_w1, list_vertices_i16_w2},
+    {list_vertices_i32_w0, list_vertices_i32_w1, list_vertices_i32_w2},
+    {list_vertices_f32_w0, list_vertices_f32_w1, list_vertices_f32_w2},
+    {list_vertices_f64_w0, list_vertices_f64_w1, list_vertices_f64_w2},
+};
+static const row_vertices_fn row_vertices4[ISOMEND_TYPE_COUNT][3] = {
+    {list_vertices_u8_v0, list_vertices_u8_v1, list_vertices_u8_v2},
+    {list_vertices_i8_v0, list_vertices_i8_v1, list_vertices_i8_v2},
+    {list_vertices_u16_v0, list_vertices_u16_v1, list_vertices_u16_v2},
+    {list_vertices_i16_v0, list_vertices_i16_v1, list_vertices_i16_v2},
+    {list_vertices_i32_v0, list_vertices_i32_v1, list_vertices_i32_v2},
+    {list_vertices_f32_v0, list_vertices_f32_v1, list_vertices_f32_v2},
+    {list_vertices_f64_v0, list_vertices_f64_v1, list_vertices_f64_v2},
+};
+#endif
 
 /* Computes and empties the worker's vertex lists of slice m. */
 static void flush_vertices(worker *w, int64_t m)
 {
     for (int a = 0; a < 3; a++) {
-        if (w->vn[a])
-            list_vertices[w->c->g.type][a](w->c, w->vl[a], w->vn[a], m);
+        if (!w->vn[a])
+            continue;
+#if ISOMEND_VERTEX4
+        if (w->c->vertex4) {
+            list_vertices4[w->c->g.type][a](w->c, w->vl[a], w->vn[a], m);
+            w->vn[a] = 0;
+            continue;
+        }
+#endif
+        list_vertices[w->c->g.type][a](w->c, w->vl[a], w->vn[a], m);
         w->vn[a] = 0;
     }
 }
@@ -1005,6 +1295,10 @@ static inline uint64_t crossings(worker *w, const uint8_t *a, const uint8_t *b, 
         return number_crossings(a, b, from, to, j, ids, id, NULL, NULL);
     if (to - from < LIST_SPAN)
         return number_crossings(a, b, from, to, j, ids, id, w->vl[axis], &w->vn[axis]);
+#if ISOMEND_VERTEX4
+    if (w->c->vertex4)
+        return row_vertices4[w->c->g.type][axis](w->c, a, b, from, to, j, m, ids, id);
+#endif
     return row_vertices[w->c->g.type][axis](w->c, a, b, from, to, j, m, ids, id);
 }
 
@@ -1733,6 +2027,9 @@ isomend_status isomend_extract(const isomend_volume *vol, const isomend_options 
     c->flip = (o->flags & ISOMEND_FLAG_FLIP) != 0;
     c->want_normals = !(o->flags & ISOMEND_FLAG_NO_NORMALS);
     c->want_origins = !(o->flags & ISOMEND_FLAG_NO_ORIGINS);
+#if ISOMEND_VERTEX4
+    c->vertex4 = c->want_normals && __builtin_cpu_supports("avx2");
+#endif
     c->progress = o->progress;
     c->progress_user = o->progress_user;
 
