@@ -195,6 +195,7 @@ typedef struct built_lib {
     const float *(*positions)(const isomend_mesh *);
     const float *(*normals)(const isomend_mesh *);
     const uint32_t *(*triangles)(const isomend_mesh *);
+    const uint8_t *(*origins)(const isomend_mesh *);
     const char *(*version)(void);
 } built_lib;
 
@@ -208,12 +209,12 @@ static int load_build(const char *path, built_lib *l)
         fprintf(stderr, "isomend_bench_extract: --ab %s: %s\n", path, dlerror());
         return 0;
     }
-    void *sym[8];
-    static const char *const names[8] = {
+    void *sym[9];
+    static const char *const names[9] = {
         "isomend_extract", "isomend_mesh_destroy", "isomend_mesh_vertex_count",
         "isomend_mesh_triangle_count", "isomend_mesh_positions", "isomend_mesh_normals",
-        "isomend_mesh_triangles", "isomend_version"};
-    for (int i = 0; i < 8; i++)
+        "isomend_mesh_triangles", "isomend_mesh_triangle_origins", "isomend_version"};
+    for (int i = 0; i < 9; i++)
         if (!(sym[i] = dlsym(h, names[i]))) {
             fprintf(stderr, "isomend_bench_extract: --ab %s: no symbol %s\n", path, names[i]);
             return 0;
@@ -226,7 +227,8 @@ static int load_build(const char *path, built_lib *l)
     memcpy(&l->positions, &sym[4], sizeof sym[4]);
     memcpy(&l->normals, &sym[5], sizeof sym[5]);
     memcpy(&l->triangles, &sym[6], sizeof sym[6]);
-    memcpy(&l->version, &sym[7], sizeof sym[7]);
+    memcpy(&l->origins, &sym[7], sizeof sym[7]);
+    memcpy(&l->version, &sym[8], sizeof sym[8]);
     return 1;
 }
 
@@ -239,6 +241,9 @@ static int same_mesh(const built_lib *l, const isomend_mesh *m, const built_lib 
         return 0;
     const float *a = l->normals(m), *b = k->normals(n);
     if ((a == NULL) != (b == NULL) || (a && memcmp(a, b, 3 * sizeof(float) * nv)))
+        return 0;
+    const uint8_t *o = l->origins(m), *p = k->origins(n);
+    if ((o == NULL) != (p == NULL) || (o && memcmp(o, p, nt)))
         return 0;
     return !memcmp(l->positions(m), k->positions(n), 3 * sizeof(float) * nv) &&
            !memcmp(l->triangles(m), k->triangles(n), 3 * sizeof(uint32_t) * nt);

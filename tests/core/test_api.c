@@ -179,6 +179,8 @@ static void test_progress_and_geometry(void)
               ta[3 * i + 2] == tb[3 * i + 1]);
     for (size_t i = 0; i < 3 * isomend_mesh_vertex_count(m); i++)
         CHECK(na[i] == -nb[i]);
+    CHECK(memcmp(isomend_mesh_triangle_origins(m), isomend_mesh_triangle_origins(mf),
+                 isomend_mesh_triangle_count(m)) == 0);
     /* Default normals point towards lower values: inwards for this field. */
     for (size_t i = 0; i < isomend_mesh_vertex_count(m); i++) {
         double ix = p[3 * i] - (100.0 + 19.5 * 0.5), iy = p[3 * i + 1] - (-7.0 + 19.5 * 2.0),
