@@ -1623,7 +1623,8 @@ static unsigned method_cube(worker *w, int64_t i, int64_t j, int64_t k, unsigned
  * Marches layer k.  mode 0 counts triangles and statistics; mode 1 writes
  * the triangles from index `first`.  Returns the number of triangles.
  */
-static uint64_t march_layer(worker *w, int64_t k, int mode, uint64_t first)
+static inline __attribute__((always_inline)) uint64_t
+march_layer_as(worker *w, int64_t k, int mode, int general, int flip, uint64_t first)
 {
     ctx *c = w->c;
     const grid *g = &c->g;
@@ -1635,7 +1636,6 @@ static uint64_t march_layer(worker *w, int64_t k, int mode, uint64_t first)
     const int quads = c->method == ISOMEND_METHOD_DMC || c->method == ISOMEND_METHOD_DURST;
     /* Locals, not c->...: the byte stores to the origins may alias the context,
      * which would make the compiler reload these for every triangle. */
-    const int flip = c->flip, general = c->general;
     const int durst = c->method == ISOMEND_METHOD_DURST;
     const uint8_t quad_origin = durst ? ISOMEND_ORIGIN_DURST : ISOMEND_ORIGIN_MEND;
     isomend_stats *st = &w->stats;
@@ -1648,6 +1648,11 @@ static uint64_t march_layer(worker *w, int64_t k, int mode, uint64_t first)
     uint64_t ntri = 0, busy = 0;
     uint32_t *out = mode ? c->tri + 3 * first : NULL;
     uint8_t *org = mode && c->org ? c->org + first : NULL;
+    /* The table's triangles' origins at once; the quadrilaterals' are written
+     * by index (the general methods write theirs as they go). */
+    if (org && !general)
+        memset(org, ISOMEND_ORIGIN_TABLE, (size_t)(c->layer_first[k + 1] - first));
+    const uint32_t *const out_first = out;
     uint8_t *cases = w->cases;
     uint64_t cfg_count[256]; /* counting pass: cubes per configuration */
     uint64_t general_tri = 0;
@@ -1736,8 +1741,6 @@ static uint64_t march_layer(worker *w, int64_t k, int mode, uint64_t first)
                     out[1] = flip ? v2 : v1;
                     out[2] = flip ? v1 : v2;
                     out += 3;
-                    if (org)
-                        *org++ = ISOMEND_ORIGIN_TABLE;
                 }
             }
             ntri += nt;
@@ -1783,9 +1786,9 @@ static uint64_t march_layer(worker *w, int64_t k, int mode, uint64_t first)
                         out[0] = quad[h];
                         out[1] = flip ? quad[h + 2] : quad[h + 1];
                         out[2] = flip ? quad[h + 1] : quad[h + 2];
-                        out += 3;
                         if (org)
-                            *org++ = quad_origin;
+                            org[(out - out_first) / 3] = quad_origin;
+                        out += 3;
                     }
                 }
                 ntri += 2;
@@ -1806,6 +1809,18 @@ static uint64_t march_layer(worker *w, int64_t k, int mode, uint64_t first)
             ntri += table_tri;
     }
     return ntri;
+}
+
+/* march_layer_as compiled for each pass and kind of method. */
+static uint64_t march_layer(worker *w, int64_t k, int mode, uint64_t first)
+{
+    const ctx *c = w->c;
+    if (c->general)
+        return mode ? march_layer_as(w, k, 1, 1, c->flip, first)
+                    : march_layer_as(w, k, 0, 1, 0, first);
+    if (!mode)
+        return march_layer_as(w, k, 0, 0, 0, first);
+    return c->flip ? march_layer_as(w, k, 1, 0, 1, first) : march_layer_as(w, k, 1, 0, 0, first);
 }
 
 /* Runs one chunk of the current pass. */
