@@ -559,7 +559,7 @@ def quick_policy(args, name, field, size, dtype):
     return (size == 256 and field == "sphere"), 1
 
 
-def machine_info():
+def machine_info(outputs=()):
     info = {"python": platform.python_version(), "cpus": os.cpu_count()}
     try:
         with open("/proc/cpuinfo") as f:
@@ -590,8 +590,17 @@ def machine_info():
         except ImportError:
             pass
     try:
-        info["git"] = subprocess.run(["git", "-C", ROOT, "describe", "--always", "--dirty"],
-                                     capture_output=True, text=True).stdout.strip()
+        # "-dirty" when a tracked file differs, except this run's own outputs
+        # (docs/bench-results.md is tracked and rewritten by every run)
+        rev = subprocess.run(["git", "-C", ROOT, "describe", "--always"],
+                             capture_output=True, text=True).stdout.strip()
+        exclude = [":(exclude)" + os.path.relpath(os.path.abspath(f), ROOT)
+                   for f in outputs if f]
+        changed = subprocess.run(["git", "-C", ROOT, "status", "--porcelain",
+                                  "--untracked-files=no", "--", "."] + exclude,
+                                 capture_output=True, text=True).stdout.strip()
+        if rev:
+            info["git"] = rev + ("-dirty" if changed else "")
     except OSError:
         pass
     return info
@@ -740,7 +749,7 @@ def main(argv=None):
                                             os.path.expanduser("~/.cache")), "isomend-bench")
     os.makedirs(cache, exist_ok=True)
 
-    info = machine_info()
+    info = machine_info((args.out, args.json))
     info["mode"] = "smoke" if args.smoke else "quick" if args.quick else "full"
     info["command"] = "bench/bench.py " + " ".join(argv if argv is not None else sys.argv[1:])
     info["started"] = datetime.datetime.utcnow().strftime("%Y-%m-%d %H:%M UTC")
