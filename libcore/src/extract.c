@@ -1621,7 +1621,9 @@ static unsigned method_cube(worker *w, int64_t i, int64_t j, int64_t k, unsigned
 
 /*
  * Marches layer k.  mode 0 counts triangles and statistics; mode 1 writes
- * the triangles from index `first`.  Returns the number of triangles.
+ * the triangles from index `first`.  `general` is c->general and `flip`
+ * c->flip, passed so that march_layer can compile the loop with them as
+ * constants.  Returns the number of triangles.
  */
 static inline __attribute__((always_inline)) uint64_t
 march_layer_as(worker *w, int64_t k, int mode, int general, int flip, uint64_t first)
@@ -1811,7 +1813,8 @@ march_layer_as(worker *w, int64_t k, int mode, int general, int flip, uint64_t f
     return ntri;
 }
 
-/* march_layer_as compiled for each pass and kind of method. */
+/* march_layer_as compiled for each pass and kind of method, and for the fill
+ * pass of the table methods for each winding (per-cube tests fold away). */
 static uint64_t march_layer(worker *w, int64_t k, int mode, uint64_t first)
 {
     const ctx *c = w->c;
