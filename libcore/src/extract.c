@@ -875,10 +875,15 @@ static inline void prefetch_at(const char *base, int64_t off)
         return id;                                                                     \
     }
 
-/* Prefetches the samples vertex item ITEM will read (in a vertex loop). */
-#define PREFETCH_ITEM(ITEM)                                                            \
+/*
+ * In a vertex loop: prefetches the samples list item it[e] will read, unless
+ * it lies on its predecessor's cache line (`line`: samples a line).
+ */
+#define PREFETCH_ITEM(it, e)                                                           \
     do {                                                                               \
-        const int64_t o = ((int64_t)(ITEM).x - pad) * sx + ((int64_t)(ITEM).j - pad) * sy; \
+        if ((e) > 0 && (it)[e].j == (it)[(e) - 1].j && (it)[e].x - (it)[(e) - 1].x < line) \
+            break;                                                                     \
+        const int64_t o = ((int64_t)(it)[e].x - pad) * sx + ((int64_t)(it)[e].j - pad) * sy; \
         prefetch_at(slice, o);                                                         \
         prefetch_at(slice, o + sa);                                                    \
         if (NR) {                                                                      \
@@ -908,9 +913,8 @@ static inline void prefetch_at(const char *base, int64_t off)
         const int32_t line = 64 / (int32_t)sizeof(T); /* samples a cache line */       \
         /* Step e prefetches item e and computes item e - ahead. */                    \
         for (size_t e = 0; e < n + ahead; e++) {                                       \
-            if (ahead && e < n &&                                                      \
-                (e == 0 || it[e].j != it[e - 1].j || it[e].x - it[e - 1].x >= line))   \
-                PREFETCH_ITEM(it[e]);                                                  \
+            if (ahead && e < n)                                                        \
+                PREFETCH_ITEM(it, e);                                                  \
             if (e >= ahead) {                                                          \
                 const vitem *v = &it[e - ahead];                                       \
                 VERTEX_ONE(LD, v->x, v->j, v->id);                                     \
@@ -985,13 +989,6 @@ __attribute__((target("avx2"))) static inline void store_xyz4(float *out, __m128
             return _mm256_cvtps_pd(_mm_setr_ps((float)v0, (float)v1, (float)v2, (float)v3)); \
         return _mm256_setr_pd((double)v0, (double)v1, (double)v2, (double)v3);         \
     }
-DEFINE_LD4(ld4_u8, uint8_t)
-DEFINE_LD4(ld4_i8, int8_t)
-DEFINE_LD4(ld4_u16, uint16_t)
-DEFINE_LD4(ld4_i16, int16_t)
-DEFINE_LD4(ld4_i32, int32_t)
-DEFINE_LD4(ld4_f32, float)
-DEFINE_LD4(ld4_f64, double)
 
 /* Sample at byte offset `off` from each lane's lower endpoint, as doubles. */
 #define LD4(LD, off) LD(p0 + (off), p1 + (off), p2 + (off), p3 + (off))
@@ -1108,11 +1105,18 @@ DEFINE_LD4(ld4_f64, double)
         return id;                                                                     \
     }
 
-/* One (x, y, z) lane of three float vectors to out[0..2]. */
-__attribute__((target("avx2"))) static inline void store_lane(float *out, __m128 row)
+/* Four (x, y, z) float lanes to the triples of vertices v[0..3].id in out. */
+__attribute__((target("avx2"))) static inline void store_items4(float *out, const vitem *v,
+                                                                __m128 x, __m128 y, __m128 z)
 {
-    _mm_storel_pi((__m64 *)(void *)out, row);
-    _mm_store_ss(out + 2, _mm_movehl_ps(row, row));
+    __m128 w = _mm_setzero_ps();
+    _MM_TRANSPOSE4_PS(x, y, z, w); /* rows: (x_l, y_l, z_l, 0) */
+    const __m128 row[4] = {x, y, z, w};
+    for (int l = 0; l < 4; l++) {
+        float *o = out + 3 * (uint64_t)v[l].id;
+        _mm_storel_pi((__m64 *)(void *)o, row[l]);
+        _mm_store_ss(o + 2, _mm_movehl_ps(row[l], row[l]));
+    }
 }
 
 /*
@@ -1130,9 +1134,8 @@ __attribute__((target("avx2"))) static inline void store_lane(float *out, __m128
         const int32_t line = 64 / (int32_t)sizeof(T);                                  \
         size_t done = 0;                                                               \
         for (size_t e = 0; e < n + ahead + 3; e++) {                                   \
-            if (ahead && e < n &&                                                      \
-                (e == 0 || it[e].j != it[e - 1].j || it[e].x - it[e - 1].x >= line))   \
-                PREFETCH_ITEM(it[e]);                                                  \
+            if (ahead && e < n)                                                        \
+                PREFETCH_ITEM(it, e);                                                  \
             if (e < done + 3 + ahead)                                                  \
                 continue;                                                              \
             const size_t left = n - done;                                              \
@@ -1149,18 +1152,8 @@ __attribute__((target("avx2"))) static inline void store_lane(float *out, __m128
                 if (inner) {                                                           \
                     VERTEX4(LDV, xs, js);                                              \
                     if (vertex4_ok) {                                                  \
-                        __m128 w = _mm_setzero_ps(), x = px, y = py, z = pz;           \
-                        _MM_TRANSPOSE4_PS(x, y, z, w);                                 \
-                        store_lane(P + 3 * (uint64_t)v[0].id, x);                      \
-                        store_lane(P + 3 * (uint64_t)v[1].id, y);                      \
-                        store_lane(P + 3 * (uint64_t)v[2].id, z);                      \
-                        store_lane(P + 3 * (uint64_t)v[3].id, w);                      \
-                        w = _mm_setzero_ps(), x = nx, y = ny, z = nz;                  \
-                        _MM_TRANSPOSE4_PS(x, y, z, w);                                 \
-                        store_lane(NR + 3 * (uint64_t)v[0].id, x);                     \
-                        store_lane(NR + 3 * (uint64_t)v[1].id, y);                     \
-                        store_lane(NR + 3 * (uint64_t)v[2].id, z);                     \
-                        store_lane(NR + 3 * (uint64_t)v[3].id, w);                     \
+                        store_items4(P, v, px, py, pz);                                \
+                        store_items4(NR, v, nx, ny, nz);                               \
                         ok = 1;                                                        \
                     }                                                                  \
                 }                                                                      \
@@ -1172,79 +1165,69 @@ __attribute__((target("avx2"))) static inline void store_lane(float *out, __m128
             done += grp;                                                               \
         }                                                                              \
     }
-#define DEFINE_VERTICES4_TYPE(NAME, T, LDV)                                            \
-    DEFINE_ROW_VERTICES4(NAME##_v0, NAME##_ld, LDV, 0)                                 \
-    DEFINE_ROW_VERTICES4(NAME##_v1, NAME##_ld, LDV, 1)                                 \
-    DEFINE_ROW_VERTICES4(NAME##_v2, NAME##_ld, LDV, 2)                                 \
-    DEFINE_LIST_VERTICES4(NAME##_w0, NAME##_ld, LDV, T, 0)                             \
-    DEFINE_LIST_VERTICES4(NAME##_w1, NAME##_ld, LDV, T, 1)                             \
-    DEFINE_LIST_VERTICES4(NAME##_w2, NAME##_ld, LDV, T, 2)
-DEFINE_VERTICES4_TYPE(list_vertices_u8, uint8_t, ld4_u8)
-DEFINE_VERTICES4_TYPE(list_vertices_i8, int8_t, ld4_i8)
-DEFINE_VERTICES4_TYPE(list_vertices_u16, uint16_t, ld4_u16)
-DEFINE_VERTICES4_TYPE(list_vertices_i16, int16_t, ld4_i16)
-DEFINE_VERTICES4_TYPE(list_vertices_i32, int32_t, ld4_i32)
-DEFINE_VERTICES4_TYPE(list_vertices_f32, float, ld4_f32)
-DEFINE_VERTICES4_TYPE(list_vertices_f64, double, ld4_f64)
+#define DEFINE_VERTICES4_TYPE(NAME, T)                                                 \
+    DEFINE_LD4(NAME##_ld4, T)                                                          \
+    DEFINE_ROW_VERTICES4(NAME##_v0, NAME##_ld, NAME##_ld4, 0)                          \
+    DEFINE_ROW_VERTICES4(NAME##_v1, NAME##_ld, NAME##_ld4, 1)                          \
+    DEFINE_ROW_VERTICES4(NAME##_v2, NAME##_ld, NAME##_ld4, 2)                          \
+    DEFINE_LIST_VERTICES4(NAME##_w0, NAME##_ld, NAME##_ld4, T, 0)                      \
+    DEFINE_LIST_VERTICES4(NAME##_w1, NAME##_ld, NAME##_ld4, T, 1)                      \
+    DEFINE_LIST_VERTICES4(NAME##_w2, NAME##_ld, NAME##_ld4, T, 2)
+DEFINE_VERTICES4_TYPE(list_vertices_u8, uint8_t)
+DEFINE_VERTICES4_TYPE(list_vertices_i8, int8_t)
+DEFINE_VERTICES4_TYPE(list_vertices_u16, uint16_t)
+DEFINE_VERTICES4_TYPE(list_vertices_i16, int16_t)
+DEFINE_VERTICES4_TYPE(list_vertices_i32, int32_t)
+DEFINE_VERTICES4_TYPE(list_vertices_f32, float)
+DEFINE_VERTICES4_TYPE(list_vertices_f64, double)
 #endif /* ISOMEND_VERTEX4 */
 
-/* [type][axis] */
+/* [type][axis]: the vertex loops named list_vertices_<type>_<kind><axis>. */
+#define VERTEX_LOOPS(K)                                                                \
+    {                                                                                  \
+        {list_vertices_u8_##K##0, list_vertices_u8_##K##1, list_vertices_u8_##K##2},   \
+        {list_vertices_i8_##K##0, list_vertices_i8_##K##1, list_vertices_i8_##K##2},   \
+        {list_vertices_u16_##K##0, list_vertices_u16_##K##1, list_vertices_u16_##K##2}, \
+        {list_vertices_i16_##K##0, list_vertices_i16_##K##1, list_vertices_i16_##K##2}, \
+        {list_vertices_i32_##K##0, list_vertices_i32_##K##1, list_vertices_i32_##K##2}, \
+        {list_vertices_f32_##K##0, list_vertices_f32_##K##1, list_vertices_f32_##K##2}, \
+        {list_vertices_f64_##K##0, list_vertices_f64_##K##1, list_vertices_f64_##K##2}, \
+    }
 typedef void (*list_vertices_fn)(const ctx *, const vitem *, size_t, int64_t);
-static const list_vertices_fn list_vertices[ISOMEND_TYPE_COUNT][3] = {
-    {list_vertices_u8_l0, list_vertices_u8_l1, list_vertices_u8_l2},
-    {list_vertices_i8_l0, list_vertices_i8_l1, list_vertices_i8_l2},
-    {list_vertices_u16_l0, list_vertices_u16_l1, list_vertices_u16_l2},
-    {list_vertices_i16_l0, list_vertices_i16_l1, list_vertices_i16_l2},
-    {list_vertices_i32_l0, list_vertices_i32_l1, list_vertices_i32_l2},
-    {list_vertices_f32_l0, list_vertices_f32_l1, list_vertices_f32_l2},
-    {list_vertices_f64_l0, list_vertices_f64_l1, list_vertices_f64_l2},
-};
 typedef uint64_t (*row_vertices_fn)(const ctx *, const uint8_t *, const uint8_t *, int64_t,
                                     int64_t, int64_t, int64_t, uint32_t *, uint64_t);
-static const row_vertices_fn row_vertices[ISOMEND_TYPE_COUNT][3] = {
-    {list_vertices_u8_r0, list_vertices_u8_r1, list_vertices_u8_r2},
-    {list_vertices_i8_r0, list_vertices_i8_r1, list_vertices_i8_r2},
-    {list_vertices_u16_r0, list_vertices_u16_r1, list_vertices_u16_r2},
-    {list_vertices_i16_r0, list_vertices_i16_r1, list_vertices_i16_r2},
-    {list_vertices_i32_r0, list_vertices_i32_r1, list_vertices_i32_r2},
-    {list_vertices_f32_r0, list_vertices_f32_r1, list_vertices_f32_r2},
-    {list_vertices_f64_r0, list_vertices_f64_r1, list_vertices_f64_r2},
-};
+static const list_vertices_fn list_vertices[ISOMEND_TYPE_COUNT][3] = VERTEX_LOOPS(l);
+static const row_vertices_fn row_vertices[ISOMEND_TYPE_COUNT][3] = VERTEX_LOOPS(r);
 #if ISOMEND_VERTEX4
-static const list_vertices_fn list_vertices4[ISOMEND_TYPE_COUNT][3] = {
-    {list_vertices_u8_w0, list_vertices_u8_w1, list_vertices_u8_w2},
-    {list_vertices_i8_w0, list_vertices_i8_w1, list_vertices_i8_w2},
-    {list_vertices_u16_w0, list_vertices_u16_w1, list_vertices_u16_w2},
-    {list_vertices_i16_w0, list_vertices_i16_w1, list_vertices_i16_w2},
-    {list_vertices_i32_w0, list_vertices_i32_w1, list_vertices_i32_w2},
-    {list_vertices_f32_w0, list_vertices_f32_w1, list_vertices_f32_w2},
-    {list_vertices_f64_w0, list_vertices_f64_w1, list_vertices_f64_w2},
-};
-static const row_vertices_fn row_vertices4[ISOMEND_TYPE_COUNT][3] = {
-    {list_vertices_u8_v0, list_vertices_u8_v1, list_vertices_u8_v2},
-    {list_vertices_i8_v0, list_vertices_i8_v1, list_vertices_i8_v2},
-    {list_vertices_u16_v0, list_vertices_u16_v1, list_vertices_u16_v2},
-    {list_vertices_i16_v0, list_vertices_i16_v1, list_vertices_i16_v2},
-    {list_vertices_i32_v0, list_vertices_i32_v1, list_vertices_i32_v2},
-    {list_vertices_f32_v0, list_vertices_f32_v1, list_vertices_f32_v2},
-    {list_vertices_f64_v0, list_vertices_f64_v1, list_vertices_f64_v2},
-};
+static const list_vertices_fn list_vertices4[ISOMEND_TYPE_COUNT][3] = VERTEX_LOOPS(w);
+static const row_vertices_fn row_vertices4[ISOMEND_TYPE_COUNT][3] = VERTEX_LOOPS(v);
 #endif
+
+/* The vertex loops of this extraction's type: four at a time where c says so. */
+static inline const list_vertices_fn *list_loops(const ctx *c)
+{
+#if ISOMEND_VERTEX4
+    if (c->vertex4)
+        return list_vertices4[c->g.type];
+#endif
+    return list_vertices[c->g.type];
+}
+
+static inline const row_vertices_fn *row_loops(const ctx *c)
+{
+#if ISOMEND_VERTEX4
+    if (c->vertex4)
+        return row_vertices4[c->g.type];
+#endif
+    return row_vertices[c->g.type];
+}
 
 /* Computes and empties the worker's vertex lists of slice m. */
 static void flush_vertices(worker *w, int64_t m)
 {
     for (int a = 0; a < 3; a++) {
-        if (!w->vn[a])
-            continue;
-#if ISOMEND_VERTEX4
-        if (w->c->vertex4) {
-            list_vertices4[w->c->g.type][a](w->c, w->vl[a], w->vn[a], m);
-            w->vn[a] = 0;
-            continue;
-        }
-#endif
-        list_vertices[w->c->g.type][a](w->c, w->vl[a], w->vn[a], m);
+        if (w->vn[a])
+            list_loops(w->c)[a](w->c, w->vl[a], w->vn[a], m);
         w->vn[a] = 0;
     }
 }
@@ -1295,11 +1278,7 @@ static inline uint64_t crossings(worker *w, const uint8_t *a, const uint8_t *b, 
         return number_crossings(a, b, from, to, j, ids, id, NULL, NULL);
     if (to - from < LIST_SPAN)
         return number_crossings(a, b, from, to, j, ids, id, w->vl[axis], &w->vn[axis]);
-#if ISOMEND_VERTEX4
-    if (w->c->vertex4)
-        return row_vertices4[w->c->g.type][axis](w->c, a, b, from, to, j, m, ids, id);
-#endif
-    return row_vertices[w->c->g.type][axis](w->c, a, b, from, to, j, m, ids, id);
+    return row_loops(w->c)[axis](w->c, a, b, from, to, j, m, ids, id);
 }
 
 /* Number of i in [from, to] with a[i] != b[i]; vectorises. */
@@ -1473,6 +1452,13 @@ static uint64_t scan_slice(worker *w, int64_t m, int mode, uint64_t first, int w
     if (write)
         flush_vertices(w, m);
     return mode ? id - first : count;
+}
+
+/* Prefetches the id-map lines of the twelve cube edges at column i. */
+static inline void prefetch_ids(const uint32_t *const ep[12], int64_t i)
+{
+    for (int e = 0; e < 12; e++)
+        __builtin_prefetch(ep[e] + i);
 }
 
 /*
@@ -1702,8 +1688,7 @@ march_layer_as(worker *w, int64_t k, int mode, int general, int flip, uint64_t f
          * written a slice ago and, on a large grid, the vertices computed
          * since have pushed them out of the near caches. */
         if (mode)
-            for (int e = 0; e < 12; e++)
-                __builtin_prefetch(ep[e] + i0);
+            prefetch_ids(ep, i0);
         if (!narrow)
             row_cases(a, b, cc, d, i0, i1, cases);
         for (int64_t word = i0; word <= i1; word += 16) {
@@ -1713,8 +1698,7 @@ march_layer_as(worker *w, int64_t k, int mode, int general, int flip, uint64_t f
           if (i1 - word < 15)
               mixed = first_bits(mixed, i1 - word + 1);
           if (mode && word + 16 <= i1) /* the next 16 cubes' id lines */
-              for (int e = 0; e < 12; e++)
-                  __builtin_prefetch(ep[e] + word + 16);
+              prefetch_ids(ep, word + 16);
           while (mixed) {
             const int64_t i = word + __builtin_ctz(mixed);
             mixed &= mixed - 1;
