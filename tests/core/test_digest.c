@@ -1,11 +1,14 @@
 /*
  * test_digest.c - one line per extraction: its case, vertex and triangle
  * counts and a 64-bit FNV-1a digest of the mesh's bytes (positions, normals,
- * triangles, origins).  Built twice, against the library as shipped (SSE2
- * scanning, and on AVX2 machines four vertices at a time) and against the
- * portable build (ISOMEND_NO_SIMD); the test core_simd_identical requires the
- * two outputs to be equal, i.e. every vectorised path to give the scalar
- * path's mesh bit for bit.
+ * triangles, origins) and of the statistics.  Built against the library as
+ * shipped (SSE2 scanning, and on AVX2 machines four vertices at a time; two
+ * threads, so the two passes), against the portable build (ISOMEND_NO_SIMD)
+ * and against a build that takes the one-pass path at one thread
+ * (DIGEST_THREADS=1).  The tests core_simd_identical and
+ * core_one_pass_identical require the outputs to equal the first, i.e. every
+ * vectorised path to give the scalar path's mesh bit for bit, and the one
+ * pass the two passes' mesh and statistics.
  *
  * The cases: every sample type; a dense field (many crossings per row: the
  * wide-span path) and a sphere (a few per row: the lists); odd sizes with the
@@ -19,6 +22,10 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+
+#ifndef DIGEST_THREADS
+#define DIGEST_THREADS 2
+#endif
 
 enum { NX = 53, NY = 38, NZ = 41 };
 
@@ -95,7 +102,7 @@ static int run(const char *name, const isomend_volume *vol, double iso, isomend_
     o.iso = iso;
     o.method = method;
     o.flags = flags;
-    o.threads = 2;
+    o.threads = DIGEST_THREADS;
     isomend_mesh *m = NULL;
     isomend_stats st;
     const isomend_status s = isomend_extract(vol, &o, &m, &st);
@@ -111,6 +118,7 @@ static int run(const char *name, const isomend_volume *vol, double iso, isomend_
     h = fnv(h, isomend_mesh_triangles(m), sizeof(uint32_t) * 3 * nt);
     if (isomend_mesh_triangle_origins(m))
         h = fnv(h, isomend_mesh_triangle_origins(m), nt);
+    h = fnv(h, &st, sizeof st); /* the statistics too */
     printf("%-34s %s flags %u: %7zu vertices %7zu triangles %016llx\n", name,
            isomend_method_name(method), flags, nv, nt, (unsigned long long)h);
     isomend_mesh_destroy(m);
