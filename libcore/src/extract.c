@@ -2018,9 +2018,10 @@ static void *output_alloc(size_t size)
 /*
  * The one-pass path's output arrays: an anonymous mapping of `size` bytes
  * (the array's largest possible size) that reserves address space, not
- * memory (MAP_NORESERVE), aligned to 2 MiB for transparent huge pages.
- * NULL when the system refuses (strict overcommit, an address-space limit):
- * the caller then takes the two passes.
+ * memory (MAP_NORESERVE), aligned to 2 MiB and offered for transparent huge
+ * pages from byte `huge_from` (a multiple of 2 MiB) on.  NULL when the system
+ * refuses (strict overcommit, an address-space limit): the caller then takes
+ * the two passes.
  */
 static size_t reserved_size(size_t size)
 {
@@ -2028,7 +2029,7 @@ static size_t reserved_size(size_t size)
     return (size + huge - 1) & ~(huge - 1);
 }
 
-static void *reserve_output(size_t size)
+static void *reserve_output(size_t size, size_t huge_from)
 {
 #if defined(__linux__) && defined(MAP_NORESERVE)
     const size_t huge = (size_t)2 << 20;
@@ -2044,21 +2045,25 @@ static void *reserve_output(size_t size)
         munmap(p, head);
     munmap(p + head + size, huge - head);
 #if defined(MADV_HUGEPAGE)
-    (void)madvise(p + head, size, MADV_HUGEPAGE);
+    if (huge_from < size)
+        (void)madvise(p + head + huge_from, size - huge_from, MADV_HUGEPAGE);
 #endif
     return p + head;
 #else
     (void)size;
+    (void)huge_from;
     return NULL;
 #endif
 }
 
-/* Unmaps the part of a reservation of `size` bytes past the huge page
- * holding byte `used` - 1; returns the length kept mapped. */
+/* Unmaps the part of a reservation of `size` bytes past its first `used`
+ * bytes (rounded up to a page: the last huge page is split, and the mesh
+ * then holds no more than it uses); returns the length kept mapped. */
 static size_t trim_output(void *p, size_t size, size_t used)
 {
 #if defined(__linux__) && defined(MAP_NORESERVE)
-    used = reserved_size(used ? used : 1);
+    const size_t page = (size_t)sysconf(_SC_PAGESIZE);
+    used = used ? (used + page - 1) / page * page : page;
     if (used < size)
         munmap((char *)p + used, size - used);
     return used < size ? used : size;
@@ -2121,7 +2126,9 @@ static isomend_status one_pass(ctx *c, worker *w, isomend_mesh **out, uint64_t *
     for (int q = 0; q < 4; q++) {
         if (!size[q])
             continue;
-        p[q] = reserve_output(size[q]);
+        /* The origins (a byte a triangle) are often under 2 MiB: huge pages
+         * from there on only, or a huge page would hold ~2 MiB of nothing. */
+        p[q] = reserve_output(size[q], q == 3 ? (size_t)2 << 20 : 0);
         if (!p[q]) {
             for (int r = 0; r < q; r++)
                 release_output(p[r], p[r] ? reserved_size(size[r]) : 0);
