@@ -10,8 +10,10 @@
  * (positions, normals, triangles, origins, bit for bit) and the statistics
  * must not change.  The volumes are larger and less regular than the core's
  * random tests: odd sizes so chunks end mid-volume, smooth fields with many
- * mending quads, integer ties at the level, NaNs, a negative-stride view, and
- * a volume thinner than one chunk.
+ * mending quads, integer ties at the level, NaNs, a negative-stride view, a
+ * volume thinner than one chunk, and one above the one-pass threshold (2^21
+ * samples: at 1 thread MC, Durst and DMC then sweep the volume once, into
+ * reserved arrays, where more threads take the two passes).
  */
 #include "isomend.h"
 #include "testutil.h"
@@ -87,24 +89,35 @@ static int same_mesh(const isomend_mesh *a, const isomend_mesh *b)
  * mending triangles of DMC at 1 thread, so callers can check the volume
  * exercised the mending.
  */
-static uint64_t check_volume(const char *name, const isomend_volume *vol, double iso)
+static uint64_t check_volume_as(const char *name, const isomend_volume *vol, double iso,
+                                int light)
 {
     static const isomend_method methods[] = {ISOMEND_METHOD_MC, ISOMEND_METHOD_DURST,
                                              ISOMEND_METHOD_DMC};
     static const unsigned flag_sets[] = {0, ISOMEND_FLAG_PAD, ISOMEND_FLAG_NO_NORMALS,
                                          ISOMEND_FLAG_FLIP | ISOMEND_FLAG_PAD,
                                          ISOMEND_FLAG_NO_ORIGINS};
+    /* light: the flag sets that change the one-pass path's output (padding and
+     * flip, no origins) at 1, 2 and 8 threads */
+    static const unsigned light_flags[] = {0, ISOMEND_FLAG_FLIP | ISOMEND_FLAG_PAD,
+                                           ISOMEND_FLAG_NO_ORIGINS | ISOMEND_FLAG_NO_NORMALS};
+    const unsigned *flags = light ? light_flags : flag_sets;
+    const size_t nflags = light ? sizeof(light_flags) / sizeof(light_flags[0])
+                                : sizeof(flag_sets) / sizeof(flag_sets[0]);
     uint64_t mended = 0;
     for (size_t m = 0; m < sizeof(methods) / sizeof(methods[0]); m++) {
-        for (size_t f = 0; f < sizeof(flag_sets) / sizeof(flag_sets[0]); f++) {
+        for (size_t f = 0; f < nflags; f++) {
             isomend_mesh *ref = NULL;
             isomend_stats ref_stats;
             for (int t = 0; t < NTHREADS; t++) {
+                if (light && thread_counts[t] != 1 && thread_counts[t] != 2 &&
+                    thread_counts[t] != 8)
+                    continue;
                 isomend_options o;
                 isomend_options_init(&o);
                 o.iso = iso;
                 o.method = methods[m];
-                o.flags = flag_sets[f];
+                o.flags = flags[f];
                 o.threads = thread_counts[t];
                 isomend_mesh *mesh = NULL;
                 isomend_stats st;
@@ -116,14 +129,14 @@ static uint64_t check_volume(const char *name, const isomend_volume *vol, double
                     ref = mesh;
                     ref_stats = st;
                     CHECK(isomend_mesh_triangle_count(ref) > 0);
-                    if (methods[m] == ISOMEND_METHOD_DMC && flag_sets[f] == 0)
+                    if (methods[m] == ISOMEND_METHOD_DMC && flags[f] == 0)
                         mended = st.triangles_by_origin[ISOMEND_ORIGIN_MEND];
                     continue;
                 }
                 int same = same_mesh(ref, mesh), same_st = same_stats(&ref_stats, &st);
                 if (!same || !same_st)
                     fprintf(stderr, "%s: %s flags 0x%x: %d threads differ from 1 (%s)\n", name,
-                            isomend_method_name(methods[m]), flag_sets[f], thread_counts[t],
+                            isomend_method_name(methods[m]), flags[f], thread_counts[t],
                             !same ? "mesh" : "statistics");
                 CHECK(same);
                 CHECK(same_st);
@@ -133,6 +146,11 @@ static uint64_t check_volume(const char *name, const isomend_volume *vol, double
         }
     }
     return mended;
+}
+
+static uint64_t check_volume(const char *name, const isomend_volume *vol, double iso)
+{
+    return check_volume_as(name, vol, iso, 0);
 }
 
 int main(void)
@@ -192,5 +210,16 @@ int main(void)
         free(u);
     }
     free(f);
+
+    /* Above the one-pass threshold: 131 x 127 x 128 = 2 129 536 samples. */
+    const int bx = 131, by = 127, bz = 128;
+    float *big = wave_field(bx, by, bz, 8, 0.5);
+    CHECK(big != NULL);
+    if (big) {
+        isomend_volume vb;
+        isomend_volume_init(&vb, big, ISOMEND_F32, bx, by, bz);
+        CHECK(check_volume_as("f32 waves, 2^21 samples and more", &vb, 0.1, 1) > 100);
+        free(big);
+    }
     TEST_EXIT();
 }
