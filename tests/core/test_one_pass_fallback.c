@@ -1,0 +1,115 @@
+/*
+ * test_one_pass_fallback.c - the one-pass path (one thread, MC/Durst/DMC, a
+ * grid of 2^21 samples or more) reserves its output arrays at the largest
+ * size the grid allows, hundreds of MB of address space for this volume.
+ * Where the system refuses that (here an address-space limit, RLIMIT_AS, as
+ * `ulimit -v` sets it; strict overcommit does the same), the extraction must
+ * still succeed, through the two passes, with the same mesh and statistics.
+ *
+ * Not under the sanitizers: their shadow memory does not fit an address-space
+ * limit.
+ */
+#define _DEFAULT_SOURCE /* MAP_ANONYMOUS, MAP_NORESERVE */
+#include "isomend.h"
+#include "testutil.h"
+
+#include <math.h>
+#include <stdint.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/mman.h>
+#include <sys/resource.h>
+
+enum { NX = 131, NY = 127, NZ = 128 }; /* 2 129 536 samples */
+
+static isomend_mesh *extract(const isomend_volume *vol, isomend_method method,
+                             isomend_stats *st, isomend_status *status)
+{
+    isomend_options o;
+    isomend_options_init(&o);
+    o.method = method;
+    o.threads = 1;
+    isomend_mesh *m = NULL;
+    *status = isomend_extract(vol, &o, &m, st);
+    return m;
+}
+
+static int same_mesh(const isomend_mesh *a, const isomend_mesh *b)
+{
+    const size_t nv = isomend_mesh_vertex_count(a), nt = isomend_mesh_triangle_count(a);
+    return nv == isomend_mesh_vertex_count(b) && nt == isomend_mesh_triangle_count(b) &&
+           !memcmp(isomend_mesh_positions(a), isomend_mesh_positions(b), 12 * nv) &&
+           !memcmp(isomend_mesh_normals(a), isomend_mesh_normals(b), 12 * nv) &&
+           !memcmp(isomend_mesh_triangles(a), isomend_mesh_triangles(b), 12 * nt) &&
+           !memcmp(isomend_mesh_triangle_origins(a), isomend_mesh_triangle_origins(b), nt);
+}
+
+/* Bytes of address space the process uses now (VmSize). */
+static long long vm_size(void)
+{
+    FILE *f = fopen("/proc/self/status", "r");
+    char line[256];
+    long long kb = -1;
+    while (f && fgets(line, sizeof line, f))
+        if (sscanf(line, "VmSize: %lld kB", &kb) == 1)
+            break;
+    if (f)
+        fclose(f);
+    return kb < 0 ? -1 : kb * 1024;
+}
+
+int main(void)
+{
+    /* Two interleaved spheres: closed surfaces with many ambiguous faces. */
+    float *v = malloc(sizeof(float) * NX * NY * NZ);
+    CHECK(v != NULL);
+    if (!v)
+        TEST_EXIT();
+    for (int z = 0; z < NZ; z++)
+        for (int y = 0; y < NY; y++)
+            for (int x = 0; x < NX; x++)
+                v[((size_t)z * NY + y) * NX + x] =
+                    (float)(sin(0.31 * x) * cos(0.27 * y) + sin(0.23 * z) * cos(0.29 * x) +
+                            0.4 - sqrt((x - 65.0) * (x - 65.0) + (y - 63.0) * (y - 63.0) +
+                                       (z - 64.0) * (z - 64.0)) / 60.0);
+    isomend_volume vol;
+    isomend_volume_init(&vol, v, ISOMEND_F32, NX, NY, NZ);
+
+    static const isomend_method methods[] = {ISOMEND_METHOD_MC, ISOMEND_METHOD_DMC};
+    isomend_mesh *ref[2];
+    isomend_stats ref_st[2];
+    for (int q = 0; q < 2; q++) {
+        isomend_status s;
+        ref[q] = extract(&vol, methods[q], &ref_st[q], &s);
+        CHECK_EQ_INT(s, ISOMEND_OK);
+        CHECK(ref[q] && isomend_mesh_triangle_count(ref[q]) > 10000);
+    }
+
+    /* Room for the two passes (a few MB of mesh and work arrays), not for the
+     * one-pass reservations (the triangles' alone are 10 a cube, 250 MB). */
+    const long long now = vm_size();
+    CHECK(now > 0);
+    struct rlimit lim = {(rlim_t)(now + (96LL << 20)), RLIM_INFINITY};
+    CHECK_EQ_INT(setrlimit(RLIMIT_AS, &lim), 0);
+    void *probe = mmap(NULL, (size_t)256 << 20, PROT_READ | PROT_WRITE,
+                       MAP_PRIVATE | MAP_ANONYMOUS | MAP_NORESERVE, -1, 0);
+    CHECK(probe == MAP_FAILED); /* the limit does refuse a reservation that size */
+    if (probe != MAP_FAILED)
+        munmap(probe, (size_t)256 << 20);
+
+    for (int q = 0; q < 2; q++) {
+        isomend_status s;
+        isomend_stats st;
+        isomend_mesh *m = extract(&vol, methods[q], &st, &s);
+        CHECK_EQ_INT(s, ISOMEND_OK);
+        if (m && ref[q]) {
+            CHECK(same_mesh(ref[q], m));
+            CHECK(memcmp(&st, &ref_st[q], sizeof st) == 0);
+        }
+        isomend_mesh_destroy(m);
+        isomend_mesh_destroy(ref[q]);
+    }
+    free(v);
+    TEST_EXIT();
+}
