@@ -1651,9 +1651,11 @@ march_layer_as(worker *w, int64_t k, int mode, int general, int flip, uint64_t f
     uint64_t ntri = 0, busy = 0;
     uint32_t *out = write ? c->tri + 3 * first : NULL;
     uint8_t *org = write && c->org ? c->org + first : NULL;
-    /* The table's triangles' origins at once when the layer's count is known
-     * (else per cube); the quadrilaterals' are written by index (the general
-     * methods write theirs as they go). */
+    /* The table's triangles' origins at once when the layer's count is known;
+     * in the one pass (mode 2) the origins are a fresh reservation, whose zero
+     * bytes already say ISOMEND_ORIGIN_TABLE.  The quadrilaterals' are written
+     * by index (the general methods write theirs as they go). */
+    _Static_assert(ISOMEND_ORIGIN_TABLE == 0, "mode 2 leaves table origins as zero bytes");
     if (org && !general && !count)
         memset(org, ISOMEND_ORIGIN_TABLE, (size_t)(c->layer_first[k + 1] - first));
     const uint32_t *const out_first = out;
@@ -1738,8 +1740,6 @@ march_layer_as(worker *w, int64_t k, int mode, int general, int flip, uint64_t f
             }
             if (write && !general) {
                 const signed char *te = isomend_mc_tri_edges[cfg];
-                if (org && count)
-                    memset(org + (out - out_first) / 3, ISOMEND_ORIGIN_TABLE, nt);
                 for (unsigned q = 0; q < nt; q++, te += 3) {
                     uint32_t v0 = ep[te[0]][i], v1 = ep[te[1]][i], v2 = ep[te[2]][i];
                     out[0] = v0;
