@@ -1621,9 +1621,9 @@ static unsigned method_cube(worker *w, int64_t i, int64_t j, int64_t k, unsigned
 /*
  * Marches layer k.  mode 0 counts triangles and statistics; mode 1 writes
  * the triangles from index `first`; mode 2 (the one-pass path, table methods)
- * does both.  `general` is c->general and `flip`
- * c->flip, passed so that march_layer can compile the loop with them as
- * constants.  Returns the number of triangles.
+ * does both.  `general` is c->general and `flip` c->flip, passed so that
+ * march_layer can compile the loop with them as constants.  Returns the
+ * number of triangles.
  */
 static inline __attribute__((always_inline)) uint64_t
 march_layer_as(worker *w, int64_t k, int mode, int general, int flip, uint64_t first)
@@ -2132,7 +2132,7 @@ static isomend_status one_pass(ctx *c, worker *w, isomend_mesh **out, uint64_t *
         p[q] = reserve_output(size[q], q == 3 ? (size_t)2 << 20 : 0);
         if (!p[q]) {
             for (int r = 0; r < q; r++)
-                release_output(p[r], p[r] ? reserved_size(size[r]) : 0);
+                release_output(p[r], mesh->mapped[r]);
             free(mesh);
             return ISOMEND_ERR_UNSUPPORTED;
         }
@@ -2256,7 +2256,6 @@ isomend_status isomend_extract(const isomend_volume *vol, const isomend_options 
         nthreads = (int)c->nchunks;
 
     isomend_mesh *mesh = NULL;
-    double box[6];
     worker *ws = calloc((size_t)nthreads, sizeof(*ws));
     c->slice_first = calloc((size_t)N2 + 1, sizeof(uint64_t));
     c->layer_first = calloc((size_t)N2, sizeof(uint64_t));
@@ -2271,10 +2270,6 @@ isomend_status isomend_extract(const isomend_volume *vol, const isomend_options 
             goto done;
         }
     ws[0].is_main = 1;
-    for (int a = 0; a < 3; a++) {
-        box[a] = g->o[a];
-        box[3 + a] = g->o[a] + (double)(g->N[a] - 1) * g->h[a];
-    }
 
     uint64_t nv = 0, nt = 0;
     if (nthreads == 1 && !c->general &&
@@ -2283,7 +2278,6 @@ isomend_status isomend_extract(const isomend_volume *vol, const isomend_options 
         if (status != ISOMEND_ERR_UNSUPPORTED) {
             if (status != ISOMEND_OK)
                 goto done;
-            memcpy(mesh->box, box, sizeof box);
             goto finish;
         }
     }
@@ -2356,7 +2350,6 @@ isomend_status isomend_extract(const isomend_volume *vol, const isomend_options 
     if (!mesh->pos || !mesh->tri || (c->want_normals && !mesh->nrm) ||
         (c->want_origins && !mesh->org))
         goto done;
-    memcpy(mesh->box, box, sizeof box);
     c->pos = mesh->pos;
     c->nrm = mesh->nrm;
     c->tri = mesh->tri;
@@ -2371,6 +2364,10 @@ isomend_status isomend_extract(const isomend_volume *vol, const isomend_options 
         goto done;
 
 finish:
+    for (int a = 0; a < 3; a++) {
+        mesh->box[a] = g->o[a];
+        mesh->box[3 + a] = g->o[a] + (double)(g->N[a] - 1) * g->h[a];
+    }
     if (c->progress)
         (void)c->progress(c->progress_user, 1.0);
     if (stats) {
