@@ -408,7 +408,19 @@ def load_floor(path):
     lib.isomend_bench_sum_f32.restype = ctypes.c_double
     lib.isomend_bench_sum_u8.argtypes = [ctypes.c_void_p, ctypes.c_size_t, ctypes.c_int]
     lib.isomend_bench_sum_u8.restype = ctypes.c_double
+    lib.isomend_bench_page_cost.argtypes = [ctypes.c_size_t, ctypes.POINTER(ctypes.c_double)]
+    lib.isomend_bench_page_cost.restype = ctypes.c_int
     return lib
+
+
+def page_cost(path, mb):
+    """The kernel's price of fresh memory now (ms per MB): 2 MiB pages the first time,
+    2 MiB pages reused, 4 KiB pages reused (floor.c, isomend_bench_page_cost)."""
+    lib = load_floor(path)
+    out = (ctypes.c_double * 3)()
+    if not lib or lib.isomend_bench_page_cost(mb, out) != 0:
+        return None
+    return [round(x, 3) for x in out]
 
 
 def floor_sum(lib, a, threads):
@@ -755,6 +767,8 @@ def main(argv=None):
     info["started"] = datetime.datetime.utcnow().strftime("%Y-%m-%d %H:%M UTC")
     info["repeats"] = repeats
     info["calls"] = args.calls
+    if args.floor_lib:
+        info["page_cost"] = page_cost(args.floor_lib, 16 if args.smoke else 256)
     results = []
     try:
         for (field, n, dtype) in plan(args):
@@ -787,6 +801,8 @@ def main(argv=None):
     print("[bench] done in %.0f s" % info["seconds"], file=sys.stderr)
     if args.check:
         problems = check(results, peers)
+        if args.floor_lib and not (info.get("page_cost") and min(info["page_cost"]) > 0):
+            problems.append("the fresh-memory cost was not measured (isomend_bench_page_cost)")
         for p in problems:
             print("bench.py: check: %s" % p, file=sys.stderr)
         return 1 if problems else 0
@@ -892,6 +908,14 @@ def render(info, results, thread_counts):
          _first_extra(results, "version") or "?", info.get("git", "?"), info.get("vtk", "?"),
          info.get("vtk_smp", "?"), info.get("skimage", "?"), info.get("openvdb", "?"),
          info.get("numpy", "?"), info.get("python")))
+    pc = info.get("page_cost")
+    if pc:
+        w("Fresh memory at the start of the run (the kernel zeroing the pages a process "
+          "touches first, which every extractor pays for its output): 2 MiB pages %.3g ms/MB "
+          "the first time, %.3g ms/MB reused; 4 KiB pages %.3g ms/MB reused. A first time "
+          "far above the reused figure means the host had taken the memory back (free page "
+          "reporting); calls then pay that price on part of their output.\n"
+          % (pc[0], pc[1], pc[2]))
     ok = [r for r in results if "times" in r]
     one = [r for r in ok if r["threads"] == 1]
     wall = sum(sum(r["times"]) for r in one)

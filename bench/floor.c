@@ -15,10 +15,15 @@
  * Exact IEEE arithmetic (no -ffast-math): the accumulators are combined in a
  * fixed order, so a result depends only on the thread count.
  */
+#define _DEFAULT_SOURCE /* MAP_ANONYMOUS, madvise */
 #include <pthread.h>
 #include <stddef.h>
 #include <stdint.h>
 #include <string.h>
+#include <time.h>
+#if defined(__linux__)
+#include <sys/mman.h>
+#endif
 
 #if defined(__GNUC__)
 #define FLOOR_API __attribute__((visibility("default")))
@@ -29,6 +34,7 @@
 FLOOR_API double isomend_bench_sum_f32(const float *data, size_t n, int threads);
 FLOOR_API double isomend_bench_sum_u8(const uint8_t *data, size_t n, int threads);
 FLOOR_API int isomend_bench_floor_max_threads(void);
+FLOOR_API int isomend_bench_page_cost(size_t mb, double out[3]);
 
 enum { MAX_THREADS = 64, LANES = 16 };
 
@@ -132,3 +138,72 @@ double isomend_bench_sum_u8(const uint8_t *data, size_t n, int threads)
 }
 
 int isomend_bench_floor_max_threads(void) { return MAX_THREADS; }
+
+/*
+ * The kernel's price for fresh memory, which every extractor pays on its
+ * output: milliseconds per MB to fault in (touch one byte of every 4 KiB of)
+ * `mb` MB of anonymous memory.  out[0]: 2 MiB pages, the first time in this
+ * process; out[1]: 2 MiB pages again (median of 4 rounds, the memory just
+ * given back); out[2]: 4 KiB pages again (median of 4).  On a virtual machine
+ * whose host takes freed memory back (free page reporting), out[0] can be
+ * many times out[1]: the host must find the pages too.  Returns 0, or -1
+ * where this cannot be measured.
+ */
+static double now_ms(void)
+{
+    struct timespec t;
+    clock_gettime(CLOCK_MONOTONIC, &t);
+    return (double)t.tv_sec * 1e3 + (double)t.tv_nsec * 1e-6;
+}
+
+#if defined(__linux__) && defined(MADV_HUGEPAGE) && defined(MADV_NOHUGEPAGE)
+static double touch_round(size_t size, int huge_pages)
+{
+    const size_t huge = (size_t)2 << 20;
+    char *p = mmap(NULL, size + huge, PROT_READ | PROT_WRITE, MAP_PRIVATE | MAP_ANONYMOUS, -1, 0);
+    if (p == MAP_FAILED)
+        return -1.0;
+    char *q = (char *)(((uintptr_t)p + huge - 1) & ~(uintptr_t)(huge - 1));
+    (void)madvise(q, size, huge_pages ? MADV_HUGEPAGE : MADV_NOHUGEPAGE);
+    const double t0 = now_ms();
+    for (size_t i = 0; i < size; i += 4096)
+        ((volatile char *)q)[i] = 1;
+    const double ms = now_ms() - t0;
+    munmap(p, size + huge);
+    return ms / (double)(size >> 20);
+}
+
+static double median4(double v[4])
+{
+    for (int i = 1; i < 4; i++)
+        for (int j = i; j > 0 && v[j] < v[j - 1]; j--) {
+            const double t = v[j];
+            v[j] = v[j - 1];
+            v[j - 1] = t;
+        }
+    return 0.5 * (v[1] + v[2]);
+}
+
+int isomend_bench_page_cost(size_t mb, double out[3])
+{
+    if (mb < 2 || mb > ((size_t)1 << 20))
+        return -1;
+    const size_t size = mb << 20;
+    double v[4];
+    out[0] = touch_round(size, 1);
+    for (int r = 0; r < 4; r++)
+        v[r] = touch_round(size, 1);
+    out[1] = median4(v);
+    for (int r = 0; r < 4; r++)
+        v[r] = touch_round(size, 0);
+    out[2] = median4(v);
+    return out[0] < 0 || out[1] < 0 || out[2] < 0 ? -1 : 0;
+}
+#else
+int isomend_bench_page_cost(size_t mb, double out[3])
+{
+    (void)mb;
+    out[0] = out[1] = out[2] = -1.0;
+    return -1;
+}
+#endif
