@@ -77,10 +77,12 @@
 #if defined(__SSE2__) && !defined(ISOMEND_NO_SIMD)
 #include <emmintrin.h>
 #endif
-/* Four vertices at once on AVX2 (vertex4 below), chosen at run time. */
+/* AVX2 paths, chosen at run time (grid.avx2): four vertices at once (vertex4
+ * below) and the float32 classification (classify_f32_avx2). */
 #if defined(__x86_64__) && (defined(__GNUC__) || defined(__clang__)) && \
     !defined(ISOMEND_NO_SIMD)
 #define ISOMEND_VERTEX4 1
+#define ISOMEND_CLASSIFY_AVX2 1
 #include <immintrin.h>
 #endif
 
@@ -111,7 +113,7 @@ typedef struct grid {
     int constant;  /* integer types: -1 none, 0 all out, 1 all in */
     int64_t ithr;  /* integer types: inside iff v >= ithr           */
     float fthr;    /* f32: the smallest float >= iso               */
-    int avx2;      /* classify_f32_avx2 may be used                 */
+    int avx2;      /* the CPU runs the AVX2 paths                   */
 } grid;
 
 /* Sample (i, j, k) of the marched grid as a double; NaN for padding. */
@@ -201,9 +203,7 @@ DEFINE_CLASSIFY(classify_i32, int32_t)
 DEFINE_CLASSIFY(classify_f32, float)
 DEFINE_CLASSIFY(classify_f64, double)
 
-#if defined(__x86_64__) && (defined(__GNUC__) || defined(__clang__)) && \
-    !defined(ISOMEND_NO_SIMD)
-#define ISOMEND_CLASSIFY_AVX2 1
+#if ISOMEND_CLASSIFY_AVX2
 /*
  * classify_f32 on a contiguous row, written out for AVX2: 32 samples a step
  * in about 20 instructions (6 more to look for NaNs) where the compiler's
@@ -2290,7 +2290,7 @@ isomend_status isomend_extract(const isomend_volume *vol, const isomend_options 
             g->st[a] = vol->strides[a];
     }
     grid_threshold(g);
-#if ISOMEND_CLASSIFY_AVX2
+#if ISOMEND_VERTEX4 || ISOMEND_CLASSIFY_AVX2
     g->avx2 = __builtin_cpu_supports("avx2");
 #endif
     c->method = o->method;
@@ -2301,7 +2301,7 @@ isomend_status isomend_extract(const isomend_volume *vol, const isomend_options 
     c->want_normals = !(o->flags & ISOMEND_FLAG_NO_NORMALS);
     c->want_origins = !(o->flags & ISOMEND_FLAG_NO_ORIGINS);
 #if ISOMEND_VERTEX4
-    c->vertex4 = c->want_normals && __builtin_cpu_supports("avx2");
+    c->vertex4 = c->want_normals && g->avx2;
 #endif
     c->progress = o->progress;
     c->progress_user = o->progress_user;
