@@ -33,7 +33,10 @@ How it is measured
   machine of docs/bench-results.md) that cost depends on
   what the previous process did, and two threads faulting at once contend for the
   host's page tables; the later calls measure the extractor in steady state, reusing
-  memory, as a program extracting many surfaces does.  The runs are made in rounds --
+  memory, as a program extracting many surfaces does.  Where the kernel has the
+  page_reporting module, the run records how much free memory it handed back to the host
+  (reported_kib) over the run and, in the JSON, from the end of each call to the end of
+  the next.  The runs are made in rounds --
   every extractor once, then again -- so that the extractors compared take turns on a
   shared machine.  Times are medians over all timed calls of all rounds.
 
@@ -391,6 +394,26 @@ def _status_kb(key):
     return 0
 
 
+# Free page reporting (virtio-balloon): the guest kernel hands free memory blocks
+# back to the host, which must then supply them again on first touch, at several
+# times the price of memory the guest still holds (see page_cost).  Its module
+# counts what it reported; None where the kernel has no such module.
+PAGE_REPORTING = "/sys/module/page_reporting/parameters"
+
+
+def _page_reporting(name):
+    try:
+        with open(os.path.join(PAGE_REPORTING, name)) as f:
+            return f.read().strip()
+    except OSError:
+        return None
+
+
+def _reported_kib():
+    v = _page_reporting("reported_kib")
+    return int(v) if v and v.isdigit() else None
+
+
 def _reset_peak():
     try:
         with open("/proc/self/clear_refs", "w") as f:
@@ -468,9 +491,13 @@ def child_main(args):
         nsum = float(a.sum(dtype=np.float64))
         numpy_times.append(time.perf_counter() - t0)
 
-    times, cpus, systems, peaks = [], [], [], []
+    times, cpus, systems, peaks, reported = [], [], [], [], []
     result = None
     first_times, first_cpus = [], []
+    # Memory the VM reported to its host from the end of the previous call (whose
+    # output is freed after it) to the end of this one: what the call may have had
+    # to get back from the host.
+    rep_prev = _reported_kib()
     for r in range(args.repeats + 1):
         gc.collect()
         have_peak = _reset_peak()
@@ -482,6 +509,9 @@ def child_main(args):
         ru1 = resource.getrusage(resource.RUSAGE_SELF)
         cpus.append(ru1.ru_utime - ru0.ru_utime + ru1.ru_stime - ru0.ru_stime)
         systems.append(ru1.ru_stime - ru0.ru_stime)  # the kernel's share (page faults)
+        rep = _reported_kib()
+        reported.append(None if rep is None or rep_prev is None else rep - rep_prev)
+        rep_prev = rep
         peak = _status_kb("VmHWM") - base if have_peak else None
         res = measure(out)
         del out
@@ -490,6 +520,7 @@ def child_main(args):
             first_times.append(dt)
             first_cpus.append(cpus.pop())
             systems.pop()
+            reported.pop()
         else:
             times.append(dt)
         if result is None:
@@ -499,6 +530,7 @@ def child_main(args):
     ntri, nvert, nbytes, extra = result
     extra.pop("keep", None)
     json.dump({"times": times, "cpu_times": cpus, "sys_times": systems,
+               "reported_kib": reported,
                "first_times": first_times,
                "first_cpu_times": first_cpus,
                "peak_extra_kb": None if None in peaks else max(peaks),
@@ -649,8 +681,8 @@ def measure_volume(args, peers, field, n, dtype, vol_path, iso, t, thread_counts
                 a.clear()
                 a["error"] = "output changed between runs"
             else:
-                for key in ("times", "cpu_times", "sys_times", "first_times", "first_cpu_times",
-                            "floor_times", "numpy_sum_times"):
+                for key in ("times", "cpu_times", "sys_times", "reported_kib", "first_times",
+                            "first_cpu_times", "floor_times", "numpy_sum_times"):
                     a[key] = a[key] + r[key]
                 if a["peak_extra_kb"] is not None and r["peak_extra_kb"] is not None:
                     a["peak_extra_kb"] = max(a["peak_extra_kb"], r["peak_extra_kb"])
@@ -769,6 +801,10 @@ def main(argv=None):
     info["calls"] = args.calls
     if args.floor_lib:
         info["page_cost"] = page_cost(args.floor_lib, 16 if args.smoke else 256)
+    if _reported_kib() is not None:
+        info["page_reporting"] = {"order": _page_reporting("page_reporting_order"),
+                                  "min_free_ms": _page_reporting("min_free_ms"),
+                                  "start_kib": _reported_kib()}
     results = []
     try:
         for (field, n, dtype) in plan(args):
@@ -789,6 +825,8 @@ def main(argv=None):
         if tmp_cache:
             shutil.rmtree(tmp_cache, ignore_errors=True)
     info["seconds"] = round(time.time() - started, 1)
+    if info.get("page_reporting") and _reported_kib() is not None:
+        info["page_reporting"]["run_kib"] = _reported_kib() - info["page_reporting"]["start_kib"]
     info["loadavg_end"] = os.getloadavg()
 
     if args.json:
@@ -842,6 +880,9 @@ def check(results, peers):
                                                                   r["numpy_sum"]))
         if not r["triangles"] and r["field"] != "colin27":
             problems.append("%s on %s: no triangles" % (r["label"], r["field"]))
+        rep = r.get("reported_kib", [])
+        if len(rep) != len(r["times"]) or (_reported_kib() is not None and None in rep):
+            problems.append("%s: memory reported to the host not recorded per call" % r["label"])
     for key, r in by.items():
         f, n, d, ext, t = key
         if ext == "isomend":
@@ -916,6 +957,11 @@ def render(info, results, thread_counts):
           "far above the reused figure means the host had taken the memory back (free page "
           "reporting); calls then pay that price on part of their output.\n"
           % (pc[0], pc[1], pc[2]))
+    pr = info.get("page_reporting")
+    if pr and "run_kib" in pr:
+        w("Free page reporting: this VM's kernel handed %.0f MB of free memory back to its "
+          "host during the run (page_reporting_order %s, min_free_ms %s).\n"
+          % (pr["run_kib"] / 1024, pr.get("order"), pr.get("min_free_ms")))
     ok = [r for r in results if "times" in r]
     one = [r for r in ok if r["threads"] == 1]
     wall = sum(sum(r["times"]) for r in one)
