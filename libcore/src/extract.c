@@ -206,13 +206,14 @@ DEFINE_CLASSIFY(classify_f64, double)
 #if ISOMEND_CLASSIFY_AVX2
 /*
  * classify_f32 on a contiguous row, written out for AVX2: 32 samples a step
- * in about 20 instructions (6 more to look for NaNs) where the compiler's
+ * in about 20 instructions (4 more to look for NaNs) where the compiler's
  * loop took about 40 (it masked each comparison twice and counted NaNs lane
  * by lane); NaNs, which are rare, are counted only in the steps that have
  * one.  Same results: `>=` is an ordered comparison, false for NaN, as in C.
  * The 256^3 float32 sphere: classification 24 -> 17 M instructions, the
  * extraction 115 -> 108 M; time 0.98-0.99x (0.93-0.96x at 512^3), as the
- * loop mostly waits on memory.
+ * loop mostly waits on memory.  Looking for NaNs with two compares instead
+ * of four: 108 -> 106 M, time 0.92-1.01x.
  */
 __attribute__((target("avx2"))) static uint64_t classify_f32_avx2(const float *restrict r,
                                                                    int64_t n, float t,
@@ -236,16 +237,16 @@ __attribute__((target("avx2"))) static uint64_t classify_f32_avx2(const float *r
         _mm256_storeu_si256((__m256i *)(void *)(o + i),
                             _mm256_and_si256(_mm256_permutevar8x32_epi32(b, order), one));
         if (count_nans) {
-            const __m256 u0 = _mm256_cmp_ps(x0, x0, _CMP_UNORD_Q);
-            const __m256 u1 = _mm256_cmp_ps(x1, x1, _CMP_UNORD_Q);
-            const __m256 u2 = _mm256_cmp_ps(x2, x2, _CMP_UNORD_Q);
-            const __m256 u3 = _mm256_cmp_ps(x3, x3, _CMP_UNORD_Q);
-            const __m256 u = _mm256_or_ps(_mm256_or_ps(u0, u1), _mm256_or_ps(u2, u3));
+            /* lane l is unordered when x0[l] or x1[l] is NaN: two compares
+             * tell whether the 32 samples hold one, four count them */
+            const __m256 u = _mm256_or_ps(_mm256_cmp_ps(x0, x1, _CMP_UNORD_Q),
+                                          _mm256_cmp_ps(x2, x3, _CMP_UNORD_Q));
             if (!_mm256_testz_ps(u, u))
-                nn += (uint64_t)(__builtin_popcount((unsigned)_mm256_movemask_ps(u0)) +
-                                 __builtin_popcount((unsigned)_mm256_movemask_ps(u1)) +
-                                 __builtin_popcount((unsigned)_mm256_movemask_ps(u2)) +
-                                 __builtin_popcount((unsigned)_mm256_movemask_ps(u3)));
+                nn += (uint64_t)(
+                    __builtin_popcount((unsigned)_mm256_movemask_ps(_mm256_cmp_ps(x0, x0, _CMP_UNORD_Q))) +
+                    __builtin_popcount((unsigned)_mm256_movemask_ps(_mm256_cmp_ps(x1, x1, _CMP_UNORD_Q))) +
+                    __builtin_popcount((unsigned)_mm256_movemask_ps(_mm256_cmp_ps(x2, x2, _CMP_UNORD_Q))) +
+                    __builtin_popcount((unsigned)_mm256_movemask_ps(_mm256_cmp_ps(x3, x3, _CMP_UNORD_Q))));
         }
     }
     for (; i < n; i++) {
