@@ -608,6 +608,7 @@ typedef struct ctx {
     int flip;
     int want_normals;
     int want_origins;
+    int small_pages;       /* ISOMEND_FLAG_SMALL_PAGES: no huge pages asked for */
     int vertex4;           /* vertices four at a time (AVX2, with normals)  */
     int64_t nchunks;
     int64_t chunk_layers;
@@ -2066,11 +2067,12 @@ static int worker_init(worker *w, ctx *c)
  * kernel for transparent huge pages: a large mesh otherwise spends a third
  * of its time in page faults (measured on 256^3 noise, 14.8 M triangles:
  * 90 000 faults per extraction).  Released with free() like any allocation.
+ * With ISOMEND_FLAG_SMALL_PAGES they are plain allocations.
  */
-static void *output_alloc(size_t size)
+static void *output_alloc(size_t size, int small_pages)
 {
     const size_t huge = (size_t)2 << 20;
-    if (size < huge)
+    if (size < huge || small_pages)
         return malloc(size ? size : 1);
     void *p = NULL;
     if (posix_memalign(&p, huge, size) != 0)
@@ -2085,7 +2087,8 @@ static void *output_alloc(size_t size)
  * The one-pass path's output arrays: an anonymous mapping of `size` bytes
  * (the array's largest possible size) that reserves address space, not
  * memory (MAP_NORESERVE), aligned to 2 MiB and offered for transparent huge
- * pages from byte `huge_from` (a multiple of 2 MiB) on.  NULL when the system
+ * pages from byte `huge_from` (a multiple of 2 MiB) on, or never (SIZE_MAX:
+ * ISOMEND_FLAG_SMALL_PAGES).  NULL when the system
  * refuses (strict overcommit, an address-space limit): the caller then takes
  * the two passes.
  */
@@ -2110,8 +2113,10 @@ static void *reserve_output(size_t size, size_t huge_from)
     if (head)
         munmap(p, head);
     munmap(p + head + size, huge - head);
-#if defined(MADV_HUGEPAGE)
-    if (huge_from < size)
+#if defined(MADV_HUGEPAGE) && defined(MADV_NOHUGEPAGE)
+    if (huge_from == SIZE_MAX) /* small pages, even where the kernel's policy is "always" */
+        (void)madvise(p + head, size, MADV_NOHUGEPAGE);
+    else if (huge_from < size)
         (void)madvise(p + head + huge_from, size - huge_from, MADV_HUGEPAGE);
 #endif
     return p + head;
@@ -2195,7 +2200,7 @@ static isomend_status one_pass(ctx *c, worker *w, isomend_mesh **out, uint64_t *
             continue;
         /* The origins (a byte a triangle) are often under 2 MiB: huge pages
          * from there on only, or a huge page would hold ~2 MiB of nothing. */
-        p[q] = reserve_output(size[q], q == 3 ? (size_t)2 << 20 : 0);
+        p[q] = reserve_output(size[q], c->small_pages ? SIZE_MAX : q == 3 ? (size_t)2 << 20 : 0);
         if (!p[q]) {
             for (int r = 0; r < q; r++)
                 release_output(p[r], mesh->mapped[r]);
@@ -2301,6 +2306,7 @@ isomend_status isomend_extract(const isomend_volume *vol, const isomend_options 
     c->flip = (o->flags & ISOMEND_FLAG_FLIP) != 0;
     c->want_normals = !(o->flags & ISOMEND_FLAG_NO_NORMALS);
     c->want_origins = !(o->flags & ISOMEND_FLAG_NO_ORIGINS);
+    c->small_pages = (o->flags & ISOMEND_FLAG_SMALL_PAGES) != 0;
 #if ISOMEND_VERTEX4
     c->vertex4 = c->want_normals && g->avx2;
 #endif
@@ -2410,12 +2416,12 @@ isomend_status isomend_extract(const isomend_volume *vol, const isomend_options 
         goto done;
     mesh->nv = (size_t)nv;
     mesh->nt = (size_t)nt;
-    mesh->pos = output_alloc(sizeof(float) * 3 * nv);
-    mesh->tri = output_alloc(sizeof(uint32_t) * 3 * nt);
+    mesh->pos = output_alloc(sizeof(float) * 3 * nv, c->small_pages);
+    mesh->tri = output_alloc(sizeof(uint32_t) * 3 * nt, c->small_pages);
     if (c->want_normals)
-        mesh->nrm = output_alloc(sizeof(float) * 3 * nv);
+        mesh->nrm = output_alloc(sizeof(float) * 3 * nv, c->small_pages);
     if (c->want_origins)
-        mesh->org = output_alloc(nt);
+        mesh->org = output_alloc(nt, c->small_pages);
     if (!mesh->pos || !mesh->tri || (c->want_normals && !mesh->nrm) ||
         (c->want_origins && !mesh->org))
         goto done;

@@ -78,6 +78,7 @@ def test_struct_layouts_and_constants_match_the_headers():
     assert isomend.FLAG_FLIP == c["ISOMEND_FLAG_FLIP"]
     assert isomend.FLAG_PAD == c["ISOMEND_FLAG_PAD"]
     assert isomend.FLAG_NO_ORIGINS == c["ISOMEND_FLAG_NO_ORIGINS"]
+    assert isomend.FLAG_SMALL_PAGES == c["ISOMEND_FLAG_SMALL_PAGES"]
     assert (isomend.ORIGIN_TABLE, isomend.ORIGIN_DURST, isomend.ORIGIN_MEND) == (
         c["ISOMEND_ORIGIN_TABLE"], c["ISOMEND_ORIGIN_DURST"], c["ISOMEND_ORIGIN_MEND"])
     assert isomend.IO_ERR_CANCELLED == c["ISOMEND_IO_ERR_CANCELLED"]
@@ -242,6 +243,16 @@ def test_every_dtype_gives_the_same_surface(dtype):
 def test_threads_do_not_change_the_mesh():
     vol = sphere(40, r=14, centre=(19.2, 20.1, 18.7))
     same_mesh(isomend.extract(vol, 0.0, threads=1), isomend.extract(vol, 0.0, threads=2))
+
+
+def test_small_pages_do_not_change_the_mesh(stack):
+    # one-pass (1 thread, 130^3 samples) and two-pass (2 threads) paths; Source too
+    vol = sphere(130, r=50, centre=(64.3, 65.1, 63.7))
+    for t in (1, 2):
+        same_mesh(isomend.extract(vol, 0.0, threads=t),
+                  isomend.extract(vol, 0.0, threads=t, small_pages=True))
+    same_mesh(isomend.extract_source(stack["folder"], iso=300.0),
+              isomend.extract_source(stack["folder"], iso=300.0, small_pages=True))
 
 
 def test_concurrent_calls_from_python_threads_agree():
