@@ -75,6 +75,11 @@ static const char *const usage_extract =
     "  --no-normals             write no vertex normals\n"
     "  --flip                   normals towards higher values, winding reversed\n"
     "  --threads N              worker threads, 0 = all cores (default)\n"
+    "  --pages auto|huge|small  memory pages of the mesh in memory: huge (transparent\n"
+    "                           huge pages, the library's default) or small; auto\n"
+    "                           (default): small on a virtual machine whose kernel\n"
+    "                           hands free memory back to its host, where a process\n"
+    "                           that extracts once finds huge pages slow, else huge\n"
     "  --stats                  print the case histogram (thesis Table-2) and where\n"
     "                           the triangles come from (table / mending / Durst)\n"
     "  --json FILE|-            write statistics, check and timings as one JSON object\n"
@@ -122,7 +127,8 @@ enum {
     OPT_SPACING = 1u << 4, OPT_ORIGIN = 1u << 5, OPT_PAD = 1u << 6, OPT_NO_NORMALS = 1u << 7,
     OPT_FLIP = 1u << 8, OPT_STATS = 1u << 9, OPT_JSON = 1u << 10, OPT_QUIET = 1u << 11,
     OPT_THREADS = 1u << 12, OPT_BOX = 1u << 13, OPT_FIRST = 1u << 14, OPT_COUNT = 1u << 15,
-    OPT_STEP = 1u << 16, OPT_CHANNEL = 1u << 17, OPT_GZIP = 1u << 18, OPT_HELP = 1u << 19
+    OPT_STEP = 1u << 16, OPT_CHANNEL = 1u << 17, OPT_GZIP = 1u << 18, OPT_HELP = 1u << 19,
+    OPT_PAGES = 1u << 20
 };
 
 static const struct {
@@ -137,7 +143,7 @@ static const struct {
     {"--quiet", OPT_QUIET, 0},   {"-q", OPT_QUIET, 0},        {"--threads", OPT_THREADS, 1},
     {"--box", OPT_BOX, 1},       {"--first", OPT_FIRST, 1},   {"--count", OPT_COUNT, 1},
     {"--step", OPT_STEP, 1},     {"--channel", OPT_CHANNEL, 1}, {"--gzip", OPT_GZIP, 0},
-    {"--help", OPT_HELP, 0},     {"-h", OPT_HELP, 0},
+    {"--help", OPT_HELP, 0},     {"-h", OPT_HELP, 0},         {"--pages", OPT_PAGES, 1},
 };
 
 #define MAX_SOURCES 4096
@@ -149,6 +155,7 @@ typedef struct args {
     int npositional;
     double iso;
     isomend_method method;
+    int pages; /* --pages: 0 auto, 1 huge, 2 small */
     double box[6];
     cli_source_opts src;
 } args;
@@ -360,6 +367,18 @@ static int parse_args(int argc, char **argv, int first, const char *command, uns
             if (!parse_count_option("--step", value, 1, &a->src.step)) return CLI_EXIT_USAGE;
             a->src.have_step = 1;
             break;
+        case OPT_PAGES:
+            if (strcmp(value, "auto") == 0)
+                a->pages = 0;
+            else if (strcmp(value, "huge") == 0)
+                a->pages = 1;
+            else if (strcmp(value, "small") == 0)
+                a->pages = 2;
+            else {
+                cli_error("--pages: '%s' is not auto, huge or small", value);
+                return CLI_EXIT_USAGE;
+            }
+            break;
         case OPT_CHANNEL: {
             int64_t c;
             if (strcmp(value, "luma") == 0)
@@ -485,7 +504,8 @@ static int cmd_extract(int argc, char **argv)
     args a;
     unsigned allowed = OPT_OUTPUT | OPT_ISO | OPT_METHOD | OPT_RAW | OPT_SPACING | OPT_ORIGIN |
                        OPT_PAD | OPT_NO_NORMALS | OPT_FLIP | OPT_STATS | OPT_JSON | OPT_QUIET |
-                       OPT_THREADS | OPT_FIRST | OPT_COUNT | OPT_STEP | OPT_CHANNEL | OPT_HELP;
+                       OPT_THREADS | OPT_FIRST | OPT_COUNT | OPT_STEP | OPT_CHANNEL | OPT_HELP |
+                       OPT_PAGES;
     int rc = parse_args(argc, argv, 2, "extract", allowed, &a);
     if (rc) return rc;
     if (a.seen & OPT_HELP) {
@@ -553,6 +573,10 @@ static int cmd_extract(int argc, char **argv)
     if (a.seen & OPT_PAD) opts.flags |= ISOMEND_FLAG_PAD;
     if (a.seen & OPT_NO_NORMALS) opts.flags |= ISOMEND_FLAG_NO_NORMALS;
     if (a.seen & OPT_FLIP) opts.flags |= ISOMEND_FLAG_FLIP;
+    /* one extraction per process: on a guest that hands free memory to its host,
+     * huge pages come back from the host at 3-4 ms/MB, small ones at ~0.7 */
+    const int small_pages = a.pages == 2 || (a.pages == 0 && cli_host_takes_free_memory(""));
+    if (small_pages) opts.flags |= ISOMEND_FLAG_SMALL_PAGES;
     opts.progress = cli_progress_extract_cb; /* the bar, and how Ctrl-C cancels */
     opts.progress_user = &bar;
     isomend_mesh *mesh = NULL;
@@ -595,9 +619,10 @@ static int cmd_extract(int argc, char **argv)
 
     if (!quiet) {
         print_source_line(text, &src);
-        fprintf(text, "%s at iso %.9g%s%s%s%s\n", isomend_method_name(a.method), a.iso,
+        fprintf(text, "%s at iso %.9g%s%s%s%s%s\n", isomend_method_name(a.method), a.iso,
                 iso_suggested ? " (suggested)" : "", (a.seen & OPT_PAD) ? ", padded" : "",
-                (a.seen & OPT_FLIP) ? ", flipped" : "", (a.seen & OPT_NO_NORMALS) ? ", no normals" : "");
+                (a.seen & OPT_FLIP) ? ", flipped" : "", (a.seen & OPT_NO_NORMALS) ? ", no normals" : "",
+                small_pages ? ", small pages" : "");
     }
     if (a.seen & OPT_STATS) cli_print_table2(text, &stats, a.method);
     if (!quiet) {
@@ -623,9 +648,9 @@ static int cmd_extract(int argc, char **argv)
         json_doubles(jf, v->origin, 3);
         fprintf(jf, ", \"method\": \"%s\", \"iso\": %.17g, \"iso_suggested\": %s",
                 isomend_method_name(a.method), a.iso, iso_suggested ? "true" : "false");
-        fprintf(jf, ", \"pad\": %s, \"flip\": %s, \"normals\": %s",
+        fprintf(jf, ", \"pad\": %s, \"flip\": %s, \"normals\": %s, \"pages\": \"%s\"",
                 (a.seen & OPT_PAD) ? "true" : "false", (a.seen & OPT_FLIP) ? "true" : "false",
-                (a.seen & OPT_NO_NORMALS) ? "false" : "true");
+                (a.seen & OPT_NO_NORMALS) ? "false" : "true", small_pages ? "small" : "huge");
         fprintf(jf, ", \"vertices\": %" PRIu64 ", \"triangles\": %" PRIu64, stats.vertices,
                 stats.triangles);
         fprintf(jf, ", \"triangles_by_origin\": {\"table\": %" PRIu64 ", \"durst\": %" PRIu64

@@ -314,6 +314,20 @@ def test_flags(r):
             fail("--threads", f"--threads {t} gives a different mesh")
         data = d
 
+    # --pages: small or huge pages for the mesh in memory, the same file; JSON says which
+    data = None
+    for pages in ("small", "huge", "auto"):
+        out, _ = expect_ok(r, f"--pages {pages}", ["extract", os.path.join(r.samples, "anatomical.nrrd"),
+                                                   "--iso", "7000", "--pages", pages, "--json", "-",
+                                                   "-q", "-o", f"p{pages}.ply"])
+        d = open(r.path(f"p{pages}.ply"), "rb").read()
+        if data is not None and d != data:
+            fail("--pages", f"--pages {pages} gives a different mesh")
+        data = d
+        got = json.loads(out).get("pages")
+        if got != pages and not (pages == "auto" and got in ("small", "huge")):
+            fail("--pages", f"--pages {pages}: JSON pages is {got!r}")
+
     # --stats: Table-2 and the triangle split
     out, err = expect_ok(r, "--stats", ["extract", "builtin:f1", "--iso", "0", "--stats", "-o", "st.ply"])
     for s in ("Case 0", "Case 3*", "Case 14", "Total cases", "Percentage",
@@ -617,7 +631,8 @@ def test_errors(r, have_io):
                                 ("--spacing", "1,-2,1", "--spacing"), ("--spacing", "1,2,x", "--spacing"),
                                 ("--spacing", "1,2,3,4", "--spacing"), ("--origin", "a,b,c", "--origin"),
                                 ("--origin", "1,2", "--origin"), ("--threads", "-1", "--threads"),
-                                ("--threads", "two", "--threads"), ("--threads", "99999", "--threads")):
+                                ("--threads", "two", "--threads"), ("--threads", "99999", "--threads"),
+                                ("--pages", "big", "--pages")):
         args = ["extract", "f1.nrrd", "-o", "o.ply", flag, value]
         if flag != "--iso":
             args += ok
