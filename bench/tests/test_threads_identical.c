@@ -16,6 +16,7 @@
  * reserved arrays, where more threads take the two passes).
  */
 #include "isomend.h"
+#include "meshcmp.h"
 #include "testutil.h"
 
 #include <math.h>
@@ -64,23 +65,6 @@ static float *wave_field(int nx, int ny, int nz, int waves, double freq)
 static int same_stats(const isomend_stats *a, const isomend_stats *b)
 {
     return memcmp(a, b, sizeof(*a)) == 0;
-}
-
-static int same_mesh(const isomend_mesh *a, const isomend_mesh *b)
-{
-    size_t nv = isomend_mesh_vertex_count(a), nt = isomend_mesh_triangle_count(a);
-    if (nv != isomend_mesh_vertex_count(b) || nt != isomend_mesh_triangle_count(b))
-        return 0;
-    if (memcmp(isomend_mesh_positions(a), isomend_mesh_positions(b), 12 * nv) ||
-        memcmp(isomend_mesh_triangles(a), isomend_mesh_triangles(b), 12 * nt))
-        return 0;
-    const float *na = isomend_mesh_normals(a), *nb = isomend_mesh_normals(b);
-    if ((na == NULL) != (nb == NULL) || (na && memcmp(na, nb, 12 * nv)))
-        return 0;
-    const uint8_t *oa = isomend_mesh_triangle_origins(a), *ob = isomend_mesh_triangle_origins(b);
-    if ((oa == NULL) != (ob == NULL) || (oa && memcmp(oa, ob, nt)))
-        return 0;
-    return 1;
 }
 
 /*

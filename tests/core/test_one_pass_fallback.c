@@ -11,6 +11,7 @@
  */
 #define _DEFAULT_SOURCE /* MAP_ANONYMOUS, MAP_NORESERVE */
 #include "isomend.h"
+#include "meshcmp.h"
 #include "testutil.h"
 
 #include <math.h>
@@ -33,16 +34,6 @@ static isomend_mesh *extract(const isomend_volume *vol, isomend_method method,
     isomend_mesh *m = NULL;
     *status = isomend_extract(vol, &o, &m, st);
     return m;
-}
-
-static int same_mesh(const isomend_mesh *a, const isomend_mesh *b)
-{
-    const size_t nv = isomend_mesh_vertex_count(a), nt = isomend_mesh_triangle_count(a);
-    return nv == isomend_mesh_vertex_count(b) && nt == isomend_mesh_triangle_count(b) &&
-           !memcmp(isomend_mesh_positions(a), isomend_mesh_positions(b), 12 * nv) &&
-           !memcmp(isomend_mesh_normals(a), isomend_mesh_normals(b), 12 * nv) &&
-           !memcmp(isomend_mesh_triangles(a), isomend_mesh_triangles(b), 12 * nt) &&
-           !memcmp(isomend_mesh_triangle_origins(a), isomend_mesh_triangle_origins(b), nt);
 }
 
 /* Bytes of address space the process uses now (VmSize). */

@@ -11,6 +11,7 @@
  *     view gives the same mesh as a contiguous copy.
  */
 #include "isomend.h"
+#include "meshcmp.h"
 #include "testutil.h"
 
 #include <math.h>
@@ -41,23 +42,6 @@ static isomend_mesh *extract(const isomend_volume *vol, double iso, isomend_meth
     isomend_status s = isomend_extract(vol, &o, &mesh, st);
     CHECK_EQ_INT(s, ISOMEND_OK);
     return mesh;
-}
-
-static int same_mesh(const isomend_mesh *a, const isomend_mesh *b)
-{
-    size_t nv = isomend_mesh_vertex_count(a), nt = isomend_mesh_triangle_count(a);
-    if (nv != isomend_mesh_vertex_count(b) || nt != isomend_mesh_triangle_count(b))
-        return 0;
-    if (memcmp(isomend_mesh_positions(a), isomend_mesh_positions(b), 12 * nv) ||
-        memcmp(isomend_mesh_triangles(a), isomend_mesh_triangles(b), 12 * nt))
-        return 0;
-    const float *na = isomend_mesh_normals(a), *nb = isomend_mesh_normals(b);
-    if ((na == NULL) != (nb == NULL) || (na && memcmp(na, nb, 12 * nv)))
-        return 0;
-    const uint8_t *oa = isomend_mesh_triangle_origins(a), *ob = isomend_mesh_triangle_origins(b);
-    if ((oa == NULL) != (ob == NULL) || (oa && memcmp(oa, ob, nt)))
-        return 0;
-    return 1;
 }
 
 static double signed_volume(const isomend_mesh *m)

@@ -10,6 +10,7 @@
  */
 #define _DEFAULT_SOURCE
 #include "isomend.h"
+#include "meshcmp.h"
 #include "testutil.h"
 
 #include <math.h>
@@ -69,16 +70,6 @@ static isomend_mesh *extract(const isomend_volume *vol, int threads, unsigned fl
     isomend_mesh *m = NULL;
     CHECK_EQ_INT(isomend_extract(vol, &o, &m, st), ISOMEND_OK);
     return m;
-}
-
-static int same_mesh(const isomend_mesh *a, const isomend_mesh *b)
-{
-    const size_t nv = isomend_mesh_vertex_count(a), nt = isomend_mesh_triangle_count(a);
-    return nv == isomend_mesh_vertex_count(b) && nt == isomend_mesh_triangle_count(b) &&
-           !memcmp(isomend_mesh_positions(a), isomend_mesh_positions(b), 12 * nv) &&
-           !memcmp(isomend_mesh_normals(a), isomend_mesh_normals(b), 12 * nv) &&
-           !memcmp(isomend_mesh_triangles(a), isomend_mesh_triangles(b), 12 * nt) &&
-           !memcmp(isomend_mesh_triangle_origins(a), isomend_mesh_triangle_origins(b), nt);
 }
 
 int main(void)
