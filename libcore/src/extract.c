@@ -215,6 +215,12 @@ DEFINE_CLASSIFY(classify_f64, double)
  * loop mostly waits on memory.  Looking for NaNs with two compares instead
  * of four: 108 -> 106 M, time 0.92-1.01x.
  */
+/* The NaN lanes of x. */
+__attribute__((target("avx2"))) static inline uint64_t nans8(__m256 x)
+{
+    return (uint64_t)__builtin_popcount((unsigned)_mm256_movemask_ps(_mm256_cmp_ps(x, x, _CMP_UNORD_Q)));
+}
+
 __attribute__((target("avx2"))) static uint64_t classify_f32_avx2(const float *restrict r,
                                                                    int64_t n, float t,
                                                                    int count_nans,
@@ -242,11 +248,7 @@ __attribute__((target("avx2"))) static uint64_t classify_f32_avx2(const float *r
             const __m256 u = _mm256_or_ps(_mm256_cmp_ps(x0, x1, _CMP_UNORD_Q),
                                           _mm256_cmp_ps(x2, x3, _CMP_UNORD_Q));
             if (!_mm256_testz_ps(u, u))
-                nn += (uint64_t)(
-                    __builtin_popcount((unsigned)_mm256_movemask_ps(_mm256_cmp_ps(x0, x0, _CMP_UNORD_Q))) +
-                    __builtin_popcount((unsigned)_mm256_movemask_ps(_mm256_cmp_ps(x1, x1, _CMP_UNORD_Q))) +
-                    __builtin_popcount((unsigned)_mm256_movemask_ps(_mm256_cmp_ps(x2, x2, _CMP_UNORD_Q))) +
-                    __builtin_popcount((unsigned)_mm256_movemask_ps(_mm256_cmp_ps(x3, x3, _CMP_UNORD_Q))));
+                nn += nans8(x0) + nans8(x1) + nans8(x2) + nans8(x3);
         }
     }
     for (; i < n; i++) {
