@@ -801,10 +801,11 @@ def main(argv=None):
     info["calls"] = args.calls
     if args.floor_lib:
         info["page_cost"] = page_cost(args.floor_lib, 16 if args.smoke else 256)
-    if _reported_kib() is not None:
+    start_kib = _reported_kib()
+    if start_kib is not None:
         info["page_reporting"] = {"order": _page_reporting("page_reporting_order"),
                                   "min_free_ms": _page_reporting("min_free_ms"),
-                                  "start_kib": _reported_kib()}
+                                  "start_kib": start_kib}
     results = []
     try:
         for (field, n, dtype) in plan(args):
@@ -825,8 +826,9 @@ def main(argv=None):
         if tmp_cache:
             shutil.rmtree(tmp_cache, ignore_errors=True)
     info["seconds"] = round(time.time() - started, 1)
-    if info.get("page_reporting") and _reported_kib() is not None:
-        info["page_reporting"]["run_kib"] = _reported_kib() - info["page_reporting"]["start_kib"]
+    end_kib = _reported_kib()
+    if info.get("page_reporting") and end_kib is not None:
+        info["page_reporting"]["run_kib"] = end_kib - info["page_reporting"]["start_kib"]
     info["loadavg_end"] = os.getloadavg()
 
     if args.json:
@@ -868,6 +870,7 @@ def check(results, peers):
     library's mesh, and the mesh does not depend on the thread count."""
     problems = []
     by = {}
+    reporting = _reported_kib() is not None
     for r in results:
         if "error" in r:
             problems.append("%s %s %s %s: %s" % (r["field"], r["size"], r["dtype"],
@@ -881,7 +884,7 @@ def check(results, peers):
         if not r["triangles"] and r["field"] != "colin27":
             problems.append("%s on %s: no triangles" % (r["label"], r["field"]))
         rep = r.get("reported_kib", [])
-        if len(rep) != len(r["times"]) or (_reported_kib() is not None and None in rep):
+        if len(rep) != len(r["times"]) or (reporting and None in rep):
             problems.append("%s: memory reported to the host not recorded per call" % r["label"])
     for key, r in by.items():
         f, n, d, ext, t = key

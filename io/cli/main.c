@@ -155,7 +155,7 @@ typedef struct args {
     int npositional;
     double iso;
     isomend_method method;
-    int pages; /* --pages: 0 auto, 1 huge, 2 small */
+    enum { PAGES_AUTO, PAGES_HUGE, PAGES_SMALL } pages; /* --pages */
     double box[6];
     cli_source_opts src;
 } args;
@@ -369,11 +369,11 @@ static int parse_args(int argc, char **argv, int first, const char *command, uns
             break;
         case OPT_PAGES:
             if (strcmp(value, "auto") == 0)
-                a->pages = 0;
+                a->pages = PAGES_AUTO;
             else if (strcmp(value, "huge") == 0)
-                a->pages = 1;
+                a->pages = PAGES_HUGE;
             else if (strcmp(value, "small") == 0)
-                a->pages = 2;
+                a->pages = PAGES_SMALL;
             else {
                 cli_error("--pages: '%s' is not auto, huge or small", value);
                 return CLI_EXIT_USAGE;
@@ -575,7 +575,8 @@ static int cmd_extract(int argc, char **argv)
     if (a.seen & OPT_FLIP) opts.flags |= ISOMEND_FLAG_FLIP;
     /* one extraction per process: on a guest that hands free memory to its host,
      * huge pages come back from the host at 3-4 ms/MB, small ones at ~0.7 */
-    const int small_pages = a.pages == 2 || (a.pages == 0 && cli_host_takes_free_memory(""));
+    const int small_pages =
+        a.pages == PAGES_SMALL || (a.pages == PAGES_AUTO && cli_host_takes_free_memory(""));
     if (small_pages) opts.flags |= ISOMEND_FLAG_SMALL_PAGES;
     opts.progress = cli_progress_extract_cb; /* the bar, and how Ctrl-C cancels */
     opts.progress_user = &bar;

@@ -204,6 +204,12 @@ DEFINE_CLASSIFY(classify_f32, float)
 DEFINE_CLASSIFY(classify_f64, double)
 
 #if ISOMEND_CLASSIFY_AVX2
+/* The NaN lanes of x. */
+__attribute__((target("avx2"))) static inline uint64_t nans8(__m256 x)
+{
+    return (uint64_t)__builtin_popcount((unsigned)_mm256_movemask_ps(_mm256_cmp_ps(x, x, _CMP_UNORD_Q)));
+}
+
 /*
  * classify_f32 on a contiguous row, written out for AVX2: 32 samples a step
  * in about 20 instructions (4 more to look for NaNs) where the compiler's
@@ -215,12 +221,6 @@ DEFINE_CLASSIFY(classify_f64, double)
  * loop mostly waits on memory.  Looking for NaNs with two compares instead
  * of four: 108 -> 106 M, time 0.92-1.01x.
  */
-/* The NaN lanes of x. */
-__attribute__((target("avx2"))) static inline uint64_t nans8(__m256 x)
-{
-    return (uint64_t)__builtin_popcount((unsigned)_mm256_movemask_ps(_mm256_cmp_ps(x, x, _CMP_UNORD_Q)));
-}
-
 __attribute__((target("avx2"))) static uint64_t classify_f32_avx2(const float *restrict r,
                                                                    int64_t n, float t,
                                                                    int count_nans,
@@ -2202,7 +2202,10 @@ static isomend_status one_pass(ctx *c, worker *w, isomend_mesh **out, uint64_t *
             continue;
         /* The origins (a byte a triangle) are often under 2 MiB: huge pages
          * from there on only, or a huge page would hold ~2 MiB of nothing. */
-        p[q] = reserve_output(size[q], c->small_pages ? SIZE_MAX : q == 3 ? (size_t)2 << 20 : 0);
+        size_t huge_from = q == 3 ? (size_t)2 << 20 : 0;
+        if (c->small_pages)
+            huge_from = SIZE_MAX;
+        p[q] = reserve_output(size[q], huge_from);
         if (!p[q]) {
             for (int r = 0; r < q; r++)
                 release_output(p[r], mesh->mapped[r]);
