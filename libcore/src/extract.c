@@ -18,13 +18,16 @@
  *      fixed order (slice, row, axis x/y/z, column), computes those vertices
  *      (position, normal) once, and writes its layers' triangles.
  *
- * One pass.  With one thread and a table method (MC, Durst, DMC) on a grid of
- * 2^21 samples or more, the three steps become one sweep (run_one_pass): the
- * slice's edges are numbered from the running count, so the ids and the
- * order are the same, and the output arrays are address-space reservations
- * of the largest mesh the grid can give, trimmed at the end.  Each slice is
- * classified once, and its vertices are computed while its samples are still
- * in the caches (the 256^3 sphere: 0.79x the two passes' time).
+ * One pass.  With one or two threads and a table method (MC, Durst, DMC) on
+ * a grid of 2^21 samples or more, the three steps become one sweep
+ * (run_one_pass): the slice's edges are numbered from the running count, so
+ * the ids and the order are the same, and the output arrays are address-space
+ * reservations of the largest mesh the grid can give, trimmed at the end.
+ * Each slice is classified once, and its vertices are computed while its
+ * samples are still in the caches (the 256^3 sphere: 0.79x the two passes'
+ * time).  Two threads split the sweep: the second counts the first layers
+ * (the counting pass's scans) up to a layer that halves what is left, then
+ * sweeps from there with ids and triangles starting at its counts (split).
  *
  * The counting pass classifies samples row by row into sign bytes (sample
  * >= iso, with a threshold chosen per voxel type so the comparison is exact
@@ -70,6 +73,7 @@
 #include <stdint.h>
 #include <stdlib.h>
 #include <string.h>
+#include <time.h>
 #include <unistd.h>
 #if defined(__linux__)
 #include <sys/mman.h>
@@ -632,6 +636,7 @@ typedef struct ctx {
     int pass;
     isomend_progress_fn progress;
     void *progress_user;
+    struct split *split;   /* the one pass on two threads (run_one_pass)    */
 } ctx;
 
 /* Sign slices a worker holds: a layer's three (k, k + 1 and k + 2 for the
@@ -1985,35 +1990,72 @@ static isomend_status run_pass(ctx *c, worker *ws, int nw)
 }
 
 /*
- * One pass (one thread, table methods).  Slice by slice, a worker numbers and
- * computes the vertices of slice k + 1 and then writes layer k's triangles,
- * counting as it goes, so each slice is classified once and the samples
- * around its vertices are read while the classification has them in the
- * caches.  Ids and order are those of the two passes.  The output arrays are
- * reservations of their largest possible size (reserve_output), so nothing
- * needs to be known in advance; the untouched part costs no memory and is
- * trimmed at the end.
+ * The one pass on two threads.  The calling thread sweeps from the first
+ * layer, writing as it goes; the second first counts the vertices and
+ * triangles of the layers from the first on (the counting pass's scans, a
+ * fraction of a sweep's work) until it has counted up to a layer `at` that
+ * splits what is left about evenly, then sweeps from `at` to the end, its ids
+ * and triangles starting at the counts.  The first thread claims each slice
+ * before writing its vertices and stops at `at`: it numbers that slice, for
+ * the ids of its last layer, without writing them.  Ids and order are the
+ * one thread's.  With no split (a grid too small, the first thread ahead),
+ * the first thread sweeps alone.
  */
-static isomend_status run_one_pass(ctx *c, worker *w, uint64_t *nv, uint64_t *nt)
+typedef struct split {
+    pthread_mutex_t mu;
+    pthread_cond_t cv;
+    int64_t at;       /* the second thread's first layer; INT64_MAX while open */
+    int64_t claimed;  /* slices [0, claimed) are written by the first thread */
+    int finished;     /* the second thread is done (cv)                      */
+    atomic_llong done; /* layers the second thread has swept (progress)      */
+    uint64_t nv, nt;  /* its totals, when it split                           */
+    isomend_status status;
+} split;
+
+/* The sweep from layer `from` (vertices numbered from *nv, triangles from
+ * *nt) to the last, or, for the first of two threads (`sp`), to sp->at. */
+static isomend_status sweep(ctx *c, worker *w, int64_t from, uint64_t *nv, uint64_t *nt,
+                            split *sp)
 {
     const int64_t N2 = c->g.N[2], layers = N2 - 1;
+    const int first = sp && w->is_main;
     const rowinfo *ri;
-    if (N2 > 2)
-        (void)signs(w, 2, &ri); /* read ahead: slice 0's z edges reach slice 2 */
-    uint64_t v = scan_slice(w, 0, 1, 0, 1), t = 0;
-    w->stats.nan_samples += w->nan[0];
-    for (int64_t k = 0; k < layers; k++) {
+    if (from + 2 < N2)
+        (void)signs(w, from + 2, &ri); /* read ahead: the z edges reach slice from + 2 */
+    uint64_t v = *nv, t = *nt;
+    v += scan_slice(w, from, 1, v, 1);
+    w->stats.nan_samples += w->nan[from % SIGN_RING];
+    for (int64_t k = from; k < layers; k++) {
         if (v > UINT32_MAX)
             return ISOMEND_ERR_TOO_LARGE;
+        const int64_t m = k + 1;
+        int last = 0; /* slice m is the second thread's: ids only */
+        if (first) {
+            pthread_mutex_lock(&sp->mu);
+            if (m >= sp->at)
+                last = 1;
+            else
+                sp->claimed = m + 1;
+            pthread_mutex_unlock(&sp->mu);
+        }
         /* The gradients at slice k + 1's z edges read slice k + 3: classifying
          * it first brings it into the caches. */
-        if (k + 3 < N2)
+        if (k + 3 < N2 && !last)
             (void)signs(w, k + 3, &ri);
-        v += scan_slice(w, k + 1, 1, v, 1);
-        w->stats.nan_samples += w->nan[(k + 1) % SIGN_RING];
+        v += scan_slice(w, m, 1, v, !last);
+        if (!last)
+            w->stats.nan_samples += w->nan[m % SIGN_RING];
         t += march_layer(w, k, 2, t);
-        if (c->progress && (k % 16 == 15 || k + 1 == layers) &&
-            c->progress(c->progress_user, (double)(k + 1) / (double)(layers + 1)))
+        if (last)
+            break;
+        if (sp && !first) {
+            atomic_fetch_add(&sp->done, 1);
+            if (atomic_load(&c->cancel))
+                return ISOMEND_ERR_CANCELLED;
+        }
+        const double swept = (double)(k + 1) + (sp ? (double)atomic_load(&sp->done) : 0.0);
+        if (w->is_main && c->progress && (k % 16 == 15 || k + 1 == layers) &&
+            c->progress(c->progress_user, swept / (double)(layers + 1)))
             return ISOMEND_ERR_CANCELLED; /* 1.0 is reported at the end */
     }
     if (v > UINT32_MAX)
@@ -2021,6 +2063,127 @@ static isomend_status run_one_pass(ctx *c, worker *w, uint64_t *nv, uint64_t *nt
     *nv = v;
     *nt = t;
     return ISOMEND_OK;
+}
+
+/* The second of two threads: counts, splits, sweeps the rest (see split). */
+static void *second_sweep(void *arg)
+{
+    worker *w = arg;
+    ctx *c = w->c;
+    split *sp = c->split;
+    const int64_t layers = c->g.N[2] - 1;
+    const isomend_stats kept = w->stats; /* counting adds to them: not this thread's */
+    uint64_t v = 0, t = 0;
+    int64_t at = -1;
+    for (int64_t k = 0; k + 1 < layers && at < 0 && !atomic_load(&c->cancel); k++) {
+        v += scan_slice(w, k, 0, 0, 0);
+        t += march_layer(w, k, 0, 0);
+        /* Counted: slices and layers [0, k + 1).  Split there when the first
+         * thread has not claimed slice k + 1 and has about as far to go to it
+         * as this one from it to the end. */
+        const int64_t s = k + 1;
+        pthread_mutex_lock(&sp->mu);
+        if (s >= sp->claimed && 2 * s >= layers + sp->claimed)
+            sp->at = at = s;
+        pthread_mutex_unlock(&sp->mu);
+    }
+    w->stats = kept;
+    isomend_status status = ISOMEND_OK;
+    if (at >= 0 && v <= UINT32_MAX)
+        status = sweep(c, w, at, &v, &t, sp);
+    pthread_mutex_lock(&sp->mu);
+    sp->nv = v;
+    sp->nt = t;
+    sp->status = status;
+    sp->finished = 1;
+    pthread_cond_signal(&sp->cv);
+    pthread_mutex_unlock(&sp->mu);
+    return NULL;
+}
+
+/*
+ * One pass (table methods, one or two threads).  Slice by slice, a worker
+ * numbers and computes the vertices of slice k + 1 and then writes layer k's
+ * triangles, counting as it goes, so each slice is classified once and the
+ * samples around its vertices are read while the classification has them in
+ * the caches.  Ids and order are those of the two passes.  The output arrays
+ * are reservations of their largest possible size (reserve_output), so
+ * nothing needs to be known in advance; the untouched part costs no memory
+ * and is trimmed at the end.
+ */
+static isomend_status run_one_pass(ctx *c, worker *ws, int nw, uint64_t *nv, uint64_t *nt)
+{
+    uint64_t v = 0, t = 0;
+    if (nw < 2) {
+        isomend_status status = sweep(c, &ws[0], 0, &v, &t, NULL);
+        *nv = v;
+        *nt = t;
+        return status;
+    }
+    split sp;
+    memset(&sp, 0, sizeof sp);
+    sp.at = INT64_MAX;
+    sp.claimed = 1; /* slice 0 */
+    atomic_init(&sp.done, 0);
+    if (pthread_mutex_init(&sp.mu, NULL) != 0)
+        return ISOMEND_ERR_THREAD;
+    if (pthread_cond_init(&sp.cv, NULL) != 0) {
+        pthread_mutex_destroy(&sp.mu);
+        return ISOMEND_ERR_THREAD;
+    }
+    c->split = &sp;
+    pthread_t tid;
+    isomend_status status = ISOMEND_OK;
+    const int started = pthread_create(&tid, NULL, second_sweep, &ws[1]) == 0;
+    if (!started) {
+        sp.at = INT64_MAX; /* no second thread: sweep alone */
+        sp.finished = 1;
+    }
+    status = sweep(c, &ws[0], 0, &v, &t, &sp);
+    if (status != ISOMEND_OK)
+        atomic_store(&c->cancel, 1);
+    /* Wait for the second thread, reporting its progress. */
+    const int64_t layers = c->g.N[2] - 1;
+    pthread_mutex_lock(&sp.mu);
+    while (!sp.finished) {
+        if (!c->progress) {
+            pthread_cond_wait(&sp.cv, &sp.mu);
+            continue;
+        }
+        struct timespec until;
+        clock_gettime(CLOCK_REALTIME, &until);
+        until.tv_nsec += 100 * 1000 * 1000;
+        if (until.tv_nsec >= 1000 * 1000 * 1000) {
+            until.tv_sec++;
+            until.tv_nsec -= 1000 * 1000 * 1000;
+        }
+        pthread_cond_timedwait(&sp.cv, &sp.mu, &until);
+        if (sp.finished || status != ISOMEND_OK)
+            continue;
+        const double swept = (double)(sp.at < layers ? sp.at : layers) +
+                             (double)atomic_load(&sp.done);
+        pthread_mutex_unlock(&sp.mu);
+        if (c->progress(c->progress_user, swept / (double)(layers + 1))) {
+            status = ISOMEND_ERR_CANCELLED;
+            atomic_store(&c->cancel, 1);
+        }
+        pthread_mutex_lock(&sp.mu);
+    }
+    const int split_made = sp.at != INT64_MAX;
+    pthread_mutex_unlock(&sp.mu);
+    if (started)
+        pthread_join(tid, NULL);
+    c->split = NULL;
+    pthread_cond_destroy(&sp.cv);
+    pthread_mutex_destroy(&sp.mu);
+    if (status == ISOMEND_OK && split_made) {
+        status = sp.status;
+        v = sp.nv;
+        t = sp.nt;
+    }
+    *nv = v;
+    *nt = t;
+    return status;
 }
 
 static void worker_free(worker *w)
@@ -2174,7 +2337,7 @@ static void release_output(void *p, size_t mapped)
  * ISOMEND_ERR_UNSUPPORTED (nothing allocated) when the reservations are
  * refused, for the two passes to take over.
  */
-static isomend_status one_pass(ctx *c, worker *w, isomend_mesh **out, uint64_t *nv,
+static isomend_status one_pass(ctx *c, worker *ws, int nw, isomend_mesh **out, uint64_t *nv,
                                uint64_t *nt)
 {
     const grid *g = &c->g;
@@ -2220,7 +2383,7 @@ static isomend_status one_pass(ctx *c, worker *w, isomend_mesh **out, uint64_t *
     mesh->org = c->org = p[3];
     *out = mesh; /* destroyed by the caller on error */
     c->pass = 1; /* signs() counts NaN samples */
-    isomend_status status = run_one_pass(c, w, nv, nt);
+    isomend_status status = run_one_pass(c, ws, nw, nv, nt);
     if (status != ISOMEND_OK)
         return status;
     mesh->nv = (size_t)*nv;
@@ -2352,9 +2515,9 @@ isomend_status isomend_extract(const isomend_volume *vol, const isomend_options 
     ws[0].is_main = 1;
 
     uint64_t nv = 0, nt = 0;
-    if (nthreads == 1 && !c->general &&
+    if (nthreads <= 2 && !c->general &&
         (uint64_t)N0 * (uint64_t)N1 * (uint64_t)N2 >= ISOMEND_ONE_PASS_SAMPLES) {
-        status = one_pass(c, &ws[0], &mesh, &nv, &nt);
+        status = one_pass(c, ws, nthreads, &mesh, &nv, &nt);
         if (status != ISOMEND_ERR_UNSUPPORTED) {
             if (status != ISOMEND_OK)
                 goto done;
