@@ -4,7 +4,7 @@
  * profiling the core (see the README, "Profiling the core").
  *
  *   isomend_bench_extract FILE.npy ISO [--threads N] [--repeats N]
- *                         [--method mc|durst|dmc] [--no-normals] [--pad]
+ *                         [--method mc|durst|dmc] [--no-normals] [--pad] [--small-pages]
  *                         [--floor | --ab LIB_A.so LIB_B.so]
  *
  * Reads a C-order 3-D array (shape (nz, ny, nx), x fastest) of uint8, int8,
@@ -180,7 +180,7 @@ done:
 static int usage(void)
 {
     fprintf(stderr, "usage: isomend_bench_extract FILE.npy ISO [--threads N] [--repeats N] "
-                    "[--method mc|durst|dmc] [--no-normals] [--pad] "
+                    "[--method mc|durst|dmc] [--no-normals] [--pad] [--small-pages] "
                     "[--floor | --ab LIB_A.so LIB_B.so]\n");
     return 1;
 }
@@ -344,6 +344,8 @@ int main(int argc, char **argv)
             o.flags |= ISOMEND_FLAG_NO_NORMALS;
         } else if (!strcmp(a, "--pad")) {
             o.flags |= ISOMEND_FLAG_PAD;
+        } else if (!strcmp(a, "--small-pages")) {
+            o.flags |= ISOMEND_FLAG_SMALL_PAGES;
         } else if (!strcmp(a, "--floor")) {
             floor = 1;
         } else if (!strcmp(a, "--ab") && i + 2 < argc) {
