@@ -71,6 +71,7 @@ __all__ = [
     "IsomendError", "Cancelled", "LibraryNotFound", "Mesh", "Source",
     "extract", "check", "open_source", "extract_source",
     "methods", "available_methods", "version", "io_version", "library_path", "io_library_path",
+    "host_reclaims_free_memory",
     "METHODS", "ORIGIN_TABLE", "ORIGIN_DURST", "ORIGIN_MEND",
 ]
 
@@ -319,6 +320,7 @@ def _core_lib():
         _declare(lib, "isomend_mesh_check", c_int, [ctypes.c_void_p, P(CheckReport)])
         _declare(lib, "isomend_case_of", c_int, [ctypes.c_uint])
         _declare(lib, "isomend_case_triangles", c_int, [ctypes.c_uint, P(c_int)])
+        _declare(lib, "isomend_host_reclaims_free_memory", c_int, [])
         _core, _core_path = lib, path
         return lib
 
@@ -377,6 +379,13 @@ def io_library_path():
 def version():
     """The core library's version string, e.g. "0.1.0"."""
     return _core_lib().isomend_version().decode()
+
+
+def host_reclaims_free_memory():
+    """True on a virtual machine whose kernel hands free memory back to its host
+    (a virtio memory balloon with free page reporting): there a process that
+    extracts once in a while (an import) is faster with ``small_pages=True``."""
+    return bool(_core_lib().isomend_host_reclaims_free_memory())
 
 
 def io_version():

@@ -41,15 +41,6 @@ int cli_parse_doubles(const char *s, double *out, int n);
 
 double cli_now_ms(void);
 
-/*
- * 1 when this machine is a virtual machine whose kernel hands free memory back
- * to its host (a virtio memory balloon with free page reporting), read from
- * <root>/sys/bus/virtio/devices (root "" in use, a folder in tests).  There a
- * process that extracts once is faster with its output on small pages
- * (ISOMEND_FLAG_SMALL_PAGES): see `--pages`.
- */
-int cli_host_takes_free_memory(const char *root);
-
 /* Progress bar on stderr; inactive unless enabled (stderr a TTY, not --quiet). */
 typedef struct cli_progress {
     int enabled;

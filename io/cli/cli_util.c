@@ -98,32 +98,6 @@ double cli_now_ms(void)
     return (double)ts.tv_sec * 1e3 + (double)ts.tv_nsec / 1e6;
 }
 
-int cli_host_takes_free_memory(const char *root)
-{
-    /* a virtio device of type 5 (memory balloon) that negotiated feature bit 5
-     * (VIRTIO_BALLOON_F_REPORTING): the kernel reports free pages to the host */
-    char path[512], buf[160];
-    for (int d = 0; d < 64; d++) {
-        snprintf(path, sizeof path, "%s/sys/bus/virtio/devices/virtio%d/device", root, d);
-        FILE *f = fopen(path, "r");
-        if (!f)
-            continue;
-        const int balloon = fgets(buf, sizeof buf, f) && strtol(buf, NULL, 16) == 5;
-        fclose(f);
-        if (!balloon)
-            continue;
-        snprintf(path, sizeof path, "%s/sys/bus/virtio/devices/virtio%d/features", root, d);
-        f = fopen(path, "r");
-        if (!f)
-            continue;
-        const int reporting = fgets(buf, sizeof buf, f) && strlen(buf) > 5 && buf[5] == '1';
-        fclose(f);
-        if (reporting)
-            return 1;
-    }
-    return 0;
-}
-
 void cli_progress_init(cli_progress *p, int enabled)
 {
     memset(p, 0, sizeof *p);

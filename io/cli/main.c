@@ -576,7 +576,7 @@ static int cmd_extract(int argc, char **argv)
     /* one extraction per process: on a guest that hands free memory to its host,
      * huge pages come back from the host at 3-4 ms/MB, small ones at ~0.7 */
     const int small_pages =
-        a.pages == PAGES_SMALL || (a.pages == PAGES_AUTO && cli_host_takes_free_memory(""));
+        a.pages == PAGES_SMALL || (a.pages == PAGES_AUTO && isomend_host_reclaims_free_memory());
     if (small_pages) opts.flags |= ISOMEND_FLAG_SMALL_PAGES;
     opts.progress = cli_progress_extract_cb; /* the bar, and how Ctrl-C cancels */
     opts.progress_user = &bar;

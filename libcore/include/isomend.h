@@ -173,9 +173,19 @@ enum {
  * freed comes back at ~0.1 ms/MB instead of ~0.7 ms/MB on small pages.  On a
  * virtual machine that hands free memory back to its host (virtio-balloon
  * free page reporting), huge pages the host has taken back cost 3-4 ms/MB
- * instead, so a process that extracts once (a command line) is faster with
- * ISOMEND_FLAG_SMALL_PAGES there.  The mesh is the same either way.
+ * instead, so a process that extracts once in a while (a command line, an
+ * import in an editor) is faster with ISOMEND_FLAG_SMALL_PAGES there:
+ *
+ *     if (isomend_host_reclaims_free_memory())
+ *         opts.flags |= ISOMEND_FLAG_SMALL_PAGES;
+ *
+ * The mesh is the same either way.
  */
+
+/* 1 on a virtual machine whose kernel reports free memory to its host (Linux:
+ * a virtio memory balloon that negotiated free page reporting, read from
+ * /sys/bus/virtio/devices), else 0.  Reads a few small files at each call. */
+ISOMEND_API int isomend_host_reclaims_free_memory(void);
 
 /*
  * Progress: called from the thread that called isomend_extract(), with a

@@ -1,11 +1,13 @@
 /*
- * test_host_memory.c - cli_host_takes_free_memory() (io/cli/cli_util.c), the
- * test behind `isomend extract --pages auto`: on fake sysfs trees, 1 only for
- * a virtio memory balloon (device 0x0005) whose negotiated features have bit 5
- * (VIRTIO_BALLOON_F_REPORTING) set; then the answer for this machine, printed.
+ * test_host_memory.c - isomend_host_reclaims_free_memory() (libcore/src/host.c),
+ * the test behind `isomend extract --pages auto` and the hosts' choice of small
+ * pages: on fake sysfs trees, 1 only for a virtio memory balloon (device
+ * 0x0005) whose negotiated features have bit 5 (VIRTIO_BALLOON_F_REPORTING)
+ * set; then the answer for this machine, printed.
  */
 #define _DEFAULT_SOURCE
-#include "cli.h"
+#include "host.h"
+#include "isomend.h"
 #include "testutil.h"
 
 #include <stdio.h>
@@ -52,39 +54,41 @@ int main(void)
     const char *no_reporting = "0110000100000000000000000000000010000000";
 
     make_tree(0, NULL, NULL, NULL); /* no virtio devices: bare metal */
-    CHECK_EQ_INT(cli_host_takes_free_memory(root), 0);
+    CHECK_EQ_INT(isomend_host_reclaims_free_memory_at(root), 0);
 
     {
         const int ids[] = {0};
         const char *t[] = {"0x0005"}, *f[] = {reporting};
         make_tree(1, ids, t, f);
-        CHECK_EQ_INT(cli_host_takes_free_memory(root), 1);
+        CHECK_EQ_INT(isomend_host_reclaims_free_memory_at(root), 1);
     }
     {
         const int ids[] = {0};
         const char *t[] = {"0x0005"}, *f[] = {no_reporting}; /* a balloon, no reporting */
         make_tree(1, ids, t, f);
-        CHECK_EQ_INT(cli_host_takes_free_memory(root), 0);
+        CHECK_EQ_INT(isomend_host_reclaims_free_memory_at(root), 0);
     }
     {
         const int ids[] = {0, 1};
         const char *t[] = {"0x0001", "0x0002"}, *f[] = {reporting, reporting}; /* net, block */
         make_tree(2, ids, t, f);
-        CHECK_EQ_INT(cli_host_takes_free_memory(root), 0);
+        CHECK_EQ_INT(isomend_host_reclaims_free_memory_at(root), 0);
     }
     {
         const int ids[] = {0, 7};
         const char *t[] = {"0x0001", "0x0005"}, *f[] = {no_reporting, reporting};
         make_tree(2, ids, t, f);
-        CHECK_EQ_INT(cli_host_takes_free_memory(root), 1);
+        CHECK_EQ_INT(isomend_host_reclaims_free_memory_at(root), 1);
     }
     {
         const int ids[] = {0};
         const char *t[] = {"0x0005"}, *f[] = {"0110"}; /* too short to have bit 5 */
         make_tree(1, ids, t, f);
-        CHECK_EQ_INT(cli_host_takes_free_memory(root), 0);
+        CHECK_EQ_INT(isomend_host_reclaims_free_memory_at(root), 0);
     }
+    const int here = isomend_host_reclaims_free_memory();
+    CHECK_EQ_INT(here, isomend_host_reclaims_free_memory_at(""));
     printf("this machine: the host takes free memory back: %s\n",
-           cli_host_takes_free_memory("") ? "yes (--pages auto = small)" : "no (--pages auto = huge)");
+           here ? "yes (small pages for one-shot extractions)" : "no (huge pages)");
     TEST_EXIT();
 }
