@@ -2053,10 +2053,11 @@ static isomend_status sweep(ctx *c, worker *w, int64_t from, uint64_t *nv, uint6
             if (atomic_load(&c->cancel))
                 return ISOMEND_ERR_CANCELLED;
         }
-        const double swept = (double)(k + 1) + (sp ? (double)atomic_load(&sp->done) : 0.0);
-        if (w->is_main && c->progress && (k % 16 == 15 || k + 1 == layers) &&
-            c->progress(c->progress_user, swept / (double)(layers + 1)))
-            return ISOMEND_ERR_CANCELLED; /* 1.0 is reported at the end */
+        if (w->is_main && c->progress && (k % 16 == 15 || k + 1 == layers)) {
+            const double swept = (double)(k + 1) + (sp ? (double)atomic_load(&sp->done) : 0.0);
+            if (c->progress(c->progress_user, swept / (double)(layers + 1)))
+                return ISOMEND_ERR_CANCELLED; /* 1.0 is reported at the end */
+        }
     }
     if (v > UINT32_MAX)
         return ISOMEND_ERR_TOO_LARGE;
@@ -2133,13 +2134,10 @@ static isomend_status run_one_pass(ctx *c, worker *ws, int nw, uint64_t *nv, uin
     }
     c->split = &sp;
     pthread_t tid;
-    isomend_status status = ISOMEND_OK;
     const int started = pthread_create(&tid, NULL, second_sweep, &ws[1]) == 0;
-    if (!started) {
-        sp.at = INT64_MAX; /* no second thread: sweep alone */
-        sp.finished = 1;
-    }
-    status = sweep(c, &ws[0], 0, &v, &t, &sp);
+    if (!started)
+        sp.finished = 1; /* no second thread: sp.at stays open, the first sweeps alone */
+    isomend_status status = sweep(c, &ws[0], 0, &v, &t, &sp);
     if (status != ISOMEND_OK)
         atomic_store(&c->cancel, 1);
     /* Wait for the second thread, reporting its progress. */
