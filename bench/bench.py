@@ -24,7 +24,7 @@ How it is measured
   vtkSMPTools.Initialize(N), isomend options.threads = N).  The child loads the volume
   from a .npy file, warms the extractor up on a 16^3 subsample of it (thread pools, lazy
   binding), measures the floor, then makes 1 + C full-size calls (C = --calls, 3 by
-  default, 2 in quick mode), resetting its peak-RSS mark (/proc/self/clear_refs = 5)
+  default, 2 in quick mode for isomend and 1 for the peers), resetting its peak-RSS mark (/proc/self/clear_refs = 5)
   before each: the first is reported apart ("first call"), the other C are the
   measurement: wall time, CPU time (and its system part) and the peak RSS above what it
   held before the call (the "extra" memory: output, temporaries).  The first call of a
@@ -585,22 +585,26 @@ def plan(args):
 def quick_policy(args, name, field, size, dtype):
     """Which measurements quick mode makes, so that it stays under two minutes:
     the goal's comparison (isomend DMC against Flying Edges) everywhere, with 3 rounds;
-    isomend without normals and Flying Edges with normals once, at one thread, on the
-    256^3 fields; the other extractors once, at one thread, on the 256^3 sphere only;
-    at 512^3 the sphere with isomend and Flying Edges geometry only, and the uint8
-    noise volume of the memory goal with isomend alone, once.
-    Returns (measure?, repeats or None for the default)."""
+    isomend without normals once, at one thread, on the 256^3 fields; the other
+    extractors (Flying Edges with normals among them) once, at one thread, on the 256^3
+    sphere only; at 512^3 the sphere with isomend and Flying Edges geometry only, and the
+    uint8 noise volume of the memory goal with isomend alone, once.  The peers make one
+    timed call a round instead of --calls: their calls take 5-15 times isomend's, and
+    every one of them pays for fresh memory (their large arrays are mapped anew), so
+    their first and later calls differ little.
+    Returns (measure?, repeats or None for the default, calls or None for --calls)."""
     if not args.quick:
-        return True, None
+        return True, None, None
+    calls = None if name.startswith("isomend") else 1
     if size == 512:
         if (field, dtype) == ("noise", "u8"):
-            return name == "isomend", 1
-        return name in ("isomend", "fe"), None
+            return name == "isomend", 1, calls
+        return name in ("isomend", "fe"), None, calls
     if name in ("isomend", "fe"):
-        return True, None
-    if name in ("isomend-geom", "fe-normals"):
-        return True, 1
-    return (size == 256 and field == "sphere"), 1
+        return True, None, calls
+    if name == "isomend-geom":
+        return True, 1, calls
+    return (size == 256 and field == "sphere"), 1, calls
 
 
 def machine_info(outputs=()):
@@ -657,20 +661,20 @@ def measure_volume(args, peers, field, n, dtype, vol_path, iso, t, thread_counts
     jobs = []
     for ext in peers:
         label, _setup, parallel = EXTRACTORS[ext]
-        wanted, forced = quick_policy(args, ext, field, n, dtype)
+        wanted, forced, calls = quick_policy(args, ext, field, n, dtype)
         if not wanted:
             continue
         if not parallel and t != thread_counts[0]:
             continue  # single-threaded: its 1-thread time stands for every count
         if forced == 1 and t != (thread_counts[-1] if ext == "isomend" else thread_counts[0]):
             continue  # measured once: at 1 thread (isomend: all threads)
-        jobs.append((ext, forced or repeats))
+        jobs.append((ext, forced or repeats, calls or args.calls))
     acc = {}
-    for rnd in range(max([reps for _e, reps in jobs] or [0])):
-        for ext, reps in jobs:
+    for rnd in range(max([reps for _e, reps, _c in jobs] or [0])):
+        for ext, reps, calls in jobs:
             if rnd >= reps or "error" in acc.get(ext, {}):
                 continue
-            r = run_child(args, ext, vol_path, iso, t, args.calls)
+            r = run_child(args, ext, vol_path, iso, t, calls)
             a = acc.setdefault(ext, {})
             if "error" in r:
                 a.clear()
@@ -687,11 +691,12 @@ def measure_volume(args, peers, field, n, dtype, vol_path, iso, t, thread_counts
                 if a["peak_extra_kb"] is not None and r["peak_extra_kb"] is not None:
                     a["peak_extra_kb"] = max(a["peak_extra_kb"], r["peak_extra_kb"])
     out = []
-    for ext, reps in jobs:
+    for ext, reps, calls in jobs:
         label, _setup, parallel = EXTRACTORS[ext]
         r = acc[ext]
         r.update({"field": field, "size": n, "dtype": dtype, "extractor": ext, "label": label,
-                  "threads": t, "iso": iso, "parallel": parallel, "repeats": reps})
+                  "threads": t, "iso": iso, "parallel": parallel, "repeats": reps,
+                  "calls": calls})
         if "times" in r:
             r["median"] = statistics.median(r["times"])
             r["min"] = min(r["times"])
@@ -943,12 +948,15 @@ def render(info, results, thread_counts):
     w("Generated by `%s` (%s mode) on %s in %.0f s. "
       "**Do not edit: rerun the benchmark** (see the README's performance section).\n"
       % (info.get("command"), info["mode"], info["started"], info["seconds"]))
+    fewer = sorted({r["calls"] for r in results if r.get("calls", info["calls"]) != info["calls"]})
     w("Machine: %s, %s cores, %s GB RAM, Debian %s (timings are medians of %d rounds of "
-      "%d timed calls, single rounds where marked ¹). "
+      "%d timed calls, single rounds where marked ¹%s). "
       "isomend %s (git %s); VTK %s (SMP backend %s), scikit-image %s, OpenVDB %s, numpy %s, "
       "Python %s.\n"
       % (info.get("cpu", "?"), info.get("cpus"), info.get("mem_gb"), info.get("debian", "?"),
          info["repeats"], info["calls"],
+         "; the peers make %s timed call%s a round" % (
+             " or ".join(str(c) for c in fewer), "" if fewer == [1] else "s") if fewer else "",
          _first_extra(results, "version") or "?", info.get("git", "?"), info.get("vtk", "?"),
          info.get("vtk_smp", "?"), info.get("skimage", "?"), info.get("openvdb", "?"),
          info.get("numpy", "?"), info.get("python")))
@@ -1040,10 +1048,12 @@ def render(info, results, thread_counts):
     # Details per volume.
     w("## Every extractor, per volume\n")
     w("Times in ms (median). Each child process (a round) makes 1 + %d full-size calls and "
-      "times the last %d: *first call* is the first one, which on this virtual machine also "
+      "times the last %d%s: *first call* is the first one, which on this virtual machine also "
       "pays for memory fresh from the host (the kernel returns freed memory to the host; "
       "isomend's huge-page output arrays are the slowest to get back, see the README). "
-      % (info["calls"], info["calls"]) +
+      % (info["calls"], info["calls"],
+         " (the peers 1 + %s and the last %s, as quick mode has them)"
+         % ((" or ".join(str(c) for c in fewer),) * 2) if fewer else "") +
       "*speed-up* = the extractor's time / isomend DMC+normals' time at "
       "the same thread count (> 1: isomend is faster). *extra MB* = the largest RSS increase "
       "during the call (output and temporaries; the input is already resident). "
