@@ -491,19 +491,13 @@ bool Job::run_unguarded(const Params &params, const ProgressFn &progress)
         opts.flags |= ISOMEND_FLAG_PAD;
     if (params.flip_normals)
         opts.flags |= ISOMEND_FLAG_FLIP;
-    /* one extraction now and then: on a VM that hands free memory back to its
-     * host, small pages are the faster output (isomend.h, "Pages") */
-    const bool small_pages = isomend_host_reclaims_free_memory() != 0;
-    if (small_pages)
-        opts.flags |= ISOMEND_FLAG_SMALL_PAGES;
     opts.threads = 0;
     opts.progress = core_progress;
     opts.progress_user = &state;
-    log_.push_back(format("method %s (%s), iso %g%s%s%s", method.display.c_str(),
+    log_.push_back(format("method %s (%s), iso %g%s%s", method.display.c_str(),
                           isomend_method_name(method.method), params.iso,
                           params.pad ? ", padded" : "",
-                          params.flip_normals ? ", normals flipped" : "",
-                          small_pages ? ", small pages" : ""));
+                          params.flip_normals ? ", normals flipped" : ""));
     const auto t_extract = std::chrono::steady_clock::now();
     isomend_mesh *mesh = nullptr;
     const isomend_status cst = isomend_extract(&vol, &opts, &mesh, &stats_);

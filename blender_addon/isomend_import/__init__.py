@@ -147,7 +147,6 @@ class _Job:
         self.result = None   # (mesh, source info dict)
         self.error = None
         self.seconds = 0.0
-        self.small_pages = False  # the output went on small pages
 
     def progress(self, stage, fraction):
         self.stage, self.fraction = stage, fraction
@@ -163,12 +162,8 @@ class _Job:
                 info = {"dims": src.dims, "dtype": np.dtype(src.dtype).name,
                         "spacing": src.spacing, "spacing_sources": src.spacing_sources,
                         "origin": src.origin, "kind": src.kind}
-                # one extraction now and then: on a VM that hands free memory back to
-                # its host, small pages are the faster output (isomend.h, "Pages")
-                self.small_pages = isomend.host_reclaims_free_memory()
                 mesh = src.extract(iso=self.iso, method=self.method, pad=self.pad,
-                                   normals=self.normals, origins=True, progress=self.progress,
-                                   small_pages=self.small_pages)
+                                   normals=self.normals, origins=True, progress=self.progress)
             self.result = (mesh, info)
         except Exception as exc:  # reported by the main thread
             self.error = exc
@@ -386,9 +381,8 @@ class IMPORT_MESH_OT_slice_stack(Operator, ImportHelper):
                   ", ".join(info["spacing_sources"])))
         self.report({'INFO'}, msg)
         if bpy.app.background:
-            print("isomend: %s (read + extract %.2f s%s, Blender mesh %.2f s)"
-                  % (msg, job.seconds, ", small pages" if job.small_pages else "",
-                     time.perf_counter() - t0), flush=True)
+            print("isomend: %s (read + extract %.2f s, Blender mesh %.2f s)"
+                  % (msg, job.seconds, time.perf_counter() - t0), flush=True)
         return 'FINISHED', msg
 
 

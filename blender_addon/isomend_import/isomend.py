@@ -71,7 +71,6 @@ __all__ = [
     "IsomendError", "Cancelled", "LibraryNotFound", "Mesh", "Source",
     "extract", "check", "open_source", "extract_source",
     "methods", "available_methods", "version", "io_version", "library_path", "io_library_path",
-    "host_reclaims_free_memory",
     "METHODS", "ORIGIN_TABLE", "ORIGIN_DURST", "ORIGIN_MEND",
 ]
 
@@ -320,7 +319,6 @@ def _core_lib():
         _declare(lib, "isomend_mesh_check", c_int, [ctypes.c_void_p, P(CheckReport)])
         _declare(lib, "isomend_case_of", c_int, [ctypes.c_uint])
         _declare(lib, "isomend_case_triangles", c_int, [ctypes.c_uint, P(c_int)])
-        _declare(lib, "isomend_host_reclaims_free_memory", c_int, [])
         _core, _core_path = lib, path
         return lib
 
@@ -379,13 +377,6 @@ def io_library_path():
 def version():
     """The core library's version string, e.g. "0.1.0"."""
     return _core_lib().isomend_version().decode()
-
-
-def host_reclaims_free_memory():
-    """True on a virtual machine whose kernel hands free memory back to its host
-    (a virtio memory balloon with free page reporting): there a process that
-    extracts once in a while (an import) is faster with ``small_pages=True``."""
-    return bool(_core_lib().isomend_host_reclaims_free_memory())
 
 
 def io_version():
@@ -715,9 +706,9 @@ def extract(volume, iso, method="dmc", spacing=None, origin=None, pad=False, fli
     origins: record each triangle's origin (else mesh.origins is None).
     threads: worker threads, 0 = all cores (the mesh does not depend on it).
     progress: callable(stage, fraction) -> True to cancel.
-    small_pages: output on small pages (ISOMEND_FLAG_SMALL_PAGES): faster for a process
-             that extracts once on a virtual machine that hands free memory back to its
-             host; the default's huge pages are faster for repeated extractions.
+    small_pages: output arrays without huge pages (ISOMEND_FLAG_SMALL_PAGES); the same
+             mesh.  Huge pages, the default, were faster on every machine measured but
+             one virtual machine, for a process that extracts once (see the README).
     Returns a Mesh.  Raises IsomendError (Cancelled when cancelled), ValueError, TypeError.
     """
     if iso is None:

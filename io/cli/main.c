@@ -75,11 +75,9 @@ static const char *const usage_extract =
     "  --no-normals             write no vertex normals\n"
     "  --flip                   normals towards higher values, winding reversed\n"
     "  --threads N              worker threads, 0 = all cores (default)\n"
-    "  --pages auto|huge|small  memory pages of the mesh in memory: huge (transparent\n"
-    "                           huge pages, the library's default) or small; auto\n"
-    "                           (default): small on a virtual machine whose kernel\n"
-    "                           hands free memory back to its host, where a process\n"
-    "                           that extracts once finds huge pages slow, else huge\n"
+    "  --pages huge|small       memory pages of the mesh in memory: huge (transparent\n"
+    "                           huge pages, the default) or small, which only some\n"
+    "                           virtual machines reward (see the README)\n"
     "  --stats                  print the case histogram (thesis Table-2) and where\n"
     "                           the triangles come from (table / mending / Durst)\n"
     "  --json FILE|-            write statistics, check and timings as one JSON object\n"
@@ -155,7 +153,7 @@ typedef struct args {
     int npositional;
     double iso;
     isomend_method method;
-    enum { PAGES_AUTO, PAGES_HUGE, PAGES_SMALL } pages; /* --pages */
+    enum { PAGES_HUGE, PAGES_SMALL } pages; /* --pages */
     double box[6];
     cli_source_opts src;
 } args;
@@ -368,14 +366,12 @@ static int parse_args(int argc, char **argv, int first, const char *command, uns
             a->src.have_step = 1;
             break;
         case OPT_PAGES:
-            if (strcmp(value, "auto") == 0)
-                a->pages = PAGES_AUTO;
-            else if (strcmp(value, "huge") == 0)
+            if (strcmp(value, "huge") == 0)
                 a->pages = PAGES_HUGE;
             else if (strcmp(value, "small") == 0)
                 a->pages = PAGES_SMALL;
             else {
-                cli_error("--pages: '%s' is not auto, huge or small", value);
+                cli_error("--pages: '%s' is not huge or small", value);
                 return CLI_EXIT_USAGE;
             }
             break;
@@ -573,10 +569,7 @@ static int cmd_extract(int argc, char **argv)
     if (a.seen & OPT_PAD) opts.flags |= ISOMEND_FLAG_PAD;
     if (a.seen & OPT_NO_NORMALS) opts.flags |= ISOMEND_FLAG_NO_NORMALS;
     if (a.seen & OPT_FLIP) opts.flags |= ISOMEND_FLAG_FLIP;
-    /* one extraction per process: on a guest that hands free memory to its host,
-     * huge pages come back from the host at 3-4 ms/MB, small ones at ~0.7 */
-    const int small_pages =
-        a.pages == PAGES_SMALL || (a.pages == PAGES_AUTO && isomend_host_reclaims_free_memory());
+    const int small_pages = a.pages == PAGES_SMALL;
     if (small_pages) opts.flags |= ISOMEND_FLAG_SMALL_PAGES;
     opts.progress = cli_progress_extract_cb; /* the bar, and how Ctrl-C cancels */
     opts.progress_user = &bar;

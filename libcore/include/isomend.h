@@ -163,29 +163,20 @@ enum {
     ISOMEND_FLAG_PAD = 1u << 2,        /* surround the volume with one layer   */
                                        /* of outside samples: closed surfaces  */
     ISOMEND_FLAG_NO_ORIGINS = 1u << 3, /* do not record triangle origins       */
-    ISOMEND_FLAG_SMALL_PAGES = 1u << 4 /* output on small pages: for a process */
-                                       /* that extracts once (see below)       */
+    ISOMEND_FLAG_SMALL_PAGES = 1u << 4 /* output arrays without huge pages     */
+                                       /* (see below)                          */
 };
 #define ISOMEND_FLAGS_ALL 0x1Fu
 /*
  * Pages.  By default the output arrays are offered to the kernel for
- * transparent huge pages, which makes repeated extractions fast: memory just
- * freed comes back at ~0.1 ms/MB instead of ~0.7 ms/MB on small pages.  On a
- * virtual machine that hands free memory back to its host (virtio-balloon
- * free page reporting), huge pages the host has taken back cost 3-4 ms/MB
- * instead, so a process that extracts once in a while (a command line, an
- * import in an editor) is faster with ISOMEND_FLAG_SMALL_PAGES there:
- *
- *     if (isomend_host_reclaims_free_memory())
- *         opts.flags |= ISOMEND_FLAG_SMALL_PAGES;
- *
- * The mesh is the same either way.
+ * transparent huge pages: far fewer page faults and TLB misses for arrays of
+ * tens to hundreds of MB.  ISOMEND_FLAG_SMALL_PAGES asks for none.  It paid
+ * off on one virtual machine, whose host took freed huge pages back (virtio
+ * free page reporting) so that a process extracting once got them at
+ * 3-4 ms/MB; on another with the same reporting, small pages made a one-off
+ * extraction 1.5-2x slower and repeated ones 8x slower (see the README).
+ * Measure before using it.  The mesh is the same either way.
  */
-
-/* 1 on a virtual machine whose kernel reports free memory to its host (Linux:
- * a virtio memory balloon that negotiated free page reporting, read from
- * /sys/bus/virtio/devices), else 0.  Reads a few small files at each call. */
-ISOMEND_API int isomend_host_reclaims_free_memory(void);
 
 /*
  * Progress: called from the thread that called isomend_extract(), with a
