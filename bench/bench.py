@@ -6,6 +6,9 @@ What is timed (the library call only: no file I/O, volumes already in memory)
   isomend DMC+normals   isomend_extract(), method DMC, vertex normals, one shared
                         vertex per intersected edge, hole-free (the spec's goal row)
   isomend DMC geometry  the same without normals (ISOMEND_FLAG_NO_NORMALS)
+  isomend ... recycling the first row's call through isomend_extract_recycle(), handed the
+                        previous call's mesh (a program extracting one surface after
+                        another); its first call has none, so only its timed calls recycle
   FE geometry / FE+n    vtkFlyingEdges3D, normals (and gradients, scalars) off / normals on
   vtkMarchingCubes      geometry only (normals, gradients, scalars off); single-threaded
   skimage lewiner       skimage.measure.marching_cubes(method='lewiner'); always computes
@@ -235,6 +238,8 @@ def load_isomend(lib_dir):
     lib.isomend_extract.argtypes = [P(IsomendVolume), P(IsomendOptions),
                                     P(ctypes.c_void_p), P(IsomendStats)]
     lib.isomend_extract.restype = ctypes.c_int
+    lib.isomend_extract_recycle.argtypes = lib.isomend_extract.argtypes
+    lib.isomend_extract_recycle.restype = ctypes.c_int
     lib.isomend_status_string.argtypes = [ctypes.c_int]
     lib.isomend_status_string.restype = ctypes.c_char_p
     lib.isomend_mesh_destroy.argtypes = [ctypes.c_void_p]
@@ -246,7 +251,10 @@ def load_isomend(lib_dir):
     return lib
 
 
-def setup_isomend(a, iso, threads, args, normals):
+def setup_isomend(a, iso, threads, args, normals, recycle=False):
+    """isomend_extract(); with recycle, isomend_extract_recycle() handed the previous
+    call's mesh (the first call of a process has none), as a program extracting one
+    surface after another would call it."""
     lib = load_isomend(args.lib_dir)
     vol = IsomendVolume()
     nz, ny, nx = a.shape
@@ -260,11 +268,13 @@ def setup_isomend(a, iso, threads, args, normals):
     if not normals:
         opts.flags |= ISOMEND_FLAG_NO_NORMALS
 
+    kept = ctypes.c_void_p()  # recycle: the last call's mesh, handed to the next
+
     def run():
-        mesh = ctypes.c_void_p()
+        mesh = kept if recycle else ctypes.c_void_p()
         st = IsomendStats()
-        s = lib.isomend_extract(ctypes.byref(vol), ctypes.byref(opts), ctypes.byref(mesh),
-                                ctypes.byref(st))
+        call = lib.isomend_extract_recycle if recycle else lib.isomend_extract
+        s = call(ctypes.byref(vol), ctypes.byref(opts), ctypes.byref(mesh), ctypes.byref(st))
         if s != 0:
             raise RuntimeError("isomend_extract: %s" % lib.isomend_status_string(s).decode())
         return mesh, st
@@ -277,7 +287,8 @@ def setup_isomend(a, iso, threads, args, normals):
         extra = {"mend_triangles": st.triangles_by_origin[2],
                  "inverted_combinations": st.inverted_combinations,
                  "version": lib.isomend_version().decode()}
-        lib.isomend_mesh_destroy(mesh)
+        if not recycle:  # else kept (the same object as mesh) goes to the next call
+            lib.isomend_mesh_destroy(mesh)
         return nt, nv, nbytes, extra
     return run, measure
 
@@ -370,6 +381,8 @@ EXTRACTORS = {
     "isomend": ("isomend DMC+normals", lambda a, i, t, g: setup_isomend(a, i, t, g, True), True),
     "isomend-geom": ("isomend DMC geometry",
                      lambda a, i, t, g: setup_isomend(a, i, t, g, False), True),
+    "isomend-recycle": ("isomend DMC+normals, recycling",
+                        lambda a, i, t, g: setup_isomend(a, i, t, g, True, True), True),
     "isomend-py": ("isomend via Python wrapper", setup_wrapper, True),
     "fe": ("vtkFlyingEdges3D geometry",
            lambda a, i, t, g: setup_vtk(a, i, t, g, "vtkFlyingEdges3D", False), True),
@@ -380,8 +393,8 @@ EXTRACTORS = {
     "skimage": ("skimage marching_cubes lewiner", setup_skimage, False),
     "openvdb": ("OpenVDB volumeToMesh (adapt. 0)", setup_openvdb, True),
 }
-ALL_PEERS = ["isomend", "isomend-geom", "isomend-py", "fe", "fe-normals", "vtkmc", "skimage",
-             "openvdb"]
+ALL_PEERS = ["isomend", "isomend-geom", "isomend-recycle", "isomend-py", "fe", "fe-normals",
+             "vtkmc", "skimage", "openvdb"]
 
 
 # ------------------------------------------------------------------- child process
@@ -585,7 +598,8 @@ def plan(args):
 def quick_policy(args, name, field, size, dtype):
     """Which measurements quick mode makes, so that it stays under two minutes:
     the goal's comparison (isomend DMC against Flying Edges) everywhere, with 3 rounds;
-    isomend without normals once, at one thread, on the 256^3 fields; the other
+    isomend without normals, and isomend recycling its previous mesh, once, at one
+    thread, on the 256^3 fields; the other
     extractors (Flying Edges with normals among them) once, at one thread, on the 256^3
     sphere only; at 512^3 the sphere with isomend and Flying Edges geometry only, and the
     uint8 noise volume of the memory goal with isomend alone, once.  The peers make one
@@ -602,7 +616,7 @@ def quick_policy(args, name, field, size, dtype):
         return name in ("isomend", "fe"), None, calls
     if name in ("isomend", "fe"):
         return True, None, calls
-    if name == "isomend-geom":
+    if name in ("isomend-geom", "isomend-recycle"):
         return True, 1, calls
     return (size == 256 and field == "sphere"), 1, calls
 
@@ -894,7 +908,7 @@ def check(results, peers):
     for key, r in by.items():
         f, n, d, ext, t = key
         if ext == "isomend":
-            for other in ("isomend-geom", "isomend-py"):
+            for other in ("isomend-geom", "isomend-recycle", "isomend-py"):
                 o = by.get((f, n, d, other, t))
                 if o and (o["triangles"], o["vertices"]) != (r["triangles"], r["vertices"]):
                     problems.append("%s %d %s: %s differs from isomend (%d/%d vs %d/%d)" % (

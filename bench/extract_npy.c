@@ -5,7 +5,7 @@
  *
  *   isomend_bench_extract FILE.npy ISO [--threads N] [--repeats N]
  *                         [--method mc|durst|dmc] [--no-normals] [--pad] [--small-pages]
- *                         [--floor | --ab LIB_A.so LIB_B.so]
+ *                         [--recycle] [--floor | --ab LIB_A.so LIB_B.so]
  *
  * Reads a C-order 3-D array (shape (nz, ny, nx), x fastest) of uint8, int8,
  * uint16, int16, int32, float32 or float64 in little-endian order, then runs
@@ -13,7 +13,9 @@
  * time, the latter split into user and system time, triangles, vertices) and
  * the medians.  On a shared machine the CPU time of a 1-thread run is the
  * figure least disturbed by other jobs; the system time is the kernel's share
- * (page faults of the output arrays).
+ * (page faults of the output arrays).  With --recycle, each run after the
+ * first hands the previous run's mesh to isomend_extract_recycle() instead
+ * of destroying it (not with --ab).
  * With --floor (float32 and uint8 volumes) each run is preceded by the
  * benchmark's memory-read floor (floor.c: the sum of all voxels, same thread
  * count, the median of 3 consecutive sums as in bench.py) and the line shows
@@ -180,7 +182,7 @@ done:
 static int usage(void)
 {
     fprintf(stderr, "usage: isomend_bench_extract FILE.npy ISO [--threads N] [--repeats N] "
-                    "[--method mc|durst|dmc] [--no-normals] [--pad] [--small-pages] "
+                    "[--method mc|durst|dmc] [--no-normals] [--pad] [--small-pages] [--recycle] "
                     "[--floor | --ab LIB_A.so LIB_B.so]\n");
     return 1;
 }
@@ -336,7 +338,7 @@ int main(int argc, char **argv)
         fprintf(stderr, "isomend_bench_extract: ISO %s is not a number\n", argv[2]);
         return 1;
     }
-    int repeats = 5, floor = 0;
+    int repeats = 5, floor = 0, recycle = 0;
     const char *ab[2] = {NULL, NULL};
     for (int i = 3; i < argc; i++) {
         const char *a = argv[i];
@@ -348,6 +350,8 @@ int main(int argc, char **argv)
             o.flags |= ISOMEND_FLAG_SMALL_PAGES;
         } else if (!strcmp(a, "--floor")) {
             floor = 1;
+        } else if (!strcmp(a, "--recycle")) {
+            recycle = 1;
         } else if (!strcmp(a, "--ab") && i + 2 < argc) {
             ab[0] = argv[++i];
             ab[1] = argv[++i];
@@ -376,6 +380,10 @@ int main(int argc, char **argv)
         fprintf(stderr, "isomend_bench_extract: --floor and --ab: one ratio at a time\n");
         return 1;
     }
+    if (recycle && ab[0]) {
+        fprintf(stderr, "isomend_bench_extract: --recycle and --ab: the builds would share meshes\n");
+        return 1;
+    }
     built_lib lib[2];
     memset(lib, 0, sizeof lib);
     if (ab[0] && (!load_build(ab[0], &lib[0]) || !load_build(ab[1], &lib[1])))
@@ -401,14 +409,17 @@ int main(int argc, char **argv)
     double *cpu = calloc((size_t)repeats, sizeof(double));
     double *ratio = calloc((size_t)repeats, sizeof(double));
     int rc = times && cpu && ratio ? 0 : 2;
+    isomend_mesh *kept = NULL; /* --recycle: the last run's mesh */
     for (int r = 0; r < repeats && rc == 0; r++) {
-        isomend_mesh *mesh = NULL;
+        isomend_mesh *mesh = kept;
+        kept = NULL;
         isomend_stats st;
         double u0, s0, u1, s1;
         const double floor_s = floor ? floor_time(&v, floor_threads) : 0.0;
         usage_times(&u0, &s0);
         double t0 = now(CLOCK_MONOTONIC), c0 = now(CLOCK_PROCESS_CPUTIME_ID);
-        isomend_status s = isomend_extract(&vol, &o, &mesh, &st);
+        isomend_status s = recycle ? isomend_extract_recycle(&vol, &o, &mesh, &st)
+                                   : isomend_extract(&vol, &o, &mesh, &st);
         times[r] = now(CLOCK_MONOTONIC) - t0;
         cpu[r] = now(CLOCK_PROCESS_CPUTIME_ID) - c0;
         usage_times(&u1, &s1);
@@ -428,8 +439,12 @@ int main(int argc, char **argv)
             printf("; floor %.2f ms, ratio %.2f", 1e3 * floor_s, ratio[r]);
         }
         printf("\n");
-        isomend_mesh_destroy(mesh);
+        if (recycle)
+            kept = mesh;
+        else
+            isomend_mesh_destroy(mesh);
     }
+    isomend_mesh_destroy(kept);
     if (rc == 0) {
         qsort(times, (size_t)repeats, sizeof(double), cmp_double);
         qsort(cpu, (size_t)repeats, sizeof(double), cmp_double);

@@ -233,6 +233,23 @@ typedef struct isomend_mesh isomend_mesh;
 ISOMEND_API isomend_status isomend_extract(const isomend_volume *vol, const isomend_options *opts,
                                            isomend_mesh **out_mesh, isomend_stats *stats);
 
+/*
+ * isomend_extract() for a program that extracts one surface after another:
+ * *mesh, if not NULL, is a mesh the caller no longer needs (its arrays must
+ * not be used again).  The call destroys it, in every case, and where it can
+ * it moves the old mesh's memory into the new mesh first, so that the new
+ * arrays are written on memory already in place: no page faults and no
+ * zeroing by the kernel for that part (on the 256^3 sphere at 2 threads,
+ * 0.91x the time of isomend_extract() after isomend_mesh_destroy()).  The
+ * new mesh, the same byte for byte as isomend_extract()'s, is stored in
+ * *mesh; NULL on failure.  Memory is reused on the one-pass path (1 or 2
+ * threads, grids of 2^21 samples or more); otherwise the old mesh is
+ * destroyed before the new one is allocated.
+ */
+ISOMEND_API isomend_status isomend_extract_recycle(const isomend_volume *vol,
+                                                   const isomend_options *opts,
+                                                   isomend_mesh **mesh, isomend_stats *stats);
+
 /* Accepts NULL. */
 ISOMEND_API void isomend_mesh_destroy(isomend_mesh *mesh);
 

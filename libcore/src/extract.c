@@ -62,7 +62,7 @@
  * samples, are outside, and an edge with such an endpoint is cut at its
  * midpoint.
  */
-#define _DEFAULT_SOURCE /* madvise, posix_memalign */
+#define _GNU_SOURCE /* madvise, posix_memalign, mremap */
 #include "isomend.h"
 #include "methods.h"
 #include "tables.h"
@@ -637,6 +637,7 @@ typedef struct ctx {
     isomend_progress_fn progress;
     void *progress_user;
     struct split *split;   /* the one pass on two threads (run_one_pass)    */
+    isomend_mesh *recycled; /* isomend_extract_recycle's old mesh, until used */
 } ctx;
 
 /* Sign slices a worker holds: a layer's three (k, k + 1 and k + 2 for the
@@ -2352,6 +2353,33 @@ static void release_output(void *p, size_t mapped)
     free(p);
 }
 
+/*
+ * Recycling (isomend_extract_recycle): moves the whole 2 MiB pages at the
+ * start of an old mesh's array, a reservation of `mapped` bytes at `old`, to
+ * the start of the new reservation p of `size` bytes (both 2 MiB aligned), so
+ * that the new mesh writes on pages already faulted in and zeroed once: no
+ * page fault, no zeroing by the kernel, and on a virtual machine nothing to
+ * get back from the host.  The old array's last, partly used page was split
+ * into 4 KiB pages when it was trimmed: it is unmapped with the rest, since
+ * it would make the new array fault 4 KiB pages where a 2 MiB one belongs.
+ */
+static void adopt_output(void *p, size_t size, void *old, size_t mapped)
+{
+    const size_t huge = (size_t)2 << 20;
+    size_t keep = mapped & ~(huge - 1);
+    if (keep > size)
+        keep = size;
+#if defined(__linux__) && defined(MREMAP_FIXED)
+    if (keep && mremap(old, keep, keep, MREMAP_MAYMOVE | MREMAP_FIXED, p) == MAP_FAILED)
+        keep = 0;
+#else
+    (void)p;
+    keep = 0;
+#endif
+    if (mapped > keep)
+        munmap((char *)old + keep, mapped - keep);
+}
+
 /* The smallest grid (samples) for the one-pass path.  Below it the two
  * passes are as fast or faster: the volume stays in the caches between them,
  * and their small arrays come from the heap, where the one-pass reservations
@@ -2408,6 +2436,24 @@ static isomend_status one_pass(ctx *c, worker *ws, int nw, isomend_mesh **out, u
         }
         mesh->mapped[q] = reserved_size(size[q]);
     }
+    /* The recycled mesh's positions, normals and triangles become the start of
+     * the new ones.  Not its origins: the one pass leaves the table's origins
+     * as zero bytes and untouched pages cost nothing; zeroing recycled ones
+     * touches what the new mesh may never write (the 256^3 sphere, without
+     * mending: 1.03x isomend_extract's time that way, 0.95x without). */
+    if (c->recycled) {
+        isomend_mesh *old = c->recycled;
+        void **arrays[3] = {(void **)&old->pos, (void **)&old->nrm, (void **)&old->tri};
+        for (int q = 0; q < 3; q++) {
+            if (!p[q] || !old->mapped[q])
+                continue;
+            adopt_output(p[q], mesh->mapped[q], *arrays[q], old->mapped[q]);
+            *arrays[q] = NULL;
+            old->mapped[q] = 0;
+        }
+        isomend_mesh_destroy(old); /* what is left: arrays the new mesh does not have */
+        c->recycled = NULL;
+    }
     mesh->pos = c->pos = p[0];
     mesh->nrm = c->nrm = p[1];
     mesh->tri = c->tri = p[2];
@@ -2455,8 +2501,11 @@ static isomend_status validate(const isomend_volume *vol, const isomend_options 
     return ISOMEND_OK;
 }
 
-isomend_status isomend_extract(const isomend_volume *vol, const isomend_options *opts,
-                               isomend_mesh **out_mesh, isomend_stats *stats)
+/* isomend_extract, recycling *recycled (taken, and set to NULL, once the
+ * extraction has begun; the caller destroys it otherwise). */
+static isomend_status extract(const isomend_volume *vol, const isomend_options *opts,
+                              isomend_mesh **out_mesh, isomend_stats *stats,
+                              isomend_mesh **recycled)
 {
     if (!out_mesh)
         return ISOMEND_ERR_INVALID_ARGUMENT;
@@ -2471,6 +2520,8 @@ isomend_status isomend_extract(const isomend_volume *vol, const isomend_options 
     ctx *c = calloc(1, sizeof(*c));
     if (!c)
         return ISOMEND_ERR_OUT_OF_MEMORY;
+    c->recycled = *recycled; /* this call's now: used or destroyed */
+    *recycled = NULL;
     grid *g = &c->g;
     const size_t size = isomend_type_size(vol->type);
     g->data = vol->data;
@@ -2609,6 +2660,8 @@ isomend_status isomend_extract(const isomend_volume *vol, const isomend_options 
         goto done;
     }
 
+    isomend_mesh_destroy(c->recycled); /* the two passes' arrays are allocated, not reserved */
+    c->recycled = NULL;
     status = ISOMEND_ERR_OUT_OF_MEMORY;
     mesh = calloc(1, sizeof(*mesh));
     if (!mesh)
@@ -2666,6 +2719,7 @@ finish:
 
 done:
     isomend_mesh_destroy(mesh);
+    isomend_mesh_destroy(c->recycled);
     if (ws)
         for (int t = 0; t < nthreads; t++)
             worker_free(&ws[t]);
@@ -2680,6 +2734,24 @@ done:
 }
 
 /* ------------------------------------------------------------ accessors */
+
+isomend_status isomend_extract(const isomend_volume *vol, const isomend_options *opts,
+                               isomend_mesh **out_mesh, isomend_stats *stats)
+{
+    isomend_mesh *none = NULL;
+    return extract(vol, opts, out_mesh, stats, &none);
+}
+
+isomend_status isomend_extract_recycle(const isomend_volume *vol, const isomend_options *opts,
+                                       isomend_mesh **mesh, isomend_stats *stats)
+{
+    if (!mesh)
+        return ISOMEND_ERR_INVALID_ARGUMENT;
+    isomend_mesh *old = *mesh;
+    const isomend_status status = extract(vol, opts, mesh, stats, &old);
+    isomend_mesh_destroy(old); /* not taken: the arguments were refused */
+    return status;
+}
 
 void isomend_mesh_destroy(isomend_mesh *mesh)
 {
