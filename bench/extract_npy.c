@@ -381,7 +381,8 @@ int main(int argc, char **argv)
         return 1;
     }
     if (recycle && ab[0]) {
-        fprintf(stderr, "isomend_bench_extract: --recycle and --ab: the builds would share meshes\n");
+        fprintf(stderr,
+                "isomend_bench_extract: --recycle and --ab: the builds would share meshes\n");
         return 1;
     }
     built_lib lib[2];

@@ -239,8 +239,8 @@ ISOMEND_API isomend_status isomend_extract(const isomend_volume *vol, const isom
  * not be used again).  The call destroys it, in every case, and where it can
  * it moves the old mesh's memory into the new mesh first, so that the new
  * arrays are written on memory already in place: no page faults and no
- * zeroing by the kernel for that part (on the 256^3 sphere at 2 threads,
- * 0.91x the time of isomend_extract() after isomend_mesh_destroy()).  The
+ * zeroing by the kernel for that part (on the 256^3 gyroid at 1 thread,
+ * 0.89-0.92x the time of isomend_mesh_destroy() then isomend_extract()).  The
  * new mesh, the same byte for byte as isomend_extract()'s, is stored in
  * *mesh; NULL on failure.  Memory is reused on the one-pass path (1 or 2
  * threads, grids of 2^21 samples or more); otherwise the old mesh is
