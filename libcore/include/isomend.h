@@ -242,9 +242,9 @@ ISOMEND_API isomend_status isomend_extract(const isomend_volume *vol, const isom
  * zeroing by the kernel for that part (on the 256^3 gyroid at 1 thread,
  * 0.89-0.92x the time of isomend_mesh_destroy() then isomend_extract()).  The
  * new mesh, the same byte for byte as isomend_extract()'s, is stored in
- * *mesh; NULL on failure.  Memory is reused on the one-pass path (1 or 2
- * threads, grids of 2^21 samples or more); otherwise the old mesh is
- * destroyed before the new one is allocated.
+ * *mesh; NULL on failure.  Memory is reused on the one-pass path (methods
+ * MC, Durst and DMC, 1 or 2 threads, grids of 2^21 samples or more);
+ * otherwise the old mesh is destroyed before the new one is allocated.
  */
 ISOMEND_API isomend_status isomend_extract_recycle(const isomend_volume *vol,
                                                    const isomend_options *opts,

@@ -2236,6 +2236,15 @@ static int worker_init(worker *w, ctx *c)
     return 1;
 }
 
+/* The transparent huge page of x86-64 (and of arm64 with 4 KiB pages). */
+#define HUGE_PAGE ((size_t)2 << 20)
+
+/* size rounded up to whole huge pages. */
+static size_t huge_round(size_t size)
+{
+    return (size + HUGE_PAGE - 1) & ~(HUGE_PAGE - 1);
+}
+
 /*
  * Output arrays of 2 MiB and more are aligned to 2 MiB and offered to the
  * kernel for transparent huge pages: a large mesh otherwise spends a third
@@ -2245,14 +2254,13 @@ static int worker_init(worker *w, ctx *c)
  */
 static void *output_alloc(size_t size, int small_pages)
 {
-    const size_t huge = (size_t)2 << 20;
-    if (size < huge || small_pages)
+    if (size < HUGE_PAGE || small_pages)
         return malloc(size ? size : 1);
     void *p = NULL;
-    if (posix_memalign(&p, huge, size) != 0)
+    if (posix_memalign(&p, HUGE_PAGE, size) != 0)
         return NULL;
 #if defined(__linux__) && defined(MADV_HUGEPAGE)
-    (void)madvise(p, (size + huge - 1) & ~(huge - 1), MADV_HUGEPAGE);
+    (void)madvise(p, huge_round(size), MADV_HUGEPAGE);
 #endif
     return p;
 }
@@ -2270,12 +2278,11 @@ static void *output_alloc(size_t size, int small_pages)
  */
 static void *scratch_alloc(size_t size)
 {
-    const size_t huge = (size_t)2 << 20;
-    if (size < huge / 2)
+    if (size < HUGE_PAGE / 2)
         return malloc(size ? size : 1);
-    if (size > SIZE_MAX - huge)
+    if (size > SIZE_MAX - HUGE_PAGE)
         return NULL;
-    return output_alloc((size + huge - 1) & ~(huge - 1), 0);
+    return output_alloc(huge_round(size), 0);
 }
 
 /*
@@ -2285,29 +2292,22 @@ static void *scratch_alloc(size_t size)
  * pages from byte `huge_from` (a multiple of 2 MiB) on, or never (SIZE_MAX:
  * ISOMEND_FLAG_SMALL_PAGES).  NULL when the system
  * refuses (strict overcommit, an address-space limit): the caller then takes
- * the two passes.
+ * the two passes.  The mapping is huge_round(size) bytes long.
  */
-static size_t reserved_size(size_t size)
-{
-    const size_t huge = (size_t)2 << 20;
-    return (size + huge - 1) & ~(huge - 1);
-}
-
 static void *reserve_output(size_t size, size_t huge_from)
 {
 #if defined(__linux__) && defined(MAP_NORESERVE)
-    const size_t huge = (size_t)2 << 20;
-    if (size > SIZE_MAX / 2 - 2 * huge)
+    if (size > SIZE_MAX / 2 - 2 * HUGE_PAGE)
         return NULL;
-    size = reserved_size(size);
-    char *p = mmap(NULL, size + huge, PROT_READ | PROT_WRITE,
+    size = huge_round(size);
+    char *p = mmap(NULL, size + HUGE_PAGE, PROT_READ | PROT_WRITE,
                    MAP_PRIVATE | MAP_ANONYMOUS | MAP_NORESERVE, -1, 0);
     if (p == MAP_FAILED)
         return NULL;
-    const size_t head = (size_t)(-(uintptr_t)p & (huge - 1));
+    const size_t head = (size_t)(-(uintptr_t)p & (HUGE_PAGE - 1));
     if (head)
         munmap(p, head);
-    munmap(p + head + size, huge - head);
+    munmap(p + head + size, HUGE_PAGE - head);
 #if defined(MADV_HUGEPAGE) && defined(MADV_NOHUGEPAGE)
     if (huge_from == SIZE_MAX) /* small pages, even where the kernel's policy is "always" */
         (void)madvise(p + head, size, MADV_NOHUGEPAGE);
@@ -2365,19 +2365,19 @@ static void release_output(void *p, size_t mapped)
  */
 static void adopt_output(void *p, size_t size, void *old, size_t mapped)
 {
-    const size_t huge = (size_t)2 << 20;
-    size_t keep = mapped & ~(huge - 1);
+#if defined(__linux__) && defined(MREMAP_FIXED)
+    size_t keep = mapped & ~(HUGE_PAGE - 1);
     if (keep > size)
         keep = size;
-#if defined(__linux__) && defined(MREMAP_FIXED)
     if (keep && mremap(old, keep, keep, MREMAP_MAYMOVE | MREMAP_FIXED, p) == MAP_FAILED)
         keep = 0;
-#else
-    (void)p;
-    keep = 0;
-#endif
     if (mapped > keep)
         munmap((char *)old + keep, mapped - keep);
+#else
+    (void)p;
+    (void)size;
+    release_output(old, mapped);
+#endif
 }
 
 /* The smallest grid (samples) for the one-pass path.  Below it the two
@@ -2424,7 +2424,7 @@ static isomend_status one_pass(ctx *c, worker *ws, int nw, isomend_mesh **out, u
             continue;
         /* The origins (a byte a triangle) are often under 2 MiB: huge pages
          * from there on only, or a huge page would hold ~2 MiB of nothing. */
-        size_t huge_from = q == 3 ? (size_t)2 << 20 : 0;
+        size_t huge_from = q == 3 ? HUGE_PAGE : 0;
         if (c->small_pages)
             huge_from = SIZE_MAX;
         p[q] = reserve_output(size[q], huge_from);
@@ -2434,7 +2434,7 @@ static isomend_status one_pass(ctx *c, worker *ws, int nw, isomend_mesh **out, u
             free(mesh);
             return ISOMEND_ERR_UNSUPPORTED;
         }
-        mesh->mapped[q] = reserved_size(size[q]);
+        mesh->mapped[q] = huge_round(size[q]);
     }
     /* The recycled mesh's positions, normals and triangles become the start of
      * the new ones.  Not its origins: the one pass leaves the table's origins
