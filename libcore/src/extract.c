@@ -608,6 +608,15 @@ static void make_vertex_between(const grid *g, int flip, const int64_t p0[3], co
 
 /* ------------------------------------------------------- the extraction */
 
+/* The transparent huge page of x86-64 (and of arm64 with 4 KiB pages). */
+#define HUGE_PAGE ((size_t)2 << 20)
+
+/* size rounded up to whole huge pages. */
+static size_t huge_round(size_t size)
+{
+    return (size + HUGE_PAGE - 1) & ~(HUGE_PAGE - 1);
+}
+
 typedef struct ctx {
     grid g;
     isomend_method method;
@@ -2129,9 +2138,17 @@ static int split_apart(worker *w, split *sp)
     return ok;
 }
 
+/* Bytes move_down moves between releases of the source's pages. */
+#define MOVE_CHUNK (4 * HUGE_PAGE)
+
 /*
- * Moves `n` items of `size` bytes from item `from` of an output array down to
- * item `to`, adding `add` to each (uint32_t items) unless it is 0.
+ * Moves `n` items of `size` bytes from item `from` of an output array (a
+ * reservation of the one pass) down to item `to`, adding `add` to each
+ * (uint32_t items) unless it is 0.  When the two do not overlap, the source's
+ * pages are released as they are read, 8 MiB at a time, so that the array
+ * does not hold the whole moved part twice (maximum RSS of the 512^3 sphere
+ * at 2 threads: 613 -> 602 MB; 584 MB counting.  The rest of the difference
+ * is the second part's own partly used last pages).
  */
 static void move_down(void *array, size_t size, uint64_t to, uint64_t from, uint64_t n,
                       uint32_t add)
@@ -2139,16 +2156,30 @@ static void move_down(void *array, size_t size, uint64_t to, uint64_t from, uint
     if (!array || !n)
         return;
     char *a = array;
-    if (!add) {
-        memmove(a + size * to, a + size * from, size * n);
-        return;
+    const size_t dst = (size_t)(size * to), src = (size_t)(size * from), len = (size_t)(size * n);
+    const int apart = dst + len <= src;
+    /* pages wholly past the destination and within the source: released */
+    size_t free_from = huge_round(src), step = apart ? MOVE_CHUNK : len;
+    for (size_t at = 0; at < len; at += step) {
+        const size_t k = len - at < step ? len - at : step;
+        if (!add) {
+            memmove(a + dst + at, a + src + at, k);
+        } else {
+            /* Forward: the destination lies below the source, so where the
+             * two overlap each item is read before it is overwritten. */
+            uint32_t *d = (uint32_t *)(void *)(a + dst + at);
+            const uint32_t *f = (const uint32_t *)(const void *)(a + src + at);
+            for (size_t q = 0, m = k / sizeof(uint32_t); q < m; q++)
+                d[q] = f[q] + add;
+        }
+#if defined(__linux__) && defined(MADV_DONTNEED)
+        const size_t read_to = (src + at + k) & ~(HUGE_PAGE - 1);
+        if (apart && read_to > free_from) {
+            (void)madvise(a + free_from, read_to - free_from, MADV_DONTNEED);
+            free_from = read_to;
+        }
+#endif
     }
-    /* Forward: the destination lies below the source, so where the two
-     * overlap each item is read before it is overwritten. */
-    uint32_t *d = (uint32_t *)(void *)(a + size * to);
-    const uint32_t *f = (const uint32_t *)(const void *)(a + size * from);
-    for (size_t q = 0, m = size * n / sizeof(uint32_t); q < m; q++)
-        d[q] = f[q] + add;
 }
 
 /*
@@ -2388,15 +2419,6 @@ static int worker_init(worker *w, ctx *c)
     (void)worker_layout(w, c, w->block);
     memset(w->cases, 0, (size_t)c->g.N[0] + SCAN_PAD); /* read past a row's end */
     return 1;
-}
-
-/* The transparent huge page of x86-64 (and of arm64 with 4 KiB pages). */
-#define HUGE_PAGE ((size_t)2 << 20)
-
-/* size rounded up to whole huge pages. */
-static size_t huge_round(size_t size)
-{
-    return (size + HUGE_PAGE - 1) & ~(HUGE_PAGE - 1);
 }
 
 /*
