@@ -299,11 +299,60 @@ static void test_recycle(void)
         free(vols[q]);
 }
 
+/*
+ * Two threads give one thread's mesh on grids that take the one pass (2^21
+ * samples and more): a dense field (the split that counts; in the variant
+ * built with ISOMEND_APART_DENSITY=1e9 the apart split, whose moves then
+ * span several huge pages and release them as they go) and a sphere (sparse:
+ * the apart split in every build).
+ */
+static void test_split(void)
+{
+    enum { N = 150 };
+    float *dense = noise_volume(N, 3u);
+    float *ball = malloc(sizeof(float) * N * N * N);
+    CHECK(ball != NULL);
+    if (!dense || !ball) {
+        free(dense);
+        free(ball);
+        return;
+    }
+    for (int z = 0; z < N; z++)
+        for (int y = 0; y < N; y++)
+            for (int x = 0; x < N; x++)
+                ball[x + N * (y + N * z)] =
+                    (float)(55.5 - sqrt((x - 70.2) * (x - 70.2) + (y - 77.9) * (y - 77.9) +
+                                        (z - 74.4) * (z - 74.4)));
+    const float *vols[2] = {dense, ball};
+    for (int q = 0; q < 2; q++) {
+        isomend_volume vol;
+        isomend_volume_init(&vol, vols[q], ISOMEND_F32, N, N, N);
+        isomend_options o;
+        isomend_options_init(&o);
+        isomend_mesh *m[2] = {NULL, NULL};
+        isomend_stats st[2];
+        for (int t = 0; t < 2; t++) {
+            o.threads = t + 1;
+            CHECK_EQ_INT(isomend_extract(&vol, &o, &m[t], &st[t]), ISOMEND_OK);
+        }
+        if (m[0] && m[1]) {
+            CHECK(same_mesh(m[0], m[1]));
+            CHECK(memcmp(&st[0], &st[1], sizeof st[0]) == 0);
+            CHECK(isomend_mesh_vertex_count(m[0]) > (q ? 30000u : 1000000u));
+        }
+        isomend_mesh_destroy(m[0]);
+        isomend_mesh_destroy(m[1]);
+    }
+    free(dense);
+    free(ball);
+}
+
 int main(void)
 {
     test_errors();
     test_names();
     test_progress_and_geometry();
     test_recycle();
+    test_split();
     TEST_EXIT();
 }
