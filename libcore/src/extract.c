@@ -646,6 +646,8 @@ typedef struct ctx {
     isomend_progress_fn progress;
     void *progress_user;
     struct split *split;   /* the one pass on two threads (run_one_pass)    */
+    uint64_t apart_v, apart_t; /* one pass: the arrays have room past these for
+                                * a split apart (split_apart), or 0          */
     isomend_mesh *recycled; /* isomend_extract_recycle's old mesh, until used */
 } ctx;
 
@@ -2000,6 +2002,30 @@ static isomend_status run_pass(ctx *c, worker *ws, int nw)
     return status;
 }
 
+static double now_seconds(void)
+{
+    struct timespec ts;
+    clock_gettime(CLOCK_MONOTONIC, &ts);
+    return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
+}
+
+/*
+ * How long after the first thread's sweep the second may end its own and
+ * still take a share of the moves (split apart).  Their sweeps meet
+ * wherever their speeds make them, so they end within a slice of each other
+ * when both threads run.  When the second ends much later, its CPU was taken
+ * from it, and the first thread, on the CPU that runs, does all the moves.
+ * On this project's virtual machine, in phases of minutes, one of the two
+ * vCPUs ran a thread at a fraction of the other's speed: on the 256^3
+ * sphere at 2 threads its thread swept 45 slices while the other swept 210,
+ * ended 3.7-5.5 ms after it and then took 4-5 ms to move a few hundred KB of
+ * triangles, the whole call 19 ms against 8 otherwise.  Negative: the first
+ * thread always does the moves (a test build's).
+ */
+#ifndef ISOMEND_SPLIT_LATE
+#define ISOMEND_SPLIT_LATE 0.5e-3
+#endif
+
 /*
  * The one pass on two threads.  The calling thread sweeps from the first
  * layer, writing as it goes; the second first counts the vertices and
@@ -2015,16 +2041,23 @@ static isomend_status run_pass(ctx *c, worker *ws, int nw)
  * Counting costs the second thread a read of the volume's first part; on a
  * sparse mesh that is most of a sweep's work there, and the split lands at
  * about 2/3.  So when four sampled slices say the mesh is sparse, the second
- * splits apart instead (split_apart): it sweeps from the middle of what is
- * left at once, numbering from bases no count of the first part can reach,
- * and when both are done the first thread moves the second's vertices down
+ * splits apart instead (split_apart): it sweeps down from the last slice at
+ * once (sweep_down), claiming each slice as the first thread does, until the
+ * two meet, wherever the threads' speeds make them meet.  It numbers its
+ * vertices and triangles past any the first can write (the bases), slice
+ * after slice and layer after layer as it goes down; when both are done the
+ * first thread moves the second's vertices, slice by slice in slice order,
  * to follow its own, while the second moves its triangles, renumbered.
- * 512^3 float sphere at 2 threads: 0.80-0.83x the counting split's time.
+ * 512^3 float sphere at 2 threads: 0.80-0.83x the counting split's time
+ * when the second thread swept up from the middle; sweeping down, it takes
+ * whatever share of the volume its speed allows, where traces had shown it
+ * 2-12 ms late on the 512^3 sphere's 40-ms halves.
  */
 typedef struct split {
     pthread_mutex_t mu;
     pthread_cond_t cv;
-    int64_t at;       /* the second thread's first layer; INT64_MAX while open */
+    int64_t at;       /* the second thread's first layer (apart: its lowest
+                       * slice so far); INT64_MAX while open */
     int64_t claimed;  /* slices [0, claimed) are written by the first thread */
     int finished;     /* the second thread is done (cv)                      */
     atomic_llong done; /* layers the second thread has swept (progress)      */
@@ -2032,10 +2065,15 @@ typedef struct split {
     isomend_status status;
     /* Split apart (split_apart): no counting; the second thread numbers its
      * vertices and triangles from these bases, past any the first can
-     * write, and its part is moved down once the first's counts are known. */
+     * write, slice m's vertices from vstart[m] and layer k's triangles from
+     * tstart[k] (both decreasing with m and k), and its part is moved down
+     * once the first's counts are known. */
     int apart;
     uint64_t base_v, base_t;
+    uint64_t *vstart, *tstart; /* [N2], from the apart reservation (one_pass) */
     int first_done;          /* the first thread's sweep is over (cv) */
+    double first_end;        /* when (CLOCK_MONOTONIC, s)             */
+    int solo_join;           /* the first thread moves the triangles too */
     uint64_t nv1, nt1;       /* its vertices and triangles            */
     isomend_status status1;
 } split;
@@ -2106,84 +2144,172 @@ static isomend_status sweep(ctx *c, worker *w, int64_t from, uint64_t *nv, uint6
 
 /*
  * Whether the second of two threads splits the sweep apart rather than
- * counting: it samples four slices' vertices and splits apart when the mesh
- * is sparse (the moves at the end cost little) and the ids fit in 32 bits at
- * the bases' bound.  Sets the split layer, with what the first thread has
- * claimed so far, and the bases.  Called with sp->mu unlocked.
+ * counting: when the one pass reserved room for it (one_pass: the arrays
+ * twice as long, the ids then within 32 bits), it samples four slices'
+ * vertices and splits apart when the mesh is sparse (the moves at the end
+ * cost little).
  */
-static int split_apart(worker *w, split *sp)
+static int split_apart(worker *w, const split *sp)
 {
     const ctx *c = w->c;
     const grid *g = &c->g;
-    const uint64_t N0 = (uint64_t)g->N[0], N1 = (uint64_t)g->N[1], N2 = (uint64_t)g->N[2];
-    if (N2 < 8 || 3 * N0 * N1 * N2 > UINT32_MAX)
+    if (!sp->vstart)
         return 0;
+    const uint64_t N0 = (uint64_t)g->N[0], N1 = (uint64_t)g->N[1], N2 = (uint64_t)g->N[2];
     uint64_t sampled = 0;
     for (uint64_t q = 0; q < 4; q++)
         sampled += scan_slice(w, (int64_t)((2 * q + 1) * N2 / 8), 0, 0, 0);
     const double density = ISOMEND_APART_DENSITY * (double)isomend_type_size(g->type);
-    if ((double)sampled > density * 4.0 * (double)(N0 * N1))
-        return 0;
-    const int64_t layers = (int64_t)N2 - 1;
-    int ok = 0;
-    pthread_mutex_lock(&sp->mu);
-    const int64_t at = sp->claimed + (layers - sp->claimed) / 2;
-    if (at >= sp->claimed && at >= 1 && at < layers) {
-        sp->apart = ok = 1;
-        sp->at = at;
-        sp->base_v = 3 * N0 * N1 * (uint64_t)at;
-        sp->base_t = (uint64_t)(MC_MAX_TRI + 6) * (N0 - 1) * (N1 - 1) * (uint64_t)at;
-    }
-    pthread_mutex_unlock(&sp->mu);
-    return ok;
+    return (double)sampled <= density * 4.0 * (double)(N0 * N1);
 }
 
-/* Bytes move_down moves between releases of the source's pages. */
+/*
+ * The second thread's sweep when apart: down from the last slice, claiming
+ * each slice m (sp->at = m) unless the first thread has it, numbering slice
+ * m's vertices from *nv and writing layer m's triangles from *nt.  The
+ * classification reads slice m - 1 ahead: the gradients at slice m's z edges
+ * read it, and of the four ring slots the one it takes holds m + 3, which
+ * nothing needs any more.
+ */
+static isomend_status sweep_down(ctx *c, worker *w, split *sp, uint64_t *nv, uint64_t *nt)
+{
+    const int64_t N2 = c->g.N[2];
+    const rowinfo *ri;
+    uint64_t v = *nv, t = *nt;
+    isomend_status status = ISOMEND_OK;
+    for (int64_t m = N2 - 1; m >= 1; m--) {
+        pthread_mutex_lock(&sp->mu);
+        const int mine = m >= sp->claimed;
+        if (mine)
+            sp->at = m;
+        pthread_mutex_unlock(&sp->mu);
+        if (!mine)
+            break;
+        (void)signs(w, m - 1, &ri);
+        sp->vstart[m] = v;
+        v += scan_slice(w, m, 1, v, 1);
+        w->stats.nan_samples += w->nan[m % SIGN_RING];
+        if (m + 1 < N2) {
+            sp->tstart[m] = t;
+            t += march_layer(w, m, 2, t);
+            atomic_fetch_add(&sp->done, 1);
+        }
+        if (v > UINT32_MAX) {
+            status = ISOMEND_ERR_TOO_LARGE;
+            break;
+        }
+        if (atomic_load(&c->cancel)) {
+            status = ISOMEND_ERR_CANCELLED;
+            break;
+        }
+    }
+    *nv = v;
+    *nt = t;
+    return status;
+}
+
+/* Source bytes a move reads between releases of the source's pages. */
 #define MOVE_CHUNK (4 * HUGE_PAGE)
 
 /*
- * Moves `n` items of `size` bytes from item `from` of an output array (a
- * reservation of the one pass) down to item `to`, adding `add` to each
- * (uint32_t items) unless it is 0.  When the two do not overlap, the source's
- * pages are released as they are read, 8 MiB at a time, so that the array
- * does not hold the whole moved part twice (maximum RSS of the 512^3 sphere
- * at 2 threads: 613 -> 602 MB; 584 MB counting.  The rest of the difference
- * is the second part's own partly used last pages).
+ * The moves of a split apart, from the second thread's part (from the bases
+ * on, blocks in descending slice or layer order) to their places after the
+ * first thread's part.  As the blocks are read, from the highest address
+ * down, the source's huge pages above the block being read are released,
+ * 8 MiB or more at a time, so that the array does not hold the whole moved
+ * part twice (maximum RSS of the 512^3 sphere at 2 threads: 613 -> 602 MB
+ * when this was first done; 584 MB counting.  The rest of the difference is
+ * the second part's own partly used last pages).
  */
-static void move_down(void *array, size_t size, uint64_t to, uint64_t from, uint64_t n,
-                      uint32_t add)
+static void move_origins(uint8_t *org, uint64_t to, uint64_t from, uint64_t n);
+
+typedef struct release {
+    char *array;
+    size_t top; /* bytes from here on were read and released, or never used */
+} release;
+
+/* Releases the source's whole pages from byte `from` up, when they come to
+ * MOVE_CHUNK or this is the last block.  Not the page holding `from`: below
+ * the bases it may hold the end of the moved part. */
+static void release_above(release *r, size_t from, int last)
 {
-    if (!array || !n)
+#if defined(__linux__) && defined(MADV_DONTNEED)
+    const size_t at = huge_round(from);
+    if (at < r->top && (last || r->top - at >= MOVE_CHUNK)) {
+        (void)madvise(r->array + at, r->top - at, MADV_DONTNEED);
+        r->top = at;
+    }
+#else
+    (void)r;
+    (void)from;
+    (void)last;
+#endif
+}
+
+/* Items in block b of a split apart's part, whose blocks b, b - 1, ..., lo
+ * follow one another from start[b] on, the last (lo) ending at `end`. */
+static inline uint64_t block_size(const uint64_t *start, int64_t b, int64_t lo, uint64_t end)
+{
+    return (b > lo ? start[b - 1] : end) - start[b];
+}
+
+/*
+ * Moves the vertex blocks of slices [at, N2) (items of `size` bytes, block m
+ * from item vstart[m], the last ending at `end`) to item `to` on, in slice
+ * order.
+ */
+static void move_vertex_blocks(void *array, size_t size, uint64_t to, const uint64_t *vstart,
+                               int64_t at, int64_t N2, uint64_t end)
+{
+    if (!array || at >= N2)
         return;
     char *a = array;
-    const size_t dst = (size_t)(size * to), src = (size_t)(size * from), len = (size_t)(size * n);
-    const int apart = dst + len <= src;
-    /* pages wholly past the destination and within the source: released */
-    size_t free_from = huge_round(src), step = apart ? MOVE_CHUNK : len;
-    for (size_t at = 0; at < len; at += step) {
-        const size_t k = len - at < step ? len - at : step;
-        if (!add) {
-            memmove(a + dst + at, a + src + at, k);
-        } else {
-            /* Forward: the destination lies below the source, so where the
-             * two overlap each item is read before it is overwritten. */
-            uint32_t *d = (uint32_t *)(void *)(a + dst + at);
-            const uint32_t *f = (const uint32_t *)(const void *)(a + src + at);
-            for (size_t q = 0, m = k / sizeof(uint32_t); q < m; q++)
-                d[q] = f[q] + add;
-        }
-#if defined(__linux__) && defined(MADV_DONTNEED)
-        const size_t read_to = (src + at + k) & ~(HUGE_PAGE - 1);
-        if (apart && read_to > free_from) {
-            (void)madvise(a + free_from, read_to - free_from, MADV_DONTNEED);
-            free_from = read_to;
-        }
-#endif
+    release r = {a, huge_round(size * end)};
+    for (int64_t m = at; m < N2; m++) {
+        const uint64_t n = block_size(vstart, m, at, end);
+        memcpy(a + size * to, a + size * vstart[m], size * n);
+        to += n;
+        release_above(&r, size * vstart[m], m + 1 == N2);
     }
 }
 
 /*
- * move_down for the origins, whose destination reads as zero bytes (a fresh
+ * Moves the triangle blocks of layers [at, N2 - 1) (layer k's from triangle
+ * tstart[k], the last ending at `end`) to triangle `to` on, in layer order,
+ * renumbering their vertices for the moves of move_vertex_blocks (to `nv1`
+ * on), and their origins' non-zero bytes.  Layer k's triangles use vertices
+ * of slices k and k + 1, whose blocks are told apart by vstart[k] >
+ * vstart[k + 1].
+ */
+static void move_triangle_blocks(uint32_t *tri, uint8_t *org, uint64_t to, const uint64_t *tstart,
+                                 uint64_t tend, const uint64_t *vstart, uint64_t vend,
+                                 uint64_t nv1, int64_t at, int64_t N2)
+{
+    if (at >= N2 - 1)
+        return;
+    release r = {(char *)tri, huge_round(3 * sizeof(uint32_t) * tend)};
+    uint64_t first_k = nv1; /* final id of slice k's first vertex */
+    for (int64_t k = at; k < N2 - 1; k++) {
+        const uint64_t n = block_size(tstart, k, at, tend);
+        const uint64_t first_k1 = first_k + block_size(vstart, k, at, vend);
+        /* mod 2^32: the ids move down */
+        const uint32_t add_k = (uint32_t)(first_k - vstart[k]);
+        const uint32_t add_k1 = (uint32_t)(first_k1 - vstart[k + 1]);
+        const uint32_t split_id = (uint32_t)vstart[k];
+        const uint32_t *s = tri + 3 * tstart[k];
+        uint32_t *d = tri + 3 * to;
+        for (uint64_t q = 0; q < 3 * n; q++)
+            d[q] = s[q] + (s[q] >= split_id ? add_k : add_k1);
+        move_origins(org, to, tstart[k], n);
+        to += n;
+        first_k = first_k1;
+        release_above(&r, 3 * sizeof(uint32_t) * tstart[k], k + 2 == N2);
+    }
+}
+
+/*
+ * Moves n triangles' origins from `from` to `to`, where the destination reads
+ * as zero bytes (a fresh
  * reservation: recycling leaves the origins out) as does most of the source
  * (the table's triangles): only the other bytes are written, so that the
  * pages of the destination, often the first 2 MiB (on 4 KiB pages), are not
@@ -2224,12 +2350,16 @@ static void *second_sweep(void *arg)
     const isomend_stats kept = w->stats; /* counting adds to them: not this thread's */
     uint64_t v = 0, t = 0;
     int64_t at = -1;
-    if (split_apart(w, sp)) { /* no counting: from the bases */
-        at = sp->at;
+    const int apart = split_apart(w, sp);
+    if (apart) { /* no counting: down from the last slice, from the bases */
+        w->stats = kept;
+        pthread_mutex_lock(&sp->mu);
+        sp->apart = 1;
+        pthread_mutex_unlock(&sp->mu);
         v = sp->base_v;
         t = sp->base_t;
     }
-    for (int64_t k = 0; k + 1 < layers && at < 0 && !atomic_load(&c->cancel); k++) {
+    for (int64_t k = 0; k + 1 < layers && at < 0 && !apart && !atomic_load(&c->cancel); k++) {
         v += scan_slice(w, k, 0, 0, 0);
         t += march_layer(w, k, 0, 0);
         /* Counted: slices and layers [0, k + 1).  Split there when the first
@@ -2241,33 +2371,40 @@ static void *second_sweep(void *arg)
             sp->at = at = s;
         pthread_mutex_unlock(&sp->mu);
     }
-    w->stats = kept;
     isomend_status status = ISOMEND_OK;
-    if (at >= 0)
-        status = v > UINT32_MAX ? ISOMEND_ERR_TOO_LARGE : sweep(c, w, at, &v, &t, sp);
+    if (apart) {
+        status = sweep_down(c, w, sp, &v, &t);
+    } else {
+        w->stats = kept;
+        if (at >= 0)
+            status = v > UINT32_MAX ? ISOMEND_ERR_TOO_LARGE : sweep(c, w, at, &v, &t, sp);
+    }
     pthread_mutex_lock(&sp->mu);
     sp->nv = v;
     sp->nt = t;
     sp->status = status;
+    /* Apart: this thread moves the triangles (and origins) down once the
+     * first thread's counts are known, while the first moves the vertices;
+     * unless the first has waited long for this one, whose CPU is then
+     * likely the slower (ISOMEND_SPLIT_LATE). */
+    sp->solo_join = sp->apart && (ISOMEND_SPLIT_LATE < 0 ||
+                                  (sp->first_done &&
+                                   now_seconds() - sp->first_end > ISOMEND_SPLIT_LATE));
     sp->finished = 1;
     pthread_cond_broadcast(&sp->cv);
-    if (!sp->apart) {
+    if (!sp->apart || sp->solo_join) {
         pthread_mutex_unlock(&sp->mu);
         return NULL;
     }
-    /* Apart: this thread moves the triangles (and origins) down once the
-     * first thread's counts are known; the first moves the vertices. */
     while (!sp->first_done)
         pthread_cond_wait(&sp->cv, &sp->mu);
-    const int join = status == ISOMEND_OK && sp->status1 == ISOMEND_OK;
+    const int join = status == ISOMEND_OK && sp->status1 == ISOMEND_OK && sp->at != INT64_MAX;
     const uint64_t nv1 = sp->nv1, nt1 = sp->nt1;
+    const int64_t from = sp->at;
     pthread_mutex_unlock(&sp->mu);
-    if (join) {
-        const uint64_t nt2 = t - sp->base_t;
-        move_down(c->tri, 3 * sizeof(uint32_t), nt1, sp->base_t, nt2,
-                  (uint32_t)(nv1 - sp->base_v)); /* mod 2^32: subtracts */
-        move_origins(c->org, nt1, sp->base_t, nt2);
-    }
+    if (join)
+        move_triangle_blocks(c->tri, c->org, nt1, sp->tstart, t, sp->vstart, v, nv1, from,
+                             c->g.N[2]);
     return NULL;
 }
 
@@ -2301,6 +2438,13 @@ static isomend_status run_one_pass(ctx *c, worker *ws, int nw, uint64_t *nv, uin
         pthread_mutex_destroy(&sp.mu);
         return ISOMEND_ERR_THREAD;
     }
+    if (c->apart_v) {
+        const size_t N2 = (size_t)c->g.N[2];
+        sp.vstart = calloc(2 * N2, sizeof(uint64_t)); /* NULL: no split apart */
+        sp.tstart = sp.vstart ? sp.vstart + N2 : NULL;
+        sp.base_v = c->apart_v;
+        sp.base_t = c->apart_t;
+    }
     c->split = &sp;
     pthread_t tid;
     const int started = pthread_create(&tid, NULL, second_sweep, &ws[1]) == 0;
@@ -2309,30 +2453,40 @@ static isomend_status run_one_pass(ctx *c, worker *ws, int nw, uint64_t *nv, uin
     isomend_status status = sweep(c, &ws[0], 0, &v, &t, &sp);
     if (status != ISOMEND_OK)
         atomic_store(&c->cancel, 1);
+    const double end = now_seconds();
     pthread_mutex_lock(&sp.mu);
     sp.first_done = 1;
+    sp.first_end = end;
     sp.nv1 = v;
     sp.nt1 = t;
     sp.status1 = status;
     pthread_cond_broadcast(&sp.cv);
     pthread_mutex_unlock(&sp.mu);
-    /* Wait for the second thread, reporting its progress. */
+    /* Wait for the second thread, reporting progress once now (the first
+     * thread reports every 16 of its own layers, and the second may have
+     * swept nearly all) and then every 100 ms. */
     const int64_t layers = c->g.N[2] - 1;
     pthread_mutex_lock(&sp.mu);
-    while (!sp.finished) {
-        if (!c->progress) {
-            pthread_cond_wait(&sp.cv, &sp.mu);
-            continue;
+    for (int waited = 0;; waited = 1) {
+        if (waited) {
+            if (sp.finished)
+                break;
+            if (!c->progress) {
+                pthread_cond_wait(&sp.cv, &sp.mu);
+                continue;
+            }
+            struct timespec until;
+            clock_gettime(CLOCK_REALTIME, &until);
+            until.tv_nsec += 100 * 1000 * 1000;
+            if (until.tv_nsec >= 1000 * 1000 * 1000) {
+                until.tv_sec++;
+                until.tv_nsec -= 1000 * 1000 * 1000;
+            }
+            pthread_cond_timedwait(&sp.cv, &sp.mu, &until);
+            if (sp.finished)
+                break;
         }
-        struct timespec until;
-        clock_gettime(CLOCK_REALTIME, &until);
-        until.tv_nsec += 100 * 1000 * 1000;
-        if (until.tv_nsec >= 1000 * 1000 * 1000) {
-            until.tv_sec++;
-            until.tv_nsec -= 1000 * 1000 * 1000;
-        }
-        pthread_cond_timedwait(&sp.cv, &sp.mu, &until);
-        if (sp.finished || status != ISOMEND_OK)
+        if (!c->progress || status != ISOMEND_OK)
             continue;
         const double swept = (double)(sp.at < layers ? sp.at : layers) +
                              (double)atomic_load(&sp.done);
@@ -2351,8 +2505,13 @@ static isomend_status run_one_pass(ctx *c, worker *ws, int nw, uint64_t *nv, uin
             /* the vertices here, the triangles on the second thread */
             const uint64_t nv2 = sp.nv - sp.base_v, nt2 = sp.nt - sp.base_t;
             if (status == ISOMEND_OK) {
-                move_down(c->pos, 3 * sizeof(float), v, sp.base_v, nv2, 0);
-                move_down(c->nrm, 3 * sizeof(float), v, sp.base_v, nv2, 0);
+                move_vertex_blocks(c->pos, 3 * sizeof(float), v, sp.vstart, sp.at, c->g.N[2],
+                                   sp.nv);
+                move_vertex_blocks(c->nrm, 3 * sizeof(float), v, sp.vstart, sp.at, c->g.N[2],
+                                   sp.nv);
+                if (sp.solo_join)
+                    move_triangle_blocks(c->tri, c->org, t, sp.tstart, sp.nt, sp.vstart, sp.nv,
+                                         v, sp.at, c->g.N[2]);
             }
             v += nv2;
             t += nt2;
@@ -2364,6 +2523,7 @@ static isomend_status run_one_pass(ctx *c, worker *ws, int nw, uint64_t *nv, uin
     if (started)
         pthread_join(tid, NULL);
     c->split = NULL;
+    free(sp.vstart);
     pthread_cond_destroy(&sp.cv);
     pthread_mutex_destroy(&sp.mu);
     *nv = v;
@@ -2585,15 +2745,23 @@ static isomend_status one_pass(ctx *c, worker *ws, int nw, isomend_mesh **out, u
         vmax = vcap;
     /* Triangles: the table's, and two for each of the cube's +x, +y, +z faces. */
     const uint64_t tmax = (MC_MAX_TRI + 6) * (N0 - 1) * (N1 - 1) * (N2 - 1);
-    if (vmax > SIZE_MAX / 16 || tmax > SIZE_MAX / 16)
+    if (vmax > SIZE_MAX / 32 || tmax > SIZE_MAX / 32)
         return ISOMEND_ERR_UNSUPPORTED;
+    /* Two threads may split apart (split_apart): room for the second's part
+     * past the bases vmax and tmax, which no count can reach, with its ids
+     * still within 32 bits.  Address space only (reserve_output). */
+    const int room = nw == 2 && N2 >= 8 && vmax == 3 * N0 * N1 * N2 &&
+                     2 * vmax <= (uint64_t)UINT32_MAX + 1;
+    c->apart_v = room ? vmax : 0;
+    c->apart_t = room ? tmax : 0;
+    const uint64_t vres = room ? 2 * vmax : vmax, tres = room ? 2 * tmax : tmax;
     isomend_mesh *mesh = calloc(1, sizeof(*mesh));
     if (!mesh)
         return ISOMEND_ERR_OUT_OF_MEMORY;
-    const size_t size[4] = {sizeof(float) * 3 * (size_t)vmax,
-                            c->want_normals ? sizeof(float) * 3 * (size_t)vmax : 0,
-                            sizeof(uint32_t) * 3 * (size_t)tmax,
-                            c->want_origins ? (size_t)tmax : 0};
+    const size_t size[4] = {sizeof(float) * 3 * (size_t)vres,
+                            c->want_normals ? sizeof(float) * 3 * (size_t)vres : 0,
+                            sizeof(uint32_t) * 3 * (size_t)tres,
+                            c->want_origins ? (size_t)tres : 0};
     void *p[4] = {NULL, NULL, NULL, NULL};
     for (int q = 0; q < 4; q++) {
         if (!size[q])
