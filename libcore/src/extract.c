@@ -2749,15 +2749,17 @@ static isomend_status one_pass(ctx *c, worker *ws, int nw, isomend_mesh **out, u
         return ISOMEND_ERR_UNSUPPORTED;
     /* Two threads may split apart (split_apart): room for the second's part
      * past the bases vmax and tmax, which no count can reach, with its ids
-     * still within 32 bits.  Address space only (reserve_output). */
-    const int room = nw == 2 && N2 >= 8 && vmax == 3 * N0 * N1 * N2 &&
-                     2 * vmax <= (uint64_t)UINT32_MAX + 1;
-    c->apart_v = room ? vmax : 0;
-    c->apart_t = room ? tmax : 0;
-    const uint64_t vres = room ? 2 * vmax : vmax, tres = room ? 2 * tmax : tmax;
+     * still within 32 bits.  Address space only (reserve_output); when it is
+     * refused, the arrays are reserved again without the room. */
+    int room = nw == 2 && N2 >= 8 && vmax == 3 * N0 * N1 * N2 &&
+               2 * vmax <= (uint64_t)UINT32_MAX + 1;
     isomend_mesh *mesh = calloc(1, sizeof(*mesh));
     if (!mesh)
         return ISOMEND_ERR_OUT_OF_MEMORY;
+reserve:
+    c->apart_v = room ? vmax : 0;
+    c->apart_t = room ? tmax : 0;
+    const uint64_t vres = room ? 2 * vmax : vmax, tres = room ? 2 * tmax : tmax;
     const size_t size[4] = {sizeof(float) * 3 * (size_t)vres,
                             c->want_normals ? sizeof(float) * 3 * (size_t)vres : 0,
                             sizeof(uint32_t) * 3 * (size_t)tres,
@@ -2775,6 +2777,11 @@ static isomend_status one_pass(ctx *c, worker *ws, int nw, isomend_mesh **out, u
         if (!p[q]) {
             for (int r = 0; r < q; r++)
                 release_output(p[r], mesh->mapped[r]);
+            if (room) {
+                room = 0;
+                memset(mesh->mapped, 0, sizeof mesh->mapped);
+                goto reserve;
+            }
             free(mesh);
             return ISOMEND_ERR_UNSUPPORTED;
         }
