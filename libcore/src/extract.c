@@ -2017,9 +2017,9 @@ static double now_seconds(void)
  * from it, and the first thread, on the CPU that runs, does all the moves.
  * On this project's virtual machine, in phases of minutes, one of the two
  * vCPUs ran a thread at a fraction of the other's speed: on the 256^3
- * sphere at 2 threads its thread swept 45 slices while the other swept 210,
- * ended 3.7-5.5 ms after it and then took 4-5 ms to move a few hundred KB of
- * triangles, the whole call 19 ms against 8 otherwise.  Negative: the first
+ * sphere at 2 threads its thread swept about 45 slices while the other swept
+ * 210, ended 2.6-6.4 ms after it and then took about 4 ms to move a few
+ * hundred KB of triangles, the whole call 19 ms against 8 otherwise.  Negative: the first
  * thread always does the moves (a test build's).
  */
 #ifndef ISOMEND_SPLIT_LATE
