@@ -2064,13 +2064,12 @@ typedef struct split {
     uint64_t nv, nt;  /* its totals, when it split                           */
     isomend_status status;
     /* Split apart (split_apart): no counting; the second thread numbers its
-     * vertices and triangles from these bases, past any the first can
-     * write, slice m's vertices from vstart[m] and layer k's triangles from
-     * tstart[k] (both decreasing with m and k), and its part is moved down
-     * once the first's counts are known. */
+     * vertices and triangles from the bases c->apart_v and c->apart_t, past
+     * any the first can write, slice m's vertices from vstart[m] and layer
+     * k's triangles from tstart[k] (both decreasing with m and k), and its
+     * part is moved down once the first's counts are known. */
     int apart;
-    uint64_t base_v, base_t;
-    uint64_t *vstart, *tstart; /* [N2], from the apart reservation (one_pass) */
+    uint64_t *vstart, *tstart; /* [N2], when the reservation has the room */
     int first_done;          /* the first thread's sweep is over (cv) */
     double first_end;        /* when (CLOCK_MONOTONIC, s)             */
     int solo_join;           /* the first thread moves the triangles too */
@@ -2308,8 +2307,8 @@ static void move_triangle_blocks(uint32_t *tri, uint8_t *org, uint64_t to, const
 }
 
 /*
- * Moves n triangles' origins from `from` to `to`, where the destination reads
- * as zero bytes (a fresh
+ * Moves n triangles' origins from `from` down to `to`, apart (the source lies
+ * past the bases), where the destination reads as zero bytes (a fresh
  * reservation: recycling leaves the origins out) as does most of the source
  * (the table's triangles): only the other bytes are written, so that the
  * pages of the destination, often the first 2 MiB (on 4 KiB pages), are not
@@ -2319,10 +2318,6 @@ static void move_origins(uint8_t *org, uint64_t to, uint64_t from, uint64_t n)
 {
     if (!org || !n)
         return;
-    if (to + n > from) { /* overlapping: the destination holds source bytes */
-        memmove(org + to, org + from, (size_t)n);
-        return;
-    }
     const uint8_t *s = org + from;
     uint8_t *d = org + to;
     size_t q = 0;
@@ -2339,6 +2334,14 @@ static void move_origins(uint8_t *org, uint64_t to, uint64_t from, uint64_t n)
             d[q] = s[q];
 }
 
+/* A split apart's triangle moves, once both threads' sweeps are over (their
+ * counts and sp->at no longer change). */
+static void move_second_triangles(const ctx *c, const split *sp)
+{
+    move_triangle_blocks(c->tri, c->org, sp->nt1, sp->tstart, sp->nt, sp->vstart, sp->nv,
+                         sp->nv1, sp->at, c->g.N[2]);
+}
+
 /* The second of two threads: counts and splits, or splits apart; sweeps the
  * rest (see split). */
 static void *second_sweep(void *arg)
@@ -2352,12 +2355,11 @@ static void *second_sweep(void *arg)
     int64_t at = -1;
     const int apart = split_apart(w, sp);
     if (apart) { /* no counting: down from the last slice, from the bases */
-        w->stats = kept;
         pthread_mutex_lock(&sp->mu);
         sp->apart = 1;
         pthread_mutex_unlock(&sp->mu);
-        v = sp->base_v;
-        t = sp->base_t;
+        v = c->apart_v;
+        t = c->apart_t;
     }
     for (int64_t k = 0; k + 1 < layers && at < 0 && !apart && !atomic_load(&c->cancel); k++) {
         v += scan_slice(w, k, 0, 0, 0);
@@ -2371,14 +2373,12 @@ static void *second_sweep(void *arg)
             sp->at = at = s;
         pthread_mutex_unlock(&sp->mu);
     }
+    w->stats = kept;
     isomend_status status = ISOMEND_OK;
-    if (apart) {
+    if (apart)
         status = sweep_down(c, w, sp, &v, &t);
-    } else {
-        w->stats = kept;
-        if (at >= 0)
-            status = v > UINT32_MAX ? ISOMEND_ERR_TOO_LARGE : sweep(c, w, at, &v, &t, sp);
-    }
+    else if (at >= 0)
+        status = v > UINT32_MAX ? ISOMEND_ERR_TOO_LARGE : sweep(c, w, at, &v, &t, sp);
     pthread_mutex_lock(&sp->mu);
     sp->nv = v;
     sp->nt = t;
@@ -2399,12 +2399,9 @@ static void *second_sweep(void *arg)
     while (!sp->first_done)
         pthread_cond_wait(&sp->cv, &sp->mu);
     const int join = status == ISOMEND_OK && sp->status1 == ISOMEND_OK && sp->at != INT64_MAX;
-    const uint64_t nv1 = sp->nv1, nt1 = sp->nt1;
-    const int64_t from = sp->at;
     pthread_mutex_unlock(&sp->mu);
     if (join)
-        move_triangle_blocks(c->tri, c->org, nt1, sp->tstart, t, sp->vstart, v, nv1, from,
-                             c->g.N[2]);
+        move_second_triangles(c, sp);
     return NULL;
 }
 
@@ -2442,8 +2439,6 @@ static isomend_status run_one_pass(ctx *c, worker *ws, int nw, uint64_t *nv, uin
         const size_t N2 = (size_t)c->g.N[2];
         sp.vstart = calloc(2 * N2, sizeof(uint64_t)); /* NULL: no split apart */
         sp.tstart = sp.vstart ? sp.vstart + N2 : NULL;
-        sp.base_v = c->apart_v;
-        sp.base_t = c->apart_t;
     }
     c->split = &sp;
     pthread_t tid;
@@ -2503,15 +2498,14 @@ static isomend_status run_one_pass(ctx *c, worker *ws, int nw, uint64_t *nv, uin
         status = sp.status;
         if (sp.apart) {
             /* the vertices here, the triangles on the second thread */
-            const uint64_t nv2 = sp.nv - sp.base_v, nt2 = sp.nt - sp.base_t;
+            const uint64_t nv2 = sp.nv - c->apart_v, nt2 = sp.nt - c->apart_t;
             if (status == ISOMEND_OK) {
                 move_vertex_blocks(c->pos, 3 * sizeof(float), v, sp.vstart, sp.at, c->g.N[2],
                                    sp.nv);
                 move_vertex_blocks(c->nrm, 3 * sizeof(float), v, sp.vstart, sp.at, c->g.N[2],
                                    sp.nv);
                 if (sp.solo_join)
-                    move_triangle_blocks(c->tri, c->org, t, sp.tstart, sp.nt, sp.vstart, sp.nv,
-                                         v, sp.at, c->g.N[2]);
+                    move_second_triangles(c, &sp);
             }
             v += nv2;
             t += nt2;
