@@ -89,13 +89,35 @@ def field_description(name):
     }[name]
 
 
+def _slabs(n, fn):
+    """fn(lo, hi) over slabs of rows 0..n of the first array axis, in as many threads as
+    there are cores: numpy's element-wise operations and scipy.ndimage's filters release
+    the GIL, and each slab does exactly the operations the whole array would, so the
+    result is the same to the bit (quick mode's volumes are generated on first use, and
+    generating them one thread at a time took 17-24 s of a fresh machine's run)."""
+    from concurrent.futures import ThreadPoolExecutor
+    k = max(1, min(os.cpu_count() or 1, 8))
+    cuts = [n * i // k for i in range(k + 1)]
+    with ThreadPoolExecutor(k) as ex:
+        for f in [ex.submit(fn, lo, hi) for lo, hi in zip(cuts, cuts[1:]) if hi > lo]:
+            f.result()
+
+
 def make_float_field(name, n):
     import numpy as np
     if name == "sphere":
         c = np.arange(n, dtype=np.float32) - np.float32((n - 1) / 2)
         r2 = c[:, None, None] ** 2 + c[None, :, None] ** 2
-        r2 = r2 + c[None, None, :] ** 2
-        return (np.float32(0.4 * n) - np.sqrt(r2)).astype(np.float32)
+        cx2 = c[None, None, :] ** 2
+        out = np.empty((n, n, n), dtype=np.float32)
+
+        def slab(lo, hi):  # R - sqrt((z^2 + y^2) + x^2), in float32
+            s = out[lo:hi]
+            np.add(r2[lo:hi], cx2, out=s)
+            np.sqrt(s, out=s)
+            np.subtract(np.float32(0.4 * n), s, out=s)
+        _slabs(n, slab)
+        return out
     if name == "gyroid":
         x = (np.arange(n, dtype=np.float64) + 0.5) * (2 * np.pi * GYROID_PERIODS / n)
         s, c = np.sin(x).astype(np.float32), np.cos(x).astype(np.float32)
@@ -108,8 +130,16 @@ def make_float_field(name, n):
         import scipy.ndimage as nd
         rng = np.random.default_rng(1)
         w = rng.standard_normal((n, n, n), dtype=np.float32)
-        f = nd.gaussian_filter(w, NOISE_SIGMA_AT_256 * n / 256.0, output=np.float32, mode="wrap")
+        # scipy's gaussian_filter, axis after axis in float32 with periodic ends, each
+        # axis's pass split across the others (a line's result does not depend on them).
+        sigma = NOISE_SIGMA_AT_256 * n / 256.0
+        f = np.empty_like(w)
+        _slabs(n, lambda lo, hi: nd.gaussian_filter1d(
+            w[:, lo:hi], sigma, axis=0, output=f[:, lo:hi], mode="wrap"))
         del w
+        for axis in (1, 2):
+            _slabs(n, lambda lo, hi, a=axis: nd.gaussian_filter1d(
+                f[lo:hi], sigma, axis=a, output=f[lo:hi], mode="wrap"))
         f /= np.float32(f.std(dtype=np.float64))
         return f
     raise ValueError("unknown field %r" % name)
@@ -117,10 +147,16 @@ def make_float_field(name, n):
 
 def to_u8(name, f):
     import numpy as np
-    u = f * np.float32(U8_SCALE[name])
-    u += np.float32(127.5)
-    np.clip(u, 0, 255, out=u)
-    return np.rint(u).astype(np.uint8)
+    u = np.empty(f.shape, dtype=np.uint8)
+
+    def slab(lo, hi):  # rint(clip(f * scale + 127.5, 0, 255)), in float32
+        t = f[lo:hi] * np.float32(U8_SCALE[name])
+        t += np.float32(127.5)
+        np.clip(t, 0, 255, out=t)
+        np.rint(t, out=t)
+        u[lo:hi] = t
+    _slabs(f.shape[0], slab)
+    return u
 
 
 def colin27_path(cache):
@@ -605,16 +641,22 @@ def quick_policy(args, name, field, size, dtype):
     uint8 noise volume of the memory goal with isomend alone, once.  The peers make one
     timed call a round instead of --calls: their calls take 5-15 times isomend's, and
     every one of them pays for fresh memory (their large arrays are mapped anew), so
-    their first and later calls differ little.
+    their first and later calls differ little.  Flying Edges runs 2 rounds, isomend 3:
+    Flying Edges' rounds were most of the run, and its calls vary less than isomend's.
     Returns (measure?, repeats or None for the default, calls or None for --calls)."""
     if not args.quick:
         return True, None, None
     calls = None if name.startswith("isomend") else 1
+    fe_rounds = min(2, args.repeats or 2)
     if size == 512:
         if (field, dtype) == ("noise", "u8"):
             return name == "isomend", 1, calls
-        return name in ("isomend", "fe"), None, calls
-    if name in ("isomend", "fe"):
+        if name == "fe":
+            return True, fe_rounds, calls
+        return name == "isomend", None, calls
+    if name == "fe":
+        return True, fe_rounds, calls
+    if name == "isomend":
         return True, None, calls
     if name == "isomend-recycle":  # full mode only: quick mode has no time left for it
         return False, None, calls
@@ -967,14 +1009,18 @@ def render(info, results, thread_counts):
     # quick mode's peers time fewer calls than isomend: "1", or "1 or 2"
     fewer = " or ".join(str(c) for c in sorted(
         {r["calls"] for r in results if r.get("calls", info["calls"]) != info["calls"]}))
+    # quick mode's Flying Edges makes fewer rounds than isomend
+    rounds = "".join("; %s: %d rounds" % lr for lr in sorted(
+        {(r["label"], r["repeats"]) for r in results if 1 < r["repeats"] < info["repeats"]}))
     w("Machine: %s, %s cores, %s GB RAM, Debian %s (timings are medians of %d rounds of "
-      "%d timed calls, single rounds where marked ¹%s). "
+      "%d timed calls, single rounds where marked ¹%s%s). "
       "isomend %s (git %s); VTK %s (SMP backend %s), scikit-image %s, OpenVDB %s, numpy %s, "
       "Python %s.\n"
       % (info.get("cpu", "?"), info.get("cpus"), info.get("mem_gb"), info.get("debian", "?"),
          info["repeats"], info["calls"],
          "; the peers make %s timed call%s a round" % (fewer, "" if fewer == "1" else "s")
          if fewer else "",
+         rounds,
          _first_extra(results, "version") or "?", info.get("git", "?"), info.get("vtk", "?"),
          info.get("vtk_smp", "?"), info.get("skimage", "?"), info.get("openvdb", "?"),
          info.get("numpy", "?"), info.get("python")))
