@@ -633,16 +633,16 @@ def plan(args):
 
 def quick_policy(args, name, field, size, dtype):
     """Which measurements quick mode makes, so that it stays under two minutes:
-    the goal's comparison (isomend DMC against Flying Edges) everywhere, with 3 rounds;
-    isomend without normals once, at one thread, on the 256^3 fields (isomend recycling
-    its previous mesh not at all); the other
-    extractors (Flying Edges with normals among them) once, at one thread, on the 256^3
-    sphere only; at 512^3 the sphere with isomend and Flying Edges geometry only, and the
-    uint8 noise volume of the memory goal with isomend alone, once.  The peers make one
-    timed call a round instead of --calls: their calls take 5-15 times isomend's, and
-    every one of them pays for fresh memory (their large arrays are mapped anew), so
-    their first and later calls differ little.  Flying Edges runs 2 rounds, isomend 3:
-    Flying Edges' rounds were most of the run, and its calls vary less than isomend's.
+    the goal's comparison (isomend DMC against Flying Edges) everywhere, isomend in 3
+    rounds and Flying Edges in 2 (its rounds were most of the run, and its calls vary less
+    than isomend's); isomend without normals once, at one thread, on the 256^3 fields
+    (isomend recycling its previous mesh not at all); the other extractors (Flying Edges
+    with normals among them) once, at one thread, on the 256^3 sphere only; at 512^3 the
+    sphere with isomend and Flying Edges geometry only, and the uint8 noise volume of the
+    memory goal with isomend alone, once.  The peers make one timed call a round instead
+    of --calls: their calls take 5-15 times isomend's, and every one of them pays for
+    fresh memory (their large arrays are mapped anew), so their first and later calls
+    differ little.
     Returns (measure?, repeats or None for the default, calls or None for --calls)."""
     if not args.quick:
         return True, None, None
