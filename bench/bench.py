@@ -647,7 +647,8 @@ def quick_policy(args, name, field, size, dtype):
     if not args.quick:
         return True, None, None
     calls = None if name.startswith("isomend") else 1
-    fe_rounds = min(2, args.repeats or 2)
+    # (None where --repeats asks for 2 or fewer: 1 would mean "once, at one thread")
+    fe_rounds = 2 if (args.repeats or 3) > 2 else None
     if size == 512:
         if (field, dtype) == ("noise", "u8"):
             return name == "isomend", 1, calls
