@@ -75,6 +75,7 @@ U8_SCALE = {"sphere": 16.0, "gyroid": 80.0, "noise": 40.0}
 GYROID_PERIODS = 16       # periods across the box, at every size
 NOISE_SIGMA_AT_256 = 1.5  # Gaussian smoothing of white noise, in voxels at 256^3
 COLIN_ISO = 60.0          # ch2better (uint8, 0..130): skin/skull boundary
+ONCE = "once"             # quick_policy: one round, at one thread (isomend: all threads)
 
 
 def field_description(name):
@@ -643,27 +644,45 @@ def quick_policy(args, name, field, size, dtype):
     of --calls: their calls take 5-15 times isomend's, and every one of them pays for
     fresh memory (their large arrays are mapped anew), so their first and later calls
     differ little.
-    Returns (measure?, repeats or None for the default, calls or None for --calls)."""
+    Returns (measure?, rounds, calls or None for --calls), rounds being None for the
+    default, ONCE (one round, at one thread; isomend at all threads) or a cap on the
+    default."""
     if not args.quick:
         return True, None, None
     calls = None if name.startswith("isomend") else 1
-    # (None where --repeats asks for 2 or fewer: 1 would mean "once, at one thread")
-    fe_rounds = 2 if (args.repeats or 3) > 2 else None
     if size == 512:
         if (field, dtype) == ("noise", "u8"):
-            return name == "isomend", 1, calls
+            return name == "isomend", ONCE, calls
         if name == "fe":
-            return True, fe_rounds, calls
+            return True, 2, calls
         return name == "isomend", None, calls
     if name == "fe":
-        return True, fe_rounds, calls
+        return True, 2, calls
     if name == "isomend":
         return True, None, calls
     if name == "isomend-recycle":  # full mode only: quick mode has no time left for it
         return False, None, calls
     if name == "isomend-geom":
-        return True, 1, calls
-    return (size == 256 and field == "sphere"), 1, calls
+        return True, ONCE, calls
+    return (size == 256 and field == "sphere"), ONCE, calls
+
+
+def volume_jobs(args, peers, field, n, dtype, t, thread_counts, repeats):
+    """The (extractor, rounds, calls) measured on one volume at t threads."""
+    jobs = []
+    for ext in peers:
+        _label, _setup, parallel = EXTRACTORS[ext]
+        wanted, rounds, calls = quick_policy(args, ext, field, n, dtype)
+        if not wanted:
+            continue
+        if not parallel and t != thread_counts[0]:
+            continue  # single-threaded: its 1-thread time stands for every count
+        if rounds is ONCE:
+            if t != (thread_counts[-1] if ext == "isomend" else thread_counts[0]):
+                continue  # measured once: at 1 thread (isomend: all threads)
+            rounds = 1
+        jobs.append((ext, min(rounds, repeats) if rounds else repeats, calls or args.calls))
+    return jobs
 
 
 def machine_info(outputs=()):
@@ -717,17 +736,7 @@ def measure_volume(args, peers, field, n, dtype, vol_path, iso, t, thread_counts
     """Measures every extractor on one volume at t threads, in rounds: round r runs
     each extractor once, in a fresh child, so that the extractors being compared
     take turns and a change of load on a shared machine hits them alike."""
-    jobs = []
-    for ext in peers:
-        label, _setup, parallel = EXTRACTORS[ext]
-        wanted, forced, calls = quick_policy(args, ext, field, n, dtype)
-        if not wanted:
-            continue
-        if not parallel and t != thread_counts[0]:
-            continue  # single-threaded: its 1-thread time stands for every count
-        if forced == 1 and t != (thread_counts[-1] if ext == "isomend" else thread_counts[0]):
-            continue  # measured once: at 1 thread (isomend: all threads)
-        jobs.append((ext, forced or repeats, calls or args.calls))
+    jobs = volume_jobs(args, peers, field, n, dtype, t, thread_counts, repeats)
     acc = {}
     for rnd in range(max([reps for _e, reps, _c in jobs] or [0])):
         for ext, reps, calls in jobs:

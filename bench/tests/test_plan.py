@@ -5,9 +5,9 @@
   definitions computed on the whole array in one thread (the way bench.py
   generated them before; a changed array would change every published figure
   without FIELD_VERSION saying so).
-- Quick mode's policy: Flying Edges in 2 rounds where isomend has 3, measured
-  at every thread count whatever --repeats is (1 round would mean "once, at
-  one thread" to measure_volume).
+- Quick mode's plan (volume_jobs): Flying Edges in 2 rounds where isomend has
+  3 (or --repeats, if fewer), measured at every thread count; the extractors
+  measured once, once.
 
 Usage: test_plan.py BENCH_PY
 """
@@ -64,20 +64,28 @@ def main():
                       % (name, n, same_f, same_u))
                 failures += 1
 
-    for repeats in (None, 1, 2, 3, 5):
-        args = argparse.Namespace(quick=True, repeats=repeats)
+    threads = [1, 2]
+    for repeats in (1, 2, 3, 5):
+        args = argparse.Namespace(quick=True, repeats=repeats, calls=2)
+
+        def jobs(field, size, dtype, t, peers=("isomend", "fe", "isomend-geom")):
+            return {e: (r, c) for e, r, c in
+                    b.volume_jobs(args, peers, field, size, dtype, t, threads, repeats)}
+
         for field, size in (("sphere", 256), ("gyroid", 256), ("sphere", 512)):
-            wanted_i, rounds_i, _ = b.quick_policy(args, "isomend", field, size, "f32")
-            wanted_f, rounds_f, calls_f = b.quick_policy(args, "fe", field, size, "f32")
-            default = repeats or 3  # quick mode's rounds without --repeats
-            # forced to 1 would mean "once, at one thread" to measure_volume
-            ok = (wanted_i and rounds_i is None and wanted_f and calls_f == 1 and
-                  rounds_f != 1 and (rounds_f or default) == min(default, 2))
-            if not ok:
-                print("FAIL quick policy, --repeats %s, %s %d: isomend %s, fe %s"
-                      % (repeats, field, size, (wanted_i, rounds_i),
-                         (wanted_f, rounds_f, calls_f)))
-                failures += 1
+            for t in threads:
+                got = jobs(field, size, "f32", t)
+                want = {"isomend": (repeats, 2), "fe": (min(repeats, 2), 1)}
+                if size == 256 and t == 1:
+                    want["isomend-geom"] = (1, 2)  # once, at one thread
+                if got != want:
+                    print("FAIL quick plan, --repeats %d, %s %d at %d threads: %s, expected %s"
+                          % (repeats, field, size, t, got, want))
+                    failures += 1
+        got = [jobs("noise", 512, "u8", t) for t in threads]
+        if got != [{}, {"isomend": (1, 2)}]:  # the memory goal's volume: once, all threads
+            print("FAIL quick plan, --repeats %d, noise 512 u8: %s" % (repeats, got))
+            failures += 1
     print("bench plan: %s" % ("ok" if not failures else "%d failures" % failures))
     return 1 if failures else 0
 
