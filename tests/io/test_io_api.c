@@ -7,17 +7,22 @@
  *     loaded), with the right dimensions, type, kind and spacing;
  *   - every bad stack fails with its status and a message naming the file;
  *   - progress is reported from the calling thread and can cancel;
+ *   - a job (open + extract on the library's thread) gives the calling
+ *     thread's mesh, ends cancelled or complete whenever it is cancelled, and
+ *     refuses callbacks;
  *   - the suggested iso (Otsu) separates a bimodal stack, between samples;
  *   - the mesh from a TIFF stack equals the core's mesh of the same volume
  *     read as raw;
  *   - the L phantom is not mirrored: the mesh has the L where the image has it.
  */
+#define _POSIX_C_SOURCE 200809L /* nanosleep */
 #include <math.h>
 #include <pthread.h>
 #include <stdint.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <time.h>
 
 #include "isomend.h"
 #include "isomend_io.h"
@@ -306,6 +311,159 @@ static void test_progress(void) {
     CHECK(mesh == NULL);
     isomend_io_destroy(src);
     printf("ok   progress from the calling thread, cancellation while reading and extracting\n");
+}
+
+/* ---- jobs: open + extract on the library's thread, polled ---- */
+
+static int same_meshes(const isomend_mesh *a, const isomend_mesh *b) {
+    size_t v = isomend_mesh_vertex_count(a), t = isomend_mesh_triangle_count(a);
+    return v == isomend_mesh_vertex_count(b) && t == isomend_mesh_triangle_count(b) &&
+           memcmp(isomend_mesh_positions(a), isomend_mesh_positions(b), v * 12) == 0 &&
+           memcmp(isomend_mesh_normals(a), isomend_mesh_normals(b), v * 12) == 0 &&
+           memcmp(isomend_mesh_triangles(a), isomend_mesh_triangles(b), t * 12) == 0;
+}
+
+static int core_progress(void *user, double fraction) {
+    (void)user;
+    (void)fraction;
+    return 0;
+}
+
+static void sleep_us(long us) {
+    struct timespec ts = {us / 1000000, (us % 1000000) * 1000};
+    nanosleep(&ts, NULL);
+}
+
+static void test_job(void) {
+    char *p = join("u16_pattern/slice_%04d.tif");
+    const char *paths[1] = {p};
+    isomend_io_options io;
+    isomend_io_options_init(&io);
+    io.threads = 2;
+    isomend_options eo;
+    isomend_options_init(&eo);
+    eo.flags = ISOMEND_FLAG_PAD;
+
+    /* the reference: the same source through the calling thread */
+    isomend_io_source *ref_src = NULL;
+    isomend_mesh *ref = NULL;
+    double ref_iso = 0;
+    CHECK_EQ_INT(isomend_io_create(&ref_src), ISOMEND_IO_OK);
+    CHECK_EQ_INT(isomend_io_open(ref_src, paths, 1, &io), ISOMEND_IO_OK);
+    CHECK_EQ_INT(isomend_io_extract(ref_src, &eo, 1, &ref_iso, &ref, NULL), ISOMEND_IO_OK);
+
+    /* polled to the end: the same mesh and level; progress in range and forwards */
+    isomend_io_source *src = NULL;
+    isomend_io_job *job = NULL;
+    CHECK_EQ_INT(isomend_io_create(&src), ISOMEND_IO_OK);
+    CHECK_EQ_INT(isomend_io_job_start(src, paths, 1, &io, &eo, 1, &job), ISOMEND_IO_OK);
+    int polls = 0, bad = 0, last_stage = 0;
+    for (;;) {
+        int stage = -1;
+        double fraction = -1;
+        int done = isomend_io_job_poll(job, &stage, &fraction);
+        polls++;
+        if (stage < 0 || stage > 3 || !(fraction >= 0 && fraction <= 1) || stage < last_stage) bad++;
+        last_stage = stage;
+        if (done) break;
+        sleep_us(200);
+    }
+    CHECK_EQ_INT(bad, 0);
+    isomend_mesh *mesh = NULL;
+    isomend_stats st;
+    double iso = 0;
+    CHECK_EQ_INT(isomend_io_job_finish(job, &iso, &mesh, &st), ISOMEND_IO_OK);
+    CHECK(iso == ref_iso);
+    CHECK(mesh && ref && same_meshes(mesh, ref));
+    CHECK(mesh && st.triangles == isomend_mesh_triangle_count(mesh));
+    /* afterwards an ordinary source, whose reads call no stale callback */
+    int64_t dims[3] = {0, 0, 0};
+    CHECK_EQ_INT(isomend_io_dims(src, dims), ISOMEND_IO_OK);
+    CHECK(dims[0] == 13 && dims[1] == 9 && dims[2] == 13);
+    size_t bytes = (size_t)isomend_io_volume_bytes(src);
+    void *buf = malloc(bytes);
+    CHECK_EQ_INT(isomend_io_read(src, buf, bytes), ISOMEND_IO_OK);
+    free(buf);
+    isomend_mesh_destroy(mesh);
+    isomend_io_destroy(src);
+
+    /* cancelled at once, at random moments, or never: CANCELLED with no mesh,
+     * or the reference mesh; never anything else */
+    int cancelled = 0, finished = 0, late = 0;
+    for (int k = 0; k < 60; k++) {
+        CHECK_EQ_INT(isomend_io_create(&src), ISOMEND_IO_OK);
+        CHECK_EQ_INT(isomend_io_job_start(src, paths, 1, &io, &eo, 1, &job), ISOMEND_IO_OK);
+        if (k % 3 == 1) sleep_us(500L * (k * 7 % 60)); /* 0 to 30 ms */
+        if (k % 3 != 2) isomend_io_job_cancel(job);
+        mesh = (isomend_mesh *)&k;
+        isomend_io_status s = isomend_io_job_finish(job, NULL, &mesh, NULL);
+        if (s == ISOMEND_IO_ERR_CANCELLED) {
+            cancelled++;
+            CHECK(mesh == NULL);
+            CHECK(strstr(isomend_io_message(src), "cancel") != NULL);
+        } else {
+            finished++;
+            CHECK_EQ_INT(s, ISOMEND_IO_OK);
+            CHECK(mesh && ref && same_meshes(mesh, ref));
+            if (k % 3 == 1) late++;
+        }
+        if (k % 3 == 0) CHECK_EQ_INT(s, ISOMEND_IO_ERR_CANCELLED);
+        if (k % 3 == 2) CHECK_EQ_INT(s, ISOMEND_IO_OK);
+        isomend_mesh_destroy(mesh);
+        isomend_io_destroy(src);
+    }
+    isomend_mesh_destroy(ref);
+    isomend_io_destroy(ref_src);
+
+    /* a cancel while many headers are checked by worker threads */
+    {
+        char *mp = join("many_pages/pages.tif");
+        const char *mpaths[1] = {mp};
+        io.threads = 3;
+        CHECK_EQ_INT(isomend_io_create(&src), ISOMEND_IO_OK);
+        CHECK_EQ_INT(isomend_io_job_start(src, mpaths, 1, &io, NULL, 0, &job), ISOMEND_IO_OK);
+        isomend_io_job_cancel(job);
+        CHECK_EQ_INT(isomend_io_job_finish(job, NULL, NULL, NULL), ISOMEND_IO_ERR_CANCELLED);
+        CHECK(strstr(isomend_io_message(src), "cancelled while opening") != NULL);
+        CHECK_EQ_INT(isomend_io_source_kind(src), -1);
+        isomend_io_destroy(src);
+        free(mp);
+    }
+
+    /* failures: in the job (the open's status and message), or refused at the start */
+    {
+        char *missing = join("no_such_stack");
+        const char *mpaths[1] = {missing};
+        CHECK_EQ_INT(isomend_io_create(&src), ISOMEND_IO_OK);
+        CHECK_EQ_INT(isomend_io_job_start(src, mpaths, 1, NULL, NULL, 0, &job), ISOMEND_IO_OK);
+        mesh = (isomend_mesh *)&bad;
+        CHECK_EQ_INT(isomend_io_job_finish(job, NULL, &mesh, NULL), ISOMEND_IO_ERR_NOT_FOUND);
+        CHECK(mesh == NULL);
+        CHECK(strstr(isomend_io_message(src), "no_such_stack") != NULL);
+        /* that handle has been opened (and failed): a job needs a fresh one */
+        job = (isomend_io_job *)&bad;
+        CHECK_EQ_INT(isomend_io_job_start(src, paths, 1, NULL, NULL, 0, &job), ISOMEND_IO_ERR_INVALID_ARGUMENT);
+        CHECK(job == NULL);
+        CHECK(strstr(isomend_io_message(src), "not been opened") != NULL);
+        isomend_io_destroy(src);
+        free(missing);
+    }
+    CHECK_EQ_INT(isomend_io_create(&src), ISOMEND_IO_OK);
+    isomend_io_options_init(&io);
+    io.progress = on_progress;
+    CHECK_EQ_INT(isomend_io_job_start(src, paths, 1, &io, NULL, 0, &job), ISOMEND_IO_ERR_INVALID_ARGUMENT);
+    CHECK(strstr(isomend_io_message(src), "poll") != NULL);
+    eo.progress = core_progress;
+    CHECK_EQ_INT(isomend_io_job_start(src, paths, 1, NULL, &eo, 0, &job), ISOMEND_IO_ERR_INVALID_ARGUMENT);
+    CHECK_EQ_INT(isomend_io_job_start(src, paths, 1, NULL, NULL, 0, NULL), ISOMEND_IO_ERR_INVALID_ARGUMENT);
+    CHECK_EQ_INT(isomend_io_job_start(NULL, paths, 1, NULL, NULL, 0, &job), ISOMEND_IO_ERR_INVALID_ARGUMENT);
+    CHECK_EQ_INT(isomend_io_job_finish(NULL, NULL, NULL, NULL), ISOMEND_IO_ERR_INVALID_ARGUMENT);
+    CHECK_EQ_INT(isomend_io_job_poll(NULL, NULL, NULL), 1);
+    isomend_io_job_cancel(NULL);
+    isomend_io_destroy(src);
+    free(p);
+    printf("ok   jobs: polled mesh equals the calling thread's; %d cancelled, %d complete (%d of them "
+           "cancelled too late), none else; misuse refused\n", cancelled, finished, late);
 }
 
 /* ---- analysis ---- */
@@ -605,6 +763,7 @@ int main(int argc, char **argv) {
     test_misuse();
     test_raw();
     test_progress();
+    test_job();
     test_analyse();
     test_mesh_equals_raw("u16_pattern/slice_%04d.tif", "u16_pattern_all.expected.raw", ISOMEND_U16,
                          13, 9, 13, 30000.5);

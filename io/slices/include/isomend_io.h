@@ -80,7 +80,8 @@
  * Thread safety: a source handle must be used by one thread at a time;
  * different handles are independent.  Functions that read may start worker
  * threads internally; the progress callback is always called from the
- * calling thread.  There is no global mutable state visible to the caller
+ * calling thread.  A job (isomend_io_job_start) does the work on a thread
+ * of its own and calls no callback at all.  There is no global mutable state visible to the caller
  * (OpenImageIO's own global attributes are set once, idempotently).
  *
  * Bindings (ctypes, MeshLab): opaque handle, plain C types, status codes,
@@ -336,6 +337,58 @@ ISOMEND_IO_API isomend_io_status isomend_io_extract(isomend_io_source *src,
                                                     int use_suggested_iso, double *iso_used,
                                                     isomend_mesh **out_mesh,
                                                     isomend_stats *stats);
+
+/* ---- the same, on a thread of the library's own ---- */
+
+/*
+ * A job runs isomend_io_open() then isomend_io_extract() on a thread the
+ * library starts, for a host whose interface keeps running meanwhile but whose
+ * own code must not run on other threads (Blender: "Python threads are not
+ * supported").  Nothing of the caller's runs on the job's thread: there is no
+ * callback; the caller polls the progress and may ask the job to stop.
+ *
+ *   isomend_io_job_start(src, paths, n, &io_opts, &opts, 0, &job);
+ *   while (!isomend_io_job_poll(job, &stage, &fraction))   // e.g. on a UI timer
+ *       if (user_pressed_esc) isomend_io_job_cancel(job);
+ *   status = isomend_io_job_finish(job, &iso, &mesh, &stats);
+ *
+ * `src` is a handle from isomend_io_create() that has not been opened; the
+ * job uses it until isomend_io_job_finish() returns, and the caller must not
+ * touch it before then.  Afterwards it is an ordinary source: the queries
+ * work, isomend_io_message() holds the failure's message, and
+ * isomend_io_load() describes the loaded volume without reading it again.
+ * `paths` and both option structs are copied; `opts` may be NULL for the
+ * core's defaults; `use_suggested_iso` is isomend_io_extract()'s.  The
+ * progress callbacks of both structs must be NULL (ISOMEND_IO_ERR_INVALID_ARGUMENT
+ * otherwise).  A job that was started is always ended with
+ * isomend_io_job_finish(), which frees it.
+ */
+typedef struct isomend_io_job isomend_io_job;
+
+ISOMEND_IO_API isomend_io_status isomend_io_job_start(isomend_io_source *src,
+                                                      const char *const *paths, size_t path_count,
+                                                      const isomend_io_options *io_opts,
+                                                      const isomend_options *opts,
+                                                      int use_suggested_iso,
+                                                      isomend_io_job **out_job);
+
+/* Does not block.  Returns 1 once the job's thread has ended, else 0;
+ * `stage` (an isomend_io_stage) and `fraction` (0..1 of that stage; either
+ * pointer may be NULL) receive the last progress the job reported. */
+ISOMEND_IO_API int isomend_io_job_poll(const isomend_io_job *job, int *stage, double *fraction);
+
+/* Does not block.  The job stops at its next progress point (at most ~50 ms
+ * apart) and ends with ISOMEND_IO_ERR_CANCELLED, unless it had already ended. */
+ISOMEND_IO_API void isomend_io_job_cancel(isomend_io_job *job);
+
+/* Waits for the job's thread (cancel first not to wait for the rest of the
+ * work), frees the job and returns its status: isomend_io_open()'s if the
+ * open failed, else isomend_io_extract()'s.  `iso_used`, `out_mesh` and
+ * `stats` are as for isomend_io_extract() and may be NULL (the mesh is then
+ * destroyed).  NULL job: ISOMEND_IO_ERR_INVALID_ARGUMENT. */
+ISOMEND_IO_API isomend_io_status isomend_io_job_finish(isomend_io_job *job, double *iso_used,
+                                                       isomend_mesh **out_mesh,
+                                                       isomend_stats *stats);
 
 #ifdef __cplusplus
 }

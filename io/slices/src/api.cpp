@@ -21,6 +21,7 @@
 #include <memory>
 #include <mutex>
 #include <new>
+#include <system_error>
 #include <thread>
 
 #include "volume_readers.h"
@@ -785,6 +786,122 @@ ISOMEND_IO_API isomend_io_status isomend_io_extract(isomend_io_source *src, cons
             throw IoError(ISOMEND_IO_ERR_EXTRACT,
                           std::string("extraction failed: ") + isomend_status_string(st));
     });
+}
+
+// ---------------------------------------------------------------- jobs
+
+struct isomend_io_job {
+    isomend_io_source *src = nullptr;
+    std::vector<std::string> paths;
+    isomend_io_options io_opts{};
+    isomend_options opts{};
+    bool has_opts = false;
+    int use_suggested_iso = 0;
+    // written by the job's thread, read by poll()
+    std::atomic<int> stage{ISOMEND_IO_STAGE_OPEN};
+    std::atomic<double> fraction{0.0};
+    std::atomic<bool> cancel{false};
+    std::atomic<bool> ended{false};
+    // the outcome, read after the join
+    isomend_io_status status = ISOMEND_IO_OK;
+    double iso_used = 0.0;
+    isomend_mesh *mesh = nullptr;
+    isomend_stats stats{};
+    std::thread thread;
+};
+
+namespace {
+
+// The only progress callback a job's work sees: records, and answers the
+// cancel request.  Runs on the job's thread (and nowhere else).
+int job_progress(void *user, int stage, double fraction) {
+    auto *job = (isomend_io_job *)user;
+    job->stage.store(stage, std::memory_order_relaxed);
+    job->fraction.store(fraction, std::memory_order_relaxed);
+    return job->cancel.load(std::memory_order_relaxed) ? 1 : 0;
+}
+
+void job_run(isomend_io_job *job) {
+    std::vector<const char *> paths;
+    for (const auto &p : job->paths) paths.push_back(p.c_str());
+    job->status = isomend_io_open(job->src, paths.data(), paths.size(), &job->io_opts);
+    if (job->status == ISOMEND_IO_OK) {
+        job->stage.store(ISOMEND_IO_STAGE_READ, std::memory_order_relaxed);
+        job->fraction.store(0.0, std::memory_order_relaxed);
+        job->status = isomend_io_extract(job->src, job->has_opts ? &job->opts : nullptr,
+                                         job->use_suggested_iso, &job->iso_used, &job->mesh, &job->stats);
+    }
+    job->ended.store(true, std::memory_order_release);
+}
+
+} // namespace
+
+ISOMEND_IO_API isomend_io_status isomend_io_job_start(isomend_io_source *src, const char *const *paths,
+                                                      size_t path_count, const isomend_io_options *io_opts,
+                                                      const isomend_options *opts, int use_suggested_iso,
+                                                      isomend_io_job **out_job) {
+    if (out_job) *out_job = nullptr;
+    if (!src) return ISOMEND_IO_ERR_INVALID_ARGUMENT;
+    std::unique_ptr<isomend_io_job> job;
+    isomend_io_status st = guard(src, [&] {
+        if (!out_job) throw IoError(ISOMEND_IO_ERR_INVALID_ARGUMENT, "out_job is NULL");
+        if (src->open_attempted)
+            throw IoError(ISOMEND_IO_ERR_INVALID_ARGUMENT, "a job needs a source that has not been opened");
+        if ((io_opts && io_opts->progress) || (opts && opts->progress))
+            throw IoError(ISOMEND_IO_ERR_INVALID_ARGUMENT,
+                          "a job calls no progress callback (poll it with isomend_io_job_poll)");
+        if (!paths && path_count) throw IoError(ISOMEND_IO_ERR_INVALID_ARGUMENT, "paths is NULL");
+        job.reset(new isomend_io_job());
+        job->src = src;
+        for (size_t i = 0; i < path_count; i++) {
+            if (!paths[i])
+                throw IoError(ISOMEND_IO_ERR_INVALID_ARGUMENT, "path " + std::to_string(i) + " is NULL");
+            job->paths.emplace_back(paths[i]);
+        }
+        if (io_opts) job->io_opts = *io_opts;
+        else isomend_io_options_init(&job->io_opts);
+        job->io_opts.progress = job_progress;
+        job->io_opts.progress_user = job.get();
+        if (opts) {
+            job->opts = *opts;
+            job->has_opts = true;
+        }
+        job->use_suggested_iso = use_suggested_iso;
+        try {
+            job->thread = std::thread(job_run, job.get());
+        } catch (const std::system_error &e) {
+            throw IoError(ISOMEND_IO_ERR_INTERNAL, std::string("cannot start the job's thread: ") + e.what());
+        }
+    });
+    if (st == ISOMEND_IO_OK) *out_job = job.release();
+    return st;
+}
+
+ISOMEND_IO_API int isomend_io_job_poll(const isomend_io_job *job, int *stage, double *fraction) {
+    if (!job) return 1;
+    if (stage) *stage = job->stage.load(std::memory_order_relaxed);
+    if (fraction) *fraction = job->fraction.load(std::memory_order_relaxed);
+    return job->ended.load(std::memory_order_acquire) ? 1 : 0;
+}
+
+ISOMEND_IO_API void isomend_io_job_cancel(isomend_io_job *job) {
+    if (job) job->cancel.store(true, std::memory_order_relaxed);
+}
+
+ISOMEND_IO_API isomend_io_status isomend_io_job_finish(isomend_io_job *job, double *iso_used,
+                                                       isomend_mesh **out_mesh, isomend_stats *stats) {
+    if (out_mesh) *out_mesh = nullptr;
+    if (!job) return ISOMEND_IO_ERR_INVALID_ARGUMENT;
+    std::unique_ptr<isomend_io_job> owned(job);
+    if (job->thread.joinable()) job->thread.join();
+    // The source kept the job's callback for later reads: it must not outlive the job.
+    job->src->opts.progress = nullptr;
+    job->src->opts.progress_user = nullptr;
+    if (iso_used) *iso_used = job->iso_used;
+    if (stats) *stats = job->stats;
+    if (out_mesh) *out_mesh = job->mesh;
+    else isomend_mesh_destroy(job->mesh);
+    return job->status;
 }
 
 } // extern "C"
