@@ -26,10 +26,16 @@ Conventions:
     without ``smooth`` the faces are flat.
   - a multi-file selection is put in natural order (s_2 before s_10).
 
-Cancellation: in the interactive UI the import runs in a worker thread while
-a modal operator updates the progress indicator; Esc cancels (the C library
-stops at its next progress callback).  Run from a script or in background
-mode (blender -b) it runs synchronously and prints progress instead.
+Cancellation: in the interactive UI the import runs on a thread of the C
+library's own (``isomend.ExtractJob``, isomend_io_job_start) while a modal
+operator polls its progress on a timer and updates the progress indicator;
+Esc cancels (the library stops at its next progress point).  No Python code
+runs off Blender's main thread: Blender does not support Python threads
+("Python threads cause Blender to crash in hard to diagnose ways", its API
+documentation); an earlier version that ran the import in a Python
+``threading.Thread`` saw one unexplained crash when Esc cancelled it (see the
+README).  Run from a script or in background mode (blender -b) the import runs
+synchronously and prints progress instead.
 """
 
 bl_info = {
@@ -44,7 +50,6 @@ bl_info = {
 
 import os
 import re
-import threading
 import time
 
 import bpy
@@ -128,9 +133,10 @@ def _overall(stage, fraction):
 
 
 class _Job:
-    """The bpy-free part of one import: open, extract.  Runs in the calling
-    thread or a worker thread; progress is recorded here and read by the
-    main thread (bpy is never touched from this class)."""
+    """The bpy-free part of one import: open, extract.  Either run() in the
+    calling thread, with progress callbacks; or start() it on the C library's
+    own thread and poll() it from the main thread (no callback, no Python
+    thread)."""
 
     def __init__(self, paths, iso, method, spacing, channel, pad, normals):
         self.paths = paths
@@ -147,6 +153,8 @@ class _Job:
         self.result = None   # (mesh, source info dict)
         self.error = None
         self.seconds = 0.0
+        self._native = None  # isomend.ExtractJob after start()
+        self._t0 = 0.0
 
     def progress(self, stage, fraction):
         self.stage, self.fraction = stage, fraction
@@ -165,9 +173,45 @@ class _Job:
                 mesh = src.extract(iso=self.iso, method=self.method, pad=self.pad,
                                    normals=self.normals, origins=True, progress=self.progress)
             self.result = (mesh, info)
-        except Exception as exc:  # reported by the main thread
+        except Exception as exc:  # reported by the caller
             self.error = exc
         self.seconds = time.perf_counter() - t0
+
+    def start(self):
+        """Starts the import on the C library's thread; raises if the
+        arguments are refused (nothing runs then)."""
+        self._t0 = time.perf_counter()
+        self._native = isomend.ExtractJob(self.paths, iso=self.iso, method=self.method,
+                                          pad=self.pad, normals=self.normals, origins=True,
+                                          channel=self.channel, spacing=self.spacing)
+
+    def request_cancel(self):
+        self.cancel = True
+        if self._native is not None:
+            self._native.cancel()
+
+    def poll(self):
+        """Records the progress; True once the import has ended, with
+        ``result`` or ``error`` set.  Never blocks."""
+        if self._native is None:
+            return True
+        self.stage, self.fraction, done = self._native.poll()
+        if done:
+            native, self._native = self._native, None
+            try:
+                self.result = native.result()  # at once: the thread has ended
+            except Exception as exc:
+                self.error = exc
+            finally:
+                native.close()
+            self.seconds = time.perf_counter() - self._t0
+        return done
+
+    def abandon(self):
+        """Cancels a started import and waits for the library's thread."""
+        if self._native is not None:
+            native, self._native = self._native, None
+            native.close()
 
 
 class IMPORT_MESH_OT_slice_stack(Operator, ImportHelper):
@@ -304,28 +348,43 @@ class IMPORT_MESH_OT_slice_stack(Operator, ImportHelper):
             wm.progress_end()
 
     def _start_modal(self, context, job):
+        try:
+            job.start()
+        except Exception as exc:  # refused before anything ran
+            self.report({'ERROR'}, str(exc))
+            last_import.clear()
+            last_import.update(status='CANCELLED', message=str(exc))
+            return {'CANCELLED'}
         self._job_obj = job
-        self._thread = threading.Thread(target=job.run, name="isomend import", daemon=True)
         wm = context.window_manager
         wm.progress_begin(0, 1000)
         self._timer = wm.event_timer_add(0.1, window=context.window)
         wm.modal_handler_add(self)
-        self._thread.start()
         return {'RUNNING_MODAL'}
+
+    def cancel(self, context):
+        # Blender ends a running modal operator this way (e.g. on quitting):
+        # stop the library's thread before the operator goes.
+        job = getattr(self, "_job_obj", None)
+        if job is not None:
+            job.abandon()
+            context.window_manager.event_timer_remove(self._timer)
+            context.window_manager.progress_end()
 
     def modal(self, context, event):
         job = self._job_obj
         wm = context.window_manager
         if event.type == 'ESC':
-            job.cancel = True  # the worker stops at the library's next progress callback
+            job.request_cancel()  # the library stops at its next progress point
         if event.type == 'TIMER':
+            done = job.poll()
             wm.progress_update(int(1000 * _overall(job.stage, job.fraction)))
             if context.workspace is not None:
                 context.workspace.status_text_set(
                     "isomend: %s %d%%%s" % (job.stage, int(100 * job.fraction),
                                             " (cancelling)" if job.cancel else " - Esc to cancel"))
-            if not self._thread.is_alive():
-                self._thread.join()
+            if done:
+                self._job_obj = None
                 wm.event_timer_remove(self._timer)
                 wm.progress_update(int(1000 * _overall("mesh", 0.0)))
                 try:
@@ -337,7 +396,7 @@ class IMPORT_MESH_OT_slice_stack(Operator, ImportHelper):
             return {'RUNNING_MODAL'}
         if event.type == 'ESC':
             return {'RUNNING_MODAL'}
-        return {'PASS_THROUGH'}  # the viewport stays usable; the worker never touches bpy
+        return {'PASS_THROUGH'}  # the viewport stays usable meanwhile
 
     # ---------------------------------------------------------------- result
     def _finish(self, context, job):

@@ -57,7 +57,9 @@ the thread that made the call.  Return True to cancel.
 
 Thread safety: the functions may be called from several threads at once
 (ctypes releases the GIL during the C calls); a Source must be used by one
-thread at a time.
+thread at a time.  ``ExtractJob`` runs extract_source() on a thread of the C
+library's own and calls no Python code there: the way to keep a host's
+interface running where Python threads are not allowed (Blender).
 """
 
 import ctypes
@@ -358,6 +360,12 @@ def _io_lib():
         _declare(lib, "isomend_io_analyse", c_int, [c_void_p, P(IOSummary)])
         _declare(lib, "isomend_io_extract", c_int,
                  [c_void_p, P(Options), c_int, P(ctypes.c_double), P(c_void_p), P(Stats)])
+        _declare(lib, "isomend_io_job_start", c_int,
+                 [c_void_p, P(c_char_p), ctypes.c_size_t, P(IOOptions), P(Options), c_int, P(c_void_p)])
+        _declare(lib, "isomend_io_job_poll", c_int, [c_void_p, P(c_int), P(ctypes.c_double)])
+        _declare(lib, "isomend_io_job_cancel", None, [c_void_p])
+        _declare(lib, "isomend_io_job_finish", c_int,
+                 [c_void_p, P(ctypes.c_double), P(c_void_p), P(Stats)])
         _io, _io_path = lib, path
         return lib
 
@@ -777,7 +785,69 @@ def _paths_list(paths):
     return out
 
 
-class Source:
+def _io_options(lib, channel=None, spacing=None, origin=None, first=0, count=0, step=1,
+                threads=0, memory_limit=0, raw_dims=None, raw_type=None, raw_header=0,
+                raw_big_endian=False):
+    """isomend_io_options from open_source()'s keyword arguments (checked), no progress."""
+    opts = IOOptions()
+    lib.isomend_io_options_init(ctypes.byref(opts))
+    opts.first, opts.count, opts.step = int(first), int(count), int(step)
+    if channel is not None:
+        if isinstance(channel, str):
+            names = {"auto": IO_CHANNEL_AUTO, "luma": IO_CHANNEL_LUMA}
+            if channel.lower() not in names:
+                raise ValueError("channel: expected an index >= 0, 'auto' or 'luma', got %r" % channel)
+            channel = names[channel.lower()]
+        channel = int(channel)
+        if channel < IO_CHANNEL_LUMA:
+            raise ValueError("channel: expected an index >= 0, -1 (auto) or -2 (luma), got %d" % channel)
+        opts.channel = channel
+    if spacing is not None:
+        sp = _triple(spacing, "spacing", 1.0)
+        for i, s in enumerate(sp):
+            if not (math.isfinite(s) and s > 0):
+                raise ValueError("spacing: %s component must be finite and > 0, got %r" % ("xyz"[i], s))
+        opts.spacing[:] = sp
+    if origin is not None:
+        org = _triple(origin, "origin", 0.0)
+        if not all(math.isfinite(o) for o in org):
+            raise ValueError("origin: components must be finite, got %r" % (org,))
+        opts.origin[:] = org
+    if int(threads) < 0:
+        raise ValueError("threads: must be >= 0 (0 = one per core)")
+    opts.threads = int(threads)
+    opts.memory_limit = int(memory_limit)
+    if raw_dims is not None:
+        dims = [int(d) for d in raw_dims]
+        if len(dims) != 3 or min(dims) <= 0:
+            raise ValueError("raw_dims: expected 3 sizes > 0 (nx, ny, nz), got %r" % (raw_dims,))
+        opts.raw_dims[:] = dims
+        if raw_type is None:
+            raise ValueError("raw_type: required with raw_dims (e.g. 'u16' or numpy.uint16)")
+        opts.raw_type = _type_id(raw_type)
+    opts.raw_header = int(raw_header)
+    opts.raw_big_endian = 1 if raw_big_endian else 0
+    return opts
+
+
+class _Closable:
+    """with-statement and garbage collection both call close()."""
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self.close()
+        return False
+
+    def __del__(self):
+        try:
+            self.close()
+        except Exception:
+            pass
+
+
+class Source(_Closable):
     """An opened, validated slice stack / raw / NRRD source (wraps isomend_io_source).
 
     Use as a context manager or call close(); the handle is also released when
@@ -794,44 +864,10 @@ class Source:
         self._lib = lib
         self._progress = _Progress(None, io=True)
         self._progress.fn = progress
-        opts = IOOptions()
-        lib.isomend_io_options_init(ctypes.byref(opts))
-        opts.first, opts.count, opts.step = int(first), int(count), int(step)
-        if channel is not None:
-            if isinstance(channel, str):
-                names = {"auto": IO_CHANNEL_AUTO, "luma": IO_CHANNEL_LUMA}
-                if channel.lower() not in names:
-                    raise ValueError("channel: expected an index >= 0, 'auto' or 'luma', got %r" % channel)
-                channel = names[channel.lower()]
-            channel = int(channel)
-            if channel < IO_CHANNEL_LUMA:
-                raise ValueError("channel: expected an index >= 0, -1 (auto) or -2 (luma), got %d" % channel)
-            opts.channel = channel
-        if spacing is not None:
-            sp = _triple(spacing, "spacing", 1.0)
-            for i, s in enumerate(sp):
-                if not (math.isfinite(s) and s > 0):
-                    raise ValueError("spacing: %s component must be finite and > 0, got %r" % ("xyz"[i], s))
-            opts.spacing[:] = sp
-        if origin is not None:
-            org = _triple(origin, "origin", 0.0)
-            if not all(math.isfinite(o) for o in org):
-                raise ValueError("origin: components must be finite, got %r" % (org,))
-            opts.origin[:] = org
-        if int(threads) < 0:
-            raise ValueError("threads: must be >= 0 (0 = one per core)")
-        opts.threads = int(threads)
-        opts.memory_limit = int(memory_limit)
-        if raw_dims is not None:
-            dims = [int(d) for d in raw_dims]
-            if len(dims) != 3 or min(dims) <= 0:
-                raise ValueError("raw_dims: expected 3 sizes > 0 (nx, ny, nz), got %r" % (raw_dims,))
-            opts.raw_dims[:] = dims
-            if raw_type is None:
-                raise ValueError("raw_type: required with raw_dims (e.g. 'u16' or numpy.uint16)")
-            opts.raw_type = _type_id(raw_type)
-        opts.raw_header = int(raw_header)
-        opts.raw_big_endian = 1 if raw_big_endian else 0
+        opts = _io_options(lib, channel=channel, spacing=spacing, origin=origin, first=first,
+                           count=count, step=step, threads=threads, memory_limit=memory_limit,
+                           raw_dims=raw_dims, raw_type=raw_type, raw_header=raw_header,
+                           raw_big_endian=raw_big_endian)
         opts.progress = self._progress.c_fn
         handle = ctypes.c_void_p()
         status = lib.isomend_io_create(ctypes.byref(handle))
@@ -844,6 +880,16 @@ class Source:
         status = lib.isomend_io_open(handle, arr, len(encoded), ctypes.byref(opts))
         self._check(status, "open")
         self._query()
+
+    @classmethod
+    def _adopt(cls, lib, handle, paths):
+        """A Source over a handle that a job has opened (or failed to open)."""
+        self = cls.__new__(cls)
+        self._lib = lib
+        self._handle = handle
+        self._progress = _Progress(None, io=True)
+        self.paths = paths
+        return self
 
     # -- internals
     def _raise(self, status, what):
@@ -959,10 +1005,20 @@ class Source:
         status = self._lib.isomend_io_extract(h, ctypes.byref(opts), 1 if iso is None else 0,
                                               ctypes.byref(iso_used), ctypes.byref(handle),
                                               ctypes.byref(stats))
+        return self._mesh(status, "extract", handle, stats, iso_used.value, opts.method, normals,
+                          origins)
+
+    def _mesh(self, status, what, handle, stats, iso_used, method_id, normals, origins):
+        """The Mesh of an isomend_io_extract() (or job) that returned ``status``."""
         if status != 0 and handle.value:
             _core_lib().isomend_mesh_destroy(handle)
-        self._check(status, "extract")
-        mesh = _take_mesh(handle, stats, iso_used.value, opts.method, normals, origins)
+        self._check(status, what)
+        # The volume is loaded: this describes it (origin and spacing as delivered).
+        vol = Volume()
+        seconds = ctypes.c_double()
+        load = self._lib.isomend_io_load(self._handle, ctypes.byref(vol), ctypes.byref(seconds))
+        mesh = _take_mesh(handle, stats, iso_used, method_id, normals, origins)
+        self._check(load, "load")
         mesh.volume_origin = tuple(vol.origin)
         mesh.volume_spacing = tuple(vol.spacing)
         mesh.read_seconds = seconds.value
@@ -973,19 +1029,6 @@ class Source:
         if self._handle is not None:
             h, self._handle = self._handle, None
             self._lib.isomend_io_destroy(h)
-
-    def __enter__(self):
-        return self
-
-    def __exit__(self, *exc):
-        self.close()
-        return False
-
-    def __del__(self):
-        try:
-            self.close()
-        except Exception:
-            pass
 
     def __repr__(self):
         return "<isomend.Source %s %s %dx%dx%d %s spacing=%s>" % (
@@ -1005,6 +1048,106 @@ def _type_id(t):
     if dt is not None and dt in _DTYPE_TO_TYPE:
         return _DTYPE_TO_TYPE[dt]
     raise ValueError("raw_type: expected u8, i8, u16, i16, i32, f32, f64 (or a numpy dtype), got %r" % (t,))
+
+
+class ExtractJob(_Closable):
+    """extract_source() on a thread of the C library's own (isomend_io_job_*).
+
+    No Python code runs on that thread, so a host that does not support Python
+    threads (Blender) can keep its interface running meanwhile: poll() the job
+    from the host's timer, cancel() it on Esc, and take its result() once
+    poll() says it is done::
+
+        job = isomend.ExtractJob("scan/", iso=None)
+        while not job.poll()[2]:
+            time.sleep(0.1)            # a UI timer in a real host
+        mesh, info = job.result()
+
+    The arguments are extract_source()'s, without ``progress`` (poll instead);
+    they are checked here, before the thread starts.  result() raises what
+    extract_source() would (Cancelled after cancel()).  close() (or garbage
+    collection) cancels a job that is still running and waits for its thread.
+    """
+
+    def __init__(self, paths, iso=None, method="dmc", pad=False, flip=False, normals=True,
+                 origins=True, threads=0, small_pages=False, **open_kwargs):
+        if "progress" in open_kwargs:
+            raise TypeError("progress: a job calls no callback; poll() it instead")
+        self._job = None
+        self._handle = None
+        lib = self._lib = _io_lib()
+        io_opts = _io_options(lib, threads=threads, **open_kwargs)
+        self._opts = _options(iso if iso is not None else 0.0, method, pad, flip, normals, origins,
+                              threads, None, small_pages)
+        self._want = (normals, origins)
+        encoded = _paths_list(paths)
+        self.paths = [os.fsdecode(p) for p in encoded]
+        handle = ctypes.c_void_p()
+        status = lib.isomend_io_create(ctypes.byref(handle))
+        if status != 0 or not handle.value:
+            raise IsomendError("isomend_io_create: out of memory", status or 9,
+                               IO_STATUS_NAMES.get(status or 9, "?"))
+        self._handle = handle
+        arr = (ctypes.c_char_p * len(encoded))(*encoded)
+        job = ctypes.c_void_p()
+        status = lib.isomend_io_job_start(handle, arr, len(encoded), ctypes.byref(io_opts),
+                                          ctypes.byref(self._opts), 1 if iso is None else 0,
+                                          ctypes.byref(job))
+        if status != 0:
+            self._handle = None
+            with Source._adopt(lib, handle, self.paths) as src:  # which frees the handle
+                src._raise(status, "start")
+        self._job = job
+
+    def poll(self):
+        """(stage, fraction, done): the stage ("open", "read", "analyse",
+        "extract") and the fraction of it last reported; done is True once the
+        work has ended (result() then returns at once).  Never blocks."""
+        if self._job is None:
+            return ("extract", 1.0, True)
+        stage, fraction = ctypes.c_int(), ctypes.c_double()
+        done = self._lib.isomend_io_job_poll(self._job, ctypes.byref(stage), ctypes.byref(fraction))
+        name = IO_STAGES[stage.value] if 0 <= stage.value < len(IO_STAGES) else str(stage.value)
+        return (name, fraction.value, bool(done))
+
+    def cancel(self):
+        """Asks the job to stop at its next progress point; never blocks."""
+        if self._job is not None:
+            self._lib.isomend_io_job_cancel(self._job)
+
+    def result(self):
+        """Waits for the job and returns (mesh, info): the Mesh, and a dict of the
+        source's dims, dtype, spacing, spacing_sources, origin, kind, format.
+        Raises IsomendError (Cancelled if cancelled).  Once only."""
+        if self._job is None:
+            raise ValueError("the job's result was already taken")
+        job, self._job = self._job, None
+        handle, stats, iso_used = ctypes.c_void_p(), Stats(), ctypes.c_double()
+        status = self._lib.isomend_io_job_finish(job, ctypes.byref(iso_used), ctypes.byref(handle),
+                                                 ctypes.byref(stats))
+        src = Source._adopt(self._lib, self._handle, self.paths)
+        self._handle = None
+        with src:
+            # the failing call named as Source and Source.extract name it
+            if self._lib.isomend_io_source_kind(src._handle) < 0:  # the open failed
+                src._check(status, "open")
+            src._query()
+            mesh = src._mesh(status, "extract", handle, stats, iso_used.value, self._opts.method,
+                             *self._want)
+            info = {"dims": src.dims, "dtype": np.dtype(src.dtype).name, "spacing": src.spacing,
+                    "spacing_sources": src.spacing_sources, "origin": src.origin,
+                    "kind": src.kind, "format": src.format}
+        return mesh, info
+
+    def close(self):
+        """Cancels the job if it still runs, waits for its thread, frees it all."""
+        job, self._job = self._job, None
+        if job is not None:
+            self._lib.isomend_io_job_cancel(job)
+            self._lib.isomend_io_job_finish(job, None, None, None)
+        handle, self._handle = self._handle, None
+        if handle is not None:
+            self._lib.isomend_io_destroy(handle)
 
 
 def open_source(paths, **kwargs):

@@ -4,8 +4,10 @@
         --python blender_modal_test.py -- cases.json      (see run_blender_tests.py --mode gui)
 
 1. an import started as from the file browser (modal_ui=True) returns
-   {'RUNNING_MODAL'} at once, runs in a worker thread while the interface keeps
-   running, and ends with one object whose counts equal `isomend extract`'s;
+   {'RUNNING_MODAL'} at once, runs on the C library's own thread while the
+   interface keeps running (no Python thread: Blender does not support them,
+   so the test fails if one exists while the import runs), and ends with one
+   object whose counts equal `isomend extract`'s;
 2. an import of a larger stack followed by a simulated Esc ends cancelled,
    with a warning and no object or mesh left behind.
 Timers drive the steps; the exit status is set with os._exit because an
@@ -14,6 +16,7 @@ exception inside a timer does not reach --python-exit-code.
 import json
 import os
 import sys
+import threading
 import time
 
 import addon_utils
@@ -47,7 +50,11 @@ def window_override():
 def start(directory, **kwargs):
     module.last_import.clear()
     with window_override():
-        return bpy.ops.import_mesh.slice_stack('EXEC_DEFAULT', directory=directory, modal_ui=True, **kwargs)
+        r = bpy.ops.import_mesh.slice_stack('EXEC_DEFAULT', directory=directory, modal_ui=True, **kwargs)
+    # the import has just started: a worker in Python would be running now
+    if r == {"RUNNING_MODAL"} and threading.active_count() != 1:
+        fail("a Python thread runs during the import: %s" % threading.enumerate())
+    return r
 
 
 def tick():
@@ -71,6 +78,8 @@ def step():
             fail("modal import returned %s, expected RUNNING_MODAL" % r)
         state["step"] = "wait_import"
         return 0.1
+    if state["step"] in ("wait_import", "wait_cancel") and threading.active_count() != 1:
+        fail("a Python thread runs during the import: %s" % threading.enumerate())
     if state["step"] == "wait_import":
         if not module.last_import:
             return 0.1

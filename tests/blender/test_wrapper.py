@@ -452,6 +452,58 @@ def test_source_progress_and_cancel(stack):
         isomend.extract_source(stack["folder"], progress=lambda s, f: {}["boom"])
 
 
+def test_extract_job_polls_to_the_same_mesh_without_python_threads(stack):
+    import threading
+    import time
+    want = isomend.extract_source(stack["folder"], spacing=(0.5, 0.5, 2.0), pad=True)
+    job = isomend.ExtractJob(stack["folder"], spacing=(0.5, 0.5, 2.0), pad=True)
+    seen = []
+    while True:
+        # the work is on the C library's thread: Python sees only its own
+        assert threading.active_count() == 1
+        stage, fraction, done = job.poll()
+        assert stage in isomend.IO_STAGES and 0.0 <= fraction <= 1.0
+        seen.append(stage)
+        if done:
+            break
+        time.sleep(0.001)
+    assert [isomend.IO_STAGES.index(s) for s in seen] == sorted(isomend.IO_STAGES.index(s) for s in seen)
+    mesh, info = job.result()
+    same_mesh(mesh, want)
+    assert mesh.iso == want.iso and mesh.volume_spacing == want.volume_spacing == (0.5, 0.5, 2.0)
+    assert info["dims"] == (16, 14, 12) and info["dtype"] == "uint16" and info["kind"] == "folder"
+    assert info["spacing_sources"] == ("option",) * 3
+    with pytest.raises(ValueError, match="already taken"):
+        job.result()
+    job.close()  # idempotent after result()
+
+
+def test_extract_job_cancel_errors_and_abandon(stack, tmp_path):
+    job = isomend.ExtractJob(stack["folder"], iso=300.0, method="mc")
+    job.cancel()
+    with pytest.raises(isomend.Cancelled) as err:
+        job.result()
+    assert err.value.status_name == "CANCELLED" and "cancelled" in str(err.value)
+    assert job.poll()[2]
+    missing = str(tmp_path / "no_such_folder")
+    with pytest.raises(isomend.IsomendError) as err:
+        isomend.ExtractJob(missing).result()
+    assert err.value.status_name == "NOT_FOUND" and str(err.value).startswith("open: ")
+    assert missing in str(err.value)
+    # refused before any thread starts
+    with pytest.raises(TypeError, match="poll"):
+        isomend.ExtractJob(stack["folder"], progress=lambda s, f: False)
+    with pytest.raises(ValueError, match="spacing"):
+        isomend.ExtractJob(stack["folder"], spacing=(1, 0, 1))
+    with pytest.raises(ValueError, match="method"):
+        isomend.ExtractJob(stack["folder"], method="no_such_method")
+    # dropped while running: cancelled and joined, nothing leaks or crashes
+    for _ in range(20):
+        isomend.ExtractJob(stack["multi"]).close()
+        job = isomend.ExtractJob(stack["multi"])
+        del job
+
+
 def test_source_errors_name_the_file_and_the_reason(stack, tmp_path):
     missing = str(tmp_path / "no_such_folder")
     with pytest.raises(isomend.IsomendError) as err:
