@@ -9,12 +9,19 @@
    so the test fails if one exists while the import runs), and ends with one
    object whose counts equal `isomend extract`'s;
 2. an import of a larger stack followed by a simulated Esc ends cancelled,
-   with a warning and no object or mesh left behind.
+   with a warning and no object or mesh left behind;
+3. RACE_CYCLES more imports of the larger stack, Esc pressed at once in every
+   other one (it must end cancelled, nothing left) and at a random moment in
+   the others (cancelled with nothing left, or finished with the same mesh as
+   every other finished one).  Under Xvfb Blender's loop runs about twice a
+   second, so a timer's Esc mostly arrives after the 0.1 s import: the cancels
+   at random moments inside the work are tested in C (tests/io/test_io_api.c).
 Timers drive the steps; the exit status is set with os._exit because an
 exception inside a timer does not reach --python-exit-code.
 """
 import json
 import os
+import random
 import sys
 import threading
 import time
@@ -38,7 +45,9 @@ if module is None or not hasattr(bpy.types, "IMPORT_MESH_OT_slice_stack"):
     fail("the add-on could not be enabled")
 
 case = SPEC["cases"][0]
-state = {"step": "start", "t0": time.time()}
+state = {"step": "start", "t0": time.time(), "cycle": 0, "ended": {"CANCELLED": 0, "FINISHED": 0}}
+RACE_CYCLES = 12
+rng = random.Random(7)
 
 
 def window_override():
@@ -57,6 +66,12 @@ def start(directory, **kwargs):
     return r
 
 
+def start_case():
+    p = case["params"]
+    return start(case["directory"], use_suggested_iso=p["use_suggested_iso"], iso=p["iso"],
+                 method=p["method"], spacing=p["spacing"], unit_scale=p["unit_scale"], pad=p["pad"])
+
+
 def tick():
     try:
         return step()
@@ -66,19 +81,17 @@ def tick():
 
 def step():
     now = time.time()
-    if now - state["t0"] > 120:
+    if now - state["t0"] > 240:
         fail("timed out in step %s" % state["step"])
     if state["step"] == "start":
         for obj in list(bpy.data.objects):
             bpy.data.objects.remove(obj)
-        p = case["params"]
-        r = start(case["directory"], use_suggested_iso=p["use_suggested_iso"], iso=p["iso"],
-                  method=p["method"], spacing=p["spacing"], unit_scale=p["unit_scale"], pad=p["pad"])
+        r = start_case()
         if r != {"RUNNING_MODAL"}:
             fail("modal import returned %s, expected RUNNING_MODAL" % r)
         state["step"] = "wait_import"
         return 0.1
-    if state["step"] in ("wait_import", "wait_cancel") and threading.active_count() != 1:
+    if state["step"] in ("wait_import", "wait_cancel", "race_wait") and threading.active_count() != 1:
         fail("a Python thread runs during the import: %s" % threading.enumerate())
     if state["step"] == "wait_import":
         if not module.last_import:
@@ -110,8 +123,48 @@ def step():
         if len(bpy.data.objects) or len(bpy.data.meshes):
             fail("a cancelled import left %d objects, %d meshes" % (len(bpy.data.objects), len(bpy.data.meshes)))
         print("Esc cancelled the import: %s" % module.last_import["message"], flush=True)
-        print("blender modal test: all checks passed", flush=True)
-        os._exit(0)
+        state["step"] = "race_start"
+        return 0.1
+    if state["step"] == "race_start":
+        if state["cycle"] == RACE_CYCLES:
+            print("%d more imports, Esc at once or at random moments: %d cancelled, %d finished first"
+                  % (RACE_CYCLES, state["ended"]["CANCELLED"], state["ended"]["FINISHED"]), flush=True)
+            print("blender modal test: all checks passed", flush=True)
+            os._exit(0)
+        r = start(SPEC["big"])
+        if r != {"RUNNING_MODAL"}:
+            fail("modal import returned %s" % r)
+        if state["cycle"] % 2 == 0:
+            bpy.context.window_manager.windows[0].event_simulate(type='ESC', value='PRESS')
+        else:
+            state["esc_at"] = now + rng.uniform(0.0, 0.25)
+        state["step"] = "race_wait"
+        return 0.01
+    if state["step"] == "race_wait":
+        if "esc_at" in state and now >= state["esc_at"]:
+            bpy.context.window_manager.windows[0].event_simulate(type='ESC', value='PRESS')
+            del state["esc_at"]
+        if not module.last_import:
+            return 0.01
+        status = module.last_import["status"]
+        if status == "FINISHED":
+            counts = [(len(o.data.vertices), len(o.data.polygons)) for o in bpy.data.objects]
+            state.setdefault("counts", counts)
+            if len(counts) != 1 or counts != state["counts"] or not counts[0][1]:
+                fail("import %d finished with %s, earlier %s" % (state["cycle"], counts, state["counts"]))
+        elif status != "CANCELLED" or len(bpy.data.objects) or len(bpy.data.meshes):
+            fail("import %d ended %s with %d objects" % (state["cycle"], module.last_import, len(bpy.data.objects)))
+        if state["cycle"] % 2 == 0 and status != "CANCELLED":
+            fail("import %d: Esc pressed at once, but it ended %s" % (state["cycle"], module.last_import))
+        state["ended"][status] += 1
+        for obj in list(bpy.data.objects):
+            bpy.data.objects.remove(obj)
+        for me in list(bpy.data.meshes):
+            bpy.data.meshes.remove(me)
+        state.pop("esc_at", None)
+        state["cycle"] += 1
+        state["step"] = "race_start"
+        return 0.01
     return 0.1
 
 

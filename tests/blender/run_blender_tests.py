@@ -177,10 +177,14 @@ def main():
 
     big = None
     if args.mode == "gui":
-        # a stack large enough that Esc arrives while it is still being read
+        # a stack large enough that Esc arrives while it is still being read (128
+        # headers, 9 MB), whose surface is small (a blob) so that an import Esc
+        # arrives too late for is built quickly
         big = os.path.join(work, "big_stack")
         os.makedirs(big)
-        v = np.random.default_rng(3).integers(0, 4096, (128, 192, 192), dtype=np.uint16)
+        z, y, x = np.mgrid[0:128, 0:192, 0:192].astype(np.float32)
+        r2 = (x - 96.3) ** 2 + (y - 95.7) ** 2 + (z - 64.2) ** 2
+        v = (4000 * np.exp(-r2 / 2500)).astype(np.uint16)
         for k in range(v.shape[0]):
             tifffile.imwrite(os.path.join(big, "b_%03d.tif" % k), v[k])
 
