@@ -363,13 +363,16 @@ class IMPORT_MESH_OT_slice_stack(Operator, ImportHelper):
         return {'RUNNING_MODAL'}
 
     def cancel(self, context):
-        # Blender ends a running modal operator this way (e.g. on quitting):
-        # stop the library's thread before the operator goes.
+        # Blender ends a running modal operator this way (loading a file,
+        # closing the window): stop the library's thread before the operator goes.
         job = getattr(self, "_job_obj", None)
         if job is not None:
+            self._job_obj = None
             job.abandon()
             context.window_manager.event_timer_remove(self._timer)
             context.window_manager.progress_end()
+            last_import.clear()
+            last_import.update(status='CANCELLED', message="Import cancelled: Blender ended the operator")
 
     def modal(self, context, event):
         job = self._job_obj

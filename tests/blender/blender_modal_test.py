@@ -15,7 +15,10 @@
    the others (cancelled with nothing left, or finished with the same mesh as
    every other finished one).  Under Xvfb Blender's loop runs about twice a
    second, so a timer's Esc mostly arrives after the 0.1 s import: the cancels
-   at random moments inside the work are tested in C (tests/io/test_io_api.c).
+   at random moments inside the work are tested in C (tests/io/test_io_api.c);
+4. an import still running when Blender loads another file (which ends every
+   modal operator) is abandoned: its thread is stopped and joined, and
+   last_import says it was cancelled.
 Timers drive the steps; the exit status is set with os._exit because an
 exception inside a timer does not reach --python-exit-code.
 """
@@ -129,6 +132,13 @@ def step():
         if state["cycle"] == RACE_CYCLES:
             print("%d more imports, Esc at once or at random moments: %d cancelled, %d finished first"
                   % (RACE_CYCLES, state["ended"]["CANCELLED"], state["ended"]["FINISHED"]), flush=True)
+            r = start(SPEC["big"])
+            if r != {"RUNNING_MODAL"}:
+                fail("modal import returned %s" % r)
+            bpy.ops.wm.read_homefile(use_empty=True)  # ends the operator: its cancel()
+            if module.last_import.get("status") != "CANCELLED" or "ended" not in module.last_import["message"]:
+                fail("an import running while a file loads ended %s" % module.last_import)
+            print("an import running while a file loads: %s" % module.last_import["message"], flush=True)
             print("blender modal test: all checks passed", flush=True)
             os._exit(0)
         r = start(SPEC["big"])
