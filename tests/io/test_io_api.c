@@ -415,6 +415,17 @@ static void test_job(void) {
     isomend_mesh_destroy(ref);
     isomend_io_destroy(ref_src);
 
+    /* a handle that a running job has cannot start another job */
+    CHECK_EQ_INT(isomend_io_create(&src), ISOMEND_IO_OK);
+    CHECK_EQ_INT(isomend_io_job_start(src, paths, 1, &io, &eo, 0, &job), ISOMEND_IO_OK);
+    {
+        isomend_io_job *second = (isomend_io_job *)&bad;
+        CHECK_EQ_INT(isomend_io_job_start(src, paths, 1, &io, &eo, 0, &second), ISOMEND_IO_ERR_INVALID_ARGUMENT);
+        CHECK(second == NULL);
+    }
+    CHECK_EQ_INT(isomend_io_job_finish(job, NULL, NULL, NULL), ISOMEND_IO_OK);
+    isomend_io_destroy(src);
+
     /* a cancel while many headers are checked by worker threads */
     {
         char *mp = join("many_pages/pages.tif");

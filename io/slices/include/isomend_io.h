@@ -354,7 +354,7 @@ ISOMEND_IO_API isomend_io_status isomend_io_extract(isomend_io_source *src,
  *
  * `src` is a handle from isomend_io_create() that has not been opened; the
  * job uses it until isomend_io_job_finish() returns, and the caller must not
- * touch it before then.  Afterwards it is an ordinary source: the queries
+ * touch it before then (a second job on it is refused, with no message).  Afterwards it is an ordinary source: the queries
  * work, isomend_io_message() holds the failure's message, and
  * isomend_io_load() describes the loaded volume without reading it again.
  * `paths` and both option structs are copied; `opts` may be NULL for the

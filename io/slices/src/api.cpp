@@ -32,6 +32,7 @@ struct isomend_io_source {
     std::string message;
     bool opened = false;
     bool open_attempted = false;
+    bool in_job = false; // a job has it, from isomend_io_job_start to _finish
     int kind = -1;
     isomend_io_options opts{};
     std::vector<Slice> slices;
@@ -841,7 +842,8 @@ ISOMEND_IO_API isomend_io_status isomend_io_job_start(isomend_io_source *src, co
                                                       const isomend_options *opts, int use_suggested_iso,
                                                       isomend_io_job **out_job) {
     if (out_job) *out_job = nullptr;
-    if (!src) return ISOMEND_IO_ERR_INVALID_ARGUMENT;
+    // A handle a job has is the job's: not even its message is written here.
+    if (!src || src->in_job) return ISOMEND_IO_ERR_INVALID_ARGUMENT;
     std::unique_ptr<isomend_io_job> job;
     isomend_io_status st = guard(src, [&] {
         if (!out_job) throw IoError(ISOMEND_IO_ERR_INVALID_ARGUMENT, "out_job is NULL");
@@ -868,8 +870,10 @@ ISOMEND_IO_API isomend_io_status isomend_io_job_start(isomend_io_source *src, co
         }
         job->use_suggested_iso = use_suggested_iso;
         try {
+            src->in_job = true;
             job->thread = std::thread(job_run, job.get());
         } catch (const std::system_error &e) {
+            src->in_job = false;
             throw IoError(ISOMEND_IO_ERR_INTERNAL, std::string("cannot start the job's thread: ") + e.what());
         }
     });
@@ -897,6 +901,7 @@ ISOMEND_IO_API isomend_io_status isomend_io_job_finish(isomend_io_job *job, doub
     // The source kept the job's callback for later reads: it must not outlive the job.
     job->src->opts.progress = nullptr;
     job->src->opts.progress_user = nullptr;
+    job->src->in_job = false;
     if (iso_used) *iso_used = job->iso_used;
     if (stats) *stats = job->stats;
     if (out_mesh) *out_mesh = job->mesh;
