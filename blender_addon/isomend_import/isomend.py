@@ -989,13 +989,9 @@ class Source(_Closable):
         origin are the source's.  Returns a Mesh whose ``iso`` is the level used."""
         h = self._require_open()
         self._with_progress(progress)
-        # Load first (isomend_io_extract reuses the buffer) to learn the origin and
-        # spacing of the volume as delivered: a file whose axis points the negative
-        # way (NRRD "space directions" (-2,0,0)) is read with a negative stride, so
-        # its sample (0, 0, 0) is not the file's first sample.
-        vol = Volume()
-        seconds = ctypes.c_double()
-        self._check(self._lib.isomend_io_load(h, ctypes.byref(vol), ctypes.byref(seconds)), "load")
+        # Load first (isomend_io_extract reuses the buffer): a read error is named
+        # "load", and the volume as delivered is known (see _describe).
+        described = self._describe()
         # Progress of the extraction goes through the source's callback (stage "extract").
         opts = _options(iso if iso is not None else 0.0, method, pad, flip, normals, origins,
                         threads, None, small_pages)
@@ -1006,22 +1002,31 @@ class Source(_Closable):
                                               ctypes.byref(iso_used), ctypes.byref(handle),
                                               ctypes.byref(stats))
         return self._mesh(status, "extract", handle, stats, iso_used.value, opts.method, normals,
-                          origins)
+                          origins, described)
 
-    def _mesh(self, status, what, handle, stats, iso_used, method_id, normals, origins):
-        """The Mesh of an isomend_io_extract() (or job) that returned ``status``."""
+    def _describe(self):
+        """Loads the volume (at once if it is loaded) and returns (Volume, read
+        seconds): the origin and spacing of the volume as delivered.  A file whose
+        axis points the negative way (NRRD "space directions" (-2,0,0)) is read with
+        a negative stride, so its sample (0, 0, 0) is not the file's first sample."""
+        vol = Volume()
+        seconds = ctypes.c_double()
+        self._check(self._lib.isomend_io_load(self._handle, ctypes.byref(vol), ctypes.byref(seconds)),
+                    "load")
+        return vol, seconds.value
+
+    def _mesh(self, status, what, handle, stats, iso_used, method_id, normals, origins,
+              described=None):
+        """The Mesh of an isomend_io_extract() (or job) that returned ``status``;
+        ``described`` is _describe()'s answer if the caller has it."""
         if status != 0 and handle.value:
             _core_lib().isomend_mesh_destroy(handle)
         self._check(status, what)
-        # The volume is loaded: this describes it (origin and spacing as delivered).
-        vol = Volume()
-        seconds = ctypes.c_double()
-        load = self._lib.isomend_io_load(self._handle, ctypes.byref(vol), ctypes.byref(seconds))
         mesh = _take_mesh(handle, stats, iso_used, method_id, normals, origins)
-        self._check(load, "load")
+        vol, seconds = described or self._describe()
         mesh.volume_origin = tuple(vol.origin)
         mesh.volume_spacing = tuple(vol.spacing)
-        mesh.read_seconds = seconds.value
+        mesh.read_seconds = seconds
         return mesh
 
     def close(self):

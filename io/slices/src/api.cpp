@@ -796,7 +796,6 @@ struct isomend_io_job {
     std::vector<std::string> paths;
     isomend_io_options io_opts{};
     isomend_options opts{};
-    bool has_opts = false;
     int use_suggested_iso = 0;
     // written by the job's thread, read by poll()
     std::atomic<int> stage{ISOMEND_IO_STAGE_OPEN};
@@ -829,8 +828,8 @@ void job_run(isomend_io_job *job) {
     if (job->status == ISOMEND_IO_OK) {
         job->stage.store(ISOMEND_IO_STAGE_READ, std::memory_order_relaxed);
         job->fraction.store(0.0, std::memory_order_relaxed);
-        job->status = isomend_io_extract(job->src, job->has_opts ? &job->opts : nullptr,
-                                         job->use_suggested_iso, &job->iso_used, &job->mesh, &job->stats);
+        job->status = isomend_io_extract(job->src, &job->opts, job->use_suggested_iso, &job->iso_used,
+                                         &job->mesh, &job->stats);
     }
     job->ended.store(true, std::memory_order_release);
 }
@@ -864,10 +863,8 @@ ISOMEND_IO_API isomend_io_status isomend_io_job_start(isomend_io_source *src, co
         else isomend_io_options_init(&job->io_opts);
         job->io_opts.progress = job_progress;
         job->io_opts.progress_user = job.get();
-        if (opts) {
-            job->opts = *opts;
-            job->has_opts = true;
-        }
+        if (opts) job->opts = *opts;
+        else isomend_options_init(&job->opts);
         job->use_suggested_iso = use_suggested_iso;
         try {
             src->in_job = true;
