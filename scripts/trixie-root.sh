@@ -1,0 +1,84 @@
+#!/usr/bin/env bash
+# Builds (or reuses) a Debian 13 "trixie" root file system for testing
+# isomend in the hosts people run today: MeshLab 2022.02, Blender 4.3,
+# OpenImageIO 2.5.  The machine's own apt configuration is never touched:
+# mmdebstrap (a Debian 12 package) downloads from the mirror that the
+# machine's Debian sources already name, checked against Debian's archive
+# keyring, into a folder of ours.
+#
+# Usage: scripts/trixie-root.sh [--print]
+#   Prints the root's path on stdout when it is ready.
+# Environment:
+#   ISOMEND_TRIXIE_ROOT   where the root lives
+#                         (default ${XDG_CACHE_HOME:-$HOME/.cache}/isomend/trixie-root)
+#   ISOMEND_TRIXIE_MIRROR the Debian mirror (default: the first deb.debian.org-style
+#                         URI of the machine's sources, else http://deb.debian.org/debian)
+#
+# The root is reused when its marker (.isomend-complete) names the same
+# package list as this script; otherwise it is built again under a temporary
+# name and renamed when complete, so an interrupted build never leaves a root
+# that looks finished.  Needs root (mmdebstrap's root mode, chroot later).
+# Run commands inside it with scripts/trixie-run.sh.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+
+die() { echo "trixie-root: $*" >&2; exit 1; }
+
+# What the tests need inside the root: the build tools and the libraries the
+# project builds against there, the two hosts, Xvfb, and Python with numpy.
+PKGS=(build-essential cmake pkg-config zlib1g-dev patchelf file
+  libopenimageio-dev openimageio-tools libtiff-dev libopenexr-dev libgdcm-dev
+  qtbase5-dev libqt5opengl5-dev libglew-dev libeigen3-dev
+  meshlab blender
+  xvfb xauth x11-apps imagemagick xdotool
+  python3 python3-numpy python3-pytest python3-pydicom
+  ca-certificates dpkg-dev)
+
+[ "$(id -u)" = 0 ] || die "must run as root (mmdebstrap root mode and chroot)"
+root="${ISOMEND_TRIXIE_ROOT:-${XDG_CACHE_HOME:-$HOME/.cache}/isomend/trixie-root}"
+want="$(printf '%s\n' "${PKGS[@]}" | sort | sha256sum | cut -c1-16)"
+if [ -f "$root/.isomend-complete" ] && [ "$(cat "$root/.isomend-complete")" = "$want" ]; then
+  echo "$root"
+  exit 0
+fi
+
+if ! command -v mmdebstrap >/dev/null; then
+  SUDO=""
+  DEBIAN_FRONTEND=noninteractive $SUDO apt-get -o DPkg::Lock::Timeout=600 install -y -qq \
+    --no-install-recommends mmdebstrap >/dev/null \
+    || { apt-get -o DPkg::Lock::Timeout=600 update -qq &&
+         DEBIAN_FRONTEND=noninteractive apt-get -o DPkg::Lock::Timeout=600 install -y -qq \
+           --no-install-recommends mmdebstrap >/dev/null; } \
+    || die "cannot install mmdebstrap"
+fi
+
+mirror="${ISOMEND_TRIXIE_MIRROR:-}"
+if [ -z "$mirror" ]; then
+  mirror="$(grep -hoE '^(URIs:|deb) +(\[[^]]*\] +)?https?://[^ ]+/debian/?( |$)' \
+      /etc/apt/sources.list.d/*.sources /etc/apt/sources.list 2>/dev/null \
+    | grep -oE 'https?://[^ ]+' | head -n 1 || true)"
+  mirror="${mirror:-http://deb.debian.org/debian}"
+fi
+keyring=/usr/share/keyrings/debian-archive-keyring.gpg
+[ -f "$keyring" ] || die "$keyring missing (package debian-archive-keyring)"
+
+mkdir -p "$(dirname "$root")"
+tmp="$root.tmp.$$"
+rm -rf "$tmp"
+trap 'rm -rf "$tmp"' EXIT
+start=$(date +%s)
+echo "trixie-root: building $root from $mirror (about 10 minutes and 3 GB)" >&2
+list="$(IFS=,; echo "${PKGS[*]}")"
+mmdebstrap --quiet --mode=root --variant=apt --include="$list" \
+  --aptopt='Acquire::Retries "3"' \
+  --dpkgopt='path-exclude=/usr/share/doc/*' --dpkgopt='path-exclude=/usr/share/man/*' \
+  trixie "$tmp" "deb [signed-by=$keyring] $mirror trixie main" >&2 \
+  || die "mmdebstrap failed"
+# A deb-src twin for `apt-get source meshlab` inside the root.
+echo "deb-src [signed-by=$keyring] $mirror trixie main" >"$tmp/etc/apt/sources.list.d/src.list"
+echo "$want" >"$tmp/.isomend-complete"
+rm -rf "$root"
+mv "$tmp" "$root"
+trap - EXIT
+echo "trixie-root: ready in $(( $(date +%s) - start )) s" >&2
+echo "$root"
