@@ -687,12 +687,14 @@ def child_command(args, extractor, vol_path, iso, threads, repeats, regime):
 
 def run_child(args, extractor, vol_path, iso, threads, repeats, regime):
     cmd, env = child_command(args, extractor, vol_path, iso, threads, repeats, regime)
+    t0 = time.perf_counter()
     p = subprocess.run(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
                        timeout=args.child_timeout, env=env)
     if p.returncode != 0:
         msg = (p.stderr.strip().splitlines() or ["exit status %d" % p.returncode])[-1]
         return {"error": msg}
     r = json.loads(p.stdout)
+    r["child_seconds"] = time.perf_counter() - t0  # the whole child: what a round costs
     if r["regime"] != regime:
         return {"error": "the child measured regime %r, not %r" % (r["regime"], regime)}
     return r
@@ -765,6 +767,8 @@ def volume_jobs(args, peers, field, n, dtype, t, thread_counts, repeats):
         if not parallel and t != thread_counts[0]:
             continue  # single-threaded: its 1-thread time stands for every count
         for regime, rounds, calls in quick_policy(args, ext, field, n, dtype):
+            if regime not in getattr(args, "regimes", REGIMES):
+                continue
             if rounds is ONCE:
                 if t != (thread_counts[-1] if ext == "isomend" else thread_counts[0]):
                     continue  # measured once: at 1 thread (isomend: all threads)
@@ -843,6 +847,7 @@ def measure_volume(args, peers, field, n, dtype, vol_path, iso, t, thread_counts
                 a.clear()
                 a["error"] = "output changed between runs"
             else:
+                a["child_seconds"] += r["child_seconds"]
                 for key in ("times", "cpu_times", "sys_times", "minflt", "reported_kib",
                             "first_times", "first_cpu_times", "first_minflt", "floor_times",
                             "numpy_sum_times"):
@@ -896,6 +901,10 @@ def main(argv=None):
     ap.add_argument("--peers", default="all",
                     help="comma list of %s, or all"
                     % ",".join(ALL_PEERS))
+    ap.add_argument("--regimes", default=",".join(REGIMES),
+                    help="memory regimes to measure, a comma list of warm (the headline: "
+                         "the allocator keeps freed memory) and cold (glibc's default); "
+                         "default both")
     ap.add_argument("--lib-dir", help="folder with libisomend.so (else $ISOMEND_LIB_DIR)")
     ap.add_argument("--floor-lib", help="libisomend_bench_floor.so (else numpy's sum)")
     ap.add_argument("--cache-dir", help="where generated volumes are kept "
@@ -931,6 +940,10 @@ def main(argv=None):
             print("bench.py: --peers: unknown extractor %r (known: %s)"
                   % (p, ", ".join(EXTRACTORS)), file=sys.stderr)
             return 2
+    args.regimes = args.regimes.split(",")
+    if not args.regimes or any(g not in REGIMES for g in args.regimes):
+        print("bench.py: --regimes: a comma list of %s" % ", ".join(REGIMES), file=sys.stderr)
+        return 2
     ncpu = os.cpu_count() or 1
     if args.threads:
         try:
@@ -1010,7 +1023,7 @@ def main(argv=None):
         sys.stdout.write(text)
     print("[bench] done in %.0f s" % info["seconds"], file=sys.stderr)
     if args.check:
-        problems = check(results, peers)
+        problems = check(results, peers, args.regimes)
         if args.floor_lib and not (info.get("page_cost") and min(info["page_cost"]) > 0):
             problems.append("the fresh-memory cost was not measured (isomend_bench_page_cost)")
         for p in problems:
@@ -1033,7 +1046,7 @@ def _write_atomic(path, text):
         raise
 
 
-def check(results, peers):
+def check(results, peers, regimes=REGIMES):
     """Consistency of a run (the smoke test): every measurement succeeded, the
     floor read every voxel, isomend's mesh has Flying Edges' vertices (one per
     intersected edge), the Python wrapper and the geometry-only run give the
@@ -1089,7 +1102,7 @@ def check(results, peers):
                 problems.append("%s %d %s: isomend output depends on the thread count or "
                                 "the regime" % (f, n, d))
     for p in peers:
-        for regime in REGIMES:
+        for regime in regimes:
             if not any(k[3] == p and k[4] == regime for k in by):
                 problems.append("extractor %s never ran %s" % (p, regime))
     return problems
