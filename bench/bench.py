@@ -39,7 +39,8 @@ How it is measured
   extracting many surfaces does; *cold*, glibc's default allocator, which hands large
   freed arrays back to the kernel, so that every call faults its arrays in again (on a
   virtual machine whose every 4 KiB fault traps to the host, a large part of a peer's
-  call, where a peer's large arrays are small pages).  The first call of a process pays for fresh memory in either regime; on a
+  call: its large arrays are on small pages).  The first call of a process pays for
+  fresh memory in either regime; on a
   virtual machine that returns freed memory to its host (virtio-balloon free page
   reporting, as on the machine of docs/bench-results.md) that cost depends on what the
   previous process did.  Where the kernel has the page_reporting module, the run
@@ -476,15 +477,21 @@ def _reported_kib():
 # (blocks above 32 MiB are mmapped and unmapped on free; below, the top of the heap
 # is trimmed), so a program that calls Flying Edges again gets its arrays as fresh
 # pages, one minor fault per 4 KiB, which the kernel must zero (and, on a virtual
-# machine, often get from the host).  On an ordinary machine that costs a few ms per
-# call; on the PVM guest of docs/bench-results.md 3-4 ms per MB.  Two regimes:
+# machine, often get from the host): 0.5-0.9 ms per MB on the Intel PVM guest of
+# 2026-12-03, 2.9-3.8 on the AMD one of 2026-12-02, a few ms per call elsewhere.
+# Whether a program pays it depends on its past: the first time glibc unmaps a freed
+# block of up to 32 MiB, it raises its mapping threshold to that size and its trim
+# threshold to twice it, and blocks that size stay in the heap from then on (one
+# 16 MB numpy array freed before Flying Edges' calls makes them fault-free).  So
+# the regime is set, not left to chance:
 #
 #   warm  (the headline) the child's allocator keeps freed memory:
 #         GLIBC_TUNABLES=glibc.malloc.mmap_max=0:glibc.malloc.trim_threshold=16 GiB
 #         in its environment, so the calls after the first full-size one reuse the
 #         memory the one before freed, as a long-running program's do.
-#   cold  the default allocator: memory handed back between calls (the
-#         measurement before issue 27).
+#   cold  the default allocator, in a child where nothing raises its thresholds
+#         before the timed calls: memory handed back between calls (the measurement
+#         before issue 27).
 #
 # Both apply to every extractor alike.  isomend maps its output and work arrays
 # itself (2 MiB pages) and unmaps them when the mesh is destroyed: the tunables do

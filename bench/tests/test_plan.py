@@ -84,10 +84,11 @@ def check_regimes(b, threads):
            "PATH": "/usr/bin:/bin"}
     warm = b.regime_env("warm", env)["GLIBC_TUNABLES"].split(":")
     cold = b.regime_env("cold", env).get("GLIBC_TUNABLES", "").split(":")
+    only_malloc = {"GLIBC_TUNABLES": "glibc.malloc.tcache_count=0"}
     if sorted(warm) != sorted(["glibc.cpu.x86_rep_movsb_threshold=2048"] +
                               list(b.WARM_TUNABLES)) or \
             cold != ["glibc.cpu.x86_rep_movsb_threshold=2048"] or \
-            "GLIBC_TUNABLES" in b.regime_env("cold", {"GLIBC_TUNABLES": "glibc.malloc.tcache_count=0"}):
+            "GLIBC_TUNABLES" in b.regime_env("cold", only_malloc):
         print("FAIL regime_env: warm %s, cold %s" % (warm, cold))
         failures += 1
     for regime in b.REGIMES:
