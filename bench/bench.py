@@ -876,6 +876,8 @@ def measure_volume(args, peers, field, n, dtype, vol_path, iso, t, thread_counts
             r["min"] = min(r["times"])
             r["cpu"] = statistics.median(r["cpu_times"])
             r["sys"] = statistics.median(r["sys_times"])
+            r["user"] = statistics.median([c - k for c, k in zip(r["cpu_times"],
+                                                                   r["sys_times"])])
             r["faults"] = statistics.median(r["minflt"])
             r["floor"] = statistics.median(r["floor_times"])
             r["first"] = statistics.median(r["first_times"])
@@ -1176,8 +1178,10 @@ def _regimes_paragraph(info, by, vols, thread_counts):
       "kernel. The first call of a process, fresh memory in either regime, is reported "
       "apart. isomend maps its output and work arrays itself, on 2 MiB pages, and unmaps "
       "them when a mesh is destroyed: it pays for its fresh output in both regimes, as it "
-      "does in any program. *faults* = the median minor page faults of a call "
-      "(getrusage `ru_minflt`)." % ":".join(WARM_TUNABLES))
+      "does in any program (few faults, one per 2 MiB page, but the kernel zeroes every "
+      "page, and gets it back from the host first where the host had taken it: its "
+      "*kernel ms*). *faults* = the median minor page faults of a call (getrusage "
+      "`ru_minflt`); *kernel ms* = the median system time of a call." % ":".join(WARM_TUNABLES))
     pc = info.get("page_cost")
     for v in vols:
         t = thread_counts[0]
@@ -1255,14 +1259,18 @@ def render(info, results, thread_counts):
       "on the warm figures**; the cold ones are beside them, labelled *cold*.\n")
     w(_regimes_paragraph(info, by, vols, thread_counts))
     w("Three views of the warm runs, because the machine may be shared: the median wall "
-      "time (the spec's measure), the best run's wall time, and the CPU time the process "
-      "used during the call (user + system, all threads; at 1 thread it is the least "
-      "sensitive to other jobs, at 2 threads it includes TBB's idle spinning).\n")
+      "time (the spec's measure), the CPU time the process used during the call (user + "
+      "system, all threads; at 1 thread it is the least sensitive to other jobs, at 2 "
+      "threads it includes TBB's idle spinning), and its user part alone, the work of the "
+      "call without the kernel's (page faults, zeroing the pages of fresh memory: the part "
+      "that depends on the machine's price of fresh memory; the kernel splits the two by "
+      "sampling at its clock tick, so it is approximate).\n")
     w("| volume | threads | isomend DMC+normals ms | FE geometry ms | speed-up vs FE, median "
-      "(goal ≥ 2) | best runs | CPU time | faults per call, isomend / FE | floor ms | "
+      "(goal ≥ 2) | CPU time | user time | faults per call, isomend / FE | kernel ms, "
+      "isomend / FE | floor ms | "
       "isomend / floor (goal ≤ 4 on the sphere) | cold: isomend / FE ms | cold: speed-up | "
       "cold: faults per call, isomend / FE | triangles |")
-    w("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|")
+    w("|---" * 15 + "|")
     for v in vols:
         for t in thread_counts:
             i = by.get(v + ("isomend", "warm", t))
@@ -1279,11 +1287,12 @@ def render(info, results, thread_counts):
                 return "%.2f%s" % (x, (" ✔" if x >= 2 else " ✘") if mark and goal_size else "")
             fl = i["median"] / i["floor"]
             fmark = (" ✔" if fl <= 4 else " ✘") if v[0] == "sphere" and goal_size else ""
-            w("| %s | %d | %s | %s | %s | %s | %s | %s / %s | %s | %.1f%s | %s / %s | %s | "
-              "%s / %s | %s |" % (
+            w("| %s | %d | %s | %s | %s | %s | %s | %s / %s | %s / %s | %s | %.1f%s | %s / %s | "
+              "%s | %s / %s | %s |" % (
                   _vol_name(*v), t, _ms(i["median"]), _ms(fe["median"]) if fe else "—",
-                  ratio(i, fe, "median", True), ratio(i, fe, "min", False),
-                  ratio(i, fe, "cpu", False), _faults(i), _faults(fe), _ms(i["floor"]), fl,
+                  ratio(i, fe, "median", True), ratio(i, fe, "cpu", False),
+                  ratio(i, fe, "user", False), _faults(i), _faults(fe), _ms(i["sys"]),
+                  _ms(fe["sys"]) if fe else "—", _ms(i["floor"]), fl,
                   fmark, _ms(ic["median"]) if ic else "—", _ms(fc["median"]) if fc else "—",
                   ratio(ic, fc, "median", False), _faults(ic), _faults(fc),
                   _count(i["triangles"])))
