@@ -113,110 +113,111 @@ march_layer_as(worker *w, int64_t k, const pass_kind pass, const int general, co
             ep[11] = ids0 + 2 * plane + o + N0 + 1;
         }
         for (int sp = 0; sp < nspans; sp++) {
-        const int64_t i0 = span[2 * sp], i1 = span[2 * sp + 1];
-        if (i0 > i1)
-            continue;
-        /* A narrow span (the rim of a blob) builds its configurations 16 at a
-         * time as it goes; cases[] then holds columns word..word + 15 only. */
-        const int narrow = i1 - i0 < NARROW_CUBES;
-        /* The fill pass reads the twelve edges' ids; their map lines were
-         * written a slice ago and, on a large grid, the vertices computed
-         * since have pushed them out of the near caches. */
-        if (write)
-            prefetch_ids(ep, i0);
-        if (!narrow)
-            row_cases(a, b, cc, d, i0, i1, cases);
-        for (int64_t word = i0; word <= i1; word += 16) {
-          uint32_t mixed = narrow ? cases16(a + word, b + word, cc + word, d + word, cases + word)
-                                  : mixed16(cases + word);
-          const int64_t known = narrow ? word + 15 : i1; /* cases[] holds up to here */
-          if (i1 - word < 15)
-              mixed = first_bits(mixed, i1 - word + 1);
-          if (write && word + 16 <= i1) /* the next 16 cubes' id lines */
-              prefetch_ids(ep, word + 16);
-          while (mixed) {
-            const int64_t i = word + __builtin_ctz(mixed);
-            mixed &= mixed - 1;
-            const unsigned cfg = cases[i];
-            busy++;
-            unsigned nt;
-            if (general) {
-                nt = method_cube(w, i, j, k, cfg, pass, ep, ids0, ids1, out, org);
-                if (write) {
-                    out += 3 * nt;
-                    if (org)
-                        org += nt;
-                }
-            } else {
-                nt = write ? mc_tri_count[cfg] : 0; /* else counted per layer */
-            }
-            if (count) {
-                cfg_count[cfg]++; /* folded into the statistics once per layer */
-                if (general)
-                    general_tri += nt;
-            }
-            if (write && !general) {
-                const signed char *te = mc_tri_edges[cfg];
-                for (unsigned q = 0; q < nt; q++, te += 3) {
-                    uint32_t v0 = ep[te[0]][i], v1 = ep[te[1]][i], v2 = ep[te[2]][i];
-                    out[0] = v0;
-                    out[1] = flip ? v2 : v1;
-                    out[2] = flip ? v1 : v2;
-                    out += 3;
-                }
-            }
-            ntri += nt;
-
-            const unsigned amb = mc_ambiguous_faces[cfg] & 0x2A; /* +x, +y, +z */
-            if (!amb)
+            const int64_t i0 = span[2 * sp], i1 = span[2 * sp + 1];
+            if (i0 > i1)
                 continue;
-            for (int axis = 0; axis < 3; axis++) {
-                const int f = 2 * axis + 1;
-                if (!(amb & (1u << f)))
-                    continue;
-                unsigned nb;
-                if (axis == 0) {
-                    if (i + 2 >= N0)
+            /* A narrow span (the rim of a blob) builds its configurations 16 at a
+             * time as it goes; cases[] then holds columns word..word + 15 only. */
+            const int narrow = i1 - i0 < NARROW_CUBES;
+            /* The fill pass reads the twelve edges' ids; their map lines were
+             * written a slice ago and, on a large grid, the vertices computed
+             * since have pushed them out of the near caches. */
+            if (write)
+                prefetch_ids(ep, i0);
+            if (!narrow)
+                row_cases(a, b, cc, d, i0, i1, cases);
+            for (int64_t word = i0; word <= i1; word += 16) {
+                uint32_t mixed = narrow ? cases16(a + word, b + word, cc + word, d + word,
+                                                  cases + word)
+                                        : mixed16(cases + word);
+                const int64_t known = narrow ? word + 15 : i1; /* cases[] holds up to here */
+                if (i1 - word < 15)
+                    mixed = first_bits(mixed, i1 - word + 1);
+                if (write && word + 16 <= i1) /* the next 16 cubes' id lines */
+                    prefetch_ids(ep, word + 16);
+                while (mixed) {
+                    const int64_t i = word + __builtin_ctz(mixed);
+                    mixed &= mixed - 1;
+                    const unsigned cfg = cases[i];
+                    busy++;
+                    unsigned nt;
+                    if (general) {
+                        nt = method_cube(w, i, j, k, cfg, pass, ep, ids0, ids1, out, org);
+                        if (write) {
+                            out += 3 * nt;
+                            if (org)
+                                org += nt;
+                        }
+                    } else {
+                        nt = write ? mc_tri_count[cfg] : 0; /* else counted per layer */
+                    }
+                    if (count) {
+                        cfg_count[cfg]++; /* folded into the statistics once per layer */
+                        if (general)
+                            general_tri += nt;
+                    }
+                    if (write && !general) {
+                        const signed char *te = mc_tri_edges[cfg];
+                        for (unsigned q = 0; q < nt; q++, te += 3) {
+                            uint32_t v0 = ep[te[0]][i], v1 = ep[te[1]][i], v2 = ep[te[2]][i];
+                            out[0] = v0;
+                            out[1] = flip ? v2 : v1;
+                            out[2] = flip ? v1 : v2;
+                            out += 3;
+                        }
+                    }
+                    ntri += nt;
+
+                    const unsigned amb = mc_ambiguous_faces[cfg] & 0x2A; /* +x, +y, +z */
+                    if (!amb)
                         continue;
-                    nb = i + 1 <= known ? cases[i + 1] : cube_case(a, b, cc, d, i + 1);
-                } else if (axis == 1) {
-                    if (j + 2 >= N1)
-                        continue;
-                    nb = cube_case(b, b + N0, d, d + N0, i);
-                } else {
-                    if (!S2)
-                        continue;
-                    const uint8_t *e2 = S2 + j * N0;
-                    nb = cube_case(cc, d, e2, e2 + N0, i);
-                }
-                const int inverted = mc_is_inverted(cfg) != mc_is_inverted(nb);
-                if (count) {
-                    st->ambiguous_faces++;
-                    st->inverted_combinations += (uint64_t)inverted;
-                }
-                if (!quads || !(inverted || durst))
-                    continue;
-                if (count)
-                    st->triangles_by_origin[quad_origin] += 2;
-                if (write) {
-                    const signed char *l = mc_face_loop[cfg][f];
-                    const uint32_t p = ep[l[0]][i], q = ep[l[1]][i], r = ep[l[2]][i],
-                                   s = ep[l[3]][i];
-                    /* The quadrilateral (s, r, q, p): triangles (s, r, q) and (s, q, p). */
-                    const uint32_t quad[6] = {s, r, q, s, q, p};
-                    for (int h = 0; h < 6; h += 3) {
-                        out[0] = quad[h];
-                        out[1] = flip ? quad[h + 2] : quad[h + 1];
-                        out[2] = flip ? quad[h + 1] : quad[h + 2];
-                        if (org)
-                            org[(out - out_first) / 3] = quad_origin;
-                        out += 3;
+                    for (int axis = 0; axis < 3; axis++) {
+                        const int f = 2 * axis + 1;
+                        if (!(amb & (1u << f)))
+                            continue;
+                        unsigned nb;
+                        if (axis == 0) {
+                            if (i + 2 >= N0)
+                                continue;
+                            nb = i + 1 <= known ? cases[i + 1] : cube_case(a, b, cc, d, i + 1);
+                        } else if (axis == 1) {
+                            if (j + 2 >= N1)
+                                continue;
+                            nb = cube_case(b, b + N0, d, d + N0, i);
+                        } else {
+                            if (!S2)
+                                continue;
+                            const uint8_t *e2 = S2 + j * N0;
+                            nb = cube_case(cc, d, e2, e2 + N0, i);
+                        }
+                        const int inverted = mc_is_inverted(cfg) != mc_is_inverted(nb);
+                        if (count) {
+                            st->ambiguous_faces++;
+                            st->inverted_combinations += (uint64_t)inverted;
+                        }
+                        if (!quads || !(inverted || durst))
+                            continue;
+                        if (count)
+                            st->triangles_by_origin[quad_origin] += 2;
+                        if (write) {
+                            const signed char *l = mc_face_loop[cfg][f];
+                            const uint32_t p = ep[l[0]][i], q = ep[l[1]][i], r = ep[l[2]][i],
+                                           s = ep[l[3]][i];
+                            /* The quadrilateral (s, r, q, p): triangles (s, r, q) and (s, q, p). */
+                            const uint32_t quad[6] = {s, r, q, s, q, p};
+                            for (int h = 0; h < 6; h += 3) {
+                                out[0] = quad[h];
+                                out[1] = flip ? quad[h + 2] : quad[h + 1];
+                                out[2] = flip ? quad[h + 1] : quad[h + 2];
+                                if (org)
+                                    org[(out - out_first) / 3] = quad_origin;
+                                out += 3;
+                            }
+                        }
+                        ntri += 2;
                     }
                 }
-                ntri += 2;
             }
-          }
-        }
         }
     }
     if (count) {

@@ -85,9 +85,10 @@ typedef struct split {
     isomend_status status;
     /* Split apart (split_apart): no counting; the second thread numbers its
      * vertices and triangles from the bases c->apart_vertex_base and
-     * c->apart_triangle_base, past any the first can write, slice m's vertices from vstart[m] and layer
-     * k's triangles from tstart[k] (both decreasing with m and k), and its
-     * part is moved down once the first's counts are known. */
+     * c->apart_triangle_base, past any the first can write, slice m's
+     * vertices from vstart[m] and layer k's triangles from tstart[k] (both
+     * decreasing with m and k), and its part is moved down once the first's
+     * counts are known. */
     int apart;
     uint64_t *vstart, *tstart; /* [N2], when the reservation has the room */
     int first_done;          /* the first thread's sweep is over (cv) */
@@ -106,7 +107,7 @@ static isomend_status sweep(ctx *c, worker *w, int64_t from, uint64_t *nv, uint6
     const int first = sp && w->is_main;
     const row_span *ri;
     if (from + 2 < N2)
-        (void)c->kernels->signs(w, from + 2, &ri); /* read ahead: the z edges reach slice from + 2 */
+        (void)c->kernels->signs(w, from + 2, &ri); /* read ahead: z edges reach from + 2 */
     uint64_t v = *nv, t = *nt;
     v += c->kernels->scan_slice(w, from, PASS_SWEEP, v, 1);
     w->stats.nan_samples += w->slice_nans[from % SIGN_RING];
@@ -324,7 +325,7 @@ static void move_triangle_blocks(uint32_t *tri, uint8_t *org, uint64_t to, const
  * reservation: recycling leaves the origins out) as does most of the source
  * (the table's triangles): only the other bytes are written, so that the
  * pages of the destination, often the first 2 MiB (on 4 KiB pages), are not
- * all faulted in (the 256^3 sphere: 45 pages, 1-4 ms).
+ * all faulted in.
  */
 static void move_origins(uint8_t *org, uint64_t to, uint64_t from, uint64_t n)
 {

@@ -18,10 +18,10 @@ static inline uint64_t nans8(__m256 x)
 }
 
 /*
- * classify_f32 on a contiguous row, written out for AVX2: 32 samples a step
- * in about 20 instructions (4 more to look for NaNs), about half the
- * compiler's loop, which masks each comparison twice and counts NaNs lane by
- * lane; NaNs, which are rare, are counted only in the steps that have one.
+ * classify_f32 on a contiguous row, written out for AVX2: 32 samples a step,
+ * where the compiler's loop masks each comparison twice and counts NaNs lane
+ * by lane; NaNs, which are rare, are counted only in the steps that have one
+ * (docs/core-internals.md has the instruction counts).
  * Same results: `>=` is an ordered comparison, false for NaN, as in C.
  */
 static uint64_t classify_f32_avx2(const float *restrict r, int64_t n, float t, int count_nans,
