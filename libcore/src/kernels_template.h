@@ -28,8 +28,8 @@
 
 /* --------------------------------------------------- per voxel type */
 
-#define VOXEL uint8_t
-#define VOXEL_FLOAT 0
+#define VOXEL         uint8_t
+#define VOXEL_FLOAT   0
 #define VOXEL_NAME(f) f##_u8
 #include "classify_template.h"
 #include "vertex_loops_template.h"
@@ -37,8 +37,8 @@
 #undef VOXEL_FLOAT
 #undef VOXEL_NAME
 
-#define VOXEL int8_t
-#define VOXEL_FLOAT 0
+#define VOXEL         int8_t
+#define VOXEL_FLOAT   0
 #define VOXEL_NAME(f) f##_i8
 #include "classify_template.h"
 #include "vertex_loops_template.h"
@@ -46,8 +46,8 @@
 #undef VOXEL_FLOAT
 #undef VOXEL_NAME
 
-#define VOXEL uint16_t
-#define VOXEL_FLOAT 0
+#define VOXEL         uint16_t
+#define VOXEL_FLOAT   0
 #define VOXEL_NAME(f) f##_u16
 #include "classify_template.h"
 #include "vertex_loops_template.h"
@@ -55,8 +55,8 @@
 #undef VOXEL_FLOAT
 #undef VOXEL_NAME
 
-#define VOXEL int16_t
-#define VOXEL_FLOAT 0
+#define VOXEL         int16_t
+#define VOXEL_FLOAT   0
 #define VOXEL_NAME(f) f##_i16
 #include "classify_template.h"
 #include "vertex_loops_template.h"
@@ -64,8 +64,8 @@
 #undef VOXEL_FLOAT
 #undef VOXEL_NAME
 
-#define VOXEL int32_t
-#define VOXEL_FLOAT 0
+#define VOXEL         int32_t
+#define VOXEL_FLOAT   0
 #define VOXEL_NAME(f) f##_i32
 #include "classify_template.h"
 #include "vertex_loops_template.h"
@@ -73,8 +73,8 @@
 #undef VOXEL_FLOAT
 #undef VOXEL_NAME
 
-#define VOXEL float
-#define VOXEL_FLOAT 1
+#define VOXEL         float
+#define VOXEL_FLOAT   1
 #define VOXEL_NAME(f) f##_f32
 #include "classify_template.h"
 #include "vertex_loops_template.h"
@@ -82,8 +82,8 @@
 #undef VOXEL_FLOAT
 #undef VOXEL_NAME
 
-#define VOXEL double
-#define VOXEL_FLOAT 1
+#define VOXEL         double
+#define VOXEL_FLOAT   1
 #define VOXEL_NAME(f) f##_f64
 #include "classify_template.h"
 #include "vertex_loops_template.h"
@@ -92,9 +92,8 @@
 #undef VOXEL_NAME
 
 /* The vertex loops by [voxel type][axis]. */
-typedef uint64_t (*row_vertices_fn)(const ctx *c, const uint8_t *a, const uint8_t *b,
-                                    int64_t from, int64_t to, int64_t j0, int64_t m,
-                                    uint32_t *ids, uint64_t id);
+typedef uint64_t (*row_vertices_fn)(const ctx *c, const uint8_t *a, const uint8_t *b, int64_t from,
+                                    int64_t to, int64_t j0, int64_t m, uint32_t *ids, uint64_t id);
 typedef void (*list_vertices_fn)(const ctx *c, const vertex_item *it, size_t n, int64_t m);
 
 static const row_vertices_fn row_vertices[ISOMEND_TYPE_COUNT][3] = {

@@ -41,9 +41,8 @@ static void row_cases(const uint8_t *restrict a, const uint8_t *restrict b,
  * and `flip` c->flip, passed so that march_layer can compile the loop with
  * them as constants.  Returns the number of triangles.
  */
-static ALWAYS_INLINE uint64_t
-march_layer_as(worker *w, int64_t k, const pass_kind pass, const int general, const int flip,
-               uint64_t first)
+static ALWAYS_INLINE uint64_t march_layer_as(worker *w, int64_t k, const pass_kind pass,
+                                             const int general, const int flip, uint64_t first)
 {
     ctx *c = w->c;
     const grid *g = &c->g;
@@ -99,15 +98,15 @@ march_layer_as(worker *w, int64_t k, const pass_kind pass, const int general, co
         const uint32_t *ep[12] = {NULL};
         if (write) {
             const int64_t o = j * N0;
-            ep[0] = ids0 + o;                      /* x edges */
+            ep[0] = ids0 + o; /* x edges */
             ep[1] = ids0 + o + N0;
             ep[2] = ids1 + o;
             ep[3] = ids1 + o + N0;
-            ep[4] = ids0 + plane + o;              /* y edges */
+            ep[4] = ids0 + plane + o; /* y edges */
             ep[5] = ids0 + plane + o + 1;
             ep[6] = ids1 + plane + o;
             ep[7] = ids1 + plane + o + 1;
-            ep[8] = ids0 + 2 * plane + o;          /* z edges */
+            ep[8] = ids0 + 2 * plane + o; /* z edges */
             ep[9] = ids0 + 2 * plane + o + 1;
             ep[10] = ids0 + 2 * plane + o + N0;
             ep[11] = ids0 + 2 * plane + o + N0 + 1;
@@ -127,9 +126,9 @@ march_layer_as(worker *w, int64_t k, const pass_kind pass, const int general, co
             if (!narrow)
                 row_cases(a, b, cc, d, i0, i1, cases);
             for (int64_t word = i0; word <= i1; word += 16) {
-                uint32_t mixed = narrow ? cases16(a + word, b + word, cc + word, d + word,
-                                                  cases + word)
-                                        : mixed16(cases + word);
+                uint32_t mixed =
+                    narrow ? cases16(a + word, b + word, cc + word, d + word, cases + word)
+                           : mixed16(cases + word);
                 const int64_t known = narrow ? word + 15 : i1; /* cases[] holds up to here */
                 if (i1 - word < 15)
                     mixed = first_bits(mixed, i1 - word + 1);

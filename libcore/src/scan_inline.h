@@ -58,7 +58,8 @@ static inline uint32_t diff16(const uint8_t *a, const uint8_t *b)
 #else
     const uint64_t m = UINT64_C(0x0101010101010101);
     return (uint32_t)(((load8(a) ^ load8(b)) & m) * UINT64_C(0x0102040810204080) >> 56) |
-           (uint32_t)(((load8(a + 8) ^ load8(b + 8)) & m) * UINT64_C(0x0102040810204080) >> 56) << 8;
+           (uint32_t)(((load8(a + 8) ^ load8(b + 8)) & m) * UINT64_C(0x0102040810204080) >> 56)
+               << 8;
 #endif
 }
 
@@ -67,8 +68,8 @@ static inline uint32_t mixed16(const uint8_t *c)
 {
 #if KERNELS_SSE2
     const __m128i v = _mm_loadu_si128((const __m128i *)(const void *)c);
-    const __m128i trivial = _mm_or_si128(_mm_cmpeq_epi8(v, _mm_setzero_si128()),
-                                         _mm_cmpeq_epi8(v, _mm_set1_epi8(-1)));
+    const __m128i trivial =
+        _mm_or_si128(_mm_cmpeq_epi8(v, _mm_setzero_si128()), _mm_cmpeq_epi8(v, _mm_set1_epi8(-1)));
     return (uint32_t)_mm_movemask_epi8(trivial) ^ 0xFFFFu;
 #else
     uint32_t r = 0;
@@ -107,8 +108,8 @@ static inline uint32_t cases16(const uint8_t *a, const uint8_t *b, const uint8_t
                      _mm_or_si128(_mm_slli_epi16(LD16(d), 6), _mm_slli_epi16(LD16(d + 1), 7))));
 #undef LD16
     _mm_storeu_si128((__m128i *)(void *)out, v);
-    const __m128i trivial = _mm_or_si128(_mm_cmpeq_epi8(v, _mm_setzero_si128()),
-                                         _mm_cmpeq_epi8(v, _mm_set1_epi8(-1)));
+    const __m128i trivial =
+        _mm_or_si128(_mm_cmpeq_epi8(v, _mm_setzero_si128()), _mm_cmpeq_epi8(v, _mm_set1_epi8(-1)));
     return (uint32_t)_mm_movemask_epi8(trivial) ^ 0xFFFFu;
 #else
     uint32_t r = 0;

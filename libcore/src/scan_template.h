@@ -119,8 +119,8 @@ static uint64_t count_spans(const uint8_t *a, const uint8_t *b, const int64_t *s
  * `number`, numbered from `first` into the worker's id map of slice m and,
  * if `write`, computed.  Returns their number.
  */
-static ALWAYS_INLINE uint64_t scan_slice_as(worker *w, int64_t m, const int number,
-                                            uint64_t first, int write)
+static ALWAYS_INLINE uint64_t scan_slice_as(worker *w, int64_t m, const int number, uint64_t first,
+                                            int write)
 {
     const ctx *c = w->c;
     const grid *g = &c->g;

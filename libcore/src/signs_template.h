@@ -14,7 +14,8 @@
 /* The NaN lanes of x. */
 static inline uint64_t nans8(__m256 x)
 {
-    return (uint64_t)__builtin_popcount((unsigned)_mm256_movemask_ps(_mm256_cmp_ps(x, x, _CMP_UNORD_Q)));
+    return (uint64_t)__builtin_popcount(
+        (unsigned)_mm256_movemask_ps(_mm256_cmp_ps(x, x, _CMP_UNORD_Q)));
 }
 
 /*
@@ -40,7 +41,8 @@ static uint64_t classify_f32_avx2(const float *restrict r, int64_t n, float t, i
         const __m256i m1 = _mm256_castps_si256(_mm256_cmp_ps(x1, tv, _CMP_GE_OQ));
         const __m256i m2 = _mm256_castps_si256(_mm256_cmp_ps(x2, tv, _CMP_GE_OQ));
         const __m256i m3 = _mm256_castps_si256(_mm256_cmp_ps(x3, tv, _CMP_GE_OQ));
-        const __m256i b = _mm256_packs_epi16(_mm256_packs_epi32(m0, m1), _mm256_packs_epi32(m2, m3));
+        const __m256i b =
+            _mm256_packs_epi16(_mm256_packs_epi32(m0, m1), _mm256_packs_epi32(m2, m3));
         _mm256_storeu_si256((__m256i *)(void *)(o + i),
                             _mm256_and_si256(_mm256_permutevar8x32_epi32(b, order), one));
         if (count_nans) {
@@ -95,8 +97,8 @@ static void classify_row(const grid *g, int64_t j, int64_t k, uint8_t *s, row_sp
         case ISOMEND_F32:
 #if KERNELS_AVX2
             if (st == (int64_t)sizeof(float) && (uintptr_t)row % _Alignof(float) == 0) {
-                nn = classify_f32_avx2((const float *)(const void *)row, n, g->fthr,
-                                       nans != NULL, o);
+                nn = classify_f32_avx2((const float *)(const void *)row, n, g->fthr, nans != NULL,
+                                       o);
                 break;
             }
 #endif

@@ -33,11 +33,11 @@ typedef struct vertex_setup {
     int flip;
     int64_t sx, sy, sz, sa; /* strides along x, y, z and along the edges' axis */
     int64_t pad, m;
-    int slice_inner; /* slice m (and m + 1 for z edges) is inside the inner box */
+    int slice_inner;                /* slice m (and m + 1 for z edges) is inside the inner box */
     int64_t x_lo, x_hi, y_lo, y_hi; /* the inner box for the edges' lower ends */
     const char *slice; /* the samples of slice m (of the volume, not the padded grid) */
     double iso, ox, hx, oy, hy, oz, hz, pz0;
-    float fz; /* the z coordinate of slice m */
+    float fz;          /* the z coordinate of slice m */
     double ix, iy, iz; /* 1 / (2 spacing) */
     double sgn;        /* -1 with ISOMEND_FLAG_FLIP, else 1 */
 } vertex_setup;

@@ -21,8 +21,8 @@ static inline double VOXEL_NAME(load)(const char *p)
 }
 
 /* Computes vertex `id` on the edge from (x, j, m) along the axis. */
-static ALWAYS_INLINE void VOXEL_NAME(vertex_one)(const vertex_setup *s, const int axis,
-                                                 int64_t x, int64_t j, uint64_t id)
+static ALWAYS_INLINE void VOXEL_NAME(vertex_one)(const vertex_setup *s, const int axis, int64_t x,
+                                                 int64_t j, uint64_t id)
 {
     float *pos = s->P + 3 * id, *nrm = s->NR ? s->NR + 3 * id : NULL;
     if (s->slice_inner && j >= s->y_lo && j <= s->y_hi && x >= s->x_lo && x <= s->x_hi) {
@@ -35,11 +35,14 @@ static ALWAYS_INLINE void VOXEL_NAME(vertex_one)(const vertex_setup *s, const in
             const double u = 1.0 - t;
 #define LD(ptr) VOXEL_NAME(load)(ptr)
             n0 = -(u * ((axis == 0 ? f1 : LD(p + sx)) - LD(p - sx)) +
-                   t * (LD(q + sx) - (axis == 0 ? f0 : LD(q - sx)))) * s->ix;
+                   t * (LD(q + sx) - (axis == 0 ? f0 : LD(q - sx)))) *
+                 s->ix;
             n1 = -(u * ((axis == 1 ? f1 : LD(p + sy)) - LD(p - sy)) +
-                   t * (LD(q + sy) - (axis == 1 ? f0 : LD(q - sy)))) * s->iy;
+                   t * (LD(q + sy) - (axis == 1 ? f0 : LD(q - sy)))) *
+                 s->iy;
             n2 = -(u * ((axis == 2 ? f1 : LD(p + sz)) - LD(p - sz)) +
-                   t * (LD(q + sz) - (axis == 2 ? f0 : LD(q - sz)))) * s->iz;
+                   t * (LD(q + sz) - (axis == 2 ? f0 : LD(q - sz)))) *
+                 s->iz;
 #undef LD
             len = sqrt(n0 * n0 + n1 * n1 + n2 * n2);
         }
@@ -91,7 +94,7 @@ static ALWAYS_INLINE void VOXEL_NAME(list_vertices_on)(const ctx *c, const verte
     vertex_setup s;
     vertex_setup_init(&s, c, m, axis);
     const size_t ahead = s.slice_inner ? VERTEX_PREFETCH : 0; /* 0: no prefetching */
-    const int32_t line = 64 / (int32_t)sizeof(VOXEL); /* samples a cache line */
+    const int32_t line = 64 / (int32_t)sizeof(VOXEL);         /* samples a cache line */
     /* Step e prefetches item e and computes item e - ahead. */
     for (size_t e = 0; e < n + ahead; e++) {
         if (ahead && e < n)
@@ -128,15 +131,15 @@ static inline __m256d VOXEL_NAME(load4)(const char *const p[4], int64_t off)
  * `st` and 1 / (2 spacing) `inv` along it: vertex_one's n0, n1 or n2. */
 static ALWAYS_INLINE __m256d VOXEL_NAME(gradient4)(const char *const p[4], const int axis,
                                                    const int comp, int64_t st, int64_t sa,
-                                                   double inv, __m256d f0, __m256d f1,
-                                                   __m256d t, __m256d u)
+                                                   double inv, __m256d f0, __m256d f1, __m256d t,
+                                                   __m256d u)
 {
     const __m256d negz = _mm256_set1_pd(-0.0);
 #define LD4(off) VOXEL_NAME(load4)(p, off)
-    const __m256d lower = axis == comp ? _mm256_sub_pd(f1, LD4(-st))
-                                       : _mm256_sub_pd(LD4(st), LD4(-st));
-    const __m256d upper = axis == comp ? _mm256_sub_pd(LD4(sa + st), f0)
-                                       : _mm256_sub_pd(LD4(sa + st), LD4(sa - st));
+    const __m256d lower =
+        axis == comp ? _mm256_sub_pd(f1, LD4(-st)) : _mm256_sub_pd(LD4(st), LD4(-st));
+    const __m256d upper =
+        axis == comp ? _mm256_sub_pd(LD4(sa + st), f0) : _mm256_sub_pd(LD4(sa + st), LD4(sa - st));
 #undef LD4
     return _mm256_mul_pd(
         _mm256_xor_pd(_mm256_add_pd(_mm256_mul_pd(u, lower), _mm256_mul_pd(t, upper)), negz),
@@ -160,8 +163,8 @@ static ALWAYS_INLINE int VOXEL_NAME(vertex4)(const vertex_setup *s, const int ax
         s->slice + (xs[3] - pad) * sx + (js[3] - pad) * sy,
     };
     const __m256d f0 = VOXEL_NAME(load4)(p, 0), f1 = VOXEL_NAME(load4)(p, sa);
-    const __m256d t = _mm256_div_pd(_mm256_sub_pd(_mm256_set1_pd(s->iso), f0),
-                                    _mm256_sub_pd(f1, f0));
+    const __m256d t =
+        _mm256_div_pd(_mm256_sub_pd(_mm256_set1_pd(s->iso), f0), _mm256_sub_pd(f1, f0));
     const __m256d u = _mm256_sub_pd(_mm256_set1_pd(1.0), t);
     const __m256d n0 = VOXEL_NAME(gradient4)(p, axis, 0, sx, sa, s->ix, f0, f1, t, u);
     const __m256d n1 = VOXEL_NAME(gradient4)(p, axis, 1, sy, sa, s->iy, f0, f1, t, u);
@@ -169,15 +172,13 @@ static ALWAYS_INLINE int VOXEL_NAME(vertex4)(const vertex_setup *s, const int ax
     const __m256d len = _mm256_sqrt_pd(_mm256_add_pd(
         _mm256_add_pd(_mm256_mul_pd(n0, n0), _mm256_mul_pd(n1, n1)), _mm256_mul_pd(n2, n2)));
     const __m256d zero = _mm256_setzero_pd();
-    const __m256d valid = _mm256_and_pd(
-        _mm256_and_pd(_mm256_cmp_pd(t, zero, _CMP_GE_OQ),
-                      _mm256_cmp_pd(t, _mm256_set1_pd(1.0), _CMP_LE_OQ)),
-        _mm256_and_pd(_mm256_cmp_pd(len, zero, _CMP_GT_OQ),
-                      _mm256_cmp_pd(len, _mm256_set1_pd(INFINITY), _CMP_LT_OQ)));
-    __m256d xd = _mm256_cvtepi32_pd(
-        _mm_setr_epi32((int)xs[0], (int)xs[1], (int)xs[2], (int)xs[3]));
-    __m256d yd = _mm256_cvtepi32_pd(
-        _mm_setr_epi32((int)js[0], (int)js[1], (int)js[2], (int)js[3]));
+    const __m256d valid =
+        _mm256_and_pd(_mm256_and_pd(_mm256_cmp_pd(t, zero, _CMP_GE_OQ),
+                                    _mm256_cmp_pd(t, _mm256_set1_pd(1.0), _CMP_LE_OQ)),
+                      _mm256_and_pd(_mm256_cmp_pd(len, zero, _CMP_GT_OQ),
+                                    _mm256_cmp_pd(len, _mm256_set1_pd(INFINITY), _CMP_LT_OQ)));
+    __m256d xd = _mm256_cvtepi32_pd(_mm_setr_epi32((int)xs[0], (int)xs[1], (int)xs[2], (int)xs[3]));
+    __m256d yd = _mm256_cvtepi32_pd(_mm_setr_epi32((int)js[0], (int)js[1], (int)js[2], (int)js[3]));
     if (axis == 0)
         xd = _mm256_add_pd(xd, t);
     if (axis == 1)
@@ -186,11 +187,12 @@ static ALWAYS_INLINE int VOXEL_NAME(vertex4)(const vertex_setup *s, const int ax
         _mm256_add_pd(_mm256_set1_pd(s->ox), _mm256_mul_pd(xd, _mm256_set1_pd(s->hx))));
     out->py = _mm256_cvtpd_ps(
         _mm256_add_pd(_mm256_set1_pd(s->oy), _mm256_mul_pd(yd, _mm256_set1_pd(s->hy))));
-    out->pz = axis == 2 ? _mm256_cvtpd_ps(_mm256_add_pd(
-                              _mm256_set1_pd(s->oz),
-                              _mm256_mul_pd(_mm256_add_pd(_mm256_set1_pd(s->pz0), t),
-                                            _mm256_set1_pd(s->hz))))
-                        : _mm_set1_ps(s->fz);
+    out->pz =
+        axis == 2
+            ? _mm256_cvtpd_ps(_mm256_add_pd(
+                  _mm256_set1_pd(s->oz),
+                  _mm256_mul_pd(_mm256_add_pd(_mm256_set1_pd(s->pz0), t), _mm256_set1_pd(s->hz))))
+            : _mm_set1_ps(s->fz);
     const __m256d sc = _mm256_div_pd(_mm256_set1_pd(s->sgn), len);
     out->nx = _mm256_cvtpd_ps(_mm256_mul_pd(sc, n0));
     out->ny = _mm256_cvtpd_ps(_mm256_mul_pd(sc, n1));
@@ -345,18 +347,15 @@ static uint64_t VOXEL_NAME(row_vertices4_z)(const ctx *c, const uint8_t *a, cons
 {
     return VOXEL_NAME(row_vertices4_on)(c, a, b, from, to, j0, m, ids, id, 2);
 }
-static void VOXEL_NAME(list_vertices4_x)(const ctx *c, const vertex_item *it, size_t n,
-                                         int64_t m)
+static void VOXEL_NAME(list_vertices4_x)(const ctx *c, const vertex_item *it, size_t n, int64_t m)
 {
     VOXEL_NAME(list_vertices4_on)(c, it, n, m, 0);
 }
-static void VOXEL_NAME(list_vertices4_y)(const ctx *c, const vertex_item *it, size_t n,
-                                         int64_t m)
+static void VOXEL_NAME(list_vertices4_y)(const ctx *c, const vertex_item *it, size_t n, int64_t m)
 {
     VOXEL_NAME(list_vertices4_on)(c, it, n, m, 1);
 }
-static void VOXEL_NAME(list_vertices4_z)(const ctx *c, const vertex_item *it, size_t n,
-                                         int64_t m)
+static void VOXEL_NAME(list_vertices4_z)(const ctx *c, const vertex_item *it, size_t n, int64_t m)
 {
     VOXEL_NAME(list_vertices4_on)(c, it, n, m, 2);
 }

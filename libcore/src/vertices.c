@@ -35,9 +35,10 @@ static double gradient_component(const grid *g, const int64_t p[3], int a, doubl
  * fast_gradients for samples of one type (a constant where it is inlined):
  * typed loads from p, the edge's lower end, no bounds checks.
  */
-static inline __attribute__((always_inline)) void
-gradients_as(const grid *g, const isomend_type type, const char *p, int a, double f[2],
-             double gr[2][3])
+static inline __attribute__((always_inline)) void gradients_as(const grid *g,
+                                                               const isomend_type type,
+                                                               const char *p, int a, double f[2],
+                                                               double gr[2][3])
 {
 #define LD(ptr) sample_as_double(type, ptr)
     const int64_t sx = g->st[0], sy = g->st[1], sz = g->st[2];
@@ -73,8 +74,8 @@ static int fast_gradients(const grid *g, int64_t i, int64_t j, int64_t k, int a,
         i + (a == 0) > g->inner_hi[0] || j + (a == 1) > g->inner_hi[1] ||
         k + (a == 2) > g->inner_hi[2])
         return 0;
-    const char *p = g->data + (i - g->pad) * g->st[0] + (j - g->pad) * g->st[1] +
-                    (k - g->pad) * g->st[2];
+    const char *p =
+        g->data + (i - g->pad) * g->st[0] + (j - g->pad) * g->st[1] + (k - g->pad) * g->st[2];
     switch (g->type) {
     case ISOMEND_U8: gradients_as(g, ISOMEND_U8, p, a, f, gr); break;
     case ISOMEND_I8: gradients_as(g, ISOMEND_I8, p, a, f, gr); break;
@@ -116,7 +117,8 @@ void make_vertex(const grid *g, int flip, int64_t i, int64_t j, int64_t k, int a
                 n[c] = -((1.0 - t) * gr[0][c] + t * gr[1][c]);
             len = sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
         }
-        if (!have_gradients || !isfinite(len)) { /* near the border, NaN or padding: one-sided differences */
+        if (!have_gradients ||
+            !isfinite(len)) { /* near the border, NaN or padding: one-sided differences */
             for (int c = 0; c < 3; c++) {
                 double g0 = gradient_component(g, p0, c, f[0]);
                 double g1 = gradient_component(g, p1, c, f[1]);
