@@ -12,7 +12,7 @@ BUILD_PKGS=(build-essential cmake pkg-config zlib1g-dev
   python3-numpy)
 TEST_PKGS=(python3-pytest python3-vtk9 python3-skimage python3-openimageio python3-tifffile
   xvfb xauth blender libtiff-tools libopenvdb-dev python3-openvdb python3-nibabel
-  python3-scipy python3-pydicom)
+  python3-scipy python3-pydicom libgdcm-tools)
 pkgs=("${BUILD_PKGS[@]}")
 [ "$what" = build ] || pkgs+=("${TEST_PKGS[@]}")
 missing=()

@@ -40,6 +40,7 @@
 #include <cstdio>
 #include <cstring>
 #include <map>
+#include <set>
 #include <mutex>
 #include <thread>
 
@@ -54,6 +55,7 @@
 #include <gdcmReader.h>
 #include <gdcmSequenceOfItems.h>
 #include <gdcmTag.h>
+#include <gdcmTrace.h>
 #include <gdcmTransferSyntax.h>
 
 namespace isomend_io {
@@ -66,6 +68,23 @@ constexpr double kOffsetTolerance = 0.1;     // of the smaller pixel spacing
 constexpr double kDuplicateTolerance = 0.01; // of the smaller pixel spacing
 
 const gdcm::Tag kPixelData(0x7fe0, 0x0010);
+
+// GDCM reports warnings and errors on std::cerr; the library never prints,
+// and every failure reaches the caller as a status and message instead.
+// Process-wide in GDCM, set once (like OpenImageIO's attributes).
+void quiet_gdcm() {
+    static std::once_flag once;
+    std::call_once(once, [] {
+        gdcm::Trace::DebugOff();
+        gdcm::Trace::WarningOff();
+        gdcm::Trace::ErrorOff();
+    });
+}
+
+uint64_t file_size(const std::string &path) {
+    struct stat st;
+    return ::stat(path.c_str(), &st) == 0 ? (uint64_t)st.st_size : 0;
+}
 
 // ---------------------------------------------------------------- values
 
@@ -186,9 +205,12 @@ void read_functional_groups(const gdcm::DataSet &item, FrameGeometry &g) {
 }
 
 void read_header(Header &h) {
+    quiet_gdcm();
     gdcm::Reader r;
     r.SetFileName(h.path.c_str());
-    if (!r.ReadUpToTag(kPixelData))
+    // Up to the Pixel Data element, whose value is skipped (not read): the
+    // stream then stands at the start of the value.
+    if (!r.ReadUpToTag(kPixelData, std::set<gdcm::Tag>{kPixelData}))
         throw IoError(ISOMEND_IO_ERR_CORRUPT, h.path + ": not a readable DICOM file (GDCM cannot parse its header; "
                                                        "truncated or corrupt)");
     const gdcm::File &f = r.GetFile();
@@ -226,6 +248,17 @@ void read_header(Header &h) {
     FrameGeometry top;
     read_geometry(ds, top);
     h.enhanced = ds.FindDataElement(gdcm::Tag(0x5200, 0x9230)) || ds.FindDataElement(gdcm::Tag(0x5200, 0x9229));
+    // Uncompressed pixel data cut short: GDCM reads what is there ("use file
+    // at own risk") and pads, so the file's length is checked here, at open.
+    if (!ts.IsEncapsulated() && h.bits_allocated > 0) {
+        uint64_t need = (uint64_t)h.rows * (uint64_t)h.columns * (uint64_t)h.frames * (uint64_t)h.samples *
+                        (uint64_t)h.bits_allocated / 8;
+        uint64_t at = (uint64_t)r.GetStreamCurrentPosition(), size = file_size(h.path);
+        if (at + need > size)
+            throw IoError(ISOMEND_IO_ERR_CORRUPT,
+                          h.path + ": truncated: the pixel data need " + std::to_string(need) + " bytes, the file has " +
+                              std::to_string(size > at ? size - at : 0) + " after the header");
+    }
     if (!h.enhanced) {
         h.geometry.assign((size_t)h.frames, top);
         return;
@@ -463,6 +496,7 @@ std::string resolve_reference(const std::string &base, const std::string &id) {
 bool is_dicom_file(const std::string &path) { return read_magic(path); }
 
 bool dicomdir_files(const std::string &path, DicomFiles &out) {
+    quiet_gdcm();
     gdcm::Reader r;
     r.SetFileName(path.c_str());
     bool named = upper_name(path) == "DICOMDIR";
@@ -840,6 +874,7 @@ struct Decoded {
 };
 
 void decode_file(const DicomSeries &s, const std::string &path, Decoded &d) {
+    quiet_gdcm();
     gdcm::ImageReader r;
     r.SetFileName(path.c_str());
     if (!r.Read())
