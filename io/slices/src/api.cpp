@@ -1021,8 +1021,8 @@ ISOMEND_IO_API isomend_io_status isomend_io_level_value(isomend_io_source *src, 
         if (level != ISOMEND_IO_LEVEL_BONE && level != ISOMEND_IO_LEVEL_SKIN)
             throw IoError(ISOMEND_IO_ERR_INVALID_ARGUMENT, "invalid level " + std::to_string(level));
         if (!src->dicom || !src->dicom->hounsfield) {
-            std::string what = src->dicom ? "a " + (src->dicom->modality.empty() ? std::string("DICOM") : src->dicom->modality) +
-                                                " series"
+            std::string what = src->dicom ? "a DICOM series of modality " +
+                                                (src->dicom->modality.empty() ? std::string("(none)") : src->dicom->modality)
                                           : std::string("not a DICOM series");
             throw IoError(ISOMEND_IO_ERR_UNSUPPORTED,
                           std::string("the ") + isomend_io_level_name(level) +

@@ -57,6 +57,7 @@
 #include <gdcmTag.h>
 #include <gdcmTrace.h>
 #include <gdcmTransferSyntax.h>
+#include <gdcmUIDs.h>
 
 namespace isomend_io {
 
@@ -225,8 +226,9 @@ void read_header(Header &h) {
     }
     h.ts_uid = text_of(meta, 0x0002, 0x0010);
     const gdcm::TransferSyntax &ts = f.GetHeader().GetDataSetTransferSyntax();
-    const char *tsn = ts.GetString();
-    h.ts_name = tsn ? tsn : "";
+    gdcm::UIDs names;
+    h.ts_name = names.SetFromUID(h.ts_uid.c_str()) && names.GetName() ? names.GetName() : h.ts_uid;
+    if (h.ts_name.find(':') != std::string::npos) h.ts_name.erase(h.ts_name.find(':')); // ": Default Transfer Syntax ...
     h.modality = text_of(ds, 0x0008, 0x0060);
     h.series_uid = text_of(ds, 0x0020, 0x000e);
     h.description = text_of(ds, 0x0008, 0x103e);
