@@ -482,6 +482,13 @@ int cli_source_summary(cli_source *src, cli_summary *sum)
 /* ------------------------------------------------------------------ DICOM */
 
 #ifdef ISOMEND_HAVE_IO
+/* `, "key": "value"` (or without the comma for the first member) */
+static void json_text_member(FILE *fp, int first, const char *key, const char *value)
+{
+    fprintf(fp, "%s\"%s\": ", first ? "" : ", ", key);
+    cli_json_string(fp, value);
+}
+
 static int dicom_of(const cli_source *src, isomend_io_dicom *d)
 {
     memset(d, 0, sizeof *d);
@@ -565,12 +572,10 @@ void cli_json_series(FILE *fp, const cli_source *src)
             memset(&e, 0, sizeof e);
             e.size = sizeof e;
             if (io_api.series_get(io, i, &e) != ISOMEND_IO_OK) continue;
-            fprintf(fp, "%s{\"index\": %lld, \"uid\": ", i ? ", " : "", (long long)(i + 1));
-            cli_json_string(fp, e.uid);
-            fprintf(fp, ", \"description\": ");
-            cli_json_string(fp, e.description);
-            fprintf(fp, ", \"modality\": ");
-            cli_json_string(fp, e.modality);
+            fprintf(fp, "%s{\"index\": %lld", i ? ", " : "", (long long)(i + 1));
+            json_text_member(fp, 0, "uid", e.uid);
+            json_text_member(fp, 0, "description", e.description);
+            json_text_member(fp, 0, "modality", e.modality);
             fprintf(fp, ", \"number\": %lld, \"files\": %lld, \"images\": %lld, \"columns\": %lld, "
                         "\"rows\": %lld}",
                     (long long)e.number, (long long)e.files, (long long)e.images,
@@ -638,16 +643,12 @@ void cli_json_dicom(FILE *fp, cli_source *src, const cli_summary *sum)
         fprintf(fp, "null");
         return;
     }
-    fprintf(fp, "{\"modality\": ");
-    cli_json_string(fp, d.modality);
-    fprintf(fp, ", \"series_uid\": ");
-    cli_json_string(fp, d.series_uid);
-    fprintf(fp, ", \"description\": ");
-    cli_json_string(fp, d.description);
-    fprintf(fp, ", \"transfer_syntax\": ");
-    cli_json_string(fp, d.transfer_syntax);
-    fprintf(fp, ", \"photometric\": ");
-    cli_json_string(fp, d.photometric);
+    fputc('{', fp);
+    json_text_member(fp, 1, "modality", d.modality);
+    json_text_member(fp, 0, "series_uid", d.series_uid);
+    json_text_member(fp, 0, "description", d.description);
+    json_text_member(fp, 0, "transfer_syntax", d.transfer_syntax);
+    json_text_member(fp, 0, "photometric", d.photometric);
     fprintf(fp, ", \"bits_stored\": %d, \"signed\": %s, \"rescaled\": %s, \"rescale_slope\": %.17g, "
                 "\"rescale_intercept\": %.17g, \"hounsfield\": %s",
             d.bits_stored, d.pixel_signed ? "true" : "false", d.rescaled ? "true" : "false",
