@@ -497,6 +497,17 @@ def no_spacing(k, ds):
 
 defect("no_pixel_spacing", UNSUPPORTED, "no Pixel Spacing", edit=no_spacing)
 
+# RLE with a fragment cut in half: the decoder refuses it, naming the file
+f = d("rle_corrupt")
+paths = write_series(f, (CT.astype(np.int32) + 1024).astype(np.uint16), geo_ct, bits_stored=12, slope=1,
+                     intercept=-1024, syntax=RLELossless, names="dcm")
+from pydicom.encaps import decode_data_sequence, encapsulate
+ds = pydicom.dcmread(paths[7])
+frag = decode_data_sequence(ds.PixelData)[0]
+ds.PixelData = encapsulate([frag[:len(frag) // 2]])
+ds.save_as(paths[7])
+error("rle_corrupt", CORRUPT, "RLE frame 1", [f])
+
 f = d("only_reports")
 text_sr(f)
 open(os.path.join(f, "notes.txt"), "w").write("x\n")

@@ -262,7 +262,7 @@ ISOMEND_IO_API const char *isomend_io_kind_name(int kind);
 ISOMEND_IO_API int isomend_io_source_kind(const isomend_io_source *src); /* -1 before open */
 
 /* The OpenImageIO format name of the first slice ("tiff", "openexr", ...),
- * "raw" or "nrrd"; "" before open. Owned by the handle. */
+ * "raw", "nrrd" or "dicom"; "" before open. Owned by the handle. */
 ISOMEND_IO_API const char *isomend_io_format(const isomend_io_source *src);
 
 /* Path of slice k (for a multi-page file: the file's path for every k);
