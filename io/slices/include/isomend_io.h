@@ -378,7 +378,8 @@ ISOMEND_IO_API isomend_io_status isomend_io_analyse(isomend_io_source *src,
  * smallest of u8, i16, u16, i32 that holds slope * [smin, smax] + intercept
  * when slope and intercept are integers, else f32 (f64 for 32-bit samples).
  * Transfer syntaxes: every one GDCM 3.0 decodes (implicit and explicit VR,
- * deflate, RLE, JPEG baseline/lossless, JPEG-LS, JPEG 2000).
+ * deflate, RLE, JPEG baseline/lossless, JPEG-LS, JPEG 2000); uncompressed
+ * and RLE pixel data are taken from GDCM's parse and unpacked by isomend.
  *
  * Validation (every message names the file and the reason): files that do
  * not parse, whose pixel data are truncated or do not decode; images whose
