@@ -342,6 +342,7 @@ paths = write_series(f, (CT.astype(np.int32) + 1024).astype(np.uint16), geo_ct, 
 listed = list(paths)
 RNG.shuffle(listed)
 expected("ct_list", CT, geo_ct, sources=listed)
+expected("ct_glob", CT, geo_ct, sources=[os.path.join(f, "slice*.dcm")])
 error("single_image", TOO_FEW, "a single DICOM image", [paths[0]])
 
 # Enhanced CT: one multi-frame file, frames stored in a shuffled order, per-frame positions

@@ -28,8 +28,8 @@
  *   - one raw file (options.raw_dims / raw_type set) or NRRD file (.nrrd /
  *     .nhdr): read by io/common's readers, see isomend_io_options;
  *   - a DICOM series (read with GDCM): a folder holding DICOM files (any
- *     names, found by their content), a DICOMDIR, a list of DICOM files, or
- *     one multi-frame (enhanced) DICOM file; see "DICOM" below.
+ *     names, found by their content), a DICOMDIR, a list, glob or pattern of
+ *     DICOM files, or one multi-frame (enhanced) DICOM file; see "DICOM" below.
  * Every 2D format OpenImageIO reads is accepted.  Tested: TIFF u8, u16, i16
  * (negative values kept), f32, packed 12-bit (restored to its real 0..4095
  * values, not OIIO's scaled 16-bit ones; likewise 1- and 4-bit), tiled TIFF,

@@ -664,6 +664,15 @@ void do_open(isomend_io_source *s, const char *const *paths, size_t count, const
             throw IoError(ISOMEND_IO_ERR_NOT_FOUND, p + ": no such file or folder");
         }
     }
+    if (!raw_requested && (s->kind == ISOMEND_IO_KIND_GLOB || s->kind == ISOMEND_IO_KIND_PATTERN) &&
+        !files.empty() && is_dicom_file(files[0])) {
+        // 'ct/*.dcm', 'IM%04d': the files it names, as a list of DICOM files
+        dicom_files.label = paths[0];
+        dicom_files.files = files;
+        dicom_files.explicit_list = true;
+        open_dicom(s, dicom_files);
+        return;
+    }
     if (raw_requested && s->kind != ISOMEND_IO_KIND_MULTIPAGE && !files.empty())
         throw IoError(ISOMEND_IO_ERR_INVALID_ARGUMENT, "raw dimensions apply to a single raw file only");
     for (const auto &f : files) s->slices.push_back(Slice{f, 0, false});
