@@ -1326,9 +1326,11 @@ class ExtractJob(_Closable):
 def open_source(paths, **kwargs):
     """Opens and validates a source: a folder, a glob ('scan/*.tif'), a printf
     pattern ('s_%04d.tif' with first/count/step), a list of files, a multi-page
-    TIFF, a raw file (raw_dims, raw_type) or an NRRD file.  Keyword arguments:
+    TIFF, a raw file (raw_dims, raw_type), an NRRD file or a DICOM series (a
+    folder, a DICOMDIR, DICOM files, a multi-frame file).  Keyword arguments:
     channel (index, 'auto', 'luma'), spacing, origin, first, count, step, threads,
-    memory_limit, raw_dims, raw_type, raw_header, raw_big_endian, progress.
+    memory_limit, raw_dims, raw_type, raw_header, raw_big_endian, progress;
+    for DICOM series (a 1-based position or a UID) and grid_axes.
     Returns a Source; raises IsomendError naming the file and the reason."""
     return Source(paths, **kwargs)
 
