@@ -27,10 +27,13 @@ die() { echo "trixie-root: $*" >&2; exit 1; }
 # What the tests need inside the root: the build tools and the libraries the
 # project builds against there, the two hosts, Xvfb, and Python with numpy.
 # Add packages rather than remove them: other tests share the root.
+# mmdebstrap installs no Recommends: the three libraries after meshlab are
+# those its GUI needs to load every stock plugin (else a warning box).
 PKGS=(build-essential cmake pkg-config zlib1g-dev patchelf file
   libopenimageio-dev openimageio-tools libtiff-dev libtiff-tools libopenexr-dev libgdcm-dev
   qtbase5-dev libqt5opengl5-dev libglew-dev libeigen3-dev
   meshlab blender
+  lib3ds-1-3 libmuparser2v5 libopenctm1
   xvfb xauth x11-apps imagemagick xdotool
   python3 python3-numpy python3-pytest python3-pydicom python3-tifffile
   python3-openimageio python3-nibabel
