@@ -150,6 +150,8 @@ def main():
         # 2. the menu and the dialog
         click(*MENU_FILTERS, pause=1)
         click(*MENU_CREATE, pause=1)
+        xdo("mousemove", *MENU_ENTRY)
+        time.sleep(0.5)
         screenshot(os.path.join(shots, "meshlab-menu.png"), "780x540+0+0" if a.screenshots else None)
         click(*MENU_ENTRY, pause=1)
         dlg = wait_window("^" + FILTER.replace("(", "\\(").replace(")", "\\)") + "$", 10)
@@ -171,6 +173,14 @@ def main():
             time.sleep(0.5)
         time.sleep(1)
         click_in(dlg, DLG_CLOSE, pause=1)
+        if a.screenshots:
+            # turn the view a little, as a user would look at it
+            xdo("mousemove", 440, 560, "mousedown", 1)
+            for dx, dy in [(0, -8)] * 15 + [(8, 0)] * 8:
+                xdo("mousemove_relative", "--", dx, dy)
+                time.sleep(0.03)
+            xdo("mouseup", 1)
+            time.sleep(1)
         screenshot(os.path.join(shots, "meshlab-result.png"))
 
         xdo("mousemove", 640, 400)
