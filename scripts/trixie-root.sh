@@ -36,7 +36,7 @@ PKGS=(build-essential cmake pkg-config zlib1g-dev patchelf file
   lib3ds-1-3 libmuparser2v5 libopenctm1
   xvfb xauth x11-apps imagemagick xdotool
   python3 python3-numpy python3-pytest python3-pydicom python3-tifffile
-  python3-openimageio python3-nibabel
+  python3-openimageio python3-nibabel python3-openvdb libpng-dev
   ca-certificates dpkg-dev)
 
 [ "$(id -u)" = 0 ] || die "must run as root (mmdebstrap root mode and chroot)"
