@@ -1,6 +1,6 @@
 """Blender add-on: File > Import > Slice Stack as Isosurface (isomend).
 
-A thin host adapter (STYLE.md item 16): the algorithm is in libisomend, the
+A thin host adapter (CONTRIBUTING.md): the algorithm is in libisomend, the
 file reading in libisomend_io, both reached through the bpy-free ctypes module
 ``isomend.py`` next to this file (plain Python can import and test it).  This
 file only turns operator properties into wrapper arguments, forwards progress
