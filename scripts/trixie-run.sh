@@ -33,6 +33,10 @@ while [ $# -gt 0 ]; do
 done
 [ $# -ge 1 ] || { echo "usage: $0 [-w WORKDIR] [-b H:C]... [-r H:C]... [--rw] -- CMD [ARG...]" >&2; exit 2; }
 root="$(bash "$here/scripts/trixie-root.sh")"
+# Held (shared) until the command ends: trixie-root.sh replaces the root only
+# when no command is using it.
+exec 8>"$root.lock"
+flock -s 8
 mkdir -p "$work/home" "$work/tmp" "$work/apt/lists/partial" "$work/apt/cache/archives/partial"
 work="$(cd "$work" && pwd)"
 for b in "${binds[@]}"; do

@@ -56,11 +56,11 @@ set_tests_properties(meshlab2022_realdata PROPERTIES TIMEOUT 600 RESOURCE_LOCK i
 # cmake --install puts the plugin where MeshLab loads it, and MeshLab's
 # loader accepts that file and runs it.
 add_test(NAME meshlab2022_install
-  COMMAND bash ${CMAKE_CURRENT_SOURCE_DIR}/test_install_2022.sh ${CMAKE_BINARY_DIR}
+  COMMAND bash ${CMAKE_CURRENT_SOURCE_DIR}/test_install.sh ${CMAKE_BINARY_DIR}
           ${ISOMEND_MESHLAB_PLUGIN_DIR} ${CMAKE_INSTALL_FULL_LIBDIR}
           "$<TARGET_FILE_DIR:isomend>:$<TARGET_FILE_DIR:isomend_io>"
-          $<TARGET_FILE:meshlab_run_filter> ${_ml_stock}
-          ${CMAKE_CURRENT_BINARY_DIR}/work2022_install)
+          ${CMAKE_CURRENT_BINARY_DIR}/work2022_install
+          $<TARGET_FILE:meshlab_run_filter> ${_ml_stock})
 set_tests_properties(meshlab2022_install PROPERTIES LABELS "trixie;peer;meshlab" TIMEOUT 300)
 
 # The GUI: MeshLab itself, the plugin in the user's extra-plugins folder.

@@ -173,13 +173,10 @@ public:
     /* 0 done, 1 the filter failed, 2 harness error */
     int filter(const Step &step)
     {
-        QAction *action = pm_.filterAction(step.name);
-        FilterPlugin *plugin = action ? pm_.getFilterPluginFromAction(action) : nullptr;
-        if (!plugin) {
-            emit_line("{\"filter\": " + json_string(step.name) +
-                      ", \"ok\": false, \"error\": \"no loaded plugin has this filter\"}");
+        QAction *action = nullptr;
+        FilterPlugin *plugin = find(step, "filter", &action);
+        if (!plugin)
             return 2;
-        }
         plugin->setLog(&md_.Log);
         RichParameterList par = plugin->initParameterList(action, md_);
         for (const auto &nv : step.values) {
@@ -261,13 +258,10 @@ public:
 
     int list(const Step &step)
     {
-        QAction *action = pm_.filterAction(step.name);
-        FilterPlugin *plugin = action ? pm_.getFilterPluginFromAction(action) : nullptr;
-        if (!plugin) {
-            emit_line("{\"list\": " + json_string(step.name) +
-                      ", \"ok\": false, \"error\": \"no loaded plugin has this filter\"}");
+        QAction *action = nullptr;
+        FilterPlugin *plugin = find(step, "list", &action);
+        if (!plugin)
             return 2;
-        }
         std::string line = "{\"list\": " + json_string(step.name) + ", \"ok\": true";
         line += ", \"plugin\": " + json_string(plugin->pluginName());
         line += ", \"python_name\": " + json_string(plugin->pythonFilterName(action));
@@ -297,6 +291,17 @@ public:
     }
 
 private:
+    /* The filter named by the step, by its menu text; reported when absent. */
+    FilterPlugin *find(const Step &step, const char *key, QAction **action)
+    {
+        *action = pm_.filterAction(step.name);
+        FilterPlugin *plugin = *action ? pm_.getFilterPluginFromAction(*action) : nullptr;
+        if (!plugin)
+            emit_line(std::string("{\"") + key + "\": " + json_string(step.name) +
+                      ", \"ok\": false, \"error\": \"no loaded plugin has this filter\"}");
+        return plugin;
+    }
+
     PluginManager &pm_;
     MeshDocument md_;
 };
