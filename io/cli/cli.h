@@ -1,7 +1,8 @@
 /*
  * cli.h - internals of the `isomend` command line (io/cli)
  *
- *   main.c      argument parsing and the commands (extract, check, info, sample)
+ *   main.c      the commands (extract, check, info, sample)
+ *   args.c      the options of every command (shared with isomend-mpi)
  *   cli_util.c  messages, number parsing, timing, the progress bar
  *   source.c    SOURCE -> isomend_volume: raw, NRRD, built-in F1/F2 and, when
  *               built with the importer (ISOMEND_HAVE_IO), slice stacks;
@@ -18,6 +19,7 @@
 #include <stdint.h>
 #include <stdio.h>
 
+#include "atomic_file.h"
 #include "isomend.h"
 
 #define CLI_EXIT_OK 0
@@ -38,6 +40,10 @@ int cli_parse_double(const char *s, double *out);      /* finite */
 int cli_parse_int64(const char *s, int64_t *out);
 /* "a,b,c" with exactly n finite numbers. */
 int cli_parse_doubles(const char *s, double *out, int n);
+
+/* A memory size: bytes ("1048576"), or a number with K, M, G or T (binary
+ * units, 1K = 1024; "512M", "4G", "1.5G"; a trailing B or iB is allowed). */
+int cli_parse_size(const char *s, uint64_t *out);
 
 double cli_now_ms(void);
 
@@ -121,6 +127,38 @@ int cli_source_summary(cli_source *src, cli_summary *sum);
 /* Fills the built-in F1/F2 of the thesis (4x4x4 f32, 0..3).  Returns 1 if `name` is one. */
 int cli_builtin_volume(const char *name, float out[64]);
 
+/* ---- args.c ---- */
+
+/* Every option; a command allows a set of them. */
+enum {
+    OPT_OUTPUT = 1u << 0, OPT_ISO = 1u << 1, OPT_METHOD = 1u << 2, OPT_RAW = 1u << 3,
+    OPT_SPACING = 1u << 4, OPT_ORIGIN = 1u << 5, OPT_PAD = 1u << 6, OPT_NO_NORMALS = 1u << 7,
+    OPT_FLIP = 1u << 8, OPT_STATS = 1u << 9, OPT_JSON = 1u << 10, OPT_QUIET = 1u << 11,
+    OPT_THREADS = 1u << 12, OPT_BOX = 1u << 13, OPT_FIRST = 1u << 14, OPT_COUNT = 1u << 15,
+    OPT_STEP = 1u << 16, OPT_CHANNEL = 1u << 17, OPT_GZIP = 1u << 18, OPT_HELP = 1u << 19,
+    OPT_PAGES = 1u << 20, OPT_MAX_MEMORY = 1u << 21
+};
+
+#define CLI_MAX_SOURCES 4096
+
+typedef struct cli_args {
+    unsigned seen;
+    const char *output, *json, *method_name;
+    const char *positional[CLI_MAX_SOURCES];
+    int npositional;
+    double iso;
+    isomend_method method;
+    enum { CLI_PAGES_HUGE, CLI_PAGES_SMALL } pages; /* --pages */
+    double box[6];
+    uint64_t max_memory;                    /* --max-memory, 0 = not given */
+    cli_source_opts src;
+} cli_args;
+
+/* Parses argv[first..argc) for `command` allowing the options in `allowed`.
+ * Returns an exit code (the message is printed). */
+int cli_parse_args(int argc, char **argv, int first, const char *command, unsigned allowed,
+                   cli_args *a);
+
 /* ---- report.c ---- */
 
 typedef struct cli_timings {
@@ -130,6 +168,23 @@ typedef struct cli_timings {
 void cli_print_table2(FILE *fp, const isomend_stats *st, isomend_method method);
 void cli_print_check(FILE *fp, const char *what, const isomend_check_report *r);
 void cli_json_check(FILE *fp, const isomend_check_report *r);
+/* A JSON destination: stdout ("-") or an atomic file opened early. */
+typedef struct cli_json_out {
+    int to_stdout;
+    int open;
+    isomend_atomic_file af;
+} cli_json_out;
+
+/* Opens the --json destination early (NULL path: none); exit code. */
+int cli_json_prepare(cli_json_out *j, const char *path);
+/* The stream to print the object to, NULL when no JSON was asked for. */
+FILE *cli_json_stream(cli_json_out *j);
+/* Completes it (renames the file); exit code. */
+int cli_json_finish(cli_json_out *j);
+void cli_json_abort(cli_json_out *j);
+void cli_json_doubles(FILE *fp, const double *v, int n);
+void cli_json_dims(FILE *fp, const int64_t *d);
+
 /* 1 when the report shows holes, edges used 3+ times or misoriented edges. */
 int cli_check_has_defects(const isomend_check_report *r);
 

@@ -9,6 +9,7 @@
 
 #include "cli.h"
 
+#include <ctype.h>
 #include <errno.h>
 #include <math.h>
 #include <signal.h>
@@ -88,6 +89,32 @@ int cli_parse_doubles(const char *s, double *out, int n)
         if (!cli_parse_double(p, &out[i])) return 0;
         p = comma ? comma + 1 : p;
     }
+    return 1;
+}
+
+int cli_parse_size(const char *s, uint64_t *out)
+{
+    if (!s || !*s || *s == '-' || *s == '+') return 0;
+    char *end;
+    errno = 0;
+    double v = strtod(s, &end);
+    if (end == s || errno == ERANGE || !isfinite(v) || v < 0) return 0;
+    double scale = 1;
+    const char *units = "KMGT";
+    if (*end) {
+        const char *u = strchr(units, toupper((unsigned char)*end));
+        if (!u) return 0;
+        scale = ldexp(1.0, 10 * (int)(u - units + 1));
+        end++;
+        if (*end == 'i' && end[1] == 'B') end += 2; /* 4GiB */
+        else if (*end == 'B') end++;                /* 4GB means the same, binary */
+    } else if (v != floor(v)) {
+        return 0; /* a fraction of a byte */
+    }
+    if (*end) return 0;
+    double bytes = floor(v * scale);
+    if (!(bytes < 18446744073709551616.0)) return 0;
+    *out = (uint64_t)bytes;
     return 1;
 }
 

@@ -118,352 +118,6 @@ static const char *const usage_sample =
     "  F2 = 4(y-1)^2 + 2(x-z)^2 - 2(x+z-3)^2 + 1\n"
     "Extract at --iso 0.  The same volumes are available as SOURCE builtin:f1 / builtin:f2.\n";
 
-/* ------------------------------------------------------------------ options */
-
-enum {
-    OPT_OUTPUT = 1u << 0, OPT_ISO = 1u << 1, OPT_METHOD = 1u << 2, OPT_RAW = 1u << 3,
-    OPT_SPACING = 1u << 4, OPT_ORIGIN = 1u << 5, OPT_PAD = 1u << 6, OPT_NO_NORMALS = 1u << 7,
-    OPT_FLIP = 1u << 8, OPT_STATS = 1u << 9, OPT_JSON = 1u << 10, OPT_QUIET = 1u << 11,
-    OPT_THREADS = 1u << 12, OPT_BOX = 1u << 13, OPT_FIRST = 1u << 14, OPT_COUNT = 1u << 15,
-    OPT_STEP = 1u << 16, OPT_CHANNEL = 1u << 17, OPT_GZIP = 1u << 18, OPT_HELP = 1u << 19,
-    OPT_PAGES = 1u << 20
-};
-
-static const struct {
-    const char *name;
-    unsigned id;
-    int takes_value;
-} options[] = {
-    {"-o", OPT_OUTPUT, 1},       {"--output", OPT_OUTPUT, 1}, {"--iso", OPT_ISO, 1},
-    {"--method", OPT_METHOD, 1}, {"--raw", OPT_RAW, 1},       {"--spacing", OPT_SPACING, 1},
-    {"--origin", OPT_ORIGIN, 1}, {"--pad", OPT_PAD, 0},       {"--no-normals", OPT_NO_NORMALS, 0},
-    {"--flip", OPT_FLIP, 0},     {"--stats", OPT_STATS, 0},   {"--json", OPT_JSON, 1},
-    {"--quiet", OPT_QUIET, 0},   {"-q", OPT_QUIET, 0},        {"--threads", OPT_THREADS, 1},
-    {"--box", OPT_BOX, 1},       {"--first", OPT_FIRST, 1},   {"--count", OPT_COUNT, 1},
-    {"--step", OPT_STEP, 1},     {"--channel", OPT_CHANNEL, 1}, {"--gzip", OPT_GZIP, 0},
-    {"--help", OPT_HELP, 0},     {"-h", OPT_HELP, 0},         {"--pages", OPT_PAGES, 1},
-};
-
-#define MAX_SOURCES 4096
-
-typedef struct args {
-    unsigned seen;
-    const char *output, *json, *method_name;
-    const char *positional[MAX_SOURCES];
-    int npositional;
-    double iso;
-    isomend_method method;
-    enum { PAGES_HUGE, PAGES_SMALL } pages; /* --pages */
-    double box[6];
-    cli_source_opts src;
-} args;
-
-static int parse_raw(const char *v, cli_source_opts *o)
-{
-    char buf[256];
-    if (strlen(v) >= sizeof buf) {
-        cli_error("--raw: value too long");
-        return 0;
-    }
-    strcpy(buf, v);
-    char *dims = buf, *type = strchr(buf, ':'), *order = NULL;
-    if (!type) {
-        cli_error("--raw: '%s' lacks ':TYPE' (expected NX,NY,NZ:TYPE[:le|be], e.g. 256,256,128:u16)", v);
-        return 0;
-    }
-    *type++ = '\0';
-    order = strchr(type, ':');
-    if (order) *order++ = '\0';
-    char *p = dims;
-    for (int a = 0; a < 3; a++) {
-        char *comma = strchr(p, ',');
-        if (a < 2 && !comma) {
-            cli_error("--raw: '%s' needs three dimensions NX,NY,NZ", v);
-            return 0;
-        }
-        if (a == 2 && comma) {
-            cli_error("--raw: '%s' has more than three dimensions", v);
-            return 0;
-        }
-        if (comma) *comma = '\0';
-        int64_t d;
-        if (!cli_parse_int64(p, &d) || d < 1) {
-            cli_error("--raw: dimension '%s' is not a positive integer", p);
-            return 0;
-        }
-        o->raw_dims[a] = d;
-        p = comma ? comma + 1 : p;
-    }
-    if (isomend_type_from_name(type, &o->raw_type) != ISOMEND_OK) {
-        cli_error("--raw: unknown sample type '%s' (use u8, i8, u16, i16, i32, f32 or f64)", type);
-        return 0;
-    }
-    o->raw_big_endian = 0;
-    if (order) {
-        if (strcmp(order, "le") == 0)
-            o->raw_big_endian = 0;
-        else if (strcmp(order, "be") == 0)
-            o->raw_big_endian = 1;
-        else {
-            cli_error("--raw: byte order '%s' must be le or be", order);
-            return 0;
-        }
-    }
-    o->have_raw = 1;
-    return 1;
-}
-
-static int parse_count_option(const char *flag, const char *v, int64_t min, int64_t *out)
-{
-    if (!cli_parse_int64(v, out) || *out < min) {
-        cli_error("%s: '%s' is not an integer >= %lld", flag, v, (long long)min);
-        return 0;
-    }
-    return 1;
-}
-
-/* Parses argv[first..argc) for a command allowing `allowed`.  Returns an exit code. */
-static int parse_args(int argc, char **argv, int first, const char *command, unsigned allowed,
-                      args *a)
-{
-    memset(a, 0, sizeof *a);
-    a->method = ISOMEND_METHOD_DMC;
-    a->src.channel = -1;
-    for (int i = first; i < argc; i++) {
-        const char *arg = argv[i];
-        if (strcmp(arg, "--") == 0) {
-            for (i++; i < argc && a->npositional < MAX_SOURCES; i++)
-                a->positional[a->npositional++] = argv[i];
-            break;
-        }
-        if (arg[0] != '-' || arg[1] == '\0') {
-            if (a->npositional == MAX_SOURCES) {
-                cli_error("too many arguments (more than %d)", MAX_SOURCES);
-                return CLI_EXIT_USAGE;
-            }
-            a->positional[a->npositional++] = arg;
-            continue;
-        }
-        char name[64];
-        const char *value = NULL, *eq = strchr(arg, '=');
-        size_t nlen = eq ? (size_t)(eq - arg) : strlen(arg);
-        if (nlen >= sizeof name) nlen = sizeof name - 1;
-        memcpy(name, arg, nlen);
-        name[nlen] = '\0';
-        size_t k;
-        for (k = 0; k < sizeof options / sizeof options[0]; k++)
-            if (strcmp(options[k].name, name) == 0) break;
-        if (k == sizeof options / sizeof options[0] || !(options[k].id & allowed)) {
-            cli_error("unknown option '%s' for 'isomend %s' (see isomend %s --help)", name, command,
-                      command);
-            return CLI_EXIT_USAGE;
-        }
-        unsigned id = options[k].id;
-        if (options[k].takes_value) {
-            if (eq)
-                value = eq + 1;
-            else if (i + 1 < argc)
-                value = argv[++i];
-            else {
-                cli_error("%s: missing value", name);
-                return CLI_EXIT_USAGE;
-            }
-        } else if (eq) {
-            cli_error("%s takes no value", name);
-            return CLI_EXIT_USAGE;
-        }
-        if ((a->seen & id) && id != OPT_QUIET && id != OPT_HELP) {
-            cli_error("%s given twice", name);
-            return CLI_EXIT_USAGE;
-        }
-        a->seen |= id;
-        switch (id) {
-        case OPT_OUTPUT:
-            if (!*value) {
-                cli_error("%s: empty file name", name);
-                return CLI_EXIT_USAGE;
-            }
-            a->output = value;
-            break;
-        case OPT_ISO:
-            if (!cli_parse_double(value, &a->iso)) {
-                cli_error("--iso: '%s' is not a finite number", value);
-                return CLI_EXIT_USAGE;
-            }
-            break;
-        case OPT_METHOD:
-            a->method_name = value;
-            if (isomend_method_from_name(value, &a->method) != ISOMEND_OK) {
-                cli_error("--method: unknown method '%s' (use dmc, mc or durst; also facial, "
-                          "gradient, asymptotic, tetra, mc33 where built)", value);
-                return CLI_EXIT_USAGE;
-            }
-            if (!isomend_method_available(a->method)) {
-                char avail[128] = "";
-                for (int m = 0; m < ISOMEND_METHOD_COUNT; m++)
-                    if (isomend_method_available((isomend_method)m)) {
-                        if (avail[0]) strcat(avail, ", ");
-                        strcat(avail, isomend_method_name((isomend_method)m));
-                    }
-                cli_error("--method: '%s' is not implemented in this build (available: %s)", value,
-                          avail);
-                return CLI_EXIT_USAGE;
-            }
-            break;
-        case OPT_RAW:
-            if (!parse_raw(value, &a->src)) return CLI_EXIT_USAGE;
-            break;
-        case OPT_SPACING:
-            if (!cli_parse_doubles(value, a->src.spacing, 3) || !(a->src.spacing[0] > 0) ||
-                !(a->src.spacing[1] > 0) || !(a->src.spacing[2] > 0)) {
-                cli_error("--spacing: '%s' is not three positive numbers DX,DY,DZ", value);
-                return CLI_EXIT_USAGE;
-            }
-            a->src.have_spacing = 1;
-            break;
-        case OPT_ORIGIN:
-            if (!cli_parse_doubles(value, a->src.origin, 3)) {
-                cli_error("--origin: '%s' is not three numbers X,Y,Z", value);
-                return CLI_EXIT_USAGE;
-            }
-            a->src.have_origin = 1;
-            break;
-        case OPT_JSON:
-            if (!*value) {
-                cli_error("--json: empty file name (use - for stdout)");
-                return CLI_EXIT_USAGE;
-            }
-            a->json = value;
-            break;
-        case OPT_THREADS: {
-            int64_t t;
-            if (!parse_count_option("--threads", value, 0, &t)) return CLI_EXIT_USAGE;
-            if (t > 1024) {
-                cli_error("--threads: %lld is more than 1024", (long long)t);
-                return CLI_EXIT_USAGE;
-            }
-            a->src.threads = (int)t;
-            break;
-        }
-        case OPT_BOX:
-            if (!cli_parse_doubles(value, a->box, 6) || a->box[0] > a->box[3] ||
-                a->box[1] > a->box[4] || a->box[2] > a->box[5]) {
-                cli_error("--box: '%s' is not six numbers MINX,MINY,MINZ,MAXX,MAXY,MAXZ with min <= max",
-                          value);
-                return CLI_EXIT_USAGE;
-            }
-            break;
-        case OPT_FIRST:
-            if (!parse_count_option("--first", value, 0, &a->src.first)) return CLI_EXIT_USAGE;
-            a->src.have_first = 1;
-            break;
-        case OPT_COUNT:
-            if (!parse_count_option("--count", value, 0, &a->src.count)) return CLI_EXIT_USAGE;
-            a->src.have_count = 1;
-            break;
-        case OPT_STEP:
-            if (!parse_count_option("--step", value, 1, &a->src.step)) return CLI_EXIT_USAGE;
-            a->src.have_step = 1;
-            break;
-        case OPT_PAGES:
-            if (strcmp(value, "huge") == 0)
-                a->pages = PAGES_HUGE;
-            else if (strcmp(value, "small") == 0)
-                a->pages = PAGES_SMALL;
-            else {
-                cli_error("--pages: '%s' is not huge or small", value);
-                return CLI_EXIT_USAGE;
-            }
-            break;
-        case OPT_CHANNEL: {
-            int64_t c;
-            if (strcmp(value, "luma") == 0)
-                a->src.channel = -2;
-            else if (cli_parse_int64(value, &c) && c >= 0 && c < 1024)
-                a->src.channel = (int)c;
-            else {
-                cli_error("--channel: '%s' is not a channel index (0, 1, ...) or 'luma'", value);
-                return CLI_EXIT_USAGE;
-            }
-            a->src.have_channel = 1;
-            break;
-        }
-        default:
-            break;
-        }
-    }
-#ifndef ISOMEND_HAVE_IO
-    if (a->seen & (OPT_FIRST | OPT_COUNT | OPT_STEP | OPT_CHANNEL)) {
-        cli_error("--first/--count/--step/--channel need the slice-stack importer "
-                  "(this isomend was built without it: -DISOMEND_BUILD_IO=ON)");
-        return CLI_EXIT_USAGE;
-    }
-#endif
-    return CLI_EXIT_OK;
-}
-
-/* ------------------------------------------------------------------ output helpers */
-
-/* A JSON destination: stdout ("-") or an atomic file opened early. */
-typedef struct json_out {
-    int to_stdout;
-    int open;
-    isomend_atomic_file af;
-} json_out;
-
-static int json_prepare(json_out *j, const char *path)
-{
-    memset(j, 0, sizeof *j);
-    if (!path) return CLI_EXIT_OK;
-    if (strcmp(path, "-") == 0) {
-        j->to_stdout = 1;
-        return CLI_EXIT_OK;
-    }
-    char msg[ISOMEND_FILEIO_MSG_SIZE];
-    if (isomend_atomic_open(&j->af, path, msg, sizeof msg) != ISOMEND_FILEIO_OK) {
-        cli_error("--json %s", msg);
-        return CLI_EXIT_FAIL;
-    }
-    j->open = 1;
-    return CLI_EXIT_OK;
-}
-
-static FILE *json_stream(json_out *j)
-{
-    return j->to_stdout ? stdout : j->open ? j->af.fp : NULL;
-}
-
-static int json_finish(json_out *j)
-{
-    if (j->to_stdout) return fflush(stdout) == 0 ? CLI_EXIT_OK : CLI_EXIT_FAIL;
-    if (!j->open) return CLI_EXIT_OK;
-    char msg[ISOMEND_FILEIO_MSG_SIZE];
-    j->open = 0;
-    if (isomend_atomic_commit(&j->af, msg, sizeof msg) != ISOMEND_FILEIO_OK) {
-        cli_error("--json %s", msg);
-        return CLI_EXIT_FAIL;
-    }
-    return CLI_EXIT_OK;
-}
-
-static void json_abort(json_out *j)
-{
-    if (j->open) isomend_atomic_abort(&j->af);
-    j->open = 0;
-}
-
-static void json_doubles(FILE *fp, const double *v, int n)
-{
-    fputc('[', fp);
-    for (int i = 0; i < n; i++) fprintf(fp, "%s%.17g", i ? ", " : "", v[i]);
-    fputc(']', fp);
-}
-
-static void json_dims(FILE *fp, const int64_t *d)
-{
-    fprintf(fp, "[%lld, %lld, %lld]", (long long)d[0], (long long)d[1], (long long)d[2]);
-}
-
 static void print_source_line(FILE *fp, const cli_source *s)
 {
     const isomend_volume *v = &s->vol;
@@ -483,26 +137,26 @@ static void print_source_line(FILE *fp, const cli_source *s)
  * up the progress bar (stderr a terminal and not --quiet) and opens SOURCE.
  * On failure nothing is left open and the exit code is returned.
  */
-static int open_source_for(args *a, int quiet, json_out *jo, cli_progress *bar, cli_source *src)
+static int open_source_for(cli_args *a, int quiet, cli_json_out *jo, cli_progress *bar, cli_source *src)
 {
-    int rc = json_prepare(jo, a->json);
+    int rc = cli_json_prepare(jo, a->json);
     if (rc) return rc;
     cli_progress_init(bar, !quiet && isatty(STDERR_FILENO));
     cli_active_progress = bar;
     a->src.progress = bar;
     rc = cli_source_open(a->positional, a->npositional, &a->src, src);
-    if (rc) json_abort(jo);
+    if (rc) cli_json_abort(jo);
     return rc;
 }
 
 static int cmd_extract(int argc, char **argv)
 {
-    args a;
+    cli_args a;
     unsigned allowed = OPT_OUTPUT | OPT_ISO | OPT_METHOD | OPT_RAW | OPT_SPACING | OPT_ORIGIN |
                        OPT_PAD | OPT_NO_NORMALS | OPT_FLIP | OPT_STATS | OPT_JSON | OPT_QUIET |
                        OPT_THREADS | OPT_FIRST | OPT_COUNT | OPT_STEP | OPT_CHANNEL | OPT_HELP |
                        OPT_PAGES;
-    int rc = parse_args(argc, argv, 2, "extract", allowed, &a);
+    int rc = cli_parse_args(argc, argv, 2, "extract", allowed, &a);
     if (rc) return rc;
     if (a.seen & OPT_HELP) {
         fputs(usage_extract, stdout);
@@ -537,7 +191,7 @@ static int cmd_extract(int argc, char **argv)
         return CLI_EXIT_FAIL;
     }
     isomend_atomic_abort(&probe);
-    json_out jo;
+    cli_json_out jo;
     cli_progress bar;
     cli_source src;
     rc = open_source_for(&a, quiet, &jo, &bar, &src);
@@ -569,7 +223,7 @@ static int cmd_extract(int argc, char **argv)
     if (a.seen & OPT_PAD) opts.flags |= ISOMEND_FLAG_PAD;
     if (a.seen & OPT_NO_NORMALS) opts.flags |= ISOMEND_FLAG_NO_NORMALS;
     if (a.seen & OPT_FLIP) opts.flags |= ISOMEND_FLAG_FLIP;
-    const int small_pages = a.pages == PAGES_SMALL;
+    const int small_pages = a.pages == CLI_PAGES_SMALL;
     if (small_pages) opts.flags |= ISOMEND_FLAG_SMALL_PAGES;
     opts.progress = cli_progress_extract_cb; /* the bar, and how Ctrl-C cancels */
     opts.progress_user = &bar;
@@ -625,7 +279,7 @@ static int cmd_extract(int argc, char **argv)
                 tm.extract_ms, tm.write_ms);
     }
 
-    FILE *jf = json_stream(&jo);
+    FILE *jf = cli_json_stream(&jo);
     if (jf) {
         const isomend_volume *v = &src.vol;
         fprintf(jf, "{\"command\": \"extract\", \"version\": \"%s\", \"source\": ", isomend_version());
@@ -635,11 +289,11 @@ static int cmd_extract(int argc, char **argv)
         fprintf(jf, ", \"output\": ");
         cli_json_string(jf, a.output);
         fprintf(jf, ", \"dims\": ");
-        json_dims(jf, v->dims);
+        cli_json_dims(jf, v->dims);
         fprintf(jf, ", \"type\": \"%s\", \"spacing\": ", isomend_type_name(v->type));
-        json_doubles(jf, v->spacing, 3);
+        cli_json_doubles(jf, v->spacing, 3);
         fprintf(jf, ", \"origin\": ");
-        json_doubles(jf, v->origin, 3);
+        cli_json_doubles(jf, v->origin, 3);
         fprintf(jf, ", \"method\": \"%s\", \"iso\": %.17g, \"iso_suggested\": %s",
                 isomend_method_name(a.method), a.iso, iso_suggested ? "true" : "false");
         fprintf(jf, ", \"pad\": %s, \"flip\": %s, \"normals\": %s, \"pages\": \"%s\"",
@@ -661,7 +315,7 @@ static int cmd_extract(int argc, char **argv)
         cli_json_check(jf, &check);
         fprintf(jf, ", \"timings_ms\": {\"read\": %.3f, \"extract\": %.3f, \"write\": %.3f}}\n",
                 tm.read_ms, tm.extract_ms, tm.write_ms);
-        rc = json_finish(&jo);
+        rc = cli_json_finish(&jo);
         if (rc) {
             /* the JSON was asked for: a run without it is a failure, leave no mesh */
             unlink(a.output);
@@ -675,7 +329,7 @@ static int cmd_extract(int argc, char **argv)
 fail_mesh:
     isomend_mesh_destroy(mesh);
 fail_source:
-    json_abort(&jo);
+    cli_json_abort(&jo);
     cli_source_close(&src);
     return rc;
 }
@@ -684,8 +338,8 @@ fail_source:
 
 static int cmd_check(int argc, char **argv)
 {
-    args a;
-    int rc = parse_args(argc, argv, 2, "check", OPT_BOX | OPT_JSON | OPT_QUIET | OPT_HELP, &a);
+    cli_args a;
+    int rc = cli_parse_args(argc, argv, 2, "check", OPT_BOX | OPT_JSON | OPT_QUIET | OPT_HELP, &a);
     if (rc) return rc;
     if (a.seen & OPT_HELP) {
         fputs(usage_check, stdout);
@@ -703,14 +357,14 @@ static int cmd_check(int argc, char **argv)
         cli_error("%s: unknown mesh format (use .ply, .obj or .stl)", path);
         return CLI_EXIT_USAGE;
     }
-    json_out jo;
-    rc = json_prepare(&jo, a.json);
+    cli_json_out jo;
+    rc = cli_json_prepare(&jo, a.json);
     if (rc) return rc;
     char msg[ISOMEND_FILEIO_MSG_SIZE];
     isomend_read_mesh_result m;
     if (isomend_read_mesh(path, &m, msg, sizeof msg) != ISOMEND_FILEIO_OK) {
         cli_error("%s", msg);
-        json_abort(&jo);
+        cli_json_abort(&jo);
         return CLI_EXIT_FAIL;
     }
     isomend_check_report r;
@@ -719,7 +373,7 @@ static int cmd_check(int argc, char **argv)
     if (st != ISOMEND_OK) {
         cli_error("%s: check failed: %s", path, isomend_status_string(st));
         isomend_read_mesh_free(&m);
-        json_abort(&jo);
+        cli_json_abort(&jo);
         return CLI_EXIT_FAIL;
     }
     int quiet = (a.seen & OPT_QUIET) != 0;
@@ -739,13 +393,13 @@ static int cmd_check(int argc, char **argv)
             fprintf(text, ", %" PRIu64 " faces with < 3 corners ignored", m.faces_skipped);
         if (m.polygons_split || m.faces_skipped || m.stl_facets) fputc('\n', text);
     }
-    FILE *jf = json_stream(&jo);
+    FILE *jf = cli_json_stream(&jo);
     if (jf) {
         fprintf(jf, "{\"command\": \"check\", \"version\": \"%s\", \"mesh\": ", isomend_version());
         cli_json_string(jf, path);
         fprintf(jf, ", \"box\": ");
         if (a.seen & OPT_BOX)
-            json_doubles(jf, a.box, 6);
+            cli_json_doubles(jf, a.box, 6);
         else
             fprintf(jf, "null");
         fprintf(jf, ", \"polygons_split\": %" PRIu64 ", \"stl_facets\": %" PRIu64 ", \"check\": ",
@@ -754,7 +408,7 @@ static int cmd_check(int argc, char **argv)
         fprintf(jf, "}\n");
     }
     isomend_read_mesh_free(&m);
-    rc = json_finish(&jo);
+    rc = cli_json_finish(&jo);
     if (rc) return rc;
     return cli_check_has_defects(&r) ? CLI_EXIT_FAIL : CLI_EXIT_OK;
 }
@@ -763,10 +417,10 @@ static int cmd_check(int argc, char **argv)
 
 static int cmd_info(int argc, char **argv)
 {
-    args a;
+    cli_args a;
     unsigned allowed = OPT_RAW | OPT_SPACING | OPT_ORIGIN | OPT_JSON | OPT_QUIET | OPT_FIRST |
                        OPT_COUNT | OPT_STEP | OPT_CHANNEL | OPT_HELP;
-    int rc = parse_args(argc, argv, 2, "info", allowed, &a);
+    int rc = cli_parse_args(argc, argv, 2, "info", allowed, &a);
     if (rc) return rc;
     if (a.seen & OPT_HELP) {
         fputs(usage_info, stdout);
@@ -777,7 +431,7 @@ static int cmd_info(int argc, char **argv)
         return CLI_EXIT_USAGE;
     }
     int quiet = (a.seen & OPT_QUIET) != 0;
-    json_out jo;
+    cli_json_out jo;
     cli_progress bar;
     cli_source src;
     rc = open_source_for(&a, quiet, &jo, &bar, &src);
@@ -786,7 +440,7 @@ static int cmd_info(int argc, char **argv)
     rc = cli_source_summary(&src, &sum);
     cli_progress_clear(&bar);
     if (rc) {
-        json_abort(&jo);
+        cli_json_abort(&jo);
         cli_source_close(&src);
         return rc;
     }
@@ -820,7 +474,7 @@ static int cmd_info(int argc, char **argv)
             fprintf(text, "  suggested iso: none (all finite samples are equal: no surface)\n");
         fprintf(text, "  read time:   %.1f ms\n", src.read_ms);
     }
-    FILE *jf = json_stream(&jo);
+    FILE *jf = cli_json_stream(&jo);
     if (jf) {
         fprintf(jf, "{\"command\": \"info\", \"version\": \"%s\", \"source\": ", isomend_version());
         cli_json_string(jf, src.label);
@@ -829,16 +483,16 @@ static int cmd_info(int argc, char **argv)
         fprintf(jf, ", \"format\": ");
         cli_json_string(jf, src.format);
         fprintf(jf, ", \"dims\": ");
-        json_dims(jf, v->dims);
+        cli_json_dims(jf, v->dims);
         fprintf(jf, ", \"type\": \"%s\", \"min\": %.17g, \"max\": %.17g, \"samples\": %" PRIu64
                     ", \"nan_samples\": %" PRIu64 ", \"histogram\": [",
                 isomend_type_name(v->type), sum.min, sum.max, sum.samples, sum.nan_samples);
         for (int b = 0; b < 16; b++) fprintf(jf, "%s%" PRIu64, b ? ", " : "", sum.histogram[b]);
         fprintf(jf, "], \"spacing\": ");
-        json_doubles(jf, v->spacing, 3);
+        cli_json_doubles(jf, v->spacing, 3);
         fprintf(jf, ", \"spacing_from\": [\"%s\", \"%s\", \"%s\"], \"origin\": ",
                 src.spacing_from[0], src.spacing_from[1], src.spacing_from[2]);
-        json_doubles(jf, v->origin, 3);
+        cli_json_doubles(jf, v->origin, 3);
         fprintf(jf, ", \"suggested_iso\": ");
         if (sum.has_suggestion)
             fprintf(jf, "%.17g", sum.suggested_iso);
@@ -847,15 +501,15 @@ static int cmd_info(int argc, char **argv)
         fprintf(jf, ", \"timings_ms\": {\"read\": %.3f}}\n", src.read_ms);
     }
     cli_source_close(&src);
-    return json_finish(&jo);
+    return cli_json_finish(&jo);
 }
 
 /* ------------------------------------------------------------------ sample */
 
 static int cmd_sample(int argc, char **argv)
 {
-    args a;
-    int rc = parse_args(argc, argv, 2, "sample", OPT_OUTPUT | OPT_GZIP | OPT_QUIET | OPT_HELP, &a);
+    cli_args a;
+    int rc = cli_parse_args(argc, argv, 2, "sample", OPT_OUTPUT | OPT_GZIP | OPT_QUIET | OPT_HELP, &a);
     if (rc) return rc;
     if (a.seen & OPT_HELP) {
         fputs(usage_sample, stdout);

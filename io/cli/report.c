@@ -11,6 +11,7 @@
 #include "cli.h"
 
 #include <inttypes.h>
+#include <string.h>
 
 static int case_is_ambiguous(int c)
 {
@@ -77,4 +78,61 @@ void cli_json_check(FILE *fp, const isomend_check_report *r)
             r->misoriented_edges, r->nonmanifold_vertices, r->degenerate_triangles, r->components,
             r->euler, r->vertices, r->triangles, r->edges,
             cli_check_has_defects(r) ? "false" : "true");
+}
+
+/* ------------------------------------------------------------------ JSON outputs */
+
+
+
+int cli_json_prepare(cli_json_out *j, const char *path)
+{
+    memset(j, 0, sizeof *j);
+    if (!path) return CLI_EXIT_OK;
+    if (strcmp(path, "-") == 0) {
+        j->to_stdout = 1;
+        return CLI_EXIT_OK;
+    }
+    char msg[ISOMEND_FILEIO_MSG_SIZE];
+    if (isomend_atomic_open(&j->af, path, msg, sizeof msg) != ISOMEND_FILEIO_OK) {
+        cli_error("--json %s", msg);
+        return CLI_EXIT_FAIL;
+    }
+    j->open = 1;
+    return CLI_EXIT_OK;
+}
+
+FILE *cli_json_stream(cli_json_out *j)
+{
+    return j->to_stdout ? stdout : j->open ? j->af.fp : NULL;
+}
+
+int cli_json_finish(cli_json_out *j)
+{
+    if (j->to_stdout) return fflush(stdout) == 0 ? CLI_EXIT_OK : CLI_EXIT_FAIL;
+    if (!j->open) return CLI_EXIT_OK;
+    char msg[ISOMEND_FILEIO_MSG_SIZE];
+    j->open = 0;
+    if (isomend_atomic_commit(&j->af, msg, sizeof msg) != ISOMEND_FILEIO_OK) {
+        cli_error("--json %s", msg);
+        return CLI_EXIT_FAIL;
+    }
+    return CLI_EXIT_OK;
+}
+
+void cli_json_abort(cli_json_out *j)
+{
+    if (j->open) isomend_atomic_abort(&j->af);
+    j->open = 0;
+}
+
+void cli_json_doubles(FILE *fp, const double *v, int n)
+{
+    fputc('[', fp);
+    for (int i = 0; i < n; i++) fprintf(fp, "%s%.17g", i ? ", " : "", v[i]);
+    fputc(']', fp);
+}
+
+void cli_json_dims(FILE *fp, const int64_t *d)
+{
+    fprintf(fp, "[%lld, %lld, %lld]", (long long)d[0], (long long)d[1], (long long)d[2]);
 }
