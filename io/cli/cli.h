@@ -7,6 +7,7 @@
  *   source.c    SOURCE -> isomend_volume: raw, NRRD, built-in F1/F2 and, when
  *               built with the importer (ISOMEND_HAVE_IO), slice stacks;
  *               value range, histogram and suggested iso level
+ *   stream.c    the --max-memory rule, the mesh sink, the streaming extraction
  *   report.c    the Table-2 statistics, the check summary and the JSON object
  *
  * Exit codes: 0 success, 1 failure (a file cannot be read or written, the
@@ -20,7 +21,9 @@
 #include <stdio.h>
 
 #include "atomic_file.h"
+#include "volume_readers.h"
 #include "isomend.h"
+#include "mesh_writer.h"
 
 #define CLI_EXIT_OK 0
 #define CLI_EXIT_FAIL 1
@@ -44,6 +47,9 @@ int cli_parse_doubles(const char *s, double *out, int n);
 /* A memory size: bytes ("1048576"), or a number with K, M, G or T (binary
  * units, 1K = 1024; "512M", "4G", "1.5G"; a trailing B or iB is allowed). */
 int cli_parse_size(const char *s, uint64_t *out);
+
+/* "812.0 MiB" or "3.35 GiB" into buf (32 bytes are enough); returns buf. */
+const char *cli_bytes_text(uint64_t bytes, char *buf, size_t size);
 
 double cli_now_ms(void);
 
@@ -105,6 +111,49 @@ typedef struct cli_summary {
     int has_suggestion; /* 0 when every finite sample is equal (or none is finite) */
 } cli_summary;
 
+/*
+ * An opened SOURCE whose samples have not been read: what it is, and its
+ * slices on demand.  `desc` describes the volume (dims, type, spacing and
+ * origin as the extraction uses them; data NULL).  Slices come in z order,
+ * each contiguous, x fastest, machine byte order, oriented as the whole
+ * volume would be presented (reversed NRRD axes already turned), so memory
+ * stays O(one slice): raw and NRRD through isomend_fileio_slices_*, image
+ * stacks through the importer's isomend_io_read_slice(), built-ins from
+ * their 64 samples.
+ */
+typedef struct cli_slices {
+    isomend_volume desc;
+    char kind[16];           /* raw, nrrd, builtin, folder, glob, pattern, ... */
+    char format[32];
+    const char *spacing_from[3];
+    int oblique;             /* NRRD space directions not axis aligned        */
+    char label[1024];        /* SOURCE as given (first path)                   */
+    uint64_t slice_bytes;
+    int64_t next;            /* the slice the next call delivers               */
+    double read_ms;          /* time spent in cli_slices_next()                */
+    /* what delivers them: one of */
+    int is_builtin;
+    float builtin[64];
+    int is_fileio;
+    isomend_fileio_info info;
+    isomend_fileio_slices *reader; /* opened at the first slice */
+    void *io;                /* isomend_io_source* (image stacks)             */
+    cli_progress *progress;
+} cli_slices;
+
+/* Opens SOURCE (paths[0..n)) without reading samples (an image stack's
+ * headers are all checked).  Exit code; on failure the message is printed
+ * and nothing needs closing. */
+int cli_slices_open(const char *const *paths, int n, const cli_source_opts *o, cli_slices *s);
+/* Slice s->next into `buffer` (s->slice_bytes); exit code, message printed. */
+int cli_slices_next(cli_slices *s, void *buffer);
+/* The next call delivers slice 0 again. */
+void cli_slices_rewind(cli_slices *s);
+void cli_slices_close(cli_slices *s);
+/* cli_source_summary's numbers, reading the slices (twice) instead of a
+ * loaded volume; rewinds at the end. */
+int cli_slices_summary(cli_slices *s, cli_summary *sum);
+
 typedef struct cli_source {
     isomend_volume vol;
     void *owned;             /* samples we allocated (raw, NRRD, built-in)   */
@@ -120,9 +169,14 @@ typedef struct cli_source {
 /* Opens and loads SOURCE (paths[0..n)).  Returns an exit code; on failure
  * the message is printed and nothing needs closing. */
 int cli_source_open(const char *const *paths, int n, const cli_source_opts *o, cli_source *src);
+/* Loads an opened source whole into `src` (s is closed in every case). */
+int cli_source_load(cli_slices *s, cli_source *src);
 void cli_source_close(cli_source *src);
 /* Value range, 16-bin histogram, Otsu suggestion (the importer's rule). */
 int cli_source_summary(cli_source *src, cli_summary *sum);
+
+/* MemAvailable from /proc/meminfo in bytes, 0 if unknown. */
+uint64_t cli_memory_available(void);
 
 /* Fills the built-in F1/F2 of the thesis (4x4x4 f32, 0..3).  Returns 1 if `name` is one. */
 int cli_builtin_volume(const char *name, float out[64]);
@@ -158,6 +212,56 @@ typedef struct cli_args {
  * Returns an exit code (the message is printed). */
 int cli_parse_args(int argc, char **argv, int first, const char *command, unsigned allowed,
                    cli_args *a);
+
+/* ---- stream.c ---- */
+
+/* Which memory path `extract` takes (the rule is at the top of stream.c). */
+typedef struct cli_memory_plan {
+    uint64_t limit;       /* --max-memory, else MemAvailable; 0 = unknown (never stream) */
+    int limit_given;      /* --max-memory was given                                      */
+    uint64_t volume;      /* bytes of the samples                                        */
+    uint64_t in_memory;   /* volume + mesh + working set of the in-memory path           */
+    uint64_t streaming;   /* what streaming holds (provisional, see stream.c)            */
+    int stream;           /* in_memory > limit                                           */
+} cli_memory_plan;
+
+void cli_memory_plan_make(const isomend_volume *desc, unsigned flags, uint64_t max_memory,
+                          cli_memory_plan *p);
+
+/* The process's peak resident memory (VmHWM), bytes; 0 if unknown. */
+uint64_t cli_peak_memory(void);
+
+/*
+ * Where a streaming extraction puts the mesh (the sink of docs/streaming.md,
+ * until the core declares its own): vertices with consecutive ids from
+ * `first` (keys may be NULL), triangles of 64-bit ids of vertices already
+ * delivered, and retire(floor): no later triangle uses an id below floor.
+ * A callback returns non-zero to stop, after printing the message.
+ */
+typedef struct cli_sink {
+    void *user;
+    int (*vertices)(void *user, uint64_t first, size_t count, const float *positions,
+                    const float *normals, const uint64_t *keys);
+    int (*triangles)(void *user, size_t count, const uint64_t *ids, const uint8_t *origins);
+    int (*retire)(void *user, uint64_t floor);
+} cli_sink;
+
+/* A sink that writes to `w` (mesh_writer.h). */
+void cli_sink_for_writer(cli_sink *sink, isomend_mesh_writer *w);
+/* Hands a whole mesh to a sink in the streaming order; exit code. */
+int cli_feed_mesh(const isomend_mesh *mesh, const cli_sink *sink);
+
+/* What implements cli_stream_extract() in this build: "placeholder" until
+ * the core's streaming API replaces it (then "core"); --json reports it. */
+#define CLI_STREAM_ENGINE "placeholder"
+
+/*
+ * Extracts the surface of the slices of `s` (from slice 0) and hands the
+ * mesh to `sink`, in the order isomend_extract() numbers it.  Exit code; the
+ * message is printed.  `stats` as isomend_extract()'s.
+ */
+int cli_stream_extract(cli_slices *s, const isomend_options *opts, const cli_sink *sink,
+                       isomend_stats *stats);
 
 /* ---- report.c ---- */
 

@@ -118,6 +118,16 @@ int cli_parse_size(const char *s, uint64_t *out)
     return 1;
 }
 
+const char *cli_bytes_text(uint64_t bytes, char *buf, size_t size)
+{
+    double b = (double)bytes;
+    if (b >= 1024.0 * 1024.0 * 1024.0)
+        snprintf(buf, size, "%.2f GiB", b / (1024.0 * 1024.0 * 1024.0));
+    else
+        snprintf(buf, size, "%.1f MiB", b / (1024.0 * 1024.0));
+    return buf;
+}
+
 double cli_now_ms(void)
 {
     struct timespec ts;

@@ -118,9 +118,8 @@ static const char *const usage_sample =
     "  F2 = 4(y-1)^2 + 2(x-z)^2 - 2(x+z-3)^2 + 1\n"
     "Extract at --iso 0.  The same volumes are available as SOURCE builtin:f1 / builtin:f2.\n";
 
-static void print_source_line(FILE *fp, const cli_source *s)
+static void print_source_line(FILE *fp, const cli_slices *s, const isomend_volume *v)
 {
-    const isomend_volume *v = &s->vol;
     fprintf(fp, "%s: %s (%s), %lld x %lld x %lld %s, spacing %g x %g x %g (%s), origin %g, %g, %g\n",
             s->label, s->kind, s->format, (long long)v->dims[0], (long long)v->dims[1],
             (long long)v->dims[2], isomend_type_name(v->type), v->spacing[0], v->spacing[1],
@@ -134,19 +133,55 @@ static void print_source_line(FILE *fp, const cli_source *s)
 
 /*
  * The start shared by `extract` and `info`: prepares the --json output, sets
- * up the progress bar (stderr a terminal and not --quiet) and opens SOURCE.
- * On failure nothing is left open and the exit code is returned.
+ * up the progress bar (stderr a terminal and not --quiet) and opens SOURCE
+ * (no sample read yet).  On failure nothing is left open and the exit code
+ * is returned.
  */
-static int open_source_for(cli_args *a, int quiet, cli_json_out *jo, cli_progress *bar, cli_source *src)
+static int open_source_for(cli_args *a, int quiet, cli_json_out *jo, cli_progress *bar,
+                           cli_slices *s)
 {
     int rc = cli_json_prepare(jo, a->json);
     if (rc) return rc;
     cli_progress_init(bar, !quiet && isatty(STDERR_FILENO));
     cli_active_progress = bar;
     a->src.progress = bar;
-    rc = cli_source_open(a->positional, a->npositional, &a->src, src);
+    rc = cli_slices_open(a->positional, a->npositional, &a->src, s);
     if (rc) cli_json_abort(jo);
     return rc;
+}
+
+/* Refuses a plan whose streaming path does not fit the limit either. */
+static int plan_fits(const cli_memory_plan *p, const cli_slices *s)
+{
+    if (!p->stream || p->streaming <= p->limit) return CLI_EXIT_OK;
+    char need[32], limit[32];
+    cli_error("%s: streaming slices of %lld x %lld needs about %s, more than %s of %s", s->label,
+              (long long)s->desc.dims[0], (long long)s->desc.dims[1],
+              cli_bytes_text(p->streaming, need, sizeof need),
+              p->limit_given ? "--max-memory" : "the memory available (MemAvailable)",
+              cli_bytes_text(p->limit, limit, sizeof limit));
+    return p->limit_given ? CLI_EXIT_USAGE : CLI_EXIT_FAIL;
+}
+
+static void print_plan(FILE *fp, const cli_memory_plan *p)
+{
+    char need[32], limit[32];
+    if (p->stream)
+        fprintf(fp, "streamed: the in-memory path would need about %s, more than %s of %s "
+                    "(extraction: %s)\n",
+                cli_bytes_text(p->in_memory, need, sizeof need),
+                p->limit_given ? "--max-memory" : "the memory available",
+                cli_bytes_text(p->limit, limit, sizeof limit), CLI_STREAM_ENGINE);
+}
+
+static void json_plan(FILE *jf, const cli_memory_plan *p)
+{
+    fprintf(jf, ", \"streamed\": %s, \"stream_engine\": %s, \"memory_limit\": %" PRIu64
+                ", \"memory_limit_from\": \"%s\", \"memory_estimate\": %" PRIu64
+                ", \"memory_streaming\": %" PRIu64 ", \"peak_memory\": %" PRIu64,
+            p->stream ? "true" : "false", p->stream ? "\"" CLI_STREAM_ENGINE "\"" : "null",
+            p->limit, p->limit_given ? "option" : "MemAvailable", p->in_memory, p->streaming,
+            cli_peak_memory());
 }
 
 static int cmd_extract(int argc, char **argv)
@@ -155,7 +190,7 @@ static int cmd_extract(int argc, char **argv)
     unsigned allowed = OPT_OUTPUT | OPT_ISO | OPT_METHOD | OPT_RAW | OPT_SPACING | OPT_ORIGIN |
                        OPT_PAD | OPT_NO_NORMALS | OPT_FLIP | OPT_STATS | OPT_JSON | OPT_QUIET |
                        OPT_THREADS | OPT_FIRST | OPT_COUNT | OPT_STEP | OPT_CHANNEL | OPT_HELP |
-                       OPT_PAGES;
+                       OPT_PAGES | OPT_MAX_MEMORY;
     int rc = cli_parse_args(argc, argv, 2, "extract", allowed, &a);
     if (rc) return rc;
     if (a.seen & OPT_HELP) {
@@ -193,31 +228,12 @@ static int cmd_extract(int argc, char **argv)
     isomend_atomic_abort(&probe);
     cli_json_out jo;
     cli_progress bar;
-    cli_source src;
-    rc = open_source_for(&a, quiet, &jo, &bar, &src);
+    cli_slices sl;
+    rc = open_source_for(&a, quiet, &jo, &bar, &sl);
     if (rc) return rc;
-    int iso_suggested = 0;
-    if (!(a.seen & OPT_ISO)) {
-        cli_summary sum;
-        rc = cli_source_summary(&src, &sum);
-        if (rc) goto fail_source;
-        if (!sum.has_suggestion) {
-            cli_error("--iso is required: %s has no suggested level (all finite samples equal %g)",
-                      src.label, sum.min);
-            rc = CLI_EXIT_USAGE;
-            goto fail_source;
-        }
-        a.iso = sum.suggested_iso;
-        iso_suggested = 1;
-        if (!quiet)
-            fprintf(stderr, "isomend: no --iso given: using %.9g, the suggested level of %s "
-                            "(Otsu, see 'isomend info')\n",
-                    a.iso, src.label);
-    }
 
     isomend_options opts;
     isomend_options_init(&opts);
-    opts.iso = a.iso;
     opts.method = a.method;
     opts.threads = a.src.threads;
     if (a.seen & OPT_PAD) opts.flags |= ISOMEND_FLAG_PAD;
@@ -227,65 +243,153 @@ static int cmd_extract(int argc, char **argv)
     if (small_pages) opts.flags |= ISOMEND_FLAG_SMALL_PAGES;
     opts.progress = cli_progress_extract_cb; /* the bar, and how Ctrl-C cancels */
     opts.progress_user = &bar;
+    cli_memory_plan plan;
+    cli_memory_plan_make(&sl.desc, opts.flags, a.max_memory, &plan);
+    rc = plan_fits(&plan, &sl);
+    if (rc) {
+        cli_json_abort(&jo);
+        cli_slices_close(&sl);
+        return rc;
+    }
+
+    /* in memory: the volume is loaded, the mesh checked, then written at once;
+     * streamed: the slices go through the extraction and the mesh straight to
+     * the writer, and the continuity check is left to `isomend check` */
+    cli_source src;
+    memset(&src, 0, sizeof src);
+    cli_slices info = sl; /* what the report prints (the labels stay valid) */
+    info.io = NULL;
+    info.reader = NULL;
+    if (!plan.stream) {
+        rc = cli_source_load(&sl, &src); /* closes sl */
+        if (rc) {
+            cli_json_abort(&jo);
+            return rc;
+        }
+    }
+    const isomend_volume *vol = plan.stream ? &sl.desc : &src.vol;
+    int iso_suggested = 0;
+    a.iso = (a.seen & OPT_ISO) ? a.iso : 0;
+    if (!(a.seen & OPT_ISO)) {
+        cli_summary sum;
+        rc = plan.stream ? cli_slices_summary(&sl, &sum) : cli_source_summary(&src, &sum);
+        if (rc) goto fail_source;
+        if (!sum.has_suggestion) {
+            cli_error("--iso is required: %s has no suggested level (all finite samples equal %g)",
+                      info.label, sum.min);
+            rc = CLI_EXIT_USAGE;
+            goto fail_source;
+        }
+        a.iso = sum.suggested_iso;
+        iso_suggested = 1;
+        if (!quiet)
+            fprintf(stderr, "isomend: no --iso given: using %.9g, the suggested level of %s "
+                            "(Otsu, see 'isomend info')\n",
+                    a.iso, info.label);
+    }
+    opts.iso = a.iso;
+
     isomend_mesh *mesh = NULL;
     isomend_stats stats;
-    double t0 = cli_now_ms();
-    isomend_status st = isomend_extract(&src.vol, &opts, &mesh, &stats);
-    cli_progress_clear(&bar);
-    cli_timings tm = {src.read_ms, cli_now_ms() - t0, 0};
-    if (st == ISOMEND_ERR_CANCELLED) {
-        cli_error("%s: interrupted", src.label);
-        rc = CLI_EXIT_INTERRUPTED;
-        goto fail_source;
-    }
-    if (st != ISOMEND_OK) {
-        cli_error("%s: extraction failed: %s", src.label, isomend_status_string(st));
-        rc = CLI_EXIT_FAIL;
-        goto fail_source;
-    }
     isomend_check_report check;
-    if (cli_interrupted) { /* after the last progress call: still nothing written */
-        cli_error("%s: interrupted", src.label);
-        rc = CLI_EXIT_INTERRUPTED;
-        goto fail_mesh;
+    cli_timings tm = {0, 0, 0};
+    if (plan.stream) {
+        isomend_mesh_writer *w;
+        if (isomend_mesh_writer_begin(a.output, fmt, !(opts.flags & ISOMEND_FLAG_NO_NORMALS), 0,
+                                      &w, msg, sizeof msg) != ISOMEND_FILEIO_OK) {
+            cli_error("%s", msg);
+            rc = CLI_EXIT_FAIL;
+            goto fail_source;
+        }
+        cli_sink sink;
+        cli_sink_for_writer(&sink, w);
+        double t0 = cli_now_ms();
+        rc = cli_stream_extract(&sl, &opts, &sink, &stats);
+        cli_progress_clear(&bar);
+        /* the extraction's time includes the writes made meanwhile */
+        tm.read_ms = sl.read_ms;
+        tm.extract_ms = cli_now_ms() - t0 - sl.read_ms;
+        if (!rc && cli_interrupted) { /* nothing is visible until the commit */
+            cli_error("%s: interrupted", info.label);
+            rc = CLI_EXIT_INTERRUPTED;
+        }
+        if (rc) {
+            isomend_mesh_writer_abort(w);
+            goto fail_source;
+        }
+        t0 = cli_now_ms();
+        if (isomend_mesh_writer_commit(w, msg, sizeof msg) != ISOMEND_FILEIO_OK) {
+            cli_error("%s", msg);
+            rc = CLI_EXIT_FAIL;
+            goto fail_source;
+        }
+        tm.write_ms = cli_now_ms() - t0;
+    } else {
+        tm.read_ms = src.read_ms;
+        double t0 = cli_now_ms();
+        isomend_status st = isomend_extract(&src.vol, &opts, &mesh, &stats);
+        cli_progress_clear(&bar);
+        tm.extract_ms = cli_now_ms() - t0;
+        if (st == ISOMEND_ERR_CANCELLED) {
+            cli_error("%s: interrupted", src.label);
+            rc = CLI_EXIT_INTERRUPTED;
+            goto fail_source;
+        }
+        if (st != ISOMEND_OK) {
+            cli_error("%s: extraction failed: %s", src.label, isomend_status_string(st));
+            rc = CLI_EXIT_FAIL;
+            goto fail_source;
+        }
+        if (cli_interrupted) { /* after the last progress call: still nothing written */
+            cli_error("%s: interrupted", src.label);
+            rc = CLI_EXIT_INTERRUPTED;
+            goto fail_mesh;
+        }
+        st = isomend_mesh_check(mesh, &check);
+        if (st != ISOMEND_OK) {
+            cli_error("%s: continuity check failed: %s", a.output, isomend_status_string(st));
+            rc = CLI_EXIT_FAIL;
+            goto fail_mesh;
+        }
+        t0 = cli_now_ms();
+        if (isomend_write_mesh(a.output, fmt, isomend_mesh_positions(mesh),
+                               isomend_mesh_normals(mesh), isomend_mesh_vertex_count(mesh),
+                               isomend_mesh_triangles(mesh), isomend_mesh_triangle_count(mesh),
+                               msg, sizeof msg) != ISOMEND_FILEIO_OK) {
+            cli_error("%s", msg);
+            rc = CLI_EXIT_FAIL;
+            goto fail_mesh;
+        }
+        tm.write_ms = cli_now_ms() - t0;
     }
-    st = isomend_mesh_check(mesh, &check);
-    if (st != ISOMEND_OK) {
-        cli_error("%s: continuity check failed: %s", a.output, isomend_status_string(st));
-        rc = CLI_EXIT_FAIL;
-        goto fail_mesh;
-    }
-    t0 = cli_now_ms();
-    if (isomend_write_mesh(a.output, fmt, isomend_mesh_positions(mesh), isomend_mesh_normals(mesh),
-                           isomend_mesh_vertex_count(mesh), isomend_mesh_triangles(mesh),
-                           isomend_mesh_triangle_count(mesh), msg, sizeof msg) != ISOMEND_FILEIO_OK) {
-        cli_error("%s", msg);
-        rc = CLI_EXIT_FAIL;
-        goto fail_mesh;
-    }
-    tm.write_ms = cli_now_ms() - t0;
 
     if (!quiet) {
-        print_source_line(text, &src);
+        print_source_line(text, &info, vol);
         fprintf(text, "%s at iso %.9g%s%s%s%s%s\n", isomend_method_name(a.method), a.iso,
                 iso_suggested ? " (suggested)" : "", (a.seen & OPT_PAD) ? ", padded" : "",
                 (a.seen & OPT_FLIP) ? ", flipped" : "", (a.seen & OPT_NO_NORMALS) ? ", no normals" : "",
                 small_pages ? ", small pages" : "");
+        print_plan(text, &plan);
     }
     if (a.seen & OPT_STATS) cli_print_table2(text, &stats, a.method);
     if (!quiet) {
-        cli_print_check(text, a.output, &check);
+        if (mesh)
+            cli_print_check(text, a.output, &check);
+        else
+            fprintf(text, "%s: %" PRIu64 " vertices, %" PRIu64 " triangles; the continuity check "
+                          "is not run on a streamed mesh (run 'isomend check %s')\n",
+                    a.output, stats.vertices, stats.triangles, a.output);
         fprintf(text, "time: read %.1f ms, extract %.1f ms, write %.1f ms\n", tm.read_ms,
                 tm.extract_ms, tm.write_ms);
     }
 
     FILE *jf = cli_json_stream(&jo);
     if (jf) {
-        const isomend_volume *v = &src.vol;
+        const isomend_volume *v = vol;
         fprintf(jf, "{\"command\": \"extract\", \"version\": \"%s\", \"source\": ", isomend_version());
-        cli_json_string(jf, src.label);
+        cli_json_string(jf, info.label);
         fprintf(jf, ", \"source_kind\": ");
-        cli_json_string(jf, src.kind);
+        cli_json_string(jf, info.kind);
         fprintf(jf, ", \"output\": ");
         cli_json_string(jf, a.output);
         fprintf(jf, ", \"dims\": ");
@@ -299,6 +403,7 @@ static int cmd_extract(int argc, char **argv)
         fprintf(jf, ", \"pad\": %s, \"flip\": %s, \"normals\": %s, \"pages\": \"%s\"",
                 (a.seen & OPT_PAD) ? "true" : "false", (a.seen & OPT_FLIP) ? "true" : "false",
                 (a.seen & OPT_NO_NORMALS) ? "false" : "true", small_pages ? "small" : "huge");
+        json_plan(jf, &plan);
         fprintf(jf, ", \"vertices\": %" PRIu64 ", \"triangles\": %" PRIu64, stats.vertices,
                 stats.triangles);
         fprintf(jf, ", \"triangles_by_origin\": {\"table\": %" PRIu64 ", \"durst\": %" PRIu64
@@ -312,7 +417,10 @@ static int cmd_extract(int argc, char **argv)
         fprintf(jf, "], \"ambiguous_faces\": %" PRIu64 ", \"inverted_combinations\": %" PRIu64
                     ", \"nan_samples\": %" PRIu64 ", \"check\": ",
                 stats.ambiguous_faces, stats.inverted_combinations, stats.nan_samples);
-        cli_json_check(jf, &check);
+        if (mesh)
+            cli_json_check(jf, &check);
+        else
+            fprintf(jf, "null");
         fprintf(jf, ", \"timings_ms\": {\"read\": %.3f, \"extract\": %.3f, \"write\": %.3f}}\n",
                 tm.read_ms, tm.extract_ms, tm.write_ms);
         rc = cli_json_finish(&jo);
@@ -324,6 +432,7 @@ static int cmd_extract(int argc, char **argv)
     }
     isomend_mesh_destroy(mesh);
     cli_source_close(&src);
+    cli_slices_close(&sl);
     return CLI_EXIT_OK;
 
 fail_mesh:
@@ -331,6 +440,7 @@ fail_mesh:
 fail_source:
     cli_json_abort(&jo);
     cli_source_close(&src);
+    cli_slices_close(&sl);
     return rc;
 }
 
@@ -419,7 +529,7 @@ static int cmd_info(int argc, char **argv)
 {
     cli_args a;
     unsigned allowed = OPT_RAW | OPT_SPACING | OPT_ORIGIN | OPT_JSON | OPT_QUIET | OPT_FIRST |
-                       OPT_COUNT | OPT_STEP | OPT_CHANNEL | OPT_HELP;
+                       OPT_COUNT | OPT_STEP | OPT_CHANNEL | OPT_HELP | OPT_MAX_MEMORY;
     int rc = cli_parse_args(argc, argv, 2, "info", allowed, &a);
     if (rc) return rc;
     if (a.seen & OPT_HELP) {
@@ -433,17 +543,37 @@ static int cmd_info(int argc, char **argv)
     int quiet = (a.seen & OPT_QUIET) != 0;
     cli_json_out jo;
     cli_progress bar;
-    cli_source src;
-    rc = open_source_for(&a, quiet, &jo, &bar, &src);
+    cli_slices sl;
+    rc = open_source_for(&a, quiet, &jo, &bar, &sl);
     if (rc) return rc;
+    /* a volume larger than the limit is analysed slice by slice (read twice) */
+    uint64_t limit = a.max_memory ? a.max_memory : cli_memory_available();
+    int streamed = limit && sl.slice_bytes * (uint64_t)sl.desc.dims[2] > limit;
+    cli_source src;
+    memset(&src, 0, sizeof src);
+    cli_slices shown = sl;
+    shown.io = NULL;
+    shown.reader = NULL;
     cli_summary sum;
-    rc = cli_source_summary(&src, &sum);
+    if (streamed) {
+        rc = cli_slices_summary(&sl, &sum);
+        src.vol = sl.desc;
+        src.read_ms = sl.read_ms;
+    } else {
+        rc = cli_source_load(&sl, &src);
+        if (!rc) rc = cli_source_summary(&src, &sum);
+    }
     cli_progress_clear(&bar);
+    cli_slices_close(&sl);
     if (rc) {
         cli_json_abort(&jo);
         cli_source_close(&src);
         return rc;
     }
+    snprintf(src.label, sizeof src.label, "%s", shown.label);
+    snprintf(src.kind, sizeof src.kind, "%s", shown.kind);
+    snprintf(src.format, sizeof src.format, "%s", shown.format);
+    for (int x = 0; x < 3; x++) src.spacing_from[x] = shown.spacing_from[x];
     const isomend_volume *v = &src.vol;
     FILE *text = jo.to_stdout ? stderr : stdout;
     if (!quiet) {
@@ -472,7 +602,8 @@ static int cmd_info(int argc, char **argv)
             fprintf(text, "  suggested iso: %.9g (Otsu threshold)\n", sum.suggested_iso);
         else
             fprintf(text, "  suggested iso: none (all finite samples are equal: no surface)\n");
-        fprintf(text, "  read time:   %.1f ms\n", src.read_ms);
+        fprintf(text, "  read time:   %.1f ms%s\n", src.read_ms,
+                streamed ? " (read slice by slice, twice: larger than the memory limit)" : "");
     }
     FILE *jf = cli_json_stream(&jo);
     if (jf) {
@@ -498,6 +629,8 @@ static int cmd_info(int argc, char **argv)
             fprintf(jf, "%.17g", sum.suggested_iso);
         else
             fprintf(jf, "null");
+        fprintf(jf, ", \"streamed\": %s, \"peak_memory\": %" PRIu64, streamed ? "true" : "false",
+                cli_peak_memory());
         fprintf(jf, ", \"timings_ms\": {\"read\": %.3f}}\n", src.read_ms);
     }
     cli_source_close(&src);

@@ -88,7 +88,10 @@ with tempfile.TemporaryDirectory() as tmp:
         if name in INFO_ERRORS:  # `info` shares the code path: a sample of each kind of error
             r = run(["info"] + srcs + opts)
             check(r.returncode == 1, "%s: info exit %d (want 1)" % (name, r.returncode))
-            check(sub in r.stderr, "%s: info message lacks %r: %s" % (name, sub, r.stderr))
+            # a volume larger than memory is analysed slice by slice by `info` (it holds no
+            # mesh), so the stack whose pages have no data fails on its first missing page
+            isub = "huge.tif (page " if name == "too_large" else sub
+            check(isub in r.stderr, "%s: info message lacks %r: %s" % (name, isub, r.stderr))
         print("err  %-18s exit 1: %s" % (name, r.stderr.strip().splitlines()[-1] if r.stderr else ""))
 
     # two at a time: each run loads OpenImageIO (~0.3 s), the machine has 2 cores
