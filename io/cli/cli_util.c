@@ -37,6 +37,9 @@ void cli_install_signal_handlers(void)
     sa.sa_flags = SA_RESTART;
     sigaction(SIGINT, &sa, NULL);
     sigaction(SIGTERM, &sa, NULL);
+    /* a file size limit (ulimit -f) is then a write error with a message and
+     * no output, not a kill that leaves the temporary file behind */
+    signal(SIGXFSZ, SIG_IGN);
 }
 
 void cli_error(const char *fmt, ...)
@@ -106,8 +109,8 @@ int cli_parse_size(const char *s, uint64_t *out)
         if (!u) return 0;
         scale = ldexp(1.0, 10 * (int)(u - units + 1));
         end++;
-        if (*end == 'i' && end[1] == 'B') end += 2; /* 4GiB */
-        else if (*end == 'B') end++;                /* 4GB means the same, binary */
+        if (*end == 'i' && (end[1] == 'B' || end[1] == 'b')) end += 2; /* 4GiB */
+        else if (*end == 'B' || *end == 'b') end++; /* 4GB means the same, binary */
     } else if (v != floor(v)) {
         return 0; /* a fraction of a byte */
     }

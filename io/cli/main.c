@@ -82,6 +82,9 @@ static const char *const usage_extract =
     "                           the triangles come from (table / mending / Durst)\n"
     "  --json FILE|-            write statistics, check and timings as one JSON object\n"
     "  --quiet                  no progress bar, no summary (errors and --stats still print)\n"
+    "  --max-memory SIZE        stream (slices in, mesh out as it is made) when the\n"
+    "                           in-memory path would need more than SIZE (512M, 4G,\n"
+    "                           1.5G, bytes); default: the memory available\n"
 #ifdef ISOMEND_HAVE_IO
     "  --first N --count N --step N   printf-pattern slice range\n"
     "  --channel N|luma         channel of multi-channel images\n"
@@ -102,13 +105,15 @@ static const char *const usage_check =
 
 static const char *const usage_info =
     "usage: isomend info SOURCE [--raw NX,NY,NZ:TYPE[:le|be]] [--spacing DX,DY,DZ]\n"
-    "                           [--origin X,Y,Z] [--json FILE|-] [--quiet]\n"
+    "                           [--origin X,Y,Z] [--json FILE|-] [--quiet] [--max-memory SIZE]\n"
 #ifdef ISOMEND_HAVE_IO
     "                           [--first N] [--count N] [--step N] [--channel N|luma]\n"
 #endif
     "\n"
     "Prints the dimensions, sample type, value range, a coarse histogram, the\n"
-    "spacing and where it came from, and the suggested iso level (Otsu).\n";
+    "spacing and where it came from, and the suggested iso level (Otsu).\n"
+    "A volume larger than --max-memory (default: the memory available) is read\n"
+    "slice by slice, twice, instead of loaded.\n";
 
 static const char *const usage_sample =
     "usage: isomend sample f1|f2 -o FILE.nrrd [--gzip]\n"
