@@ -147,12 +147,33 @@ typedef struct cli_slices {
 int cli_slices_open(const char *const *paths, int n, const cli_source_opts *o, cli_slices *s);
 /* Slice s->next into `buffer` (s->slice_bytes); exit code, message printed. */
 int cli_slices_next(cli_slices *s, void *buffer);
-/* The next call delivers slice 0 again. */
+/* The next call delivers slice 0 again / slice k. */
 void cli_slices_rewind(cli_slices *s);
+int cli_slices_seek(cli_slices *s, int64_t k);
 void cli_slices_close(cli_slices *s);
 /* cli_source_summary's numbers, reading the slices (twice) instead of a
  * loaded volume; rewinds at the end. */
 int cli_slices_summary(cli_slices *s, cli_summary *sum);
+
+/*
+ * The summary's two passes over planes, for callers that see the volume in
+ * parts (isomend-mpi: each rank its slab, the sums reduced between passes):
+ * start; pass 0 over every plane; range_done() (0: no histogram needed, the
+ * summary is complete); pass 1 over every plane; finish().
+ */
+#define CLI_OTSU_BINS 256
+typedef struct cli_summary_acc {
+    cli_summary *sum;
+    isomend_type type;
+    double lo, hi;
+    uint64_t finite;
+    uint64_t fine[CLI_OTSU_BINS];
+} cli_summary_acc;
+void cli_summary_start(cli_summary_acc *a, cli_summary *sum, isomend_type type);
+void cli_summary_plane(cli_summary_acc *a, int pass, const char *base, int64_t s0, int64_t s1,
+                       int64_t nx, int64_t ny);
+int cli_summary_range_done(cli_summary_acc *a);
+void cli_summary_finish(cli_summary_acc *a);
 
 typedef struct cli_source {
     isomend_volume vol;

@@ -364,6 +364,31 @@ int cli_slices_next(cli_slices *s, void *buffer)
     return rc;
 }
 
+int cli_slices_seek(cli_slices *s, int64_t k)
+{
+    if (k < 0 || k > s->desc.dims[2]) {
+        cli_error("%s: no slice %lld (internal error)", s->label, (long long)k);
+        return CLI_EXIT_FAIL;
+    }
+    if (s->reader) {
+        char msg[ISOMEND_FILEIO_MSG_SIZE];
+        if (isomend_fileio_slices_seek(s->reader, k, msg, sizeof msg) != ISOMEND_FILEIO_OK) {
+            cli_error("%s", msg);
+            return CLI_EXIT_FAIL;
+        }
+    } else if (s->is_fileio && k > 0) {
+        char msg[ISOMEND_FILEIO_MSG_SIZE];
+        if (isomend_fileio_slices_open(&s->info, &s->reader, msg, sizeof msg) !=
+                ISOMEND_FILEIO_OK ||
+            isomend_fileio_slices_seek(s->reader, k, msg, sizeof msg) != ISOMEND_FILEIO_OK) {
+            cli_error("%s", msg);
+            return CLI_EXIT_FAIL;
+        }
+    }
+    s->next = k;
+    return CLI_EXIT_OK;
+}
+
 void cli_slices_rewind(cli_slices *s)
 {
     isomend_fileio_slices_close(s->reader); /* the next slice opens it again */
@@ -503,17 +528,10 @@ static double load_sample(const char *p, isomend_type t)
  * histograms), so that a loaded volume (any strides) and a source read slice
  * by slice go through the same code and give the same numbers.
  */
-enum { OTSU_BINS = 256 };
-typedef struct summary_acc {
-    cli_summary *sum;
-    isomend_type type;
-    double lo, hi;
-    uint64_t finite;
-    uint64_t fine[OTSU_BINS];
-} summary_acc;
+typedef cli_summary_acc summary_acc; /* short names inside this file */
+#define OTSU_BINS CLI_OTSU_BINS
 
-/* Pass 0: range and counts; pass 1: the histograms. */
-static void summary_plane(summary_acc *a, int pass, const char *base, int64_t s0, int64_t s1,
+void cli_summary_plane(summary_acc *a, int pass, const char *base, int64_t s0, int64_t s1,
                           int64_t nx, int64_t ny)
 {
     cli_summary *sum = a->sum;
@@ -536,7 +554,7 @@ static void summary_plane(summary_acc *a, int pass, const char *base, int64_t s0
         }
 }
 
-static void summary_start(summary_acc *a, cli_summary *sum, isomend_type type)
+void cli_summary_start(summary_acc *a, cli_summary *sum, isomend_type type)
 {
     memset(sum, 0, sizeof *sum);
     memset(a, 0, sizeof *a);
@@ -547,7 +565,7 @@ static void summary_start(summary_acc *a, cli_summary *sum, isomend_type type)
 }
 
 /* After pass 0: 1 if a histogram pass is needed. */
-static int summary_range_done(summary_acc *a)
+int cli_summary_range_done(summary_acc *a)
 {
     if (a->finite == 0) return 0;
     a->sum->min = a->lo;
@@ -556,7 +574,7 @@ static int summary_range_done(summary_acc *a)
     return a->hi > a->lo;
 }
 
-static void summary_finish(summary_acc *a)
+void cli_summary_finish(summary_acc *a)
 {
     /* Otsu, exactly as the importer does it (io/common) */
     a->sum->suggested_iso = isomend_fileio_otsu(a->fine, OTSU_BINS, a->lo, a->hi,
@@ -596,13 +614,13 @@ int cli_source_summary(cli_source *src, cli_summary *sum)
         s2 = s1 * v->dims[1];
     }
     summary_acc a;
-    summary_start(&a, sum, v->type);
+    cli_summary_start(&a, sum, v->type);
     for (int pass = 0; pass < 2; pass++) {
-        if (pass == 1 && !summary_range_done(&a)) return CLI_EXIT_OK;
+        if (pass == 1 && !cli_summary_range_done(&a)) return CLI_EXIT_OK;
         for (int64_t k = 0; k < v->dims[2]; k++)
-            summary_plane(&a, pass, (const char *)v->data + k * s2, s0, s1, v->dims[0], v->dims[1]);
+            cli_summary_plane(&a, pass, (const char *)v->data + k * s2, s0, s1, v->dims[0], v->dims[1]);
     }
-    summary_finish(&a);
+    cli_summary_finish(&a);
     return CLI_EXIT_OK;
 }
 
@@ -625,10 +643,10 @@ int cli_slices_summary(cli_slices *s, cli_summary *sum)
     const int64_t nx = s->desc.dims[0], ny = s->desc.dims[1], nz = s->desc.dims[2];
     const int64_t ts = (int64_t)isomend_type_size(s->desc.type);
     summary_acc a;
-    summary_start(&a, sum, s->desc.type);
+    cli_summary_start(&a, sum, s->desc.type);
     int rc = CLI_EXIT_OK;
     for (int pass = 0; pass < 2 && rc == CLI_EXIT_OK; pass++) {
-        if (pass == 1 && !summary_range_done(&a)) break;
+        if (pass == 1 && !cli_summary_range_done(&a)) break;
         cli_slices_rewind(s);
         for (int64_t k = 0; k < nz && rc == CLI_EXIT_OK; k++) {
             if (cli_interrupted) {
@@ -637,10 +655,10 @@ int cli_slices_summary(cli_slices *s, cli_summary *sum)
                 break;
             }
             rc = cli_slices_next(s, slice);
-            if (rc == CLI_EXIT_OK) summary_plane(&a, pass, slice, ts, ts * nx, nx, ny);
+            if (rc == CLI_EXIT_OK) cli_summary_plane(&a, pass, slice, ts, ts * nx, nx, ny);
             cli_progress_update(s->progress, "analyse", (double)(pass * nz + k + 1) / (double)(2 * nz));
         }
-        if (pass == 1 && rc == CLI_EXIT_OK) summary_finish(&a);
+        if (pass == 1 && rc == CLI_EXIT_OK) cli_summary_finish(&a);
     }
     cli_progress_clear(s->progress);
     cli_slices_rewind(s);

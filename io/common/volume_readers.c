@@ -945,6 +945,22 @@ isomend_fileio_status isomend_fileio_slices_next(isomend_fileio_slices *s, void 
     return ISOMEND_FILEIO_OK;
 }
 
+isomend_fileio_status isomend_fileio_slices_seek(isomend_fileio_slices *s, int64_t slice,
+                                                 char *msg, size_t msg_size)
+{
+    if (!s || slice < 0 || slice > s->info.dims[2]) {
+        SET_MSG(msg, msg_size, "isomend_fileio_slices_seek: slice out of range");
+        return ISOMEND_FILEIO_ERR_INVALID_ARGUMENT;
+    }
+    if (s->d.gzip && slice < s->next) { /* gzip only goes forwards: from the start again */
+        decoder_close(&s->d);
+        isomend_fileio_status st = decoder_open(&s->d, &s->info, msg, msg_size);
+        if (st != ISOMEND_FILEIO_OK) return st;
+    }
+    s->next = slice;
+    return ISOMEND_FILEIO_OK;
+}
+
 void isomend_fileio_slices_close(isomend_fileio_slices *s)
 {
     if (!s) return;

@@ -161,6 +161,10 @@ uint64_t isomend_fileio_slices_bytes(const isomend_fileio_slices *s);
 /* The next slice into `buffer` (at least isomend_fileio_slices_bytes() bytes). */
 isomend_fileio_status isomend_fileio_slices_next(isomend_fileio_slices *s, void *buffer,
                                                  size_t buffer_size, char *msg, size_t msg_size);
+/* The next call delivers slice `slice` (0..dims[2]).  Raw data seeks;
+ * gzip data skips forwards by inflating (backwards: from the start again). */
+isomend_fileio_status isomend_fileio_slices_seek(isomend_fileio_slices *s, int64_t slice,
+                                                 char *msg, size_t msg_size);
 /* Accepts NULL. */
 void isomend_fileio_slices_close(isomend_fileio_slices *s);
 

@@ -415,6 +415,18 @@ static void test_slice_reader(void)
                 } else {
                     CHECK_EQ_INT(st, ISOMEND_FILEIO_OK);
                     CHECK(whole && sl && same_as_described(&info, whole, sl));
+                    /* seeking forwards and back (gzip: from the start again) */
+                    isomend_fileio_slices *r;
+                    CHECK_EQ_INT(isomend_fileio_slices_open(&info, &r, msg, sizeof msg), ISOMEND_FILEIO_OK);
+                    size_t sb = (size_t)isomend_fileio_slices_bytes(r);
+                    unsigned char one[5 * 4 * 8];
+                    static const int order[4] = {4, 1, 5, 0};
+                    for (int q = 0; q < 4 && sl; q++) {
+                        CHECK_EQ_INT(isomend_fileio_slices_seek(r, order[q], msg, sizeof msg), ISOMEND_FILEIO_OK);
+                        CHECK_EQ_INT(isomend_fileio_slices_next(r, one, sizeof one, msg, sizeof msg), ISOMEND_FILEIO_OK);
+                        CHECK(memcmp(one, (unsigned char *)sl + sb * (size_t)order[q], sb) == 0);
+                    }
+                    isomend_fileio_slices_close(r);
                 }
                 free(whole);
                 free(sl);
