@@ -31,6 +31,13 @@
 
 /* ---- cli_util.c ---- */
 
+/* The program name messages start with ("isomend", "isomend-mpi"). */
+extern const char *cli_program;
+
+/* From now on cli_error() keeps its first message in buf[0..size) instead of
+ * printing (isomend-mpi prints one rank's message); NULL prints again. */
+void cli_error_capture(char *buf, size_t size);
+
 /* Prints "isomend: <message>\n" to stderr (after clearing a progress bar). */
 void cli_error(const char *fmt, ...)
 #if defined(__GNUC__)
@@ -195,6 +202,9 @@ int cli_source_load(cli_slices *s, cli_source *src);
 void cli_source_close(cli_source *src);
 /* Value range, 16-bin histogram, Otsu suggestion (the importer's rule). */
 int cli_source_summary(cli_source *src, cli_summary *sum);
+
+/* One sample of type t (machine byte order) as a double. */
+double cli_sample_value(const void *sample, isomend_type t);
 
 /* MemAvailable from /proc/meminfo in bytes, 0 if unknown. */
 uint64_t cli_memory_available(void);

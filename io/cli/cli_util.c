@@ -42,12 +42,28 @@ void cli_install_signal_handlers(void)
     signal(SIGXFSZ, SIG_IGN);
 }
 
+const char *cli_program = "isomend";
+static char *capture;
+static size_t capture_size;
+
+void cli_error_capture(char *buf, size_t size)
+{
+    capture = buf;
+    capture_size = size;
+    if (buf && size) buf[0] = '\0';
+}
+
 void cli_error(const char *fmt, ...)
 {
-    if (cli_active_progress) cli_progress_clear(cli_active_progress);
     va_list ap;
     va_start(ap, fmt);
-    fputs("isomend: ", stderr);
+    if (capture) { /* the first message is the one that matters */
+        if (!capture[0]) vsnprintf(capture, capture_size, fmt, ap);
+        va_end(ap);
+        return;
+    }
+    if (cli_active_progress) cli_progress_clear(cli_active_progress);
+    fprintf(stderr, "%s: ", cli_program);
     vfprintf(stderr, fmt, ap);
     fputc('\n', stderr);
     va_end(ap);

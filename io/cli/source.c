@@ -509,8 +509,9 @@ static int is_integer_type(isomend_type t)
            t == ISOMEND_I32;
 }
 
-static double load_sample(const char *p, isomend_type t)
+double cli_sample_value(const void *sample, isomend_type t)
 {
+    const char *p = sample;
     switch (t) {
     case ISOMEND_U8: { uint8_t x; memcpy(&x, p, 1); return x; }
     case ISOMEND_I8: { int8_t x; memcpy(&x, p, 1); return x; }
@@ -537,7 +538,7 @@ void cli_summary_plane(summary_acc *a, int pass, const char *base, int64_t s0, i
     cli_summary *sum = a->sum;
     for (int64_t j = 0; j < ny; j++)
         for (int64_t i = 0; i < nx; i++) {
-            double x = load_sample(base + i * s0 + j * s1, a->type);
+            double x = cli_sample_value(base + i * s0 + j * s1, a->type);
             if (pass == 0) {
                 sum->samples++;
                 if (!isfinite(x)) {
