@@ -28,10 +28,12 @@
 #define _POSIX_C_SOURCE 200809L
 
 #include <errno.h>
+#include <signal.h>
 #include <inttypes.h>
 #include <mpi.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/stat.h>
 #include <unistd.h>
 
 #include "atomic_file.h"
@@ -392,6 +394,17 @@ static int run(int argc, char **argv)
         rc = CLI_EXIT_INTERRUPTED;
     }
     if ((rc = agree(rc)) != 0) goto fail_file;
+    /* a second line of defence against an MPI-IO layer that loses a write */
+    if (rank == 0) {
+        struct stat sb;
+        uint64_t want = header_size + w.size_total;
+        if (stat(tmp, &sb) != 0 || (uint64_t)sb.st_size != want) {
+            cli_error("%s: the written file has %lld bytes, %llu expected (a write was lost)",
+                      a.output, (long long)sb.st_size, (unsigned long long)want);
+            rc = CLI_EXIT_FAIL;
+        }
+    }
+    if ((rc = agree(rc)) != 0) goto fail_file;
     if (rank == 0 && rename(tmp, a.output) != 0) {
         cli_error("%s: cannot rename %s: %s", a.output, tmp, strerror(errno));
         rc = CLI_EXIT_FAIL;
@@ -483,13 +496,23 @@ fail:
 
 int main(int argc, char **argv)
 {
+    cli_install_signal_handlers(); /* before MPI_Init: its handlers come on top */
+#ifdef OMPI_MAJOR_VERSION
+    /* Open MPI 4.1's default MPI-IO layer (OMPIO, fcoll vulcan) prints a failed
+     * write ("fbtl_pwritev failed") and still returns MPI_SUCCESS from
+     * MPI_File_write_at_all: a full disk would give a truncated mesh.  ROMIO
+     * reports it.  A user's own choice (OMPI_MCA_io) is kept. */
+    setenv("OMPI_MCA_io", OMPI_MAJOR_VERSION >= 5 ? "romio341" : "romio321", 0);
+#endif
     MPI_Init(&argc, &argv);
     MPI_Comm_rank(comm, &rank);
     MPI_Comm_size(comm, &ranks);
     cli_program = "isomend-mpi";
-    cli_install_signal_handlers();
     cli_error_capture(message, sizeof message);
     int rc = run(argc, argv);
+    /* nobody exits before rank 0 has printed the message and removed the
+     * temporary file: mpirun stops the other ranks when one exits non-zero */
+    MPI_Barrier(comm);
     MPI_Finalize();
     return rc;
 }

@@ -94,6 +94,7 @@ int mpi_writer_write(mpi_writer *w, MPI_Comm comm, MPI_File fh, const unsigned c
     MPI_Exscan(size, before, 3, MPI_UINT64_T, MPI_SUM, comm);
     if (rank == 0) before[0] = before[1] = before[2] = 0; /* Exscan leaves rank 0's undefined */
     MPI_Allreduce(size, total, 3, MPI_UINT64_T, MPI_SUM, comm);
+    w->size_total = total[0] + total[1] + total[2];
     const uint64_t base[3] = {header_size, header_size + total[0], header_size + total[0] + total[1]};
     /* rounds: every rank takes part in as many as the busiest rank needs */
     uint64_t mine = rank == 0 ? 1 : 0, rounds;
@@ -131,8 +132,8 @@ int mpi_writer_write(mpi_writer *w, MPI_Comm comm, MPI_File fh, const unsigned c
         if (rc != CLI_EXIT_OK) count = 0;
         MPI_Status st;
         int err = MPI_File_write_at_all(fh, at, data, count, MPI_BYTE, &st);
-        int written = 0;
-        if (err == MPI_SUCCESS) MPI_Get_count(&st, MPI_BYTE, &written);
+        int written = count; /* ROMIO leaves the status of an empty write unset */
+        if (err == MPI_SUCCESS && count > 0) MPI_Get_count(&st, MPI_BYTE, &written);
         if (rc == CLI_EXIT_OK && (err != MPI_SUCCESS || written != count)) {
             char why[MPI_MAX_ERROR_STRING] = "short write";
             int len = 0;

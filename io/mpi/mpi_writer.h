@@ -30,6 +30,7 @@ typedef struct mpi_writer {
     const char *final_path;     /* for scratch files and messages           */
     FILE *section[3];           /* this rank's encoded bytes                 */
     uint64_t size[3];
+    uint64_t size_total;        /* every rank's sections (after mpi_writer_write) */
 } mpi_writer;
 
 /*
