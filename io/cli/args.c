@@ -281,3 +281,16 @@ int cli_parse_args(int argc, char **argv, int first, const char *command, unsign
     return CLI_EXIT_OK;
 }
 
+void cli_extract_options(const cli_args *a, cli_progress *bar, isomend_options *opts)
+{
+    isomend_options_init(opts);
+    opts->iso = a->iso;
+    opts->method = a->method;
+    opts->threads = a->src.threads;
+    if (a->seen & OPT_PAD) opts->flags |= ISOMEND_FLAG_PAD;
+    if (a->seen & OPT_NO_NORMALS) opts->flags |= ISOMEND_FLAG_NO_NORMALS;
+    if (a->seen & OPT_FLIP) opts->flags |= ISOMEND_FLAG_FLIP;
+    if (a->pages == CLI_PAGES_SMALL) opts->flags |= ISOMEND_FLAG_SMALL_PAGES;
+    opts->progress = cli_progress_extract_cb; /* the bar, and how Ctrl-C cancels */
+    opts->progress_user = bar;
+}

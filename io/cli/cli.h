@@ -58,6 +58,10 @@ int cli_parse_size(const char *s, uint64_t *out);
 /* "812.0 MiB" or "3.35 GiB" into buf (32 bytes are enough); returns buf. */
 const char *cli_bytes_text(uint64_t bytes, char *buf, size_t size);
 
+/* The "KEY: N kB" value of a /proc file in KiB ("MemAvailable:" of
+ * /proc/meminfo, "VmHWM:" of /proc/self/status); 0 if unknown. */
+uint64_t cli_proc_kib(const char *path, const char *key);
+
 double cli_now_ms(void);
 
 /* Progress bar on stderr; inactive unless enabled (stderr a TTY, not --quiet). */
@@ -244,6 +248,10 @@ typedef struct cli_args {
 int cli_parse_args(int argc, char **argv, int first, const char *command, unsigned allowed,
                    cli_args *a);
 
+/* The extraction options `extract` takes from its arguments (the iso as
+ * a->iso); progress through `bar`, which is also how Ctrl-C cancels. */
+void cli_extract_options(const cli_args *a, cli_progress *bar, isomend_options *opts);
+
 /* ---- stream.c ---- */
 
 /* Which memory path `extract` takes (the rule is at the top of stream.c). */
@@ -319,6 +327,13 @@ int cli_json_finish(cli_json_out *j);
 void cli_json_abort(cli_json_out *j);
 void cli_json_doubles(FILE *fp, const double *v, int n);
 void cli_json_dims(FILE *fp, const int64_t *d);
+
+/* The parts of `extract`'s JSON object that isomend and isomend-mpi share:
+ * from "source" to "normals" (after the opening brace and the program's own
+ * fields), and the statistics from "vertices" to "nan_samples". */
+void cli_json_run(FILE *jf, const char *source, const char *kind, const char *output,
+                  const isomend_volume *v, const isomend_options *opts, int iso_suggested);
+void cli_json_stats(FILE *jf, const isomend_stats *st);
 
 /* 1 when the report shows holes, edges used 3+ times or misoriented edges. */
 int cli_check_has_defects(const isomend_check_report *r);

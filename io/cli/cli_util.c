@@ -147,6 +147,19 @@ const char *cli_bytes_text(uint64_t bytes, char *buf, size_t size)
     return buf;
 }
 
+uint64_t cli_proc_kib(const char *path, const char *key)
+{
+    FILE *fp = fopen(path, "r");
+    if (!fp) return 0;
+    char line[256];
+    size_t n = strlen(key);
+    unsigned long long kib = 0;
+    while (fgets(line, sizeof line, fp))
+        if (strncmp(line, key, n) == 0 && sscanf(line + n, " %llu kB", &kib) == 1) break;
+    fclose(fp);
+    return (uint64_t)kib;
+}
+
 double cli_now_ms(void)
 {
     struct timespec ts;

@@ -238,16 +238,8 @@ static int cmd_extract(int argc, char **argv)
     if (rc) return rc;
 
     isomend_options opts;
-    isomend_options_init(&opts);
-    opts.method = a.method;
-    opts.threads = a.src.threads;
-    if (a.seen & OPT_PAD) opts.flags |= ISOMEND_FLAG_PAD;
-    if (a.seen & OPT_NO_NORMALS) opts.flags |= ISOMEND_FLAG_NO_NORMALS;
-    if (a.seen & OPT_FLIP) opts.flags |= ISOMEND_FLAG_FLIP;
+    cli_extract_options(&a, &bar, &opts);
     const int small_pages = a.pages == CLI_PAGES_SMALL;
-    if (small_pages) opts.flags |= ISOMEND_FLAG_SMALL_PAGES;
-    opts.progress = cli_progress_extract_cb; /* the bar, and how Ctrl-C cancels */
-    opts.progress_user = &bar;
     cli_memory_plan plan;
     cli_memory_plan_make(&sl.desc, opts.flags, a.max_memory, &plan);
     rc = plan_fits(&plan, &sl);
@@ -390,38 +382,12 @@ static int cmd_extract(int argc, char **argv)
 
     FILE *jf = cli_json_stream(&jo);
     if (jf) {
-        const isomend_volume *v = vol;
-        fprintf(jf, "{\"command\": \"extract\", \"version\": \"%s\", \"source\": ", isomend_version());
-        cli_json_string(jf, info.label);
-        fprintf(jf, ", \"source_kind\": ");
-        cli_json_string(jf, info.kind);
-        fprintf(jf, ", \"output\": ");
-        cli_json_string(jf, a.output);
-        fprintf(jf, ", \"dims\": ");
-        cli_json_dims(jf, v->dims);
-        fprintf(jf, ", \"type\": \"%s\", \"spacing\": ", isomend_type_name(v->type));
-        cli_json_doubles(jf, v->spacing, 3);
-        fprintf(jf, ", \"origin\": ");
-        cli_json_doubles(jf, v->origin, 3);
-        fprintf(jf, ", \"method\": \"%s\", \"iso\": %.17g, \"iso_suggested\": %s",
-                isomend_method_name(a.method), a.iso, iso_suggested ? "true" : "false");
-        fprintf(jf, ", \"pad\": %s, \"flip\": %s, \"normals\": %s, \"pages\": \"%s\"",
-                (a.seen & OPT_PAD) ? "true" : "false", (a.seen & OPT_FLIP) ? "true" : "false",
-                (a.seen & OPT_NO_NORMALS) ? "false" : "true", small_pages ? "small" : "huge");
+        fprintf(jf, "{\"command\": \"extract\", \"version\": \"%s\", ", isomend_version());
+        cli_json_run(jf, info.label, info.kind, a.output, vol, &opts, iso_suggested);
+        fprintf(jf, ", \"pages\": \"%s\"", small_pages ? "small" : "huge");
         json_plan(jf, &plan);
-        fprintf(jf, ", \"vertices\": %" PRIu64 ", \"triangles\": %" PRIu64, stats.vertices,
-                stats.triangles);
-        fprintf(jf, ", \"triangles_by_origin\": {\"table\": %" PRIu64 ", \"durst\": %" PRIu64
-                    ", \"mend\": %" PRIu64 "}",
-                stats.triangles_by_origin[ISOMEND_ORIGIN_TABLE],
-                stats.triangles_by_origin[ISOMEND_ORIGIN_DURST],
-                stats.triangles_by_origin[ISOMEND_ORIGIN_MEND]);
-        fprintf(jf, ", \"cubes\": %" PRIu64 ", \"case_histogram\": [", stats.cubes);
-        for (int c = 0; c < 15; c++)
-            fprintf(jf, "%s%" PRIu64, c ? ", " : "", stats.case_histogram[c]);
-        fprintf(jf, "], \"ambiguous_faces\": %" PRIu64 ", \"inverted_combinations\": %" PRIu64
-                    ", \"nan_samples\": %" PRIu64 ", \"check\": ",
-                stats.ambiguous_faces, stats.inverted_combinations, stats.nan_samples);
+        cli_json_stats(jf, &stats);
+        fprintf(jf, ", \"check\": ");
         if (mesh)
             cli_json_check(jf, &check);
         else

@@ -136,3 +136,40 @@ void cli_json_dims(FILE *fp, const int64_t *d)
 {
     fprintf(fp, "[%lld, %lld, %lld]", (long long)d[0], (long long)d[1], (long long)d[2]);
 }
+
+void cli_json_run(FILE *jf, const char *source, const char *kind, const char *output,
+                  const isomend_volume *v, const isomend_options *opts, int iso_suggested)
+{
+    fprintf(jf, "\"source\": ");
+    cli_json_string(jf, source);
+    fprintf(jf, ", \"source_kind\": ");
+    cli_json_string(jf, kind);
+    fprintf(jf, ", \"output\": ");
+    cli_json_string(jf, output);
+    fprintf(jf, ", \"dims\": ");
+    cli_json_dims(jf, v->dims);
+    fprintf(jf, ", \"type\": \"%s\", \"spacing\": ", isomend_type_name(v->type));
+    cli_json_doubles(jf, v->spacing, 3);
+    fprintf(jf, ", \"origin\": ");
+    cli_json_doubles(jf, v->origin, 3);
+    fprintf(jf, ", \"method\": \"%s\", \"iso\": %.17g, \"iso_suggested\": %s",
+            isomend_method_name(opts->method), opts->iso, iso_suggested ? "true" : "false");
+    fprintf(jf, ", \"pad\": %s, \"flip\": %s, \"normals\": %s",
+            (opts->flags & ISOMEND_FLAG_PAD) ? "true" : "false",
+            (opts->flags & ISOMEND_FLAG_FLIP) ? "true" : "false",
+            (opts->flags & ISOMEND_FLAG_NO_NORMALS) ? "false" : "true");
+}
+
+void cli_json_stats(FILE *jf, const isomend_stats *st)
+{
+    fprintf(jf, ", \"vertices\": %" PRIu64 ", \"triangles\": %" PRIu64, st->vertices, st->triangles);
+    fprintf(jf, ", \"triangles_by_origin\": {\"table\": %" PRIu64 ", \"durst\": %" PRIu64
+                ", \"mend\": %" PRIu64 "}",
+            st->triangles_by_origin[ISOMEND_ORIGIN_TABLE], st->triangles_by_origin[ISOMEND_ORIGIN_DURST],
+            st->triangles_by_origin[ISOMEND_ORIGIN_MEND]);
+    fprintf(jf, ", \"cubes\": %" PRIu64 ", \"case_histogram\": [", st->cubes);
+    for (int c = 0; c < 15; c++) fprintf(jf, "%s%" PRIu64, c ? ", " : "", st->case_histogram[c]);
+    fprintf(jf, "], \"ambiguous_faces\": %" PRIu64 ", \"inverted_combinations\": %" PRIu64
+                ", \"nan_samples\": %" PRIu64,
+            st->ambiguous_faces, st->inverted_combinations, st->nan_samples);
+}

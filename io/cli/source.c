@@ -157,14 +157,7 @@ static void apply_overrides(const cli_source_opts *o, isomend_volume *v, const c
 
 uint64_t cli_memory_available(void)
 {
-    FILE *fp = fopen("/proc/meminfo", "r");
-    if (!fp) return 0;
-    char line[256];
-    unsigned long long kib = 0;
-    while (fgets(line, sizeof line, fp))
-        if (sscanf(line, "MemAvailable: %llu kB", &kib) == 1) break;
-    fclose(fp);
-    return (uint64_t)kib * 1024u;
+    return cli_proc_kib("/proc/meminfo", "MemAvailable:") * 1024u;
 }
 
 /* Raw and NRRD: the probe (no sample read). */

@@ -73,14 +73,7 @@ void cli_memory_plan_make(const isomend_volume *desc, unsigned flags, uint64_t m
 
 uint64_t cli_peak_memory(void)
 {
-    FILE *fp = fopen("/proc/self/status", "r");
-    if (!fp) return 0;
-    char line[256];
-    unsigned long long kib = 0;
-    while (fgets(line, sizeof line, fp))
-        if (sscanf(line, "VmHWM: %llu kB", &kib) == 1) break;
-    fclose(fp);
-    return (uint64_t)kib * 1024u;
+    return cli_proc_kib("/proc/self/status", "VmHWM:") * 1024u;
 }
 
 /* ------------------------------------------------------------------ a writer as sink */

@@ -268,15 +268,7 @@ static int run(int argc, char **argv)
     if ((rc = agree(rc)) != 0) goto fail;
 
     isomend_options opts;
-    isomend_options_init(&opts);
-    opts.method = a.method;
-    opts.threads = a.src.threads;
-    if (a.seen & OPT_PAD) opts.flags |= ISOMEND_FLAG_PAD;
-    if (a.seen & OPT_NO_NORMALS) opts.flags |= ISOMEND_FLAG_NO_NORMALS;
-    if (a.seen & OPT_FLIP) opts.flags |= ISOMEND_FLAG_FLIP;
-    if (a.pages == CLI_PAGES_SMALL) opts.flags |= ISOMEND_FLAG_SMALL_PAGES;
-    opts.progress = cli_progress_extract_cb; /* no bar: how Ctrl-C cancels */
-    opts.progress_user = &bar;
+    cli_extract_options(&a, &bar, &opts); /* no bar on screen: how Ctrl-C cancels */
     const int64_t pad = (opts.flags & ISOMEND_FLAG_PAD) ? 1 : 0;
     const int64_t NZ = sl.desc.dims[2] + 2 * pad;
     int64_t first, end;
@@ -442,35 +434,13 @@ static int run(int argc, char **argv)
         FILE *jf = cli_json_stream(&jo);
         if (jf) {
             fprintf(jf, "{\"command\": \"extract\", \"program\": \"isomend-mpi\", \"version\": "
-                        "\"%s\", \"ranks\": %d, \"source\": ", isomend_version(), ranks);
-            cli_json_string(jf, sl.label);
-            fprintf(jf, ", \"source_kind\": ");
-            cli_json_string(jf, sl.kind);
-            fprintf(jf, ", \"output\": ");
-            cli_json_string(jf, a.output);
-            fprintf(jf, ", \"dims\": ");
-            cli_json_dims(jf, v->dims);
-            fprintf(jf, ", \"type\": \"%s\", \"spacing\": ", isomend_type_name(v->type));
-            cli_json_doubles(jf, v->spacing, 3);
-            fprintf(jf, ", \"origin\": ");
-            cli_json_doubles(jf, v->origin, 3);
-            fprintf(jf, ", \"method\": \"%s\", \"iso\": %.17g, \"iso_suggested\": %s",
-                    isomend_method_name(a.method), a.iso, iso_suggested ? "true" : "false");
-            fprintf(jf, ", \"pad\": %s, \"flip\": %s, \"normals\": %s", pad ? "true" : "false",
-                    (a.seen & OPT_FLIP) ? "true" : "false", normals ? "true" : "false");
+                        "\"%s\", \"ranks\": %d, ", isomend_version(), ranks);
+            cli_json_run(jf, sl.label, sl.kind, a.output, v, &opts, iso_suggested);
             fprintf(jf, ", \"slab_engine\": \"placeholder\", \"peak_memory\": %" PRIu64, peak_max);
-            fprintf(jf, ", \"vertices\": %" PRIu64 ", \"triangles\": %" PRIu64, totals[0], totals[1]);
-            fprintf(jf, ", \"triangles_by_origin\": {\"table\": %" PRIu64 ", \"durst\": %" PRIu64
-                        ", \"mend\": %" PRIu64 "}",
-                    stats.triangles_by_origin[ISOMEND_ORIGIN_TABLE],
-                    stats.triangles_by_origin[ISOMEND_ORIGIN_DURST],
-                    stats.triangles_by_origin[ISOMEND_ORIGIN_MEND]);
-            fprintf(jf, ", \"cubes\": %" PRIu64 ", \"case_histogram\": [", stats.cubes);
-            for (int c = 0; c < 15; c++)
-                fprintf(jf, "%s%" PRIu64, c ? ", " : "", stats.case_histogram[c]);
-            fprintf(jf, "], \"ambiguous_faces\": %" PRIu64 ", \"inverted_combinations\": %" PRIu64
-                        ", \"nan_samples\": %" PRIu64 ", \"check\": null",
-                    stats.ambiguous_faces, stats.inverted_combinations, stats.nan_samples);
+            stats.vertices = totals[0];
+            stats.triangles = totals[1];
+            cli_json_stats(jf, &stats);
+            fprintf(jf, ", \"check\": null");
             fprintf(jf, ", \"timings_ms\": {\"read\": %.3f, \"extract\": %.3f, \"write\": %.3f}}\n",
                     tmax[0], tmax[1], write_s * 1e3);
         }
