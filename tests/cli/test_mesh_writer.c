@@ -416,7 +416,11 @@ static void test_stl_memory(void)
     long grew = peak_kib() - before;
     /* without retire the positions alone would be 11.7 MiB; the stdio buffer is 1 MiB */
     printf("STL of 1M vertices with retire: peak grew %ld KiB\n", grew);
+#if defined(__SANITIZE_ADDRESS__)
+    (void)grew; /* ASan keeps freed memory in quarantine: no bound to check */
+#else
     CHECK(before > 0 && grew < 4096);
+#endif
     struct stat st;
     CHECK(stat(path_in("window.stl"), &st) == 0 && st.st_size == 84 + 50 * (off_t)(2 * (PER - 1)) * (SLICES - 1));
     unlink(path_in("window.stl"));

@@ -278,6 +278,9 @@ def test_interrupt(exe, work, args, limit):
         elif p.returncode == 0:
             if left != ["m.ply"]:
                 fail(f"interrupt {delay}", f"finished but left {left}")
+        elif p.returncode == -signal.SIGINT:  # before main() installed its handler
+            if left:
+                fail(f"interrupt {delay}", f"killed at start-up but left {left}")
         else:
             fail(f"interrupt {delay}", f"exit {p.returncode}: {err.strip()}")
         outcomes.add(p.returncode)
