@@ -97,7 +97,7 @@ uint64_t isomend_mesh_max_triangles(isomend_mesh_format format)
 #define PLY_COUNT_DIGITS 20
 #define OBJ_COUNT_DIGITS 40
 
-/* Formats the header; returns its length.  `counted` 0 gives the length only. */
+/* Formats the header into out (NULL: only its length); returns its length. */
 static size_t format_header(isomend_mesh_format format, int normals, uint64_t nv, uint64_t nt,
                             char *out, size_t out_size)
 {
