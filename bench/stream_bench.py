@@ -1,7 +1,7 @@
 #!/usr/bin/python3
 """Streaming against in-memory, and a TIFF folder to a PLY file against VTK (issue 24).
 
-Runs, on one TIFF folder (generated: a smoothed-noise u16 stack, NX x NY x NZ):
+Runs, on one TIFF folder (generated: a CT-like phantom of 40 balls, u16, NX x NY x NZ):
 
   1. isomend extract, in memory and streamed (--max-memory between the two estimates the
      command reports), PLY out: wall time, slices/s and MB/s of input, peak resident memory
@@ -57,18 +57,22 @@ print(fe.GetOutput().GetNumberOfPolys())
 
 
 def make_stack(folder, nx, ny, nz, seed=3):
-    """Smoothed noise, u16, one TIFF per slice (s_0000.tif ...), generated slab by slab."""
+    """A CT-like phantom, u16, one TIFF per slice (s_0000.tif ...): 40 balls of 1000 over
+    a background of 0, plus a little noise (+-60), generated slice by slice."""
     import tifffile
     os.makedirs(folder, exist_ok=True)
     rng = np.random.default_rng(seed)
-    prev = None
+    scale = min(nx, ny, nz)
+    balls = [(rng.uniform(0, nx), rng.uniform(0, ny), rng.uniform(0, nz),
+              rng.uniform(0.04, 0.12) * scale) for _ in range(40)]
+    y, x = np.mgrid[0:ny, 0:nx].astype(np.float32)
     for k in range(nz):
-        a = rng.integers(0, 60000, size=(ny, nx)).astype(np.float32)
-        for ax in (0, 1):
-            a = (a + np.roll(a, 1, ax) + np.roll(a, -1, ax)) / 3
-        if prev is not None:
-            a = (2 * a + prev) / 3
-        prev = a
+        a = np.zeros((ny, nx), np.float32)
+        for bx, by, bz, r in balls:
+            dz = k - bz
+            if abs(dz) < r:
+                a[(x - bx) ** 2 + (y - by) ** 2 < r * r - dz * dz] = 1000
+        a += rng.uniform(-60, 60, size=a.shape).astype(np.float32) + 100
         tifffile.imwrite(os.path.join(folder, "s_%04d.tif" % k), a.astype(np.uint16))
 
 
@@ -110,7 +114,7 @@ def main():
     folder = os.path.join(a.work, "stack")
     make_stack(folder, nx, ny, nz)
     mb = nx * ny * nz * 2 / 1e6
-    iso = 30000.5
+    iso = 600.5
     exe = os.path.abspath(a.isomend)
     base = [exe, "extract", folder, "--iso", str(iso), "-q", "--json", "-"]
     # the limit between the two estimates: in-memory would not fit, streaming does

@@ -17,7 +17,10 @@ Conventions:
     Blender's default scene units, so a 250 mm head is 0.25 m tall).
   - axes: x = image column, y = image row (top row first), z = slice order,
     as isomend_io.h documents: the mesh is the stack as an image viewer shows
-    it, moved and scaled, never mirrored.
+    it, moved and scaled, never mirrored.  A DICOM series is placed in patient
+    coordinates (LPS mm: Blender's +X the patient's left, +Y posterior, +Z the
+    head, so the Front view shows the face), turned by its direction cosines;
+    ``grid_axes`` keeps the series' own axes; ``series`` picks one of several.
   - the object is placed at the volume's origin (sample (0, 0, 0)); its
     vertices are relative to it.
   - normals: ``smooth`` shades the faces smooth; with ``gradient_normals``
@@ -138,8 +141,11 @@ class _Job:
     own thread and poll() it from the main thread (no callback, no Python
     thread)."""
 
-    def __init__(self, paths, iso, method, spacing, channel, pad, normals):
+    def __init__(self, paths, iso, method, spacing, channel, pad, normals, series=None,
+                 grid_axes=False):
         self.paths = paths
+        self.series = series
+        self.grid_axes = grid_axes
         self.iso = iso
         self.method = method
         self.spacing = spacing
@@ -166,10 +172,11 @@ class _Job:
         t0 = time.perf_counter()
         try:
             with isomend.open_source(self.paths, channel=self.channel, spacing=self.spacing,
-                                     progress=self.progress) as src:
+                                     progress=self.progress, series=self.series,
+                                     grid_axes=self.grid_axes) as src:
                 info = {"dims": src.dims, "dtype": np.dtype(src.dtype).name,
                         "spacing": src.spacing, "spacing_sources": src.spacing_sources,
-                        "origin": src.origin, "kind": src.kind}
+                        "origin": src.origin, "kind": src.kind, "dicom": src.dicom}
                 mesh = src.extract(iso=self.iso, method=self.method, pad=self.pad,
                                    normals=self.normals, origins=True, progress=self.progress)
             self.result = (mesh, info)
@@ -183,7 +190,8 @@ class _Job:
         self._t0 = time.perf_counter()
         self._native = isomend.ExtractJob(self.paths, iso=self.iso, method=self.method,
                                           pad=self.pad, normals=self.normals, origins=True,
-                                          channel=self.channel, spacing=self.spacing)
+                                          channel=self.channel, spacing=self.spacing,
+                                          series=self.series, grid_axes=self.grid_axes)
 
     def request_cancel(self):
         self.cancel = True
@@ -222,7 +230,7 @@ class IMPORT_MESH_OT_slice_stack(Operator, ImportHelper):
 
     filename_ext = ""
     filter_glob: StringProperty(
-        default="*.tif;*.tiff;*.png;*.exr;*.jpg;*.jpeg;*.bmp;*.dpx;*.jp2;*.hdr;*.nrrd;*.nhdr",
+        default="*.tif;*.tiff;*.png;*.exr;*.jpg;*.jpeg;*.bmp;*.dpx;*.jp2;*.hdr;*.nrrd;*.nhdr;*.dcm;DICOMDIR",
         options={'HIDDEN'})
     directory: StringProperty(subtype='DIR_PATH', options={'HIDDEN', 'SKIP_SAVE'})
     files: CollectionProperty(type=OperatorFileListElement, options={'HIDDEN', 'SKIP_SAVE'})
@@ -267,6 +275,16 @@ class IMPORT_MESH_OT_slice_stack(Operator, ImportHelper):
                     "(exact surface normals of the volume; costs about 2 s per million triangles). "
                     "Off: Blender's own vertex normals",
         default=True)
+    series: StringProperty(
+        name="DICOM Series",
+        description="For a folder holding several DICOM series: the series' number as the error "
+                    "message lists them (1, 2, ...) or its Series Instance UID. Empty: the only series",
+        default="")
+    grid_axes: BoolProperty(
+        name="DICOM Grid Axes",
+        description="Keep a DICOM series' own axes (columns, rows, slices) instead of placing the "
+                    "mesh in patient coordinates (LPS mm, turned by the series' orientation)",
+        default=False)
     modal_ui: BoolProperty(options={'HIDDEN', 'SKIP_SAVE'}, default=False)
 
     def draw(self, _context):
@@ -281,6 +299,8 @@ class IMPORT_MESH_OT_slice_stack(Operator, ImportHelper):
         layout.prop(self, "unit_scale")
         layout.prop(self, "channel")
         layout.prop(self, "pad")
+        layout.prop(self, "series")
+        layout.prop(self, "grid_axes")
         layout.prop(self, "smooth")
         row = layout.row()
         row.active = self.smooth
@@ -316,7 +336,8 @@ class IMPORT_MESH_OT_slice_stack(Operator, ImportHelper):
             raise ValueError("spacing: all three values must be > 0, or all 0 to read them from "
                              "the files (got %g, %g, %g)" % spacing)
         return _Job(paths, None if self.use_suggested_iso else self.iso, self.method.lower(),
-                    spacing, self.channel, self.pad, self.smooth and self.gradient_normals)
+                    spacing, self.channel, self.pad, self.smooth and self.gradient_normals,
+                    series=self.series.strip() or None, grid_axes=self.grid_axes)
 
     # ---------------------------------------------------------------- running
     def invoke(self, context, event):
@@ -434,6 +455,10 @@ class IMPORT_MESH_OT_slice_stack(Operator, ImportHelper):
         obj["isomend_method"] = mesh.method
         obj["isomend_mending_triangles"] = int(mesh.stats["mending_triangles"])
         obj["isomend_spacing_mm"] = list(info["spacing"])
+        dicom = info.get("dicom")
+        if dicom:
+            obj["isomend_dicom_series_uid"] = dicom["series_uid"]
+            obj["isomend_dicom_axes"] = dicom["axes"]
         sp = info["spacing"]
         msg = ("Imported %s: %d vertices, %d triangles (%d mending), iso %g%s, %s, %dx%dx%d samples, "
                "spacing %g x %g x %g mm (%s)"
@@ -441,6 +466,10 @@ class IMPORT_MESH_OT_slice_stack(Operator, ImportHelper):
                   mesh.iso, " (suggested)" if job.iso is None else "", mesh.method.upper(),
                   info["dims"][0], info["dims"][1], info["dims"][2], sp[0], sp[1], sp[2],
                   ", ".join(info["spacing_sources"])))
+        if dicom:
+            msg += ("; DICOM %s series \"%s\", %s axes%s"
+                    % (dicom["modality"], dicom["description"], dicom["axes"],
+                       " (bone level, HU)" if dicom["hounsfield"] and job.iso is None else ""))
         self.report({'INFO'}, msg)
         if bpy.app.background:
             print("isomend: %s (read + extract %.2f s, Blender mesh %.2f s)"

@@ -28,6 +28,7 @@ static const struct {
     {"--step", OPT_STEP, 1},     {"--channel", OPT_CHANNEL, 1}, {"--gzip", OPT_GZIP, 0},
     {"--help", OPT_HELP, 0},     {"-h", OPT_HELP, 0},         {"--pages", OPT_PAGES, 1},
     {"--max-memory", OPT_MAX_MEMORY, 1},
+    {"--series", OPT_SERIES, 1}, {"--grid-axes", OPT_GRID_AXES, 0},
 };
 
 static int parse_raw(const char *v, cli_source_opts *o)
@@ -158,8 +159,12 @@ int cli_parse_args(int argc, char **argv, int first, const char *command, unsign
             a->output = value;
             break;
         case OPT_ISO:
+            if (strcmp(value, "otsu") == 0 || strcmp(value, "bone") == 0 || strcmp(value, "skin") == 0) {
+                a->iso_name = value;
+                break;
+            }
             if (!cli_parse_double(value, &a->iso)) {
-                cli_error("--iso: '%s' is not a finite number", value);
+                cli_error("--iso: '%s' is not a finite number (nor otsu, bone, skin)", value);
                 return CLI_EXIT_USAGE;
             }
             break;
@@ -237,6 +242,16 @@ int cli_parse_args(int argc, char **argv, int first, const char *command, unsign
             if (!parse_count_option("--step", value, 1, &a->src.step)) return CLI_EXIT_USAGE;
             a->src.have_step = 1;
             break;
+        case OPT_SERIES:
+            if (!*value) {
+                cli_error("--series: empty (a number N from 'isomend info' or a Series Instance UID)");
+                return CLI_EXIT_USAGE;
+            }
+            a->src.series = value;
+            break;
+        case OPT_GRID_AXES:
+            a->src.grid_axes = 1;
+            break;
         case OPT_PAGES:
             if (strcmp(value, "huge") == 0)
                 a->pages = CLI_PAGES_HUGE;
@@ -272,8 +287,8 @@ int cli_parse_args(int argc, char **argv, int first, const char *command, unsign
         }
     }
 #ifndef ISOMEND_HAVE_IO
-    if (a->seen & (OPT_FIRST | OPT_COUNT | OPT_STEP | OPT_CHANNEL)) {
-        cli_error("--first/--count/--step/--channel need the slice-stack importer "
+    if (a->seen & (OPT_FIRST | OPT_COUNT | OPT_STEP | OPT_CHANNEL | OPT_SERIES | OPT_GRID_AXES)) {
+        cli_error("--first/--count/--step/--channel/--series/--grid-axes need the slice-stack importer "
                   "(this isomend was built without it: -DISOMEND_BUILD_IO=ON)");
         return CLI_EXIT_USAGE;
     }

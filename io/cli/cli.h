@@ -111,6 +111,10 @@ typedef struct cli_source_opts {
     int64_t first, count, step;
     int channel; /* >= 0, or -2 for luma */
     int threads;
+    /* DICOM (importer only) */
+    const char *series;     /* --series UID|N, NULL = the only one */
+    int grid_axes;          /* --grid-axes: the series' own frame, no rotation */
+    int list_series;        /* `info`: several series and no choice lists them */
     cli_progress *progress;
 } cli_source_opts;
 
@@ -138,6 +142,11 @@ typedef struct cli_slices {
     char format[32];
     const char *spacing_from[3];
     int oblique;             /* NRRD space directions not axis aligned        */
+    int dicom;               /* a DICOM series (the importer's kind "dicom")   */
+    int series_listed;       /* several series, none chosen: only the list     */
+    int grid_axes;           /* --grid-axes was given                          */
+    int has_world;           /* the mesh maps to the world by `world`          */
+    double world[12];        /* 3x4 row-major (isomend_io_world_transform)     */
     char label[1024];        /* SOURCE as given (first path)                   */
     uint64_t slice_bytes;
     int64_t next;            /* the slice the next call delivers               */
@@ -194,6 +203,11 @@ typedef struct cli_source {
     char format[32];
     const char *spacing_from[3];
     int oblique;             /* NRRD space directions not axis aligned        */
+    int dicom;               /* a DICOM series (the importer's kind "dicom")   */
+    int series_listed;       /* several series, none chosen: only the list     */
+    int grid_axes;           /* --grid-axes was given                          */
+    int has_world;           /* the mesh maps to the world by `world`          */
+    double world[12];        /* 3x4 row-major (isomend_io_world_transform)     */
     double read_ms;
     char label[1024];        /* SOURCE as given (first path)                   */
 } cli_source;
@@ -213,6 +227,22 @@ double cli_sample_value(const void *sample, isomend_type t);
 /* MemAvailable from /proc/meminfo in bytes, 0 if unknown. */
 uint64_t cli_memory_available(void);
 
+/* An opened, not loaded source seen as a cli_source for the functions below
+ * (the importer's handle and the DICOM facts are shared, vol has no data);
+ * never closed. */
+void cli_source_view(const cli_slices *s, cli_source *view);
+
+/* DICOM reporting (source.c; no-ops without the importer). */
+void cli_print_dicom(FILE *fp, cli_source *src, const cli_summary *sum);
+void cli_json_dicom(FILE *fp, cli_source *src, const cli_summary *sum);
+void cli_print_series(FILE *fp, const cli_source *src);
+void cli_json_series(FILE *fp, const cli_source *src);
+/* The level named "otsu", "bone" or "skin" (an importer's source: its rule;
+ * bone/skin only for CT in HU).  Returns an exit code, the message printed. */
+int cli_source_level(cli_source *src, const char *name, double *value);
+/* "bone" for a CT DICOM series in HU, else "otsu": what a missing --iso uses. */
+const char *cli_source_suggested_level(const cli_source *src);
+
 /* Fills the built-in F1/F2 of the thesis (4x4x4 f32, 0..3).  Returns 1 if `name` is one. */
 int cli_builtin_volume(const char *name, float out[64]);
 
@@ -225,7 +255,8 @@ enum {
     OPT_FLIP = 1u << 8, OPT_STATS = 1u << 9, OPT_JSON = 1u << 10, OPT_QUIET = 1u << 11,
     OPT_THREADS = 1u << 12, OPT_BOX = 1u << 13, OPT_FIRST = 1u << 14, OPT_COUNT = 1u << 15,
     OPT_STEP = 1u << 16, OPT_CHANNEL = 1u << 17, OPT_GZIP = 1u << 18, OPT_HELP = 1u << 19,
-    OPT_PAGES = 1u << 20, OPT_MAX_MEMORY = 1u << 21
+    OPT_PAGES = 1u << 20, OPT_MAX_MEMORY = 1u << 21, OPT_SERIES = 1u << 22,
+    OPT_GRID_AXES = 1u << 23
 };
 
 #define CLI_MAX_SOURCES 4096
@@ -236,6 +267,7 @@ typedef struct cli_args {
     const char *positional[CLI_MAX_SOURCES];
     int npositional;
     double iso;
+    const char *iso_name; /* --iso otsu|bone|skin */
     isomend_method method;
     enum { CLI_PAGES_HUGE, CLI_PAGES_SMALL } pages; /* --pages */
     double box[6];
@@ -287,6 +319,22 @@ typedef struct cli_sink {
 
 /* A sink that writes to `w` (mesh_writer.h). */
 void cli_sink_for_writer(cli_sink *sink, isomend_mesh_writer *w);
+/* A sink that maps the mesh by an affine 3x4 map (a DICOM series' patient
+ * transform, as isomend_mesh_copy_transformed() does) before `next`.
+ * cli_world_init returns 0 for a non-finite or singular map. */
+typedef struct cli_world {
+    double m[12], c[3][3], s;
+    int mirror;
+    cli_sink next;
+    float *buf;
+    size_t cap;
+} cli_world;
+int cli_world_init(cli_world *w, const double affine[12], const cli_sink *next);
+void cli_sink_for_world(cli_sink *sink, cli_world *w);
+/* The map applied in place to `count` positions (and normals, may be NULL). */
+void cli_world_map(const cli_world *w, float *pos, float *nrm, size_t count);
+void cli_world_free(cli_world *w); /* accepts NULL */
+
 /* Hands a whole mesh to a sink in the streaming order; exit code. */
 int cli_feed_mesh(const isomend_mesh *mesh, const cli_sink *sink);
 

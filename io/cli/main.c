@@ -60,6 +60,9 @@ static const char *const usage_extract =
 #ifdef ISOMEND_HAVE_IO
     "  FOLDER | 'GLOB' | PATTERN%04d.tif | FILE1 FILE2 ... | MULTIPAGE.tif\n"
     "                           image slice stacks (OpenImageIO)\n"
+    "  DICOM-FOLDER | DICOMDIR | FILE1.dcm FILE2.dcm ... | MULTIFRAME.dcm\n"
+    "                           a DICOM series (GDCM), found by content; the mesh in\n"
+    "                           patient coordinates (LPS, mm)\n"
 #endif
     "\n"
     "MESH: .ply (binary, with normals), .obj (with normals) or .stl (binary)\n"
@@ -67,7 +70,9 @@ static const char *const usage_extract =
     "Options:\n"
     "  -o, --output MESH        output mesh (required)\n"
     "  --iso V                  iso level; default: the source's suggested level\n"
-    "                           (Otsu, see 'isomend info'), announced on stderr\n"
+    "                           (Otsu, see 'isomend info'), announced on stderr;\n"
+    "                           also otsu, or for CT in HU bone (300, the CT default)\n"
+    "                           or skin (-500)\n"
     "  --method NAME            dmc (default), mc, durst (others if built)\n"
     "  --spacing DX,DY,DZ       sample spacing (overrides the file's)\n"
     "  --origin X,Y,Z           world position of sample (0,0,0)\n"
@@ -88,6 +93,9 @@ static const char *const usage_extract =
 #ifdef ISOMEND_HAVE_IO
     "  --first N --count N --step N   printf-pattern slice range\n"
     "  --channel N|luma         channel of multi-channel images\n"
+    "  --series N|UID           DICOM: the series (N as listed by 'isomend info')\n"
+    "  --grid-axes              DICOM: keep the series' own axes (rows, columns,\n"
+    "                           slices) instead of turning the mesh into patient space\n"
 #endif
     "\n"
     "Exit status: 0 written, 1 failure, 2 usage error, 130 interrupted (nothing written).\n";
@@ -108,10 +116,14 @@ static const char *const usage_info =
     "                           [--origin X,Y,Z] [--json FILE|-] [--quiet] [--max-memory SIZE]\n"
 #ifdef ISOMEND_HAVE_IO
     "                           [--first N] [--count N] [--step N] [--channel N|luma]\n"
+    "                           [--series N|UID] [--grid-axes]\n"
 #endif
     "\n"
     "Prints the dimensions, sample type, value range, a coarse histogram, the\n"
     "spacing and where it came from, and the suggested iso level (Otsu).\n"
+    "For DICOM also the series (all of them when a folder holds several and\n"
+    "--series is not given), modality, values, orientation and, for CT in HU,\n"
+    "the bone and skin levels and which one extract uses.\n"
     "A volume larger than --max-memory (default: the memory available) is read\n"
     "slice by slice, twice, instead of loaded.\n";
 
@@ -132,6 +144,11 @@ static void print_source_line(FILE *fp, const cli_slices *s, const isomend_volum
     if (s->oblique)
         fprintf(fp, "  note: the NRRD 'space directions' are not axis aligned; isomend uses their "
                     "lengths as spacing (the mesh is not rotated)\n");
+    if (s->dicom)
+        fprintf(fp, "  axes: %s\n",
+                s->grid_axes ? "the series' own (--grid-axes): x rows, y columns, z slices, not rotated"
+                : s->has_world ? "patient (LPS mm), turned by the series' direction cosines"
+                               : "patient (LPS mm): x to the patient's left, y posterior, z head");
 }
 
 /* ------------------------------------------------------------------ extract */
@@ -195,7 +212,7 @@ static int cmd_extract(int argc, char **argv)
     unsigned allowed = OPT_OUTPUT | OPT_ISO | OPT_METHOD | OPT_RAW | OPT_SPACING | OPT_ORIGIN |
                        OPT_PAD | OPT_NO_NORMALS | OPT_FLIP | OPT_STATS | OPT_JSON | OPT_QUIET |
                        OPT_THREADS | OPT_FIRST | OPT_COUNT | OPT_STEP | OPT_CHANNEL | OPT_HELP |
-                       OPT_PAGES | OPT_MAX_MEMORY;
+                       OPT_PAGES | OPT_MAX_MEMORY | OPT_SERIES | OPT_GRID_AXES;
     int rc = cli_parse_args(argc, argv, 2, "extract", allowed, &a);
     if (rc) return rc;
     if (a.seen & OPT_HELP) {
@@ -265,9 +282,20 @@ static int cmd_extract(int argc, char **argv)
         }
     }
     const isomend_volume *vol = plan.stream ? &sl.desc : &src.vol;
+    cli_source view; /* the streamed source, for the DICOM functions */
+    cli_source_view(&sl, &view);
+    cli_source *meta = plan.stream ? &view : &src;
     int iso_suggested = 0;
     a.iso = (a.seen & OPT_ISO) ? a.iso : 0;
-    if (!(a.seen & OPT_ISO)) {
+    if (a.iso_name && (!plan.stream || meta->io || strcmp(a.iso_name, "otsu") != 0)) {
+        rc = cli_source_level(meta, a.iso_name, &a.iso);
+        if (rc) goto fail_source;
+    } else if (a.iso_name) { /* --iso otsu of a raw/NRRD volume read slice by slice */
+        cli_summary sum;
+        rc = cli_slices_summary(&sl, &sum);
+        if (rc) goto fail_source;
+        a.iso = sum.suggested_iso;
+    } else if (!(a.seen & OPT_ISO)) {
         cli_summary sum;
         rc = plan.stream ? cli_slices_summary(&sl, &sum) : cli_source_summary(&src, &sum);
         if (rc) goto fail_source;
@@ -279,7 +307,11 @@ static int cmd_extract(int argc, char **argv)
         }
         a.iso = sum.suggested_iso;
         iso_suggested = 1;
-        if (!quiet)
+        if (!quiet && strcmp(cli_source_suggested_level(meta), "bone") == 0)
+            fprintf(stderr, "isomend: no --iso given: using %.9g HU, the bone level of the CT series "
+                            "%s (--iso skin or --iso otsu for the others, see 'isomend info')\n",
+                    a.iso, info.label);
+        else if (!quiet)
             fprintf(stderr, "isomend: no --iso given: using %.9g, the suggested level of %s "
                             "(Otsu, see 'isomend info')\n",
                     a.iso, info.label);
@@ -298,10 +330,21 @@ static int cmd_extract(int argc, char **argv)
             rc = CLI_EXIT_FAIL;
             goto fail_source;
         }
-        cli_sink sink;
+        cli_sink sink, world_sink;
         cli_sink_for_writer(&sink, w);
+        cli_world world;
+        if (meta->has_world) { /* a DICOM series in patient space: mapped as it goes */
+            if (!cli_world_init(&world, meta->world, &sink)) {
+                cli_error("%s: the series' patient transform is not invertible", info.label);
+                isomend_mesh_writer_abort(w);
+                rc = CLI_EXIT_FAIL;
+                goto fail_source;
+            }
+            cli_sink_for_world(&world_sink, &world);
+        }
         double t0 = cli_now_ms();
-        rc = cli_stream_extract(&sl, &opts, &sink, &stats);
+        rc = cli_stream_extract(&sl, &opts, meta->has_world ? &world_sink : &sink, &stats);
+        cli_world_free(meta->has_world ? &world : NULL);
         cli_progress_clear(&bar);
         /* the extraction's time includes the writes made meanwhile */
         tm.read_ms = sl.read_ms;
@@ -349,10 +392,36 @@ static int cmd_extract(int argc, char **argv)
             goto fail_mesh;
         }
         t0 = cli_now_ms();
-        if (isomend_write_mesh(a.output, fmt, isomend_mesh_positions(mesh),
-                               isomend_mesh_normals(mesh), isomend_mesh_vertex_count(mesh),
-                               isomend_mesh_triangles(mesh), isomend_mesh_triangle_count(mesh),
-                               msg, sizeof msg) != ISOMEND_FILEIO_OK) {
+        /* A DICOM series in patient space: the mesh, checked on its own grid
+         * above (the map keeps its topology), is written through the map. */
+        const size_t nv = isomend_mesh_vertex_count(mesh), nt = isomend_mesh_triangle_count(mesh);
+        const float *out_pos = isomend_mesh_positions(mesh), *out_nrm = isomend_mesh_normals(mesh);
+        const uint32_t *out_tri = isomend_mesh_triangles(mesh);
+        float *world_pos = NULL, *world_nrm = NULL;
+        uint32_t *world_tri = NULL;
+        if (src.has_world && nt) {
+            world_pos = malloc(sizeof(float) * 3 * nv);
+            world_nrm = out_nrm ? malloc(sizeof(float) * 3 * nv) : NULL;
+            world_tri = malloc(sizeof(uint32_t) * 3 * nt);
+            if (!world_pos || !world_tri || (out_nrm && !world_nrm) ||
+                isomend_mesh_copy_transformed(mesh, src.world, world_pos, world_nrm, world_tri,
+                                              NULL) != ISOMEND_OK) {
+                cli_error("%s: out of memory placing the mesh in patient space", a.output);
+                free(world_pos);
+                free(world_nrm);
+                free(world_tri);
+                rc = CLI_EXIT_FAIL;
+                goto fail_mesh;
+            }
+            out_pos = world_pos;
+            out_nrm = world_nrm;
+            out_tri = world_tri;
+        }
+        int wrc = isomend_write_mesh(a.output, fmt, out_pos, out_nrm, nv, out_tri, nt, msg, sizeof msg);
+        free(world_pos);
+        free(world_nrm);
+        free(world_tri);
+        if (wrc != ISOMEND_FILEIO_OK) {
             cli_error("%s", msg);
             rc = CLI_EXIT_FAIL;
             goto fail_mesh;
@@ -384,6 +453,18 @@ static int cmd_extract(int argc, char **argv)
     if (jf) {
         fprintf(jf, "{\"command\": \"extract\", \"version\": \"%s\", ", isomend_version());
         cli_json_run(jf, info.label, info.kind, a.output, vol, &opts, iso_suggested);
+        fprintf(jf, ", \"world_transform\": ");
+        if (meta->has_world)
+            cli_json_doubles(jf, meta->world, 12);
+        else
+            fprintf(jf, "null");
+        fprintf(jf, ", \"dicom\": ");
+        cli_json_dicom(jf, meta, NULL);
+        fprintf(jf, ", \"iso_level\": ");
+        if (a.iso_name || iso_suggested)
+            cli_json_string(jf, a.iso_name ? a.iso_name : cli_source_suggested_level(meta));
+        else
+            fprintf(jf, "null");
         fprintf(jf, ", \"pages\": \"%s\"", small_pages ? "small" : "huge");
         json_plan(jf, &plan);
         cli_json_stats(jf, &stats);
@@ -500,7 +581,8 @@ static int cmd_info(int argc, char **argv)
 {
     cli_args a;
     unsigned allowed = OPT_RAW | OPT_SPACING | OPT_ORIGIN | OPT_JSON | OPT_QUIET | OPT_FIRST |
-                       OPT_COUNT | OPT_STEP | OPT_CHANNEL | OPT_HELP | OPT_MAX_MEMORY;
+                       OPT_COUNT | OPT_STEP | OPT_CHANNEL | OPT_HELP | OPT_MAX_MEMORY |
+                       OPT_SERIES | OPT_GRID_AXES;
     int rc = cli_parse_args(argc, argv, 2, "info", allowed, &a);
     if (rc) return rc;
     if (a.seen & OPT_HELP) {
@@ -515,36 +597,49 @@ static int cmd_info(int argc, char **argv)
     cli_json_out jo;
     cli_progress bar;
     cli_slices sl;
+    a.src.list_series = 1;
     rc = open_source_for(&a, quiet, &jo, &bar, &sl);
     if (rc) return rc;
+    cli_source src;
+    if (sl.series_listed) {
+        /* several series, none chosen: the list is the answer */
+        cli_source_view(&sl, &src);
+        cli_progress_clear(&bar);
+        FILE *text = jo.to_stdout ? stderr : stdout;
+        if (!quiet) {
+            fprintf(text, "%s: dicom, several series\n", src.label);
+            cli_print_series(text, &src);
+        }
+        FILE *jf = cli_json_stream(&jo);
+        if (jf) {
+            fprintf(jf, "{\"command\": \"info\", \"version\": \"%s\", \"source\": ", isomend_version());
+            cli_json_string(jf, src.label);
+            fprintf(jf, ", \"kind\": \"dicom\", \"series\": ");
+            cli_json_series(jf, &src);
+            fprintf(jf, ", \"series_chosen\": null}\n");
+        }
+        cli_slices_close(&sl);
+        return cli_json_finish(&jo);
+    }
     /* a volume larger than the limit is analysed slice by slice (read twice) */
     uint64_t limit = a.max_memory ? a.max_memory : cli_memory_available();
     int streamed = limit && sl.slice_bytes * (uint64_t)sl.desc.dims[2] > limit;
-    cli_source src;
-    memset(&src, 0, sizeof src);
-    cli_slices shown = sl;
-    shown.io = NULL;
-    shown.reader = NULL;
+    /* streamed, src only views the opened source (closed with sl at the end) */
     cli_summary sum;
     if (streamed) {
         rc = cli_slices_summary(&sl, &sum);
-        src.vol = sl.desc;
-        src.read_ms = sl.read_ms;
+        cli_source_view(&sl, &src);
     } else {
-        rc = cli_source_load(&sl, &src);
+        rc = cli_source_load(&sl, &src); /* closes sl */
         if (!rc) rc = cli_source_summary(&src, &sum);
     }
     cli_progress_clear(&bar);
-    cli_slices_close(&sl);
     if (rc) {
         cli_json_abort(&jo);
-        cli_source_close(&src);
+        if (!streamed) cli_source_close(&src);
+        cli_slices_close(&sl);
         return rc;
     }
-    snprintf(src.label, sizeof src.label, "%s", shown.label);
-    snprintf(src.kind, sizeof src.kind, "%s", shown.kind);
-    snprintf(src.format, sizeof src.format, "%s", shown.format);
-    for (int x = 0; x < 3; x++) src.spacing_from[x] = shown.spacing_from[x];
     const isomend_volume *v = &src.vol;
     FILE *text = jo.to_stdout ? stderr : stdout;
     if (!quiet) {
@@ -569,11 +664,14 @@ static int cmd_info(int argc, char **argv)
                 v->spacing[1], v->spacing[2], src.spacing_from[0], src.spacing_from[1],
                 src.spacing_from[2]);
         fprintf(text, "  origin:      %g, %g, %g\n", v->origin[0], v->origin[1], v->origin[2]);
-        if (sum.has_suggestion)
+        cli_print_dicom(text, &src, &sum);
+        if (sum.has_suggestion && strcmp(cli_source_suggested_level(&src), "bone") == 0)
+            fprintf(text, "  suggested iso: %.9g (the bone level, HU)\n", sum.suggested_iso);
+        else if (sum.has_suggestion)
             fprintf(text, "  suggested iso: %.9g (Otsu threshold)\n", sum.suggested_iso);
         else
             fprintf(text, "  suggested iso: none (all finite samples are equal: no surface)\n");
-        fprintf(text, "  read time:   %.1f ms%s\n", src.read_ms,
+        fprintf(text, "  read time:   %.1f ms%s\n", streamed ? sl.read_ms : src.read_ms,
                 streamed ? " (read slice by slice, twice: larger than the memory limit)" : "");
     }
     FILE *jf = cli_json_stream(&jo);
@@ -602,9 +700,18 @@ static int cmd_info(int argc, char **argv)
             fprintf(jf, "null");
         fprintf(jf, ", \"streamed\": %s, \"peak_memory\": %" PRIu64, streamed ? "true" : "false",
                 cli_peak_memory());
-        fprintf(jf, ", \"timings_ms\": {\"read\": %.3f}}\n", src.read_ms);
+        fprintf(jf, ", \"suggested_level\": \"%s\", \"world_transform\": ",
+                cli_source_suggested_level(&src));
+        if (src.has_world)
+            cli_json_doubles(jf, src.world, 12);
+        else
+            fprintf(jf, "null");
+        fprintf(jf, ", \"dicom\": ");
+        cli_json_dicom(jf, &src, &sum);
+        fprintf(jf, ", \"timings_ms\": {\"read\": %.3f}}\n", streamed ? sl.read_ms : src.read_ms);
     }
-    cli_source_close(&src);
+    if (!streamed) cli_source_close(&src);
+    cli_slices_close(&sl);
     return cli_json_finish(&jo);
 }
 

@@ -32,6 +32,7 @@
 
 #include "cli.h"
 
+#include <math.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -116,6 +117,125 @@ void cli_sink_for_writer(cli_sink *sink, isomend_mesh_writer *w)
     sink->vertices = sink_vertices;
     sink->triangles = sink_triangles;
     sink->retire = sink_retire;
+}
+
+/* ------------------------------------------------------------------ a mapped sink */
+
+/*
+ * The affine map of isomend_mesh_copy_transformed() (libcore/src/transform.c),
+ * batch by batch, with the same expressions in the same order, so that a
+ * streamed DICOM mesh is the in-memory one byte for byte (cli_stream,
+ * io_dicom_cli): positions by M p + t in double, rounded once; normals by
+ * the cofactor matrix over det(M), renormalised; windings reversed when
+ * det(M) < 0.  (A batch form of that function in the core would replace
+ * this copy.)
+ */
+int cli_world_init(cli_world *w, const double affine[12], const cli_sink *next)
+{
+    memset(w, 0, sizeof *w);
+    for (int i = 0; i < 12; i++)
+        if (!isfinite(affine[i])) return 0;
+    memcpy(w->m, affine, sizeof w->m);
+    const double *m0 = w->m, *m1 = w->m + 4, *m2 = w->m + 8;
+    const double c[3][3] = {
+        {m1[1] * m2[2] - m1[2] * m2[1], m1[2] * m2[0] - m1[0] * m2[2], m1[0] * m2[1] - m1[1] * m2[0]},
+        {m2[1] * m0[2] - m2[2] * m0[1], m2[2] * m0[0] - m2[0] * m0[2], m2[0] * m0[1] - m2[1] * m0[0]},
+        {m0[1] * m1[2] - m0[2] * m1[1], m0[2] * m1[0] - m0[0] * m1[2], m0[0] * m1[1] - m0[1] * m1[0]}};
+    const double det = m0[0] * c[0][0] + m0[1] * c[0][1] + m0[2] * c[0][2];
+    if (!(fabs(det) > 0.0) || !isfinite(det)) return 0;
+    memcpy(w->c, c, sizeof w->c);
+    w->s = 1.0 / det;
+    w->mirror = det < 0.0;
+    w->next = *next;
+    return 1;
+}
+
+void cli_world_free(cli_world *w)
+{
+    if (!w) return;
+    free(w->buf);
+    w->buf = NULL;
+    w->cap = 0;
+}
+
+static float *world_room(cli_world *w, size_t floats)
+{
+    if (floats > w->cap) {
+        float *p = realloc(w->buf, floats * sizeof *p);
+        if (!p) return NULL;
+        w->buf = p;
+        w->cap = floats;
+    }
+    return w->buf;
+}
+
+void cli_world_map(const cli_world *w, float *pos, float *nrm, size_t count)
+{
+    const double *m0 = w->m, *m1 = w->m + 4, *m2 = w->m + 8;
+    for (size_t i = 0; i < count; i++) {
+        const double x = pos[3 * i], y = pos[3 * i + 1], z = pos[3 * i + 2];
+        pos[3 * i] = (float)(m0[0] * x + m0[1] * y + m0[2] * z + m0[3]);
+        pos[3 * i + 1] = (float)(m1[0] * x + m1[1] * y + m1[2] * z + m1[3]);
+        pos[3 * i + 2] = (float)(m2[0] * x + m2[1] * y + m2[2] * z + m2[3]);
+    }
+    for (size_t i = 0; nrm && i < count; i++) {
+        const double x = nrm[3 * i], y = nrm[3 * i + 1], z = nrm[3 * i + 2];
+        double n[3];
+        for (int r = 0; r < 3; r++)
+            n[r] = w->s * (w->c[r][0] * x + w->c[r][1] * y + w->c[r][2] * z);
+        const double len = sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
+        const double inv = len > 0.0 ? 1.0 / len : 0.0;
+        for (int r = 0; r < 3; r++) nrm[3 * i + r] = (float)(n[r] * inv);
+    }
+}
+
+static int world_vertices(void *user, uint64_t first, size_t count, const float *pos,
+                          const float *nrm, const uint64_t *keys)
+{
+    cli_world *w = user;
+    float *out = world_room(w, (nrm ? 6 : 3) * count);
+    if (!out && count) {
+        cli_error("out of memory placing the mesh in patient space");
+        return 1;
+    }
+    float *onrm = nrm ? out + 3 * count : NULL;
+    if (count) memcpy(out, pos, 3 * count * sizeof(float));
+    if (onrm && count) memcpy(onrm, nrm, 3 * count * sizeof(float));
+    cli_world_map(w, out, onrm, count);
+    return w->next.vertices(w->next.user, first, count, out, onrm, keys);
+}
+
+static int world_triangles(void *user, size_t count, const uint64_t *ids, const uint8_t *origins)
+{
+    cli_world *w = user;
+    if (!w->mirror) return w->next.triangles(w->next.user, count, ids, origins);
+    uint64_t *swapped = malloc(3 * count * sizeof *swapped + 1);
+    if (!swapped) {
+        cli_error("out of memory placing the mesh in patient space");
+        return 1;
+    }
+    for (size_t t = 0; t < count; t++) { /* a mirror: the winding reversed */
+        swapped[3 * t] = ids[3 * t];
+        swapped[3 * t + 1] = ids[3 * t + 2];
+        swapped[3 * t + 2] = ids[3 * t + 1];
+    }
+    int rc = w->next.triangles(w->next.user, count, swapped, origins);
+    free(swapped);
+    return rc;
+}
+
+static int world_retire(void *user, uint64_t floor)
+{
+    cli_world *w = user;
+    return w->next.retire(w->next.user, floor);
+}
+
+void cli_sink_for_world(cli_sink *sink, cli_world *w)
+{
+    sink->user = w;
+    sink->vertices = world_vertices;
+    sink->triangles = world_triangles;
+    sink->retire = world_retire;
 }
 
 /* ------------------------------------------------------------------ extraction */

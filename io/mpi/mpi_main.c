@@ -314,9 +314,27 @@ static int run(int argc, char **argv)
     double t0 = MPI_Wtime();
     slab_piece piece;
     memset(&piece, 0, sizeof piece);
+    uint64_t *foreign_ids = NULL;
     rc = slab_extract(&sl, &opts, first, end, &piece);
     double extract_s = MPI_Wtime() - t0;
-    if ((rc = agree(rc)) != 0) goto fail;
+    if (!rc && sl.has_world) { /* a DICOM series in patient space, as isomend extract maps it */
+        cli_world world;
+        cli_sink none;
+        memset(&none, 0, sizeof none);
+        if (!cli_world_init(&world, sl.world, &none)) {
+            cli_error("%s: the series' patient transform is not invertible", sl.label);
+            rc = CLI_EXIT_FAIL;
+        } else {
+            cli_world_map(&world, piece.pos, piece.nrm, piece.nv);
+            cli_world_map(&world, piece.foreign_pos, NULL, piece.nforeign);
+            for (size_t t = 0; world.mirror && t < piece.nt; t++) {
+                uint64_t keep = piece.tri[3 * t + 1];
+                piece.tri[3 * t + 1] = piece.tri[3 * t + 2];
+                piece.tri[3 * t + 2] = keep;
+            }
+        }
+    }
+    if ((rc = agree(rc)) != 0) goto fail_piece;
 
     /* global ids: prefix sum of the vertex counts */
     uint64_t nv = piece.nv, first_id = 0, totals[2], counts[2] = {piece.nv, piece.nt};
@@ -331,7 +349,7 @@ static int run(int argc, char **argv)
         cli_error("%s", msg);
         rc = CLI_EXIT_FAIL;
     }
-    uint64_t *foreign_ids = malloc((piece.nforeign + 1) * sizeof *foreign_ids);
+    foreign_ids = malloc((piece.nforeign + 1) * sizeof *foreign_ids);
     if (!foreign_ids) {
         cli_error("out of memory");
         rc = CLI_EXIT_FAIL;

@@ -115,9 +115,16 @@ def volumes(work, samples):
     ]
 
 
-def test_same_files(t, samples):
+def test_same_files(t, samples, dicom):
     n_ok = 0
-    for name, src, fmt, sets in volumes(t.work, samples):
+    vols = volumes(t.work, samples)
+    if dicom:  # gen_dicom.py's series: through the importer, mapped to patient space
+        cases = json.load(open(os.path.join(dicom, "cases.json")))
+        for case in ("ct_folder", "ct_oblique", "ct_feet_first", "mr_coronal"):
+            if case in cases:
+                vols.append((f"dicom {case}", cases[case]["sources"], "ply", [["--pad", "--iso", "300"]]
+                             if case.startswith("ct") else [["--pad"]]))
+    for name, src, fmt, sets in vols:
         for opts in sets:
             label = f"{name} {' '.join(opts) or '(suggested iso)'}"
             ref = os.path.join(t.work, "ref." + fmt)
@@ -227,11 +234,12 @@ def main():
     ap.add_argument("--mpirun", required=True)
     ap.add_argument("--samples", required=True)
     ap.add_argument("--work", required=True)
+    ap.add_argument("--dicom", help="gen_dicom.py's folder (optional)")
     a = ap.parse_args()
     shutil.rmtree(a.work, ignore_errors=True)
     os.makedirs(a.work)
     t = Tools(a)
-    test_same_files(t, os.path.abspath(a.samples))
+    test_same_files(t, os.path.abspath(a.samples), a.dicom)
     test_failures(t)
     if FAILURES:
         print(f"{len(FAILURES)} failure(s)")
