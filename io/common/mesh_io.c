@@ -21,6 +21,7 @@
 #include <sys/stat.h>
 
 #include "atomic_file.h"
+#include "byte_order.h"
 #include "mesh_writer.h"
 
 #define SET_MSG isomend_fileio_set_msg
@@ -35,27 +36,6 @@ isomend_mesh_format isomend_mesh_format_of(const char *path)
     if (strcasecmp(dot, ".obj") == 0) return ISOMEND_MESH_OBJ;
     if (strcasecmp(dot, ".stl") == 0) return ISOMEND_MESH_STL;
     return ISOMEND_MESH_UNKNOWN;
-}
-
-static int machine_is_big_endian(void)
-{
-    const uint16_t one = 1;
-    unsigned char first;
-    memcpy(&first, &one, 1);
-    return first == 0;
-}
-
-static void put_le32(unsigned char *p, const void *v)
-{
-    memcpy(p, v, 4);
-    if (machine_is_big_endian()) {
-        unsigned char t = p[0];
-        p[0] = p[3];
-        p[3] = t;
-        t = p[1];
-        p[1] = p[2];
-        p[2] = t;
-    }
 }
 
 /* ------------------------------------------------------------------ writers */

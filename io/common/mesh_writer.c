@@ -32,33 +32,13 @@
 #include <strings.h>
 
 #include "atomic_file.h"
+#include "byte_order.h"
 
 #define SET_MSG isomend_fileio_set_msg
 #define STDIO_BUFFER (1u << 20)
 #define COPY_CHUNK (1u << 20)
 
 /* ------------------------------------------------------------------ records */
-
-static int machine_is_big_endian(void)
-{
-    const uint16_t one = 1;
-    unsigned char first;
-    memcpy(&first, &one, 1);
-    return first == 0;
-}
-
-static void put_le32(unsigned char *p, const void *v)
-{
-    memcpy(p, v, 4);
-    if (machine_is_big_endian()) {
-        unsigned char t = p[0];
-        p[0] = p[3];
-        p[3] = t;
-        t = p[1];
-        p[1] = p[2];
-        p[2] = t;
-    }
-}
 
 /* Appends the decimal digits of v to p; returns the new end. */
 static char *put_uint(char *p, uint64_t v)

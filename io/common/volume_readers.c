@@ -27,6 +27,7 @@
 #include <zlib.h>
 
 #include "atomic_file.h"
+#include "byte_order.h"
 
 #define SET_MSG isomend_fileio_set_msg
 #define CHUNK_BYTES (4u << 20)  /* read/decompress granularity and progress step */
@@ -49,14 +50,6 @@ const char *isomend_fileio_status_string(isomend_fileio_status status)
     case ISOMEND_FILEIO_ERR_CANCELLED: return "cancelled";
     }
     return "unknown status";
-}
-
-static int machine_is_big_endian(void)
-{
-    const uint16_t one = 1;
-    unsigned char first;
-    memcpy(&first, &one, 1);
-    return first == 0;
 }
 
 static void swap_bytes(void *data, size_t count, size_t size)

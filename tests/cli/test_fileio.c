@@ -38,11 +38,7 @@ static char msg[ISOMEND_FILEIO_MSG_SIZE];
 
 static const char *path_in(const char *name)
 {
-    static char buf[4][600];
-    static int k;
-    k = (k + 1) % 4;
-    snprintf(buf[k], sizeof buf[k], "%s/%s", dir, name);
-    return buf[k];
+    return tu_path_in(dir, name);
 }
 
 static void write_bytes(const char *path, const void *data, size_t n)

@@ -37,11 +37,7 @@ static char msg[ISOMEND_FILEIO_MSG_SIZE];
 
 static const char *path_in(const char *name)
 {
-    static char buf[4][600];
-    static int k;
-    k = (k + 1) % 4;
-    snprintf(buf[k], sizeof buf[k], "%s/%s", dir, name);
-    return buf[k];
+    return tu_path_in(dir, name);
 }
 
 /* Entries of the test folder other than . and .. */
