@@ -69,9 +69,11 @@ def run_case(i, case):
     reset()
     p = case["params"]
     kwargs = dict(directory=case["directory"], files=[{"name": n} for n in case["files"]],
-                  use_suggested_iso=p["use_suggested_iso"], iso=p["iso"], method=p["method"],
+                  use_suggested_iso=p["use_suggested_iso"], method=p["method"],
                   spacing=p["spacing"], unit_scale=p["unit_scale"], pad=p["pad"], smooth=p["smooth"],
                   gradient_normals=p.get("gradient_normals", True))
+    if not p["use_suggested_iso"]:
+        kwargs["iso"] = p["iso"]  # an iso that is passed is the level used
     t0 = time.perf_counter()
     result = bpy.ops.import_mesh.slice_stack(**kwargs)
     seconds = time.perf_counter() - t0
@@ -124,7 +126,7 @@ def run_case(i, case):
     if p["smooth"] and p.get("gradient_normals", True):
         check(me.has_custom_normals, "%s: no custom normals" % tag)
         paths = ([case["directory"]] if not case["files"] else
-                 [case["directory"] + "/" + n for n in sorted(case["files"], key=module._natural_key)])
+                 [case["directory"] + "/" + n for n in sorted(case["files"], key=module.import_stack.natural_key)])
         spacing = p["spacing"] if any(p["spacing"]) else None
         core = module.isomend.extract_source(
             paths, iso=None if p["use_suggested_iso"] else p["iso"], method=p["method"].lower(),
