@@ -26,18 +26,30 @@ die() { echo "trixie-root: $*" >&2; exit 1; }
 
 # What the tests need inside the root: the build tools and the libraries the
 # project builds against there, the two hosts, Xvfb, and Python with numpy.
+# Add packages rather than remove them: other tests share the root.
 PKGS=(build-essential cmake pkg-config zlib1g-dev patchelf file
-  libopenimageio-dev openimageio-tools libtiff-dev libopenexr-dev libgdcm-dev
+  libopenimageio-dev openimageio-tools libtiff-dev libtiff-tools libopenexr-dev libgdcm-dev
   qtbase5-dev libqt5opengl5-dev libglew-dev libeigen3-dev
   meshlab blender
   xvfb xauth x11-apps imagemagick xdotool
-  python3 python3-numpy python3-pytest python3-pydicom
+  python3 python3-numpy python3-pytest python3-pydicom python3-tifffile
+  python3-openimageio python3-nibabel
   ca-certificates dpkg-dev)
 
 [ "$(id -u)" = 0 ] || die "must run as root (mmdebstrap root mode and chroot)"
 root="${ISOMEND_TRIXIE_ROOT:-${XDG_CACHE_HOME:-$HOME/.cache}/isomend/trixie-root}"
 want="$(printf '%s\n' "${PKGS[@]}" | sort | sha256sum | cut -c1-16)"
-if [ -f "$root/.isomend-complete" ] && [ "$(cat "$root/.isomend-complete")" = "$want" ]; then
+ready() { [ -f "$root/.isomend-complete" ] && [ "$(cat "$root/.isomend-complete")" = "$want" ]; }
+if ready; then
+  echo "$root"
+  exit 0
+fi
+# One build at a time (two worktrees may ask at once): the second waits and
+# then finds the root ready.
+mkdir -p "$(dirname "$root")"
+exec 9>"$root.lock"
+flock 9
+if ready; then
   echo "$root"
   exit 0
 fi
@@ -62,12 +74,11 @@ fi
 keyring=/usr/share/keyrings/debian-archive-keyring.gpg
 [ -f "$keyring" ] || die "$keyring missing (package debian-archive-keyring)"
 
-mkdir -p "$(dirname "$root")"
 tmp="$root.tmp.$$"
 rm -rf "$tmp"
 trap 'rm -rf "$tmp"' EXIT
 start=$(date +%s)
-echo "trixie-root: building $root from $mirror (about 10 minutes and 3 GB)" >&2
+echo "trixie-root: building $root from $mirror (2-3 minutes here, about 2 GB)" >&2
 list="$(IFS=,; echo "${PKGS[*]}")"
 mmdebstrap --quiet --mode=root --variant=apt --include="$list" \
   --aptopt='Acquire::Retries "3"' \
@@ -76,9 +87,16 @@ mmdebstrap --quiet --mode=root --variant=apt --include="$list" \
   || die "mmdebstrap failed"
 # A deb-src twin for `apt-get source meshlab` inside the root.
 echo "deb-src [signed-by=$keyring] $mirror trixie main" >"$tmp/etc/apt/sources.list.d/src.list"
+# Mount points of trixie-run.sh (it mounts the root read-only).
+mkdir -p "$tmp/src" "$tmp/work" "$tmp/host-build"
+touch "$tmp/etc/resolv.conf"
 echo "$want" >"$tmp/.isomend-complete"
-rm -rf "$root"
+# An older root is moved aside before it is deleted, so the new one appears
+# at once.
+old="$root.old.$$"
+[ ! -e "$root" ] || mv "$root" "$old"
 mv "$tmp" "$root"
+rm -rf "$old"
 trap - EXIT
 echo "trixie-root: ready in $(( $(date +%s) - start )) s" >&2
 echo "$root"
