@@ -17,7 +17,8 @@
 //     container type (a packed 12-bit sample as 0..4095 in a uint16, a 1-bit
 //     one as 0 or 1 in a uint8, signed stays signed); half is widened to
 //     float (exact); MinIsWhite TIFF samples are inverted to MinIsBlack and
-//     palette images expand to R, G, B (OpenImageIO's rules, kept by both);
+//     palette images expand to R, G, B (map entries / 257); alpha never
+//     multiplies the colour (OpenImageIO's rules where it has them, kept by both);
 //   - every decode is checked: damaged data throws IoError CORRUPT naming the
 //     slice, never silently delivers zeros;
 //   - errors are IoError with the status and a message that names the file

@@ -18,6 +18,9 @@
 //   - OIIO 2.4.7 reads a TIFF without a BitsPerSample tag (legal: the
 //     default is 1, bilevel; tifffile and Pillow write 1-bit images that way)
 //     as 8-bit and returns the packed bits as bytes, silently: refused.
+//   - OIIO premultiplies colour by alpha (PNG, TIFF with unassociated alpha)
+//     unless asked not to: opened with oiio:UnassociatedAlpha, so colour
+//     samples are the stored ones.
 //   - Multi-page TIFFs do not set oiio:subimages: pages are counted with
 //     seek_subimage() probes (and the pending error is cleared).  Reaching
 //     page k walks k IFDs in OIIO, so pages are opened directly instead
@@ -55,11 +58,21 @@ static std::string take_oiio_error(ImageInput *in) {
     return e.empty() ? std::string("unknown OpenImageIO error") : e;
 }
 
+// Open options: stored samples, not premultiplied by alpha.
+static const ImageSpec &open_config() {
+    static const ImageSpec config = [] {
+        ImageSpec c;
+        c.attribute("oiio:UnassociatedAlpha", 1);
+        return c;
+    }();
+    return config;
+}
+
 static std::unique_ptr<ImageInput> open_input(const std::string &path) {
     init_images();
     if (!is_regular_file(path))
         throw IoError(ISOMEND_IO_ERR_NOT_FOUND, path + ": file not found");
-    auto in = ImageInput::open(path);
+    auto in = ImageInput::open(path, &open_config());
     if (!in) {
         std::string why = take_oiio_error(nullptr);
         throw IoError(ISOMEND_IO_ERR_UNREADABLE, path + ": cannot read this file: " + why);
@@ -174,7 +187,12 @@ class OiioFile final : public ImageFile {
         proxy_.reset(new TiffPageProxy(s));
         if (!proxy_->opened())
             throw IoError(ISOMEND_IO_ERR_UNREADABLE, s.path + ": cannot open the file");
-        in_ = ImageInput::open(s.path, nullptr, proxy_.get());
+        // The proxy goes in the configuration too: given a configuration, OIIO
+        // 2.4 opens by name and ignores the proxy argument.
+        ImageSpec config = open_config();
+        OIIO::Filesystem::IOProxy *proxy = proxy_.get();
+        config.attribute("oiio:ioproxy", TypeDesc::PTR, &proxy);
+        in_ = ImageInput::open(s.path, &config, proxy);
         if (!in_)
             throw IoError(ISOMEND_IO_ERR_CORRUPT,
                           slice_name(s) + ": cannot read the page: " + take_oiio_error(nullptr));
@@ -239,9 +257,11 @@ class OiioFile final : public ImageFile {
         Sample st = h.channel_types[(size_t)cb];
         TypeDesc t = read_type(st);
         bool ok;
-        if (spec.tile_width == 0) {
+        if (spec.tile_width == 0 && st != Sample::DOUBLE) {
             // Row 0 alone, then the rest: forces OIIO's per-scanline decoding,
-            // the path that reports errors in compressed strips.
+            // the path that reports errors in compressed strips.  (Not for
+            // 64-bit samples: OIIO 2.4.7 returns zeros for part of a strip of
+            // doubles, without an error.)
             size_t row = (size_t)spec.width * (size_t)(ce - cb) * t.size();
             ok = in_->read_scanlines(sub, 0, spec.y, spec.y + 1, spec.z, cb, ce, t, dst);
             if (ok && spec.height > 1)

@@ -9,7 +9,7 @@
 // What OpenImageIO does and we do too, so that both backends agree: channel
 // names Y, Y+A, R+G+B(+A), channelN beyond; MinIsWhite inverted for unsigned
 // samples of 8 bits or fewer (not for wider or signed ones); palette images
-// expanded to R, G, B with the colour map's high byte; JPEG-compressed YCbCr
+// expanded to R, G, B (the colour map's 16 bits divided by 257, truncated); JPEG-compressed YCbCr
 // delivered as RGB; XPosition/YPosition times the resolution as the data
 // window origin; ResolutionUnit inch when absent.
 #include "native.hpp"
@@ -334,7 +334,7 @@ class TiffFile final : public ImageFile {
                 uint32_t index = l.bps == 8 ? row[i] : packed_sample(row, i, l.bps);
                 if (index >= entries) index = entries - 1;
                 size_t out = ((size_t)y * l.width + x0 + i) * nc;
-                for (int c = cb; c < ce; c++) dst[out + (size_t)(c - cb)] = (uint8_t)(l.colormap[c][index] >> 8);
+                for (int c = cb; c < ce; c++) dst[out + (size_t)(c - cb)] = (uint8_t)(l.colormap[c][index] / 257);
             }
         });
     }
