@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""Measures every isosurface method and prints the README's methods table.
+"""Measures every isosurface method and prints the methods table of docs/methods.md.
 
 Runs tests/topology/methods_bench.c (target isomend_methods_bench), which
 extracts the same random grids with each method and compares the meshes with
@@ -8,7 +8,7 @@ the trilinear topology oracle, then formats its JSON lines as Markdown.
 Usage:
   scripts/methods_table.py                       # configure + build in build-methods-table/
   scripts/methods_table.py --bench PATH          # use an already built bench
-  scripts/methods_table.py --update README.md
+  scripts/methods_table.py --update docs/methods.md
       (replaces the text between <!-- methods-table:begin --> and
        <!-- methods-table:end --> in that file, through a temporary file)
 Options: --grids N (default 10000), --n N (grid size, default 4), --jobs N.

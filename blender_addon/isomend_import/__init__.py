@@ -1,6 +1,6 @@
 """Blender add-on: File > Import > Slice Stack as Isosurface (isomend).
 
-A thin host adapter: the algorithm is in libisomend, the file reading in
+A thin host adapter (CONTRIBUTING.md): the algorithm is in libisomend, the file reading in
 libisomend_io, both reached through the bpy-free ctypes module ``isomend.py``;
 everything else that needs no Blender (which files, which iso, the job, the
 mesh arrays, the report) is in ``import_stack.py``, as Blender's own importers

@@ -6,7 +6,7 @@
  *   isomend info SOURCE [options]              what a source holds, suggested iso
  *   isomend sample f1|f2 -o FILE.nrrd          the thesis's test volumes as NRRD
  *
- * Design rules (README, STYLE.md): every error is one line on stderr naming
+ * Design rules (README, CONTRIBUTING.md): every error is one line on stderr naming
  * the file or flag and what is wrong; exit 2 for usage errors, 1 for
  * failures; outputs are written to a temporary file in the target folder and
  * renamed at the end, so a failure never leaves a partial or stale-looking
