@@ -42,7 +42,7 @@ Library lookup (done once, on first use):
   3. the dynamic linker's search path (LD_LIBRARY_PATH, an installed
      ``libisomend.so.0``).
 The core (libisomend) is loaded at the first call; the slice importer
-(libisomend_io, which pulls in OpenImageIO) only when a source is opened.
+(libisomend_io, which pulls in its image libraries) only when a source is opened.
 
 Errors.  A failed call raises ``IsomendError`` (a RuntimeError) carrying
 ``.status`` (the C status code), ``.status_name`` and a message that names the
