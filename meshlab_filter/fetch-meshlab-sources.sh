@@ -11,7 +11,8 @@
 #   SUITE      take the package from this Debian suite of the same archive
 #              instead of the system's suites (e.g. "trixie" for MeshLab
 #              2022.02, used to compile-check the newer-API adapter).  Only the
-#              upstream tarball is unpacked then (no Debian patches).
+#              upstream tarball is unpacked then (no Debian patches), as when
+#              the mirror lacks the package's .dsc or Debian tarball.
 # Prints the unpacked tree's path on stdout.
 #
 # Idempotent: a finished tree (marked by CACHE_DIR/<tree>/.isomend-complete)
@@ -107,16 +108,27 @@ rm -rf "$dl"
 mkdir -p "$dl"
 partial="$tree.partial.$$"
 rm -rf "$partial"
-if [ -z "$suite" ]; then
-  (cd "$dl" && apt-get "${apt_opts[@]}" -qq source --download-only "meshlab=$version" >&2) \
-    || die "apt-get source meshlab=$version failed"
-  dsc="$(ls "$dl"/meshlab_"${version#*:}".dsc 2>/dev/null | head -n 1)"
-  [ -n "$dsc" ] || die "no .dsc for meshlab $version in $dl"
-  dpkg-source -x "$dsc" "$partial" >"$cache/dpkg-source.log" 2>&1 \
-    || { cat "$cache/dpkg-source.log" >&2; rm -rf "$partial"; die "dpkg-source -x $dsc failed"; }
-else
+# The Debian package (upstream tarball + Debian's patches), or with SUITE or
+# when the mirror has no .dsc/.debian.tar for this version, the upstream
+# tarball alone (the headers the plugin needs are upstream's).
+tar_only="${suite:+1}"
+if [ -z "$tar_only" ]; then
+  if (cd "$dl" && apt-get "${apt_opts[@]}" -qq source --download-only "meshlab=$version" >&2); then
+    dsc="$(ls "$dl"/meshlab_"${version#*:}".dsc 2>/dev/null | head -n 1)"
+    [ -n "$dsc" ] || die "no .dsc for meshlab $version in $dl"
+    dpkg-source -x "$dsc" "$partial" >"$cache/dpkg-source.log" 2>&1 \
+      || { cat "$cache/dpkg-source.log" >&2; rm -rf "$partial"; die "dpkg-source -x $dsc failed"; }
+  else
+    echo "fetch-meshlab-sources: the source package meshlab=$version is incomplete on this" \
+         "mirror; taking its upstream tarball alone (without Debian's patches)" >&2
+    rm -rf "$dl" "$partial"
+    mkdir -p "$dl"
+    tar_only=1
+  fi
+fi
+if [ -n "$tar_only" ]; then
   (cd "$dl" && apt-get "${apt_opts[@]}" -qq source --download-only --tar-only "meshlab=$version" >&2) \
-    || die "apt-get source --tar-only meshlab=$version ($suite) failed"
+    || die "apt-get source --tar-only meshlab=$version${suite:+ ($suite)} failed"
   orig="$(ls "$dl"/meshlab_*.orig.tar.* 2>/dev/null | head -n 1)"
   [ -n "$orig" ] || die "no upstream tarball for meshlab $version in $dl"
   mkdir -p "$partial"

@@ -8,11 +8,12 @@
  * parameter list, the parameter reading and the mesh copy are the same code
  * (filter_isomend_meshlab.h); the rest is in isomend_filter_job.{h,cpp}.
  *
- * Compile-checked (ISOMEND_MESHLAB_NEW_API_CHECK) against the headers of
- * MeshLab 2022.02 (Debian trixie's source package); not loaded into a
- * MeshLab 2022 here, since Debian 12 ships 2020.09 only.  MeshLab's loader
- * accepts only plugins built with its exact version and scalar type, so a
- * binary for a given MeshLab must be built against that MeshLab's headers.
+ * Built when the installed MeshLab is 2021.05+, against its own headers, and
+ * tested with MeshLab 2022.02 in Debian 13 (tests/meshlab/meshlab2022.cmake);
+ * on Debian 12, ISOMEND_MESHLAB_NEW_API_CHECK compile-checks it.  MeshLab's
+ * loader accepts only plugins built with its exact version and scalar type,
+ * so a binary for a given MeshLab must be built against that MeshLab's
+ * headers.
  */
 #ifndef ISOMEND_FILTER_ISOMEND_2022_H
 #define ISOMEND_FILTER_ISOMEND_2022_H

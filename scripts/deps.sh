@@ -3,7 +3,8 @@
 # Usage: scripts/deps.sh [build|test|all]   (default all)
 #   build: compilers, CMake, zlib, OpenImageIO, Qt/MeshLab headers' needs
 #   test:  build + the peers and hosts the tests drive (VTK, scikit-image,
-#          MeshLab, Blender, Xvfb, pytest)
+#          MeshLab, Blender, Xvfb, pytest) and mmdebstrap (the Debian 13 root of
+#          scripts/trixie-root.sh)
 set -euo pipefail
 what="${1:-all}"
 BUILD_PKGS=(build-essential cmake pkg-config zlib1g-dev
@@ -12,7 +13,7 @@ BUILD_PKGS=(build-essential cmake pkg-config zlib1g-dev
   python3-numpy)
 TEST_PKGS=(python3-pytest python3-vtk9 python3-skimage python3-openimageio python3-tifffile
   xvfb xauth blender libtiff-tools libopenvdb-dev python3-openvdb python3-nibabel
-  python3-scipy)
+  python3-scipy mmdebstrap)
 pkgs=("${BUILD_PKGS[@]}")
 [ "$what" = build ] || pkgs+=("${TEST_PKGS[@]}")
 missing=()

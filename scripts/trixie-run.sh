@@ -9,8 +9,8 @@
 #   -b H:C       bind-mount the host folder H at C inside the root (read-write)
 #   -r H:C       the same, read-only
 #   --rw         leave the root itself writable (maintenance only)
-# The command runs as root with HOME=/work/home, TMPDIR=/work/tmp and a
-# fresh tmpfs at /tmp, /run and /var/tmp.
+# The command runs as root with HOME=/work/home, TMPDIR=/work/tmp,
+# XDG_RUNTIME_DIR=/run/user/0 and a fresh tmpfs at /tmp, /run and /var/tmp.
 #
 # The root is shared by every worktree and reused between runs, so it is
 # mounted read-only: a test cannot change what the next run starts from.
@@ -33,6 +33,10 @@ while [ $# -gt 0 ]; do
 done
 [ $# -ge 1 ] || { echo "usage: $0 [-w WORKDIR] [-b H:C]... [-r H:C]... [--rw] -- CMD [ARG...]" >&2; exit 2; }
 root="$(bash "$here/scripts/trixie-root.sh")"
+# Held (shared) until the command ends: trixie-root.sh replaces the root only
+# when no command is using it.
+exec 8>"$root.lock"
+flock -s 8
 mkdir -p "$work/home" "$work/tmp" "$work/apt/lists/partial" "$work/apt/cache/archives/partial"
 work="$(cd "$work" && pwd)"
 for b in "${binds[@]}"; do
@@ -71,11 +75,12 @@ bind "$work/apt/lists" "$root/var/lib/apt/lists" rw
 bind "$work/apt/cache" "$root/var/cache/apt" rw
 mount -t tmpfs tmpfs "$root/tmp"
 mount -t tmpfs tmpfs "$root/run"
+mkdir -m 700 -p "$root/run/user/0"
 mount -t tmpfs tmpfs "$root/var/tmp"
 [ -f /etc/resolv.conf ] && bind /etc/resolv.conf "$root/etc/resolv.conf" ro
 for ((i = 0; i < ${#extra[@]}; i += 3)); do
   bind "${extra[i + 1]}" "$root${extra[i + 2]}" "${extra[i]}"
 done
 exec chroot "$root" /usr/bin/env -i PATH=/usr/local/sbin:/usr/local/bin:/usr/sbin:/usr/bin:/sbin:/bin \
-  HOME=/work/home TMPDIR=/work/tmp LANG=C.UTF-8 "$@"
+  HOME=/work/home TMPDIR=/work/tmp XDG_RUNTIME_DIR=/run/user/0 LANG=C.UTF-8 "$@"
 INNER

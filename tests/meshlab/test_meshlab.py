@@ -1,11 +1,19 @@
 #!/usr/bin/python3
-"""MeshLab filter tests: meshlabserver runs .mlx scripts that call
-"Isosurface from Slice Stack (isomend)" (and MeshLab's own "Compute
-Topological Measures") on stacks generated here, and the results are compared
-with the `isomend extract` command line on the same input and options.
+"""MeshLab filter tests: MeshLab runs "Isosurface from Slice Stack (isomend)"
+(and MeshLab's own "Compute Topological Measures") on stacks generated here,
+and the results are compared with the `isomend extract` command line on the
+same input and options.  Two ways to drive MeshLab, the same checks:
 
-Usage (run by ctest under with_xvfb.py, which provides $DISPLAY):
-    test_meshlab.py counts|topology|holes|errors --prefix PREFIX --cli ISOMEND --work DIR
+  MeshLab 2020.09 (--prefix): meshlabserver of a private prefix runs .mlx
+      scripts (under with_xvfb.py, which provides $DISPLAY: it needs GLX);
+  MeshLab 2021.05+ (--harness): meshlab_run_filter.cpp, linked against the
+      installed MeshLab's libmeshlab-common, loads the plugins with MeshLab's
+      own PluginManager and applies the filters to a MeshDocument (MeshLab
+      2020.12+ has no meshlabserver); no display needed.
+
+Usage (run by ctest):
+    test_meshlab.py TEST --prefix PREFIX --cli ISOMEND --work DIR
+    test_meshlab.py TEST --harness HARNESS --plugin FILE.so... --cli ISOMEND --work DIR
 
   counts    folder / pattern / multi-page TIFF / NRRD / raw sources, the three
             menu methods, pad, flip, spacing: MeshLab's PLY equals the CLI's
@@ -20,13 +28,16 @@ Usage (run by ctest under with_xvfb.py, which provides $DISPLAY):
             agrees: MC open, DMC closed two-manifold genus 0.
   realdata  the ITK T1 MRI (scripts/get-test-data.sh): at the suggested level
             MeshLab counts MC's hole edges as boundary edges and finds DMC's
-            result closed and two-manifold.
+            result closed and two-manifold; an explicit iso 2 below the
+            suggestion builds the surface at that level, not at the suggestion.
   methods   every method the menu lists after the first three (facial,
             gradient, asymptotic, tetra, mc33 when the core builds them), by
             index: the CLI's mesh for that method, closed on the tiled F1.
-  errors    bad sources and parameters: exit 255 (never 134/abort), the
-            reason in the log, no output file; the filter is listed by
-            meshlabserver's plugin dump with its menu text.
+  errors    bad sources and parameters: a reported failure (meshlabserver
+            exit 255, the harness exit 1 with MeshLab's MLException), never an
+            abort, the reason in the log, no output file; the filter is listed
+            (meshlabserver's plugin dump, the harness's --list) with its
+            menu text.
 """
 import argparse
 import json
@@ -145,12 +156,40 @@ def mlx(params, topology=False):
 
 
 class Runner:
-    def __init__(self, prefix, cli, work):
-        self.server = os.path.join(prefix, "bin", "meshlabserver")
+    """The CLI side, shared by both MeshLab drivers."""
+    fail_rc = None
+
+    def __init__(self, cli, work):
         self.cli = cli
         self.work = work
         self.n = 0
         self.last_output = ""
+
+    def isomend(self, source, args):
+        """`isomend extract`; returns (json dict, PLY path)."""
+        self.n += 1
+        base = os.path.join(self.work, "cli%02d" % self.n)
+        cmd = [self.cli, "extract", source, "-o", base + ".ply", "--json", base + ".json",
+               "--quiet"] + args
+        r = subprocess.run(cmd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, timeout=120)
+        if r.returncode != 0:
+            raise RuntimeError("%s failed (%d): %s" % (" ".join(cmd), r.returncode,
+                                                       r.stdout.decode(errors="replace")))
+        with open(base + ".json") as f:
+            return json.load(f), base + ".ply"
+
+    def topology(self, log):
+        return parse_topology(log)
+
+
+class ServerRunner(Runner):
+    """MeshLab 2020.09: meshlabserver runs .mlx scripts."""
+    name = "meshlabserver"
+    fail_rc = 255
+
+    def __init__(self, prefix, cli, work):
+        super().__init__(cli, work)
+        self.server = os.path.join(prefix, "bin", "meshlabserver")
 
     def meshlab(self, params, topology=False, save=True):
         """Runs the filter; returns (exit code, log text, output path or None)."""
@@ -172,18 +211,113 @@ class Runner:
             print(r.stdout.decode(errors="replace")[-2000:])
         return r.returncode, text, out if os.path.exists(out) else None
 
-    def isomend(self, source, args):
-        """`isomend extract`; returns (json dict, PLY path)."""
+    def reported_failure(self, log, reason):
+        """meshlabserver prints only the log and "Problem with filter"."""
+        return "Problem with filter" in log
+
+    def listing(self):
+        """The filter's entry in meshlabserver's plugin dump."""
+        dump = os.path.join(self.work, "filters.txt")
+        subprocess.run([self.server, "-d", dump], stdout=subprocess.DEVNULL,
+                       stderr=subprocess.DEVNULL, timeout=120)
+        text = open(dump, errors="replace").read() if os.path.exists(dump) else ""
+        return text[text.find(FILTER):][:6000] if FILTER in text else ""
+
+
+class HarnessRunner(Runner):
+    """MeshLab 2021.05+: meshlab_run_filter applies the filters through
+    MeshLab's own library (PluginManager, MeshDocument, io plugin)."""
+    name = "meshlab_run_filter"
+    fail_rc = 1
+
+    def __init__(self, harness, plugins, cli, work):
+        super().__init__(cli, work)
+        self.harness = harness
+        self.plugins = plugins
+        self.results = []
+
+    def run(self, steps, log=None):
+        cmd = [self.harness]
+        for p in self.plugins:
+            cmd += ["--plugin", p]
+        if log:
+            cmd += ["--log", log]
+        r = subprocess.run(cmd + steps, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                           timeout=120)
+        self.last_output = r.stdout.decode(errors="replace")
+        self.results = [json.loads(l) for l in self.last_output.splitlines()
+                        if l.startswith("{")]
+        if r.returncode not in (0, 1):
+            print(self.last_output[-2000:] + r.stderr.decode(errors="replace")[-2000:])
+        return r.returncode
+
+    def meshlab(self, params, topology=False, save=True):
+        """Runs the filter; returns (exit code, log text, output path or None)."""
         self.n += 1
-        base = os.path.join(self.work, "cli%02d" % self.n)
-        cmd = [self.cli, "extract", source, "-o", base + ".ply", "--json", base + ".json",
-               "--quiet"] + args
-        r = subprocess.run(cmd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, timeout=120)
-        if r.returncode != 0:
-            raise RuntimeError("%s failed (%d): %s" % (" ".join(cmd), r.returncode,
-                                                       r.stdout.decode(errors="replace")))
-        with open(base + ".json") as f:
-            return json.load(f), base + ".ply"
+        base = os.path.join(self.work, "ml%02d" % self.n)
+        log, out = base + ".log", base + ".ply"
+        for p in (log, out):
+            if os.path.exists(p):
+                os.remove(p)
+        steps = ["--filter", FILTER]
+        for k, v in params.items():
+            if k == "enum_names":
+                continue
+            if isinstance(v, bool):
+                v = "true" if v else "false"
+            elif isinstance(v, float):
+                v = repr(v)
+            steps += ["--set", "%s=%s" % (k, v)]
+        if topology:
+            steps += ["--filter", "Compute Topological Measures"]
+        if save:
+            steps += ["--save", out]
+        with open(base + ".args", "w") as f:
+            f.write("\n".join(steps) + "\n")
+        rc = self.run(steps, log)
+        text = open(log, errors="replace").read() if os.path.exists(log) else ""
+        return rc, text, out if os.path.exists(out) else None
+
+    def topology(self, log):
+        """MeshLab's own outputs of "Compute Topological Measures" (the
+        values the filter returns; the log says the same)."""
+        t = parse_topology(log)
+        outs = [r for r in self.results if r.get("filter") == "Compute Topological Measures"]
+        if not outs or not outs[-1].get("ok"):
+            return t
+        o = outs[-1]["outputs"]
+        fromlog = dict(t)
+        t.update({"V": o["vertices_number"], "E": o["edges_number"], "F": o["faces_number"],
+                  "boundary_edges": o["boundary_edges"],
+                  "components": o["connected_components_number"],
+                  "two_manifold": o["is_mesh_two_manifold"],
+                  "nonmanifold_edges": o["non_two_manifold_edges"],
+                  "nonmanifold_vertices": o["non_two_manifold_vertices"]})
+        if o["is_mesh_two_manifold"]:
+            t.update({"holes": o["number_holes"], "genus": o["genus"]})
+        same = all(fromlog.get(k) == t.get(k) for k in ("V", "E", "F", "boundary_edges",
+                                                        "components", "genus", "holes"))
+        check(same, "the measures MeshLab returns equal those it logs")
+        return t
+
+    def reported_failure(self, log, reason):
+        """applyFilter threw MLException with the reason (what MeshLab's
+        window shows); no layer was added."""
+        last = self.results[-1] if self.results else {}
+        return (last.get("filter") == FILTER and last.get("ok") is False
+                and bool(reason) and reason in last.get("error", "") and last.get("layers") == 0)
+
+    def listing(self):
+        """The filter's name, description and parameters as MeshLab gets them."""
+        rc = self.run(["--list", FILTER])
+        listed = [r for r in self.results if r.get("list") == FILTER and r.get("ok")]
+        if rc != 0 or not listed:
+            return ""
+        r = listed[0]
+        check(r.get("class") == 64, "the filter's class is MeshCreation (Filters > Create New "
+              "Mesh Layer), %s" % r.get("class"))
+        return "\n".join([FILTER, r["info"]] + ["%s %s: %s" % (p["name"], p["label"], p["tooltip"])
+                                                 for p in r["parameters"]])
 
 
 # ------------------------------------------------------------------ parsing
@@ -274,7 +408,7 @@ def compare(run, label, source, ml_params, cli_args, log_expect=None):
     print("%s:" % label)
     params = dict(ml_params, source=source)
     rc, log, out = run.meshlab(params)
-    if not check(rc == 0 and out is not None, "meshlabserver exit 0 with a PLY (rc %d)" % rc):
+    if not check(rc == 0 and out is not None, "%s exit 0 with a PLY (rc %d)" % (run.name, rc)):
         print(log[-3000:])
         return
     ref, ref_ply = run.isomend(source, cli_args)
@@ -323,7 +457,7 @@ def test_counts(run):
             if ref and mi == 0:
                 mended += ref["triangles_by_origin"]["mend"]
             if mi == 0 and pad:
-                # meshlabserver prints the progress callback's stage texts
+                # meshlabserver and the harness print the progress callback's stage texts
                 out = run.last_output
                 check(all(s in out for s in ("isomend: reading slices", "isomend: extracting",
                                              "isomend: done")),
@@ -390,8 +524,8 @@ def test_topology(run):
         write_tiff_folder(folder, vol)
         print("%s, padded DMC:" % name)
         rc, log, out = run.meshlab({"source": folder, "iso": 127.5, "pad": True}, topology=True)
-        check(rc == 0 and out is not None, "meshlabserver exit 0 (rc %d)" % rc)
-        t = parse_topology(log)
+        check(rc == 0 and out is not None, "%s exit 0 (rc %d)" % (run.name, rc))
+        t = run.topology(log)
         ref, _ = run.isomend(folder, ["--iso", "127.5", "--pad"])
         check(t.get("V") == ref["vertices"] and t.get("F") == ref["triangles"],
               "MeshLab's V/F %s/%s equal the CLI's %d/%d"
@@ -405,7 +539,7 @@ def test_topology(run):
             print("%s, unpadded DMC (the check can fail):" % name)
             rc, log, out = run.meshlab({"source": folder, "iso": 127.5, "pad": False},
                                        topology=True)
-            t = parse_topology(log)
+            t = run.topology(log)
             check(rc == 0 and (t.get("boundary_edges") or 0) > 0,
                   "open where the border cuts it: Boundary Edges %s > 0" % t.get("boundary_edges"))
 
@@ -424,8 +558,8 @@ def test_holes(run):
             check(holes > 0, "isomend check: hole edges %d > 0" % holes)
         rc, log, out = run.meshlab({"source": folder, "iso": 0.0, "method": mi, "pad": True},
                                    topology=True)
-        check(rc == 0, "meshlabserver exit 0 (rc %d)" % rc)
-        t = parse_topology(log)
+        check(rc == 0, "%s exit 0 (rc %d)" % (run.name, rc))
+        t = run.topology(log)
         check(t.get("F") == ref["triangles"], "MeshLab's F %s equals the CLI's %d"
               % (t.get("F"), ref["triangles"]))
         if closed:
@@ -456,12 +590,14 @@ def test_realdata(run, get_data):
     info = json.loads(subprocess.run([run.cli, "info", tiff, "--json", "-"], stdout=subprocess.PIPE,
                                      check=True).stdout)
     iso = info["suggested_iso"]
+    refs = {}
     for mi in (1, 0):
         print("T1 MRI 128x128x62 i16, iso %g (suggested), padded, %s:" % (iso, METHODS[mi]))
         ref, _ = run.isomend(tiff, ["--iso", repr(iso), "--pad", "--method", CLI_METHOD[mi]])
+        refs[mi] = ref
         rc, log, out = run.meshlab({"source": tiff, "iso": iso, "method": mi, "pad": True},
                                    topology=True, save=False)
-        t = parse_topology(log)
+        t = run.topology(log)
         check(rc == 0 and t.get("V") == ref["vertices"] and t.get("F") == ref["triangles"],
               "MeshLab's V/F %s/%s equal the CLI's %d/%d"
               % (t.get("V"), t.get("F"), ref["vertices"], ref["triangles"]))
@@ -474,6 +610,24 @@ def test_realdata(run, get_data):
             check(holes == 0 and t.get("boundary_edges") == 0 and t["two_manifold"],
                   "DMC: Boundary Edges %s, two-manifold %s, isomend hole edges %d"
                   % (t.get("boundary_edges"), t["two_manifold"], holes))
+
+    # An iso the caller sets is the level used, never the suggestion (issue
+    # 26; the filter has no "use the suggested level" switch): 2 below it.
+    level = iso - 2.0
+    print("T1 MRI, explicit iso %g (the suggestion is %g), padded DMC:" % (level, iso))
+    ref, _ = run.isomend(tiff, ["--iso", repr(level), "--pad", "--method", "dmc"])
+    check(ref["triangles"] != refs[0]["triangles"],
+          "the CLI's surfaces at %g and %g differ (%d, %d triangles)"
+          % (level, iso, ref["triangles"], refs[0]["triangles"]))
+    rc, log, out = run.meshlab({"source": tiff, "iso": level, "method": 0, "pad": True},
+                               topology=True, save=False)
+    t = run.topology(log)
+    check(rc == 0 and t.get("V") == ref["vertices"] and t.get("F") == ref["triangles"],
+          "MeshLab's V/F %s/%s equal the CLI's %d/%d at iso %g"
+          % (t.get("V"), t.get("F"), ref["vertices"], ref["triangles"], level))
+    check("iso %g, padded" % level in log, "the filter's log says iso %g" % level)
+    check(t.get("boundary_edges") == 0 and t["two_manifold"],
+          "closed two-manifold at %g too" % level)
 
 
 def test_methods(run, job):
@@ -499,7 +653,7 @@ def test_methods(run, job):
         print("F1 tiled, %s, padded:" % display)
         ref, _ = run.isomend(f1, ["--iso", "0", "--pad", "--method", name])
         rc, log, out = run.meshlab(dict(params, source=f1, iso=0.0), topology=True, save=False)
-        t = parse_topology(log)
+        t = run.topology(log)
         check(rc == 0 and t.get("F") == ref["triangles"] and t.get("boundary_edges") == 0
               and t["two_manifold"],
               "MeshLab: F %s = CLI's %d, Boundary Edges %s, two-manifold %s"
@@ -511,15 +665,11 @@ def test_methods(run, job):
 def test_errors(run):
     work = run.work
     # the plugin is loaded and listed with its description and parameters
-    dump = os.path.join(work, "filters.txt")
-    subprocess.run([run.server, "-d", dump], stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
-                   timeout=120)
-    text = open(dump, errors="replace").read() if os.path.exists(dump) else ""
-    block = text[text.find(FILTER):][:6000] if FILTER in text else ""
-    check(bool(block), "meshlabserver -d lists \"%s\"" % FILTER)
+    block = run.listing()
+    check(bool(block), "%s lists \"%s\"" % (run.name, FILTER))
     check(all(l in block for l in ("Source", "Iso level", "Method", "Spacing X", "Channel",
-                                   "Pad (closed surface)", "Flip normals", "Raw dimensions")),
-          "the dump shows the parameters with their tooltips")
+                                   "Pad (closed surface)", "Flip normals", "Raw dimensions"                                   )),
+          "the listing shows the parameters with their tooltips")
 
     good = os.path.join(work, "good")
     write_tiff_folder(good, np.round(blobs(6, 9, 10) * 255).astype(np.uint8))
@@ -558,11 +708,11 @@ def test_errors(run):
     for label, params, expect in cases:
         print("%s:" % label)
         rc, log, out = run.meshlab(params)
-        check(rc == 255, "meshlabserver exit 255, not an abort (rc %d)" % rc)
+        check(rc == run.fail_rc, "%s exit %d, not an abort (rc %d)" % (run.name, run.fail_rc, rc))
         m = re.search(r"isomend: error: (.*)", log)
         reason = m.group(1) if m else ""
         check(expect in reason, "log names the reason: %r" % reason)
-        check("Problem with filter" in log, "meshlabserver reports the failed filter")
+        check(run.reported_failure(log, reason), "%s reports the failed filter" % run.name)
         check(out is None, "no output file written")
 
     print("a good run after the failures, same folder:")
@@ -575,17 +725,25 @@ def main():
     ap.add_argument("test", choices=["counts", "topology", "holes", "errors", "realdata", "methods"])
     ap.add_argument("--job", help="test_meshlab_job (methods)")
     ap.add_argument("--get-data", help="scripts/get-test-data.sh (realdata)")
-    ap.add_argument("--prefix", required=True)
+    ap.add_argument("--prefix", help="MeshLab 2020.09: the private prefix with meshlabserver")
+    ap.add_argument("--harness", help="MeshLab 2021.05+: meshlab_run_filter")
+    ap.add_argument("--plugin", action="append", default=[],
+                    help="with --harness: a plugin to load (the filter, filter_measure, io_base)")
     ap.add_argument("--cli", required=True)
     ap.add_argument("--work", required=True)
     a = ap.parse_args()
-    if not os.environ.get("DISPLAY"):
+    if bool(a.prefix) == bool(a.harness):
+        ap.error("give --prefix (meshlabserver) or --harness")
+    if a.prefix and not os.environ.get("DISPLAY"):
         print("no DISPLAY: run under with_xvfb.py or xvfb-run -a (meshlabserver needs a GLX context)")
         return 1
     if os.path.isdir(a.work):
         shutil.rmtree(a.work)
     os.makedirs(a.work)
-    run = Runner(a.prefix, a.cli, a.work)
+    if a.prefix:
+        run = ServerRunner(a.prefix, a.cli, a.work)
+    else:
+        run = HarnessRunner(a.harness, a.plugin, a.cli, a.work)
     if a.test == "realdata":
         test_realdata(run, a.get_data)
     elif a.test == "methods":
@@ -593,8 +751,8 @@ def main():
     else:
         {"counts": test_counts, "topology": test_topology, "holes": test_holes,
          "errors": test_errors}[a.test](run)
-    print("%d meshlabserver run(s); %s" % (sum(1 for f in os.listdir(a.work) if f.endswith(".mlx")),
-                                           "FAILED: %d" % len(failures) if failures else "all ok"))
+    runs = sum(1 for f in os.listdir(a.work) if f.endswith(".mlx") or f.endswith(".args"))
+    print("%d %s run(s); %s" % (runs, run.name, "FAILED: %d" % len(failures) if failures else "all ok"))
     return 1 if failures else 0
 
 

@@ -2,6 +2,7 @@
 """Runs a command with $DISPLAY set to a private Xvfb server.
 
 Usage: with_xvfb.py COMMAND [ARGS...]
+       (screen 1024x768x24, or $ISOMEND_XVFB_SCREEN)
 
 Unlike `xvfb-run -a`, which probes for a free display number and can race
 with another test doing the same under `ctest -j`, the server picks its own
@@ -19,7 +20,8 @@ def main():
         sys.exit("usage: with_xvfb.py COMMAND [ARGS...]")
     read_fd, write_fd = os.pipe()
     server = subprocess.Popen(
-        ["Xvfb", "-displayfd", str(write_fd), "-screen", "0", "1024x768x24", "-nolisten", "tcp"],
+        ["Xvfb", "-displayfd", str(write_fd), "-screen", "0",
+         os.environ.get("ISOMEND_XVFB_SCREEN", "1024x768x24"), "-nolisten", "tcp"],
         pass_fds=(write_fd,), stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
     os.close(write_fd)
     number = b""
