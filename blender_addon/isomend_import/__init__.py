@@ -84,17 +84,21 @@ def _method_items(_self, _context):
     return _method_items_cache
 
 
+# Update callbacks keep the panel truthful about import_stack.choose_iso (an
+# iso that is set wins).  Blender calls them with the operator's properties
+# when the panel changes a value, and also for keyword arguments of a
+# bpy.ops call, in the order the properties are declared (use_suggested_iso
+# before iso), so a script's iso is never unset by them.
 def _iso_changed(self, _context):
-    # A level typed in the panel is the level used: the box follows.
+    # A level typed in the panel (or passed) is the level used: the box follows.
     if self.use_suggested_iso:
         self.use_suggested_iso = False
 
 
 def _suggested_changed(self, _context):
-    # Ticking the box hands the level back to the importer's suggestion
-    # (import_stack.choose_iso: an iso that is set always wins).
-    if self.use_suggested_iso and self.properties.is_property_set("iso"):
-        self.properties.property_unset("iso")
+    # Ticking the box hands the level back to the importer's suggestion.
+    if self.use_suggested_iso and self.is_property_set("iso"):
+        self.property_unset("iso")
 
 
 class IMPORT_MESH_OT_slice_stack(Operator, ImportHelper):
@@ -319,8 +323,8 @@ def _make_object(context, name, buffers, smooth):
             # Blender < 4.0 stores sizes; 4.0+ derives them from loop_start.
             me.polygons.foreach_set("loop_total", buffers.loop_totals)
         me.update(calc_edges=True)
-        if smooth and nt:
-            me.polygons.foreach_set("use_smooth", np.ones(nt, dtype=bool))
+        if nt:  # explicit both ways: faces are smooth by default in Blender 4.1+, flat before
+            me.polygons.foreach_set("use_smooth", np.full(nt, bool(smooth)))
         if smooth and buffers.normals is not None and nt:
             if hasattr(me, "use_auto_smooth"):  # Blender < 4.1 needs it for custom normals
                 me.use_auto_smooth = True

@@ -7,7 +7,9 @@
 
 and the package it builds holds the same files, byte for byte, as the one
 the CMake build packages (blender_addon/CMakeLists.txt, which also runs where
-Blender is older than 4.2).
+Blender is older than 4.2), except the block Blender appends to the manifest
+("# BEGIN GENERATED CONTENT" ... [build.generated] platforms, wheels), which
+must name linux-x64 and no wheels.
 
 Usage: build_extension.py --blender EXE --stage DIR --package ZIP --work DIR
 """
@@ -20,9 +22,22 @@ import sys
 import zipfile
 
 
+GENERATED = "\n\n# BEGIN GENERATED CONTENT."
+
+
 def contents(path):
+    """{name: sha256}; the manifest without Blender's generated block, which is returned too."""
+    out, generated = {}, None
     with zipfile.ZipFile(path) as zf:
-        return {i.filename: hashlib.sha256(zf.read(i)).hexdigest() for i in zf.infolist() if not i.is_dir()}
+        for i in zf.infolist():
+            if i.is_dir():
+                continue
+            data = zf.read(i)
+            if i.filename == "blender_manifest.toml" and GENERATED.encode() in data:
+                data, generated = data.split(GENERATED.encode(), 1)
+                generated = generated.decode()
+            out[i.filename] = hashlib.sha256(data).hexdigest()
+    return out, generated
 
 
 def main():
@@ -46,7 +61,9 @@ def main():
     print(r.stdout + r.stderr)
     if r.returncode != 0 or "rror" in r.stdout + r.stderr:
         sys.exit("FAIL: extension validate of Blender's own build")
-    ours, theirs = contents(args.package), contents(out)
+    (ours, _), (theirs, generated) = contents(args.package), contents(out)
+    if generated is None or 'platforms = ["linux-x64"]' not in generated or "wheels = []" not in generated:
+        sys.exit("FAIL: Blender's manifest has no generated block for linux-x64: %r" % generated)
     if ours != theirs:
         diff = sorted(set(ours.items()) ^ set(theirs.items()))
         sys.exit("FAIL: Blender's package differs from the CMake-built one: %s" % diff)

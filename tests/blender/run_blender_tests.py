@@ -310,9 +310,15 @@ def main():
         cmd = [xvfb, "-a", "-s", "-screen 0 1024x768x24", args.blender, "--factory-startup", "-noaudio",
                "--enable-event-simulate", "--python", os.path.join(HERE, "blender_modal_test.py"),
                "--", spec]
-    r = subprocess.run(cmd, env=env, timeout=300)
+    r = subprocess.run(cmd, env=env, timeout=300, stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
+                       text=True)
+    print(r.stdout, flush=True)
     if r.returncode != 0:
         sys.exit("Blender test failed (exit %d)" % r.returncode)
+    # an exception inside the add-on (an update callback, a draw function) is
+    # printed by Blender and swallowed: any traceback fails the test
+    if "Traceback (most recent call last)" in r.stdout:
+        sys.exit("Blender printed a Python traceback (above)")
 
 
 if __name__ == "__main__":
