@@ -419,6 +419,19 @@ for k in range(2):
     inp.close()
 ok("tiff_jpeg_g", "u8", np.stack(jpeg_expected), "folder", [f], channel=1)
 
+# JPEG slices: the OpenImageIO build reads them (expected as OpenImageIO's bindings decode
+# them); the portable build lists them and refuses them by name
+f = d("jpeg_folder")
+jpeg_expected = []
+for k in range(2):
+    path = os.path.join(f, "j%d.jpg" % k)
+    oiio_write(path, src[k][:, :, 0], "uint8", None)
+    inp = oiio.ImageInput.open(path)
+    jpeg_expected.append(inp.read_image(0, 0, 0, 1, "uint8")[:, :, 0])
+    inp.close()
+ok("jpeg_folder", "u8", np.stack(jpeg_expected), "folder", [f], only="oiio")
+err("jpeg_folder", UNSUPPORTED, "j0.jpg: JPEG images are not read by this build", [f], only="portable")
+
 # OpenEXR: channels in OpenImageIO's order (R, G, B, A, then the rest), uint channels
 f = d("exr_channels")
 chans = RNG.normal(0, 10, size=(2, NY, NX, 5)).astype(np.float32)   # written as Z, B, G, R, A

@@ -24,10 +24,12 @@ import os
 import subprocess
 import sys
 
-# name -> why the builds may differ there (checked: each side must be what is said)
+# name -> (the build that refuses it, why the builds differ there); checked: that build
+# refuses, the other reads
 DIFFERENT = {
-    "bilevel": "1-bit TIFF without a BitsPerSample tag: OpenImageIO 2.4 misreads it (refused), "
-               "libtiff reads it",
+    "bilevel": ("oiio", "1-bit TIFF without a BitsPerSample tag: OpenImageIO 2.4 misreads it "
+                        "(refused), libtiff reads it"),
+    "jpeg_folder": ("portable", "JPEG: read by OpenImageIO, refused by name by the portable build"),
 }
 
 
@@ -123,8 +125,12 @@ def main():
     for name in sorted(set(a) - {"_libraries"}):
         x, y = a[name], b.get(name)
         if name in DIFFERENT:
-            if not ("status" in x and "status" not in y):
-                failures.append("%s: expected %s; got %s / %s" % (name, DIFFERENT[name], x, y))
+            refuser, why = DIFFERENT[name]
+            refused, read = (x, y) if refuser == "oiio" else (y, x)
+            if not ("status" in refused and "status" not in read):
+                failures.append("%s: expected %s; got %s / %s" % (name, why, x, y))
+            else:
+                print("diff %-22s %s" % (name, why))
             continue
         if "status" in x or "status" in y:
             want = cases[name][1] if name in cases else None
