@@ -245,3 +245,21 @@ def test_the_staged_package_records_what_it_needs():
         info = json.load(fp)
     have = import_stack.system_glibc()
     assert import_stack._version_tuple(info["glibc"]) <= import_stack._version_tuple(have)
+
+
+# ------------------------------------------------------------ one source, two package formats
+
+def test_bl_info_and_the_extension_manifest_agree():
+    import ast
+    import tomllib
+    tree = ast.parse(open(os.path.join(STAGE, "__init__.py")).read())
+    bl_info = next(ast.literal_eval(node.value) for node in tree.body
+                   if isinstance(node, ast.Assign) and getattr(node.targets[0], "id", "") == "bl_info")
+    with open(os.path.join(STAGE, "blender_manifest.toml"), "rb") as fp:
+        manifest = tomllib.load(fp)
+    assert manifest["id"] == os.path.basename(STAGE.rstrip("/")) == "isomend_import"
+    assert manifest["version"] == ".".join(map(str, bl_info["version"])) == isomend.version()
+    assert manifest["name"] == bl_info["name"] and manifest["type"] == "add-on"
+    assert bl_info["blender"] == (3, 4, 0) and manifest["blender_version_min"] == "4.2.0"
+    assert manifest["platforms"] == ["linux-x64"]
+    assert set(manifest["permissions"]) == {"files"}
