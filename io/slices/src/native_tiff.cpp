@@ -108,13 +108,15 @@ class TiffFile final : public ImageFile {
     std::string format() const override { return "tiff"; }
     bool serves(const Slice &s) const override { return s.path == path_; }
 
-    bool has_subimage(int k) override {
+    bool has_subimage(int k) override { return k >= 0 && k < pages(); }
+
+    int pages() {
         if (pages_ < 0) {
             errors_.clear();
             pages_ = (int)TIFFNumberOfDirectories(tif_);
             errors_.clear();
         }
-        return k >= 0 && k < pages_;
+        return pages_;
     }
 
     ImageHeader header(const Slice &s) override {
@@ -169,12 +171,14 @@ class TiffFile final : public ImageFile {
         int bps = l.ycbcr_jpeg ? 8 : l.bps;
         int spp = l.ycbcr_jpeg ? 3 : l.spp;
         bool invert = l.photometric == PHOTOMETRIC_MINISWHITE && t == Sample::U8;
-        decode(s, l, spp, [&](int plane, const unsigned char *row, uint32_t x0, uint32_t n, uint32_t y) {
+        const bool separate = l.planar == PLANARCONFIG_SEPARATE;
+        decode(s, l, spp, separate ? cb : 0, separate ? ce : 1,
+               [&](int plane, const unsigned char *row, uint32_t x0, uint32_t n, uint32_t y) {
             // `row`: n pixels starting at column x0 of row y, `plane`'s samples
-            int in_row = l.planar == PLANARCONFIG_SEPARATE ? 1 : spp;
+            int in_row = separate ? 1 : spp;
             for (int c = cb; c < ce; c++) {
-                int src_c = l.planar == PLANARCONFIG_SEPARATE ? 0 : c;
-                if (l.planar == PLANARCONFIG_SEPARATE && plane != c) continue;
+                int src_c = separate ? 0 : c;
+                if (separate && plane != c) continue;
                 size_t out = ((size_t)y * l.width + x0) * (size_t)(ce - cb) + (size_t)(c - cb);
                 store(t, bps, invert, row, in_row, src_c, n, dst, out, (size_t)(ce - cb));
             }
@@ -239,10 +243,11 @@ class TiffFile final : public ImageFile {
                                                   (errors_.any ? errors_.first : what));
     }
 
-    // Decodes the page strip by strip or tile by tile and hands every decoded
-    // row piece to emit(plane, bytes, x0, n, y).
-    template <typename Emit> void decode(const Slice &s, const Layout &l, int spp, Emit &&emit) {
-        const int planes = l.planar == PLANARCONFIG_SEPARATE ? spp : 1;
+    // Decodes planes [p0, p1) of the page (contiguous samples: the one plane 0)
+    // strip by strip or tile by tile and hands every decoded row piece to
+    // emit(plane, bytes, x0, n, y).
+    template <typename Emit>
+    void decode(const Slice &s, const Layout &l, int spp, int p0, int p1, Emit &&emit) {
         const int bps = l.ycbcr_jpeg ? 8 : l.bps;
         const size_t per_pixel = (size_t)(l.planar == PLANARCONFIG_SEPARATE ? 1 : spp) * (size_t)bps;
         errors_.clear();
@@ -255,7 +260,7 @@ class TiffFile final : public ImageFile {
             const size_t row_bytes = ((size_t)tw * per_pixel + 7) / 8;
             if ((size_t)size < row_bytes * th) corrupt(s, "bad tile size");
             std::vector<unsigned char> buf((size_t)size);
-            for (int p = 0; p < planes; p++)
+            for (int p = p0; p < p1; p++)
                 for (uint32_t ty = 0; ty < l.height; ty += th)
                     for (uint32_t tx = 0; tx < l.width; tx += tw) {
                         ttile_t tile = TIFFComputeTile(tif_, tx, ty, 0, (tsample_t)p);
@@ -275,7 +280,7 @@ class TiffFile final : public ImageFile {
         if (size <= 0 || (size_t)size < row_bytes * (size_t)rps) corrupt(s, "bad strip size");
         std::vector<unsigned char> buf((size_t)size);
         const uint32_t strips_per_plane = (l.height + rps - 1) / rps;
-        for (int p = 0; p < planes; p++)
+        for (int p = p0; p < p1; p++)
             for (uint32_t k = 0; k < strips_per_plane; k++) {
                 uint32_t y0 = k * rps, rows = std::min(rps, l.height - y0);
                 tstrip_t strip = (tstrip_t)((uint32_t)p * strips_per_plane + k);
@@ -329,7 +334,7 @@ class TiffFile final : public ImageFile {
     void read_palette(const Slice &s, const Layout &l, int cb, int ce, uint8_t *dst) {
         const size_t nc = (size_t)(ce - cb);
         const uint32_t entries = 1u << l.bps;
-        decode(s, l, 1, [&](int, const unsigned char *row, uint32_t x0, uint32_t n, uint32_t y) {
+        decode(s, l, 1, 0, 1, [&](int, const unsigned char *row, uint32_t x0, uint32_t n, uint32_t y) {
             for (uint32_t i = 0; i < n; i++) {
                 uint32_t index = l.bps == 8 ? row[i] : packed_sample(row, i, l.bps);
                 if (index >= entries) index = entries - 1;
@@ -353,9 +358,7 @@ int tiff_pages(const std::string &path) {
     Slice s;
     s.path = path;
     TiffFile f(s);
-    int n = 1;
-    while (f.has_subimage(n)) n++;
-    return n;
+    return std::max(f.pages(), 1);
 }
 
 } // namespace isomend_io
