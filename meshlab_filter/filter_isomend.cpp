@@ -94,7 +94,7 @@ bool FilterIsomendPlugin::applyFilter(QAction *a, MeshDocument &md, const RichPa
     if (!m)
         return fail("MeshLab could not create a new layer");
     try {
-        isomend_meshlab::copy_mesh(run.mesh(), m->cm, cb);
+        isomend_meshlab::copy_mesh(run.mesh(), m->cm, cb, run.world_transform());
     } catch (const std::bad_alloc &) {
         md.delMesh(m);
         return fail("out of memory while copying the mesh into MeshLab");

@@ -103,7 +103,7 @@ std::map<std::string, QVariant> FilterIsomendPlugin::applyFilter(const QAction *
     if (!m)
         fail("MeshLab could not create a new layer");
     try {
-        isomend_meshlab::copy_mesh(run.mesh(), m->cm, cb);
+        isomend_meshlab::copy_mesh(run.mesh(), m->cm, cb, run.world_transform());
     } catch (const std::bad_alloc &) {
         md.delMesh(m->id());
         fail("out of memory while copying the mesh into MeshLab");

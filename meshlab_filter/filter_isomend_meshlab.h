@@ -13,6 +13,7 @@
 
 #include <cstdint>
 #include <string>
+#include <vector>
 
 #include "isomend_filter_job.h"
 
@@ -55,6 +56,10 @@ inline void fill_parameters(RichParameterList &par)
         types << qs(t.c_str());
     par.addParam(RichEnum(job::kParamRawType, d.raw_type_index, types, label(job::kParamRawType),
                           tip(job::kParamRawType)));
+    par.addParam(RichString(job::kParamSeries, qs(d.series.c_str()), label(job::kParamSeries),
+                            tip(job::kParamSeries)));
+    par.addParam(RichBool(job::kParamGridAxes, d.grid_axes, label(job::kParamGridAxes),
+                          tip(job::kParamGridAxes)));
 }
 
 /* Reads the values back. */
@@ -72,6 +77,10 @@ inline isomend_filter::Params read_parameters(const RichParameterList &par)
     p.flip_normals = par.getBool(job::kParamFlip);
     p.raw_dims = par.getString(job::kParamRawDims).toStdString();
     p.raw_type_index = par.getEnum(job::kParamRawType);
+    if (par.hasParameter(job::kParamSeries)) /* older .mlx scripts lack them */
+        p.series = par.getString(job::kParamSeries).toStdString();
+    if (par.hasParameter(job::kParamGridAxes))
+        p.grid_axes = par.getBool(job::kParamGridAxes);
     return p;
 }
 
@@ -82,13 +91,28 @@ inline isomend_filter::Params read_parameters(const RichParameterList &par)
  * averages, so only the box and the face normals are computed.  May throw
  * std::bad_alloc.
  */
-inline void copy_mesh(const isomend_mesh *src, CMeshO &cm, vcg::CallBackPos *cb)
+inline void copy_mesh(const isomend_mesh *src, CMeshO &cm, vcg::CallBackPos *cb,
+                      const double *world = nullptr)
 {
     const size_t nv = isomend_mesh_vertex_count(src);
     const size_t nt = isomend_mesh_triangle_count(src);
     const float *pos = isomend_mesh_positions(src);
     const float *nrm = isomend_mesh_normals(src);
     const uint32_t *tri = isomend_mesh_triangles(src);
+    /* a DICOM series in patient space: the mesh through its transform */
+    std::vector<float> wpos, wnrm;
+    std::vector<uint32_t> wtri;
+    if (world && nt) {
+        wpos.resize(3 * nv);
+        wnrm.resize(nrm ? 3 * nv : 0);
+        wtri.resize(3 * nt);
+        if (isomend_mesh_copy_transformed(src, world, wpos.data(), nrm ? wnrm.data() : nullptr,
+                                          wtri.data(), nullptr) == ISOMEND_OK) {
+            pos = wpos.data();
+            nrm = nrm ? wnrm.data() : nullptr;
+            tri = wtri.data();
+        }
+    }
 
     auto vi = vcg::tri::Allocator<CMeshO>::AddVertices(cm, nv);
     for (size_t i = 0; i < nv; ++i, ++vi) {

@@ -51,7 +51,10 @@ const char *const kFilterInfo =
     "outside samples, so the surface is closed. Normals are unit gradient normals pointing "
     "to lower values (outwards for bright objects).<br>"
     "The log lists vertices, triangles (from the table, Durst quads, mending quads) and the "
-    "number of cubes in each of the 15 elementary cases.";
+    "number of cubes in each of the 15 elementary cases.<br>"
+    "A folder of DICOM files (or a DICOMDIR, or one multi-frame file) is read as a series: the mesh "
+    "is in patient coordinates (LPS, millimetres), CT values in Hounsfield units (bone: iso 300, "
+    "skin: iso -500).";
 
 const char *const kParamSource = "source";
 const char *const kParamIso = "iso";
@@ -62,6 +65,8 @@ const char *const kParamPad = "pad";
 const char *const kParamFlip = "flipNormals";
 const char *const kParamRawDims = "rawDims";
 const char *const kParamRawType = "rawType";
+const char *const kParamSeries = "dicomSeries";
+const char *const kParamGridAxes = "dicomGridAxes";
 
 namespace {
 
@@ -200,7 +205,8 @@ ParamText param_text(const char *name)
     if (n == kParamIso)
         return {"Iso level",
                 "The isosurface level, in the samples' own units (no normalisation: 0..255 for "
-                "8-bit, 0..65535 for 16-bit). Samples >= iso are inside."};
+                "8-bit, 0..65535 for 16-bit; Hounsfield units for CT DICOM: bone 300, skin -500). "
+                "Samples >= iso are inside."};
     if (n == kParamMethod)
         return {"Method",
                 "Disambiguated MC: marching cubes plus a mending quad only on ambiguous faces "
@@ -233,6 +239,14 @@ ParamText param_text(const char *name)
         return {"Raw dimensions",
                 "Only for a raw (headerless) file: the volume's size as \"nx ny nz\" (x "
                 "fastest). Leave empty for images and NRRD files."};
+    if (n == kParamSeries)
+        return {"DICOM series",
+                "Only for a DICOM folder holding several series: the series' number as the error "
+                "message lists them (1, 2, ...) or its Series Instance UID. Empty: the only series."};
+    if (n == kParamGridAxes)
+        return {"DICOM grid axes",
+                "Keep a DICOM series' own axes (columns, rows, slices) instead of placing the mesh in "
+                "patient coordinates (LPS mm, turned by the series' orientation)."};
     if (n == kParamRawType)
         return {"Raw sample type",
                 "Only for a raw file: the sample type (little-endian). Ignored when rawDims is "
@@ -410,6 +424,18 @@ bool Job::run_unguarded(const Params &params, const ProgressFn &progress)
     SourceHandle handle;
     if (isomend_io_create(&handle.src) != ISOMEND_IO_OK)
         return fail("out of memory");
+    std::string series = params.series;
+    while (!series.empty() && std::isspace(static_cast<unsigned char>(series.back())))
+        series.pop_back();
+    while (!series.empty() && std::isspace(static_cast<unsigned char>(series.front())))
+        series.erase(series.begin());
+    auto dicom_choices = [&](isomend_io_source *src) {
+        if (!series.empty())
+            isomend_io_set_series(src, series.c_str());
+        if (params.grid_axes)
+            isomend_io_set_axes(src, ISOMEND_IO_AXES_GRID);
+    };
+    dicom_choices(handle.src);
     isomend_io_status st = isomend_io_open(handle.src, &path, 1, &io_opts);
     bool luma = false;
     if (st == ISOMEND_IO_ERR_UNSUPPORTED && params.channel == -1 && !raw) {
@@ -420,6 +446,7 @@ bool Job::run_unguarded(const Params &params, const ProgressFn &progress)
         if (isomend_io_create(&retry.src) != ISOMEND_IO_OK)
             return fail("out of memory");
         io_opts.channel = ISOMEND_IO_CHANNEL_LUMA;
+        dicom_choices(retry.src);
         if (isomend_io_open(retry.src, &path, 1, &io_opts) == ISOMEND_IO_OK) {
             std::swap(handle.src, retry.src);
             st = ISOMEND_IO_OK;
@@ -469,6 +496,26 @@ bool Job::run_unguarded(const Params &params, const ProgressFn &progress)
     log_.push_back(format("spacing %g %g %g (from %s, %s, %s)", spacing[0], spacing[1],
                           spacing[2], spacing_from[0].c_str(), spacing_from[1].c_str(),
                           spacing_from[2].c_str()));
+    isomend_io_dicom dicom;
+    std::memset(&dicom, 0, sizeof dicom);
+    dicom.size = sizeof dicom;
+    if (isomend_io_dicom_info(handle.src, &dicom) == ISOMEND_IO_OK) {
+        log_.push_back(format("DICOM %s series \"%s\" (%lld files; ignored: %lld without pixel data, "
+                              "%lld not DICOM, %lld of other series)%s, %s axes",
+                              dicom.modality, dicom.description, static_cast<long long>(dicom.files),
+                              static_cast<long long>(dicom.non_image),
+                              static_cast<long long>(dicom.non_dicom),
+                              static_cast<long long>(dicom.other_series),
+                              dicom.hounsfield ? ", values in HU (bone 300, skin -500)" : "",
+                              dicom.axes == ISOMEND_IO_AXES_GRID ? "grid" : "patient (LPS mm)"));
+    }
+    if (params.grid_axes || !series.empty()) {
+        if (isomend_io_source_kind(handle.src) != ISOMEND_IO_KIND_DICOM)
+            return fail(std::string(params.grid_axes ? kParamGridAxes : kParamSeries) +
+                        ": applies to DICOM series only; the source is " + (kind ? kind : "?"));
+    }
+    int identity = 1;
+    has_world_ = isomend_io_world_transform(handle.src, world_, &identity) == ISOMEND_IO_OK && !identity;
 
     /* 4. read */
     isomend_volume vol;

@@ -43,6 +43,8 @@ extern const char *const kParamPad;
 extern const char *const kParamFlip;
 extern const char *const kParamRawDims;
 extern const char *const kParamRawType;
+extern const char *const kParamSeries;   /* DICOM: series N or UID ("" = the only one) */
+extern const char *const kParamGridAxes; /* DICOM: the series' own axes, not patient space */
 
 /* One choice of the "method" enum: display name and core method. */
 struct MethodChoice {
@@ -79,6 +81,8 @@ struct Params {
     bool flip_normals = false;
     std::string raw_dims;          /* "nx ny nz" (or "nx,ny,nz", "nxXnyXnz"); "" = not raw */
     int raw_type_index = 0;        /* isomend_type                           */
+    std::string series;            /* DICOM series: N or UID; "" = the only one */
+    bool grid_axes = false;        /* DICOM: keep the series' own axes        */
 };
 /* The defaults above, also the dialog's defaults. */
 Params default_params();
@@ -107,6 +111,10 @@ public:
     bool run(const Params &params, const ProgressFn &progress);
 
     const isomend_mesh *mesh() const { return mesh_; }
+    /* The map from the mesh's positions to the world (a DICOM series' patient
+     * transform, 3x4 row-major) or nullptr when it is the identity; copy the
+     * mesh through it with isomend_mesh_copy_transformed(). */
+    const double *world_transform() const { return has_world_ ? world_ : nullptr; }
     const isomend_stats &stats() const { return stats_; }
     /* The new layer's name, see layer_name_for() ("head", "ct"). */
     const std::string &layer_name() const { return layer_name_; }
@@ -120,6 +128,8 @@ private:
     bool run_unguarded(const Params &params, const ProgressFn &progress);
 
     isomend_mesh *mesh_ = nullptr;
+    double world_[12] = {1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0};
+    bool has_world_ = false;
     isomend_stats stats_{};
     std::string layer_name_;
     std::vector<std::string> log_;

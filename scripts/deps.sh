@@ -1,21 +1,21 @@
 #!/usr/bin/env bash
 # Installs, with apt-get, the Debian 12 packages isomend needs and that are missing.
 # Usage: scripts/deps.sh [build|test|all]   (default all)
-#   build: compilers, CMake, zlib, OpenImageIO, libtiff/OpenEXR/libpng and patchelf
+#   build: compilers, CMake, zlib, OpenImageIO, GDCM, libtiff/OpenEXR/libpng and patchelf
 #          (the portable importer the Blender add-on carries), Qt/MeshLab headers' needs
 #   test:  build + the peers and hosts the tests drive (VTK, scikit-image,
-#          MeshLab, Blender, Xvfb, pytest) and mmdebstrap (the Debian 13 root of
-#          scripts/trixie-root.sh)
+#          MeshLab, Blender, Xvfb, pytest, pydicom, gdcmconv) and mmdebstrap
+#          (the Debian 13 root of scripts/trixie-root.sh)
 set -euo pipefail
 what="${1:-all}"
 BUILD_PKGS=(build-essential cmake pkg-config zlib1g-dev
-  libopenimageio-dev openimageio-tools
+  libopenimageio-dev openimageio-tools libgdcm-dev
   libtiff-dev libopenexr-dev libpng-dev patchelf
   qtbase5-dev libqt5opengl5-dev libglew-dev libeigen3-dev dpkg-dev meshlab
   python3-numpy)
 TEST_PKGS=(python3-pytest python3-vtk9 python3-skimage python3-openimageio python3-tifffile
   xvfb xauth blender libtiff-tools libopenvdb-dev python3-openvdb python3-nibabel
-  python3-scipy mmdebstrap)
+  python3-scipy mmdebstrap python3-pydicom libgdcm-tools)
 pkgs=("${BUILD_PKGS[@]}")
 [ "$what" = build ] || pkgs+=("${TEST_PKGS[@]}")
 missing=()

@@ -25,7 +25,10 @@ Conventions:
     Blender's default scene units, so a 250 mm head is 0.25 m tall).
   - axes: x = image column, y = image row (top row first), z = slice order,
     as isomend_io.h documents: the mesh is the stack as an image viewer shows
-    it, moved and scaled, never mirrored.
+    it, moved and scaled, never mirrored.  A DICOM series is placed in patient
+    coordinates (LPS mm: Blender's +X the patient's left, +Y posterior, +Z the
+    head, so the Front view shows the face), turned by its direction cosines;
+    ``grid_axes`` keeps the series' own axes; ``series`` picks one of several.
   - the object is placed at the volume's origin (sample (0, 0, 0)); its
     vertices are relative to it.
   - normals: ``smooth`` shades the faces smooth; with ``gradient_normals``
@@ -109,7 +112,7 @@ class IMPORT_MESH_OT_slice_stack(Operator, ImportHelper):
 
     filename_ext = ""
     filter_glob: StringProperty(
-        default="*.tif;*.tiff;*.png;*.exr;*.jpg;*.jpeg;*.bmp;*.dpx;*.jp2;*.hdr;*.nrrd;*.nhdr",
+        default="*.tif;*.tiff;*.png;*.exr;*.jpg;*.jpeg;*.bmp;*.dpx;*.jp2;*.hdr;*.nrrd;*.nhdr;*.dcm;DICOMDIR",
         options={'HIDDEN'})
     directory: StringProperty(subtype='DIR_PATH', options={'HIDDEN', 'SKIP_SAVE'})
     files: CollectionProperty(type=OperatorFileListElement, options={'HIDDEN', 'SKIP_SAVE'})
@@ -154,6 +157,16 @@ class IMPORT_MESH_OT_slice_stack(Operator, ImportHelper):
                     "(exact surface normals of the volume; costs about 2 s per million triangles). "
                     "Off: Blender's own vertex normals",
         default=True)
+    series: StringProperty(
+        name="DICOM Series",
+        description="For a folder holding several DICOM series: the series' number as the error "
+                    "message lists them (1, 2, ...) or its Series Instance UID. Empty: the only series",
+        default="")
+    grid_axes: BoolProperty(
+        name="DICOM Grid Axes",
+        description="Keep a DICOM series' own axes (columns, rows, slices) instead of placing the "
+                    "mesh in patient coordinates (LPS mm, turned by the series' orientation)",
+        default=False)
     modal_ui: BoolProperty(options={'HIDDEN', 'SKIP_SAVE'}, default=False)
 
     def draw(self, _context):
@@ -168,6 +181,8 @@ class IMPORT_MESH_OT_slice_stack(Operator, ImportHelper):
         layout.prop(self, "unit_scale")
         layout.prop(self, "channel")
         layout.prop(self, "pad")
+        layout.prop(self, "series")
+        layout.prop(self, "grid_axes")
         layout.prop(self, "smooth")
         row = layout.row()
         row.active = self.smooth
@@ -185,7 +200,8 @@ class IMPORT_MESH_OT_slice_stack(Operator, ImportHelper):
         paths = import_stack.resolve_paths(directory, [f.name for f in self.files], filepath)
         spacing = import_stack.spacing_argument(self.spacing)
         return import_stack.ImportJob(paths, self._iso(), self.method.lower(), spacing,
-                                      self.channel, self.pad, self.smooth and self.gradient_normals)
+                                      self.channel, self.pad, self.smooth and self.gradient_normals,
+                                      series=self.series.strip() or None, grid_axes=self.grid_axes)
 
     # ---------------------------------------------------------------- running
     def invoke(self, context, event):

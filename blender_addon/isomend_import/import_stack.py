@@ -169,8 +169,11 @@ class ImportJob:
     support Python threads).  Afterwards ``result`` is (mesh, info) or
     ``error`` the exception; ``cancel`` says whether a cancel was asked."""
 
-    def __init__(self, paths, iso, method, spacing, channel, pad, normals):
+    def __init__(self, paths, iso, method, spacing, channel, pad, normals, series=None,
+                 grid_axes=False):
         self.paths = paths
+        self.series = series        # DICOM: which series (None: the only one)
+        self.grid_axes = grid_axes  # DICOM: the series' own axes, not patient space
         self.iso = iso          # None: the importer's suggestion
         self.method = method
         self.spacing = spacing  # None: from the files
@@ -201,10 +204,12 @@ class ImportJob:
             if problem is not None:
                 raise isomend.LibraryNotFound(problem)
             with isomend.open_source(self.paths, channel=self.channel, spacing=self.spacing,
-                                     progress=self.progress) as src:
+                                     progress=self.progress, series=self.series,
+                                     grid_axes=self.grid_axes) as src:
                 info = {"dims": src.dims, "dtype": np.dtype(src.dtype).name,
                         "spacing": src.spacing, "spacing_sources": src.spacing_sources,
-                        "origin": src.origin, "kind": src.kind, "format": src.format}
+                        "origin": src.origin, "kind": src.kind, "format": src.format,
+                        "dicom": src.dicom}
                 mesh = src.extract(iso=self.iso, method=self.method, pad=self.pad,
                                    normals=self.normals, origins=True, progress=self.progress)
             self.result = (mesh, info)
@@ -221,7 +226,8 @@ class ImportJob:
         self._t0 = time.perf_counter()
         self._native = isomend.ExtractJob(self.paths, iso=self.iso, method=self.method,
                                           pad=self.pad, normals=self.normals, origins=True,
-                                          channel=self.channel, spacing=self.spacing)
+                                          channel=self.channel, spacing=self.spacing,
+                                          series=self.series, grid_axes=self.grid_axes)
 
     def request_cancel(self):
         self.cancel = True
@@ -296,20 +302,31 @@ def mesh_buffers(mesh, unit_scale):
 
 def custom_properties(mesh, info):
     """The object's custom properties: what was imported, and how."""
-    return {"isomend_iso": float(mesh.iso), "isomend_method": mesh.method,
-            "isomend_mending_triangles": int(mesh.stats["mending_triangles"]),
-            "isomend_spacing_mm": [float(s) for s in info["spacing"]]}
+    props = {"isomend_iso": float(mesh.iso), "isomend_method": mesh.method,
+             "isomend_mending_triangles": int(mesh.stats["mending_triangles"]),
+             "isomend_spacing_mm": [float(s) for s in info["spacing"]]}
+    dicom = info.get("dicom")
+    if dicom:
+        props["isomend_dicom_series_uid"] = dicom["series_uid"]
+        props["isomend_dicom_axes"] = dicom["axes"]
+    return props
 
 
 def report(name, mesh, info, suggested):
     """The one-line report of a finished import."""
     sp = info["spacing"]
-    return ("Imported %s: %d vertices, %d triangles (%d mending), iso %g%s, %s, %dx%dx%d samples, "
-            "spacing %g x %g x %g mm (%s)"
-            % (name, mesh.vertex_count, mesh.triangle_count, mesh.stats["mending_triangles"],
-               mesh.iso, " (suggested)" if suggested else "", mesh.method.upper(),
-               info["dims"][0], info["dims"][1], info["dims"][2], sp[0], sp[1], sp[2],
-               ", ".join(info["spacing_sources"])))
+    msg = ("Imported %s: %d vertices, %d triangles (%d mending), iso %g%s, %s, %dx%dx%d samples, "
+           "spacing %g x %g x %g mm (%s)"
+           % (name, mesh.vertex_count, mesh.triangle_count, mesh.stats["mending_triangles"],
+              mesh.iso, " (suggested)" if suggested else "", mesh.method.upper(),
+              info["dims"][0], info["dims"][1], info["dims"][2], sp[0], sp[1], sp[2],
+              ", ".join(info["spacing_sources"])))
+    dicom = info.get("dicom")
+    if dicom:
+        msg += ("; DICOM %s series \"%s\", %s axes%s"
+                % (dicom["modality"], dicom["description"], dicom["axes"],
+                   " (bone level, HU)" if dicom["hounsfield"] and suggested else ""))
+    return msg
 
 
 # ------------------------------------------------------------ can the libraries load?

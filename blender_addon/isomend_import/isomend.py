@@ -90,7 +90,7 @@ ERR_CANCELLED = 7
 IO_STATUS_NAMES = {
     0: "OK", 1: "INVALID_ARGUMENT", 2: "NOT_FOUND", 3: "UNREADABLE", 4: "CORRUPT",
     5: "MISMATCH", 6: "UNSUPPORTED", 7: "TOO_FEW_SLICES", 8: "TOO_LARGE",
-    9: "OUT_OF_MEMORY", 10: "CANCELLED", 11: "EXTRACT", 12: "INTERNAL",
+    9: "OUT_OF_MEMORY", 10: "CANCELLED", 11: "EXTRACT", 12: "INTERNAL", 13: "SERIES",
 }
 IO_ERR_CANCELLED = 10
 
@@ -120,7 +120,9 @@ ORIGIN_NAMES = ("table", "durst", "mend")
 IO_CHANNEL_AUTO = -1
 IO_CHANNEL_LUMA = -2
 IO_STAGES = ("open", "read", "analyse", "extract")
-IO_KIND_NAMES = ("folder", "glob", "pattern", "list", "multipage", "raw", "nrrd")
+IO_KIND_NAMES = ("folder", "glob", "pattern", "list", "multipage", "raw", "nrrd", "dicom")
+IO_AXES_PATIENT, IO_AXES_GRID = 0, 1
+IO_LEVEL_NAMES = ("otsu", "bone", "skin")
 IO_HISTOGRAM_BINS = 16
 
 
@@ -232,6 +234,47 @@ class IOSummary(ctypes.Structure):
     ]
 
 
+class IOSeries(ctypes.Structure):
+    _fields_ = [
+        ("size", ctypes.c_size_t),
+        ("uid", ctypes.c_char_p),
+        ("description", ctypes.c_char_p),
+        ("modality", ctypes.c_char_p),
+        ("number", ctypes.c_int64),
+        ("files", ctypes.c_int64),
+        ("images", ctypes.c_int64),
+        ("columns", ctypes.c_int64),
+        ("rows", ctypes.c_int64),
+    ]
+
+
+class IODicom(ctypes.Structure):
+    _fields_ = [
+        ("size", ctypes.c_size_t),
+        ("modality", ctypes.c_char_p),
+        ("series_uid", ctypes.c_char_p),
+        ("description", ctypes.c_char_p),
+        ("transfer_syntax", ctypes.c_char_p),
+        ("transfer_syntax_name", ctypes.c_char_p),
+        ("photometric", ctypes.c_char_p),
+        ("bits_stored", ctypes.c_int),
+        ("pixel_signed", ctypes.c_int),
+        ("rescaled", ctypes.c_int),
+        ("hounsfield", ctypes.c_int),
+        ("rescale_slope", ctypes.c_double),
+        ("rescale_intercept", ctypes.c_double),
+        ("orientation", ctypes.c_double * 6),
+        ("normal", ctypes.c_double * 3),
+        ("position", ctypes.c_double * 3),
+        ("files", ctypes.c_int64),
+        ("multiframe", ctypes.c_int64),
+        ("non_image", ctypes.c_int64),
+        ("non_dicom", ctypes.c_int64),
+        ("other_series", ctypes.c_int64),
+        ("axes", ctypes.c_int),
+    ]
+
+
 # ------------------------------------------------------------ library loading
 
 _HERE = os.path.dirname(os.path.abspath(__file__))
@@ -319,6 +362,9 @@ def _core_lib():
         _declare(lib, "isomend_check", c_int,
                  [ctypes.c_void_p, c_size, ctypes.c_void_p, c_size, P(c_double), P(CheckReport)])
         _declare(lib, "isomend_mesh_check", c_int, [ctypes.c_void_p, P(CheckReport)])
+        _declare(lib, "isomend_mesh_copy_transformed", c_int,
+                 [ctypes.c_void_p, P(c_double), ctypes.c_void_p, ctypes.c_void_p, ctypes.c_void_p,
+                  ctypes.c_void_p])
         _declare(lib, "isomend_case_of", c_int, [ctypes.c_uint])
         _declare(lib, "isomend_case_triangles", c_int, [ctypes.c_uint, P(c_int)])
         _core, _core_path = lib, path
@@ -367,6 +413,16 @@ def _io_lib():
         _declare(lib, "isomend_io_job_cancel", None, [c_void_p])
         _declare(lib, "isomend_io_job_finish", c_int,
                  [c_void_p, P(ctypes.c_double), P(c_void_p), P(Stats)])
+        _declare(lib, "isomend_io_set_series", c_int, [c_void_p, c_char_p])
+        _declare(lib, "isomend_io_set_axes", c_int, [c_void_p, c_int])
+        _declare(lib, "isomend_io_series_count", ctypes.c_int64, [c_void_p])
+        _declare(lib, "isomend_io_series_get", c_int, [c_void_p, ctypes.c_int64, P(IOSeries)])
+        _declare(lib, "isomend_io_series_chosen", ctypes.c_int64, [c_void_p])
+        _declare(lib, "isomend_io_dicom_info", c_int, [c_void_p, P(IODicom)])
+        _declare(lib, "isomend_io_world_transform", c_int, [c_void_p, P(ctypes.c_double), P(c_int)])
+        _declare(lib, "isomend_io_level_name", c_char_p, [c_int])
+        _declare(lib, "isomend_io_level_value", c_int, [c_void_p, c_int, P(ctypes.c_double)])
+        _declare(lib, "isomend_io_suggested_level", c_int, [c_void_p])
         _io, _io_path = lib, path
         return lib
 
@@ -685,12 +741,16 @@ class _ArrayView:
                                     "typestr": typestr, "version": 3}
 
 
-def _take_mesh(handle, stats, iso, method_id, want_normals, want_origins):
+def _take_mesh(handle, stats, iso, method_id, want_normals, want_origins, world=None):
     """Wraps a C mesh's arrays in numpy arrays without copying them: the C mesh
     lives until the last of those arrays is released.  A mesh of 15 M triangles
     is 350 MB; a copy would double the peak memory and cost as much time as a
-    third of the extraction."""
+    third of the extraction.  ``world`` (3x4, a DICOM series' patient
+    transform) instead copies the mesh through the map
+    (isomend_mesh_copy_transformed) and frees the C mesh."""
     lib = _core_lib()
+    if world is not None:
+        return _take_mesh_mapped(lib, handle, stats, iso, method_id, want_normals, want_origins, world)
     owner = _MeshMemory(handle)  # destroys the handle if anything below fails
     nv = lib.isomend_mesh_vertex_count(handle)
     nt = lib.isomend_mesh_triangle_count(handle)
@@ -705,6 +765,34 @@ def _take_mesh(handle, stats, iso, method_id, want_normals, want_origins):
     del owner
     name = lib.isomend_method_name(method_id).decode()
     return Mesh(positions, normals, triangles, origins, tuple(box), _stats_dict(stats), iso, name)
+
+
+def _take_mesh_mapped(lib, handle, stats, iso, method_id, want_normals, want_origins, world):
+    try:
+        nv = lib.isomend_mesh_vertex_count(handle)
+        nt = lib.isomend_mesh_triangle_count(handle)
+        positions = np.empty((nv, 3), np.float32)
+        triangles = np.empty((nt, 3), np.uint32)
+        normals = np.empty((nv, 3), np.float32) if want_normals else None
+        origins = np.empty((nt,), np.uint8) if want_origins else None
+        A = (ctypes.c_double * 12)(*[float(v) for v in np.asarray(world, float).reshape(-1)])
+        ptr = lambda a: a.ctypes.data if a is not None and a.size else None
+        status = lib.isomend_mesh_copy_transformed(handle, A, ptr(positions), ptr(normals),
+                                                   ptr(triangles), ptr(origins))
+        if status != 0:
+            _raise_core(status, "isomend_mesh_copy_transformed")
+        box = (ctypes.c_double * 6)()
+        lib.isomend_mesh_grid_box(handle, box)
+    finally:
+        lib.isomend_mesh_destroy(handle)
+    # the box of the mapped grid's corners (a turned grid's faces are not the
+    # box's: check() then sees its border as holes unless the mesh is padded)
+    M = np.asarray(world, float).reshape(3, 4)
+    corners = np.array([[box[a], box[1 + b], box[2 + c]] for a in (0, 3) for b in (0, 3) for c in (0, 3)], float)
+    mapped = corners @ M[:, :3].T + M[:, 3]
+    grid_box = tuple(mapped.min(0).tolist() + mapped.max(0).tolist())
+    name = lib.isomend_method_name(method_id).decode()
+    return Mesh(positions, normals, triangles, origins, grid_box, _stats_dict(stats), iso, name)
 
 
 def extract(volume, iso, method="dmc", spacing=None, origin=None, pad=False, flip=False,
@@ -839,6 +927,18 @@ def _io_options(lib, channel=None, spacing=None, origin=None, first=0, count=0, 
     return opts
 
 
+def _dicom_choices(lib, handle, series, grid_axes):
+    """isomend_io_set_series / _set_axes on a handle before it is opened."""
+    if series is not None:
+        text = str(series).strip()
+        if not text:
+            raise ValueError("series: empty (a 1-based position or a Series Instance UID)")
+        if lib.isomend_io_set_series(handle, text.encode()) != 0:
+            raise ValueError("series: %r refused" % (series,))
+    if grid_axes:
+        lib.isomend_io_set_axes(handle, IO_AXES_GRID)
+
+
 class _Closable:
     """with-statement and garbage collection both call close()."""
 
@@ -862,12 +962,20 @@ class Source(_Closable):
     Use as a context manager or call close(); the handle is also released when
     the object is garbage-collected.  Attributes after opening: dims (nx, ny,
     nz), dtype, spacing (x, y, z), spacing_sources, origin, kind, format,
-    volume_bytes, slice_bytes.
+    volume_bytes, slice_bytes; for a DICOM series also ``dicom`` (a dict:
+    modality, series_uid, description, rescale, orientation, ...), ``series``
+    (every series found) and ``world_transform`` (the 3x4 patient transform
+    of the mesh, None when it is the identity), else None / [] / None.
+
+    DICOM: ``series`` picks one (a Series Instance UID, or its 1-based
+    position N as listed); ``grid_axes=True`` keeps the series' own axes.  A
+    folder of several series without a choice raises IsomendError with
+    status_name "SERIES" and the list in its message and ``.series``.
     """
 
     def __init__(self, paths, channel=None, spacing=None, origin=None, first=0, count=0, step=1,
                  threads=0, memory_limit=0, raw_dims=None, raw_type=None, raw_header=0,
-                 raw_big_endian=False, progress=None):
+                 raw_big_endian=False, progress=None, series=None, grid_axes=False):
         self._handle = None
         lib = _io_lib()
         self._lib = lib
@@ -883,6 +991,7 @@ class Source(_Closable):
         if status != 0 or not handle.value:
             self._raise(status or 9, "isomend_io_create")
         self._handle = handle
+        _dicom_choices(lib, handle, series, grid_axes)
         encoded = _paths_list(paths)
         self.paths = [os.fsdecode(p) for p in encoded]
         arr = (ctypes.c_char_p * len(encoded))(*encoded)
@@ -911,7 +1020,23 @@ class Source(_Closable):
             msg = raw.decode() if raw else "status %d" % status
         name = IO_STATUS_NAMES.get(status, str(status))
         cls = Cancelled if status == IO_ERR_CANCELLED else IsomendError
-        raise cls(msg if what is None else "%s: %s" % (what, msg), status, name)
+        exc = cls(msg if what is None else "%s: %s" % (what, msg), status, name)
+        exc.series = self._series_list() if self._handle is not None else []
+        raise exc
+
+    def _series_list(self):
+        lib, h = self._lib, self._handle
+        out = []
+        for i in range(int(lib.isomend_io_series_count(h))):
+            e = IOSeries()
+            e.size = ctypes.sizeof(IOSeries)
+            if lib.isomend_io_series_get(h, i, ctypes.byref(e)) == 0:
+                out.append({"index": i + 1, "uid": (e.uid or b"").decode(errors="replace"),
+                            "description": (e.description or b"").decode(errors="replace"),
+                            "modality": (e.modality or b"").decode(errors="replace"),
+                            "number": e.number, "files": e.files, "images": e.images,
+                            "columns": e.columns, "rows": e.rows})
+        return out
 
     def _check(self, status, what):
         self._progress.reraise()
@@ -948,6 +1073,41 @@ class Source(_Closable):
         self.format = fmt.decode() if fmt else ""
         self.volume_bytes = int(lib.isomend_io_volume_bytes(h))
         self.slice_bytes = int(lib.isomend_io_slice_bytes(h))
+        self.series = self._series_list()
+        A = (ctypes.c_double * 12)()
+        identity = ctypes.c_int(1)
+        self._check(lib.isomend_io_world_transform(h, A, ctypes.byref(identity)), "world transform")
+        self.world_transform = None if identity.value else np.array(A[:], float).reshape(3, 4)
+        self.dicom = None
+        info = IODicom()
+        info.size = ctypes.sizeof(IODicom)
+        if lib.isomend_io_dicom_info(h, ctypes.byref(info)) == 0:
+            text = lambda b: (b or b"").decode(errors="replace")
+            self.dicom = {
+                "modality": text(info.modality), "series_uid": text(info.series_uid),
+                "description": text(info.description), "transfer_syntax": text(info.transfer_syntax),
+                "transfer_syntax_name": text(info.transfer_syntax_name),
+                "photometric": text(info.photometric), "bits_stored": info.bits_stored,
+                "signed": bool(info.pixel_signed), "rescaled": bool(info.rescaled),
+                "hounsfield": bool(info.hounsfield), "rescale_slope": info.rescale_slope,
+                "rescale_intercept": info.rescale_intercept, "orientation": tuple(info.orientation),
+                "normal": tuple(info.normal), "position": tuple(info.position), "files": info.files,
+                "multiframe": bool(info.multiframe), "non_image": info.non_image,
+                "non_dicom": info.non_dicom, "other_series": info.other_series,
+                "axes": "grid" if info.axes == IO_AXES_GRID else "patient",
+                "series_index": int(lib.isomend_io_series_chosen(h)) + 1}
+        lvl = lib.isomend_io_suggested_level(h)
+        self.suggested_level = IO_LEVEL_NAMES[lvl] if 0 <= lvl < len(IO_LEVEL_NAMES) else "otsu"
+
+    def level(self, name):
+        """The value of a named iso level: "otsu" (analyses the volume), or for
+        a CT series in HU "bone" (300) and "skin" (-500)."""
+        if name not in IO_LEVEL_NAMES:
+            raise ValueError("level: expected one of %s, got %r" % (", ".join(IO_LEVEL_NAMES), name))
+        v = ctypes.c_double()
+        self._check(self._lib.isomend_io_level_value(self._require_open(), IO_LEVEL_NAMES.index(name),
+                                                     ctypes.byref(v)), "level %s" % name)
+        return v.value
 
     def _with_progress(self, progress):
         if progress is not None:
@@ -1031,9 +1191,13 @@ class Source(_Closable):
         if status != 0 and handle.value:
             _core_lib().isomend_mesh_destroy(handle)
         self._check(status, what)
-        mesh = _take_mesh(handle, stats, iso_used, method_id, normals, origins)
+        world = getattr(self, "world_transform", None)
+        mesh = _take_mesh(handle, stats, iso_used, method_id, normals, origins, world)
         vol, seconds = described or self._describe()
-        mesh.volume_origin = tuple(vol.origin)
+        origin = np.array(vol.origin[:], float)
+        if world is not None:  # sample (0, 0, 0) in patient space
+            origin = world[:, :3] @ origin + world[:, 3]
+        mesh.volume_origin = tuple(origin.tolist())
         mesh.volume_spacing = tuple(vol.spacing)
         mesh.read_seconds = seconds
         return mesh
@@ -1090,6 +1254,8 @@ class ExtractJob(_Closable):
         self._job = None
         self._handle = None
         lib = self._lib = _io_lib()
+        series = open_kwargs.pop("series", None)
+        grid_axes = open_kwargs.pop("grid_axes", False)
         io_opts = _io_options(lib, threads=threads, **open_kwargs)
         self._opts = _options(iso if iso is not None else 0.0, method, pad, flip, normals, origins,
                               threads, None, small_pages)
@@ -1102,6 +1268,7 @@ class ExtractJob(_Closable):
             raise IsomendError("isomend_io_create: out of memory", status or 9,
                                IO_STATUS_NAMES.get(status or 9, "?"))
         self._handle = handle
+        _dicom_choices(lib, handle, series, grid_axes)
         arr = (ctypes.c_char_p * len(encoded))(*encoded)
         job = ctypes.c_void_p()
         status = lib.isomend_io_job_start(handle, arr, len(encoded), ctypes.byref(io_opts),
@@ -1150,7 +1317,8 @@ class ExtractJob(_Closable):
                              *self._want)
             info = {"dims": src.dims, "dtype": np.dtype(src.dtype).name, "spacing": src.spacing,
                     "spacing_sources": src.spacing_sources, "origin": src.origin,
-                    "kind": src.kind, "format": src.format}
+                    "kind": src.kind, "format": src.format, "dicom": src.dicom,
+                    "world_transform": src.world_transform}
         return mesh, info
 
     def close(self):
@@ -1167,9 +1335,11 @@ class ExtractJob(_Closable):
 def open_source(paths, **kwargs):
     """Opens and validates a source: a folder, a glob ('scan/*.tif'), a printf
     pattern ('s_%04d.tif' with first/count/step), a list of files, a multi-page
-    TIFF, a raw file (raw_dims, raw_type) or an NRRD file.  Keyword arguments:
+    TIFF, a raw file (raw_dims, raw_type), an NRRD file or a DICOM series (a
+    folder, a DICOMDIR, DICOM files, a multi-frame file).  Keyword arguments:
     channel (index, 'auto', 'luma'), spacing, origin, first, count, step, threads,
-    memory_limit, raw_dims, raw_type, raw_header, raw_big_endian, progress.
+    memory_limit, raw_dims, raw_type, raw_header, raw_big_endian, progress;
+    for DICOM series (a 1-based position or a UID) and grid_axes.
     Returns a Source; raises IsomendError naming the file and the reason."""
     return Source(paths, **kwargs)
 

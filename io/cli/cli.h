@@ -88,6 +88,10 @@ typedef struct cli_source_opts {
     int64_t first, count, step;
     int channel; /* >= 0, or -2 for luma */
     int threads;
+    /* DICOM (importer only) */
+    const char *series;     /* --series UID|N, NULL = the only one */
+    int grid_axes;          /* --grid-axes: the series' own frame, no rotation */
+    int list_series;        /* `info`: several series and no choice lists them */
     cli_progress *progress;
 } cli_source_opts;
 
@@ -107,6 +111,11 @@ typedef struct cli_source {
     char format[32];
     const char *spacing_from[3];
     int oblique;             /* NRRD space directions not axis aligned        */
+    int dicom;               /* a DICOM series (the importer's kind "dicom")   */
+    int series_listed;       /* several series, none chosen: only the list     */
+    int grid_axes;           /* --grid-axes was given                          */
+    int has_world;           /* the mesh maps to the world by `world`          */
+    double world[12];        /* 3x4 row-major (isomend_io_world_transform)     */
     double read_ms;
     char label[1024];        /* SOURCE as given (first path)                   */
 } cli_source;
@@ -117,6 +126,17 @@ int cli_source_open(const char *const *paths, int n, const cli_source_opts *o, c
 void cli_source_close(cli_source *src);
 /* Value range, 16-bin histogram, Otsu suggestion (the importer's rule). */
 int cli_source_summary(cli_source *src, cli_summary *sum);
+
+/* DICOM reporting (source.c; no-ops without the importer). */
+void cli_print_dicom(FILE *fp, cli_source *src, const cli_summary *sum);
+void cli_json_dicom(FILE *fp, cli_source *src, const cli_summary *sum);
+void cli_print_series(FILE *fp, const cli_source *src);
+void cli_json_series(FILE *fp, const cli_source *src);
+/* The level named "otsu", "bone" or "skin" (an importer's source: its rule;
+ * bone/skin only for CT in HU).  Returns an exit code, the message printed. */
+int cli_source_level(cli_source *src, const char *name, double *value);
+/* "bone" for a CT DICOM series in HU, else "otsu": what a missing --iso uses. */
+const char *cli_source_suggested_level(const cli_source *src);
 
 /* Fills the built-in F1/F2 of the thesis (4x4x4 f32, 0..3).  Returns 1 if `name` is one. */
 int cli_builtin_volume(const char *name, float out[64]);

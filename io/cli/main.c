@@ -60,6 +60,9 @@ static const char *const usage_extract =
 #ifdef ISOMEND_HAVE_IO
     "  FOLDER | 'GLOB' | PATTERN%04d.tif | FILE1 FILE2 ... | MULTIPAGE.tif\n"
     "                           image slice stacks (OpenImageIO)\n"
+    "  DICOM-FOLDER | DICOMDIR | FILE1.dcm FILE2.dcm ... | MULTIFRAME.dcm\n"
+    "                           a DICOM series (GDCM), found by content; the mesh in\n"
+    "                           patient coordinates (LPS, mm)\n"
 #endif
     "\n"
     "MESH: .ply (binary, with normals), .obj (with normals) or .stl (binary)\n"
@@ -67,7 +70,9 @@ static const char *const usage_extract =
     "Options:\n"
     "  -o, --output MESH        output mesh (required)\n"
     "  --iso V                  iso level; default: the source's suggested level\n"
-    "                           (Otsu, see 'isomend info'), announced on stderr\n"
+    "                           (Otsu, see 'isomend info'), announced on stderr;\n"
+    "                           also otsu, or for CT in HU bone (300, the CT default)\n"
+    "                           or skin (-500)\n"
     "  --method NAME            dmc (default), mc, durst (others if built)\n"
     "  --spacing DX,DY,DZ       sample spacing (overrides the file's)\n"
     "  --origin X,Y,Z           world position of sample (0,0,0)\n"
@@ -85,6 +90,9 @@ static const char *const usage_extract =
 #ifdef ISOMEND_HAVE_IO
     "  --first N --count N --step N   printf-pattern slice range\n"
     "  --channel N|luma         channel of multi-channel images\n"
+    "  --series N|UID           DICOM: the series (N as listed by 'isomend info')\n"
+    "  --grid-axes              DICOM: keep the series' own axes (rows, columns,\n"
+    "                           slices) instead of turning the mesh into patient space\n"
 #endif
     "\n"
     "Exit status: 0 written, 1 failure, 2 usage error, 130 interrupted (nothing written).\n";
@@ -105,10 +113,14 @@ static const char *const usage_info =
     "                           [--origin X,Y,Z] [--json FILE|-] [--quiet]\n"
 #ifdef ISOMEND_HAVE_IO
     "                           [--first N] [--count N] [--step N] [--channel N|luma]\n"
+    "                           [--series N|UID] [--grid-axes]\n"
 #endif
     "\n"
     "Prints the dimensions, sample type, value range, a coarse histogram, the\n"
-    "spacing and where it came from, and the suggested iso level (Otsu).\n";
+    "spacing and where it came from, and the suggested iso level (Otsu).\n"
+    "For DICOM also the series (all of them when a folder holds several and\n"
+    "--series is not given), modality, values, orientation and, for CT in HU,\n"
+    "the bone and skin levels and which one extract uses.\n";
 
 static const char *const usage_sample =
     "usage: isomend sample f1|f2 -o FILE.nrrd [--gzip]\n"
@@ -126,7 +138,7 @@ enum {
     OPT_FLIP = 1u << 8, OPT_STATS = 1u << 9, OPT_JSON = 1u << 10, OPT_QUIET = 1u << 11,
     OPT_THREADS = 1u << 12, OPT_BOX = 1u << 13, OPT_FIRST = 1u << 14, OPT_COUNT = 1u << 15,
     OPT_STEP = 1u << 16, OPT_CHANNEL = 1u << 17, OPT_GZIP = 1u << 18, OPT_HELP = 1u << 19,
-    OPT_PAGES = 1u << 20
+    OPT_PAGES = 1u << 20, OPT_SERIES = 1u << 21, OPT_GRID_AXES = 1u << 22
 };
 
 static const struct {
@@ -142,6 +154,7 @@ static const struct {
     {"--box", OPT_BOX, 1},       {"--first", OPT_FIRST, 1},   {"--count", OPT_COUNT, 1},
     {"--step", OPT_STEP, 1},     {"--channel", OPT_CHANNEL, 1}, {"--gzip", OPT_GZIP, 0},
     {"--help", OPT_HELP, 0},     {"-h", OPT_HELP, 0},         {"--pages", OPT_PAGES, 1},
+    {"--series", OPT_SERIES, 1}, {"--grid-axes", OPT_GRID_AXES, 0},
 };
 
 #define MAX_SOURCES 4096
@@ -152,6 +165,7 @@ typedef struct args {
     const char *positional[MAX_SOURCES];
     int npositional;
     double iso;
+    const char *iso_name; /* --iso otsu|bone|skin */
     isomend_method method;
     enum { PAGES_HUGE, PAGES_SMALL } pages; /* --pages */
     double box[6];
@@ -286,8 +300,12 @@ static int parse_args(int argc, char **argv, int first, const char *command, uns
             a->output = value;
             break;
         case OPT_ISO:
+            if (strcmp(value, "otsu") == 0 || strcmp(value, "bone") == 0 || strcmp(value, "skin") == 0) {
+                a->iso_name = value;
+                break;
+            }
             if (!cli_parse_double(value, &a->iso)) {
-                cli_error("--iso: '%s' is not a finite number", value);
+                cli_error("--iso: '%s' is not a finite number (nor otsu, bone, skin)", value);
                 return CLI_EXIT_USAGE;
             }
             break;
@@ -365,6 +383,16 @@ static int parse_args(int argc, char **argv, int first, const char *command, uns
             if (!parse_count_option("--step", value, 1, &a->src.step)) return CLI_EXIT_USAGE;
             a->src.have_step = 1;
             break;
+        case OPT_SERIES:
+            if (!*value) {
+                cli_error("--series: empty (a number N from 'isomend info' or a Series Instance UID)");
+                return CLI_EXIT_USAGE;
+            }
+            a->src.series = value;
+            break;
+        case OPT_GRID_AXES:
+            a->src.grid_axes = 1;
+            break;
         case OPT_PAGES:
             if (strcmp(value, "huge") == 0)
                 a->pages = PAGES_HUGE;
@@ -393,8 +421,8 @@ static int parse_args(int argc, char **argv, int first, const char *command, uns
         }
     }
 #ifndef ISOMEND_HAVE_IO
-    if (a->seen & (OPT_FIRST | OPT_COUNT | OPT_STEP | OPT_CHANNEL)) {
-        cli_error("--first/--count/--step/--channel need the slice-stack importer "
+    if (a->seen & (OPT_FIRST | OPT_COUNT | OPT_STEP | OPT_CHANNEL | OPT_SERIES | OPT_GRID_AXES)) {
+        cli_error("--first/--count/--step/--channel/--series/--grid-axes need the slice-stack importer "
                   "(this isomend was built without it: -DISOMEND_BUILD_IO=ON)");
         return CLI_EXIT_USAGE;
     }
@@ -474,6 +502,11 @@ static void print_source_line(FILE *fp, const cli_source *s)
     if (s->oblique)
         fprintf(fp, "  note: the NRRD 'space directions' are not axis aligned; isomend uses their "
                     "lengths as spacing (the mesh is not rotated)\n");
+    if (s->dicom)
+        fprintf(fp, "  axes: %s\n",
+                s->grid_axes ? "the series' own (--grid-axes): x rows, y columns, z slices, not rotated"
+                : s->has_world ? "patient (LPS mm), turned by the series' direction cosines"
+                               : "patient (LPS mm): x to the patient's left, y posterior, z head");
 }
 
 /* ------------------------------------------------------------------ extract */
@@ -501,7 +534,7 @@ static int cmd_extract(int argc, char **argv)
     unsigned allowed = OPT_OUTPUT | OPT_ISO | OPT_METHOD | OPT_RAW | OPT_SPACING | OPT_ORIGIN |
                        OPT_PAD | OPT_NO_NORMALS | OPT_FLIP | OPT_STATS | OPT_JSON | OPT_QUIET |
                        OPT_THREADS | OPT_FIRST | OPT_COUNT | OPT_STEP | OPT_CHANNEL | OPT_HELP |
-                       OPT_PAGES;
+                       OPT_PAGES | OPT_SERIES | OPT_GRID_AXES;
     int rc = parse_args(argc, argv, 2, "extract", allowed, &a);
     if (rc) return rc;
     if (a.seen & OPT_HELP) {
@@ -543,7 +576,10 @@ static int cmd_extract(int argc, char **argv)
     rc = open_source_for(&a, quiet, &jo, &bar, &src);
     if (rc) return rc;
     int iso_suggested = 0;
-    if (!(a.seen & OPT_ISO)) {
+    if (a.iso_name) {
+        rc = cli_source_level(&src, a.iso_name, &a.iso);
+        if (rc) goto fail_source;
+    } else if (!(a.seen & OPT_ISO)) {
         cli_summary sum;
         rc = cli_source_summary(&src, &sum);
         if (rc) goto fail_source;
@@ -555,7 +591,11 @@ static int cmd_extract(int argc, char **argv)
         }
         a.iso = sum.suggested_iso;
         iso_suggested = 1;
-        if (!quiet)
+        if (!quiet && strcmp(cli_source_suggested_level(&src), "bone") == 0)
+            fprintf(stderr, "isomend: no --iso given: using %.9g HU, the bone level of the CT series "
+                            "%s (--iso skin or --iso otsu for the others, see 'isomend info')\n",
+                    a.iso, src.label);
+        else if (!quiet)
             fprintf(stderr, "isomend: no --iso given: using %.9g, the suggested level of %s "
                             "(Otsu, see 'isomend info')\n",
                     a.iso, src.label);
@@ -602,9 +642,36 @@ static int cmd_extract(int argc, char **argv)
         goto fail_mesh;
     }
     t0 = cli_now_ms();
-    if (isomend_write_mesh(a.output, fmt, isomend_mesh_positions(mesh), isomend_mesh_normals(mesh),
-                           isomend_mesh_vertex_count(mesh), isomend_mesh_triangles(mesh),
-                           isomend_mesh_triangle_count(mesh), msg, sizeof msg) != ISOMEND_FILEIO_OK) {
+    /* A DICOM series in patient space: the mesh, checked on its own grid
+     * above (the map keeps its topology), is written through the map. */
+    const size_t nv = isomend_mesh_vertex_count(mesh), nt = isomend_mesh_triangle_count(mesh);
+    const float *out_pos = isomend_mesh_positions(mesh), *out_nrm = isomend_mesh_normals(mesh);
+    const uint32_t *out_tri = isomend_mesh_triangles(mesh);
+    float *world_pos = NULL, *world_nrm = NULL;
+    uint32_t *world_tri = NULL;
+    if (src.has_world && nt) {
+        world_pos = malloc(sizeof(float) * 3 * nv);
+        world_nrm = out_nrm ? malloc(sizeof(float) * 3 * nv) : NULL;
+        world_tri = malloc(sizeof(uint32_t) * 3 * nt);
+        if (!world_pos || !world_tri || (out_nrm && !world_nrm) ||
+            isomend_mesh_copy_transformed(mesh, src.world, world_pos, world_nrm, world_tri, NULL) !=
+                ISOMEND_OK) {
+            cli_error("%s: out of memory placing the mesh in patient space", a.output);
+            free(world_pos);
+            free(world_nrm);
+            free(world_tri);
+            rc = CLI_EXIT_FAIL;
+            goto fail_mesh;
+        }
+        out_pos = world_pos;
+        out_nrm = world_nrm;
+        out_tri = world_tri;
+    }
+    int wrc = isomend_write_mesh(a.output, fmt, out_pos, out_nrm, nv, out_tri, nt, msg, sizeof msg);
+    free(world_pos);
+    free(world_nrm);
+    free(world_tri);
+    if (wrc != ISOMEND_FILEIO_OK) {
         cli_error("%s", msg);
         rc = CLI_EXIT_FAIL;
         goto fail_mesh;
@@ -640,8 +707,20 @@ static int cmd_extract(int argc, char **argv)
         json_doubles(jf, v->spacing, 3);
         fprintf(jf, ", \"origin\": ");
         json_doubles(jf, v->origin, 3);
+        fprintf(jf, ", \"world_transform\": ");
+        if (src.has_world)
+            json_doubles(jf, src.world, 12);
+        else
+            fprintf(jf, "null");
+        fprintf(jf, ", \"dicom\": ");
+        cli_json_dicom(jf, &src, NULL);
         fprintf(jf, ", \"method\": \"%s\", \"iso\": %.17g, \"iso_suggested\": %s",
                 isomend_method_name(a.method), a.iso, iso_suggested ? "true" : "false");
+        fprintf(jf, ", \"iso_level\": ");
+        if (a.iso_name || iso_suggested)
+            cli_json_string(jf, a.iso_name ? a.iso_name : cli_source_suggested_level(&src));
+        else
+            fprintf(jf, "null");
         fprintf(jf, ", \"pad\": %s, \"flip\": %s, \"normals\": %s, \"pages\": \"%s\"",
                 (a.seen & OPT_PAD) ? "true" : "false", (a.seen & OPT_FLIP) ? "true" : "false",
                 (a.seen & OPT_NO_NORMALS) ? "false" : "true", small_pages ? "small" : "huge");
@@ -765,7 +844,7 @@ static int cmd_info(int argc, char **argv)
 {
     args a;
     unsigned allowed = OPT_RAW | OPT_SPACING | OPT_ORIGIN | OPT_JSON | OPT_QUIET | OPT_FIRST |
-                       OPT_COUNT | OPT_STEP | OPT_CHANNEL | OPT_HELP;
+                       OPT_COUNT | OPT_STEP | OPT_CHANNEL | OPT_HELP | OPT_SERIES | OPT_GRID_AXES;
     int rc = parse_args(argc, argv, 2, "info", allowed, &a);
     if (rc) return rc;
     if (a.seen & OPT_HELP) {
@@ -780,8 +859,28 @@ static int cmd_info(int argc, char **argv)
     json_out jo;
     cli_progress bar;
     cli_source src;
+    a.src.list_series = 1;
     rc = open_source_for(&a, quiet, &jo, &bar, &src);
     if (rc) return rc;
+    if (src.series_listed) {
+        /* several series, none chosen: the list is the answer */
+        cli_progress_clear(&bar);
+        FILE *text = jo.to_stdout ? stderr : stdout;
+        if (!quiet) {
+            fprintf(text, "%s: dicom, several series\n", src.label);
+            cli_print_series(text, &src);
+        }
+        FILE *jf = json_stream(&jo);
+        if (jf) {
+            fprintf(jf, "{\"command\": \"info\", \"version\": \"%s\", \"source\": ", isomend_version());
+            cli_json_string(jf, src.label);
+            fprintf(jf, ", \"kind\": \"dicom\", \"series\": ");
+            cli_json_series(jf, &src);
+            fprintf(jf, ", \"series_chosen\": null}\n");
+        }
+        cli_source_close(&src);
+        return json_finish(&jo);
+    }
     cli_summary sum;
     rc = cli_source_summary(&src, &sum);
     cli_progress_clear(&bar);
@@ -814,7 +913,10 @@ static int cmd_info(int argc, char **argv)
                 v->spacing[1], v->spacing[2], src.spacing_from[0], src.spacing_from[1],
                 src.spacing_from[2]);
         fprintf(text, "  origin:      %g, %g, %g\n", v->origin[0], v->origin[1], v->origin[2]);
-        if (sum.has_suggestion)
+        cli_print_dicom(text, &src, &sum);
+        if (sum.has_suggestion && strcmp(cli_source_suggested_level(&src), "bone") == 0)
+            fprintf(text, "  suggested iso: %.9g (the bone level, HU)\n", sum.suggested_iso);
+        else if (sum.has_suggestion)
             fprintf(text, "  suggested iso: %.9g (Otsu threshold)\n", sum.suggested_iso);
         else
             fprintf(text, "  suggested iso: none (all finite samples are equal: no surface)\n");
@@ -844,6 +946,13 @@ static int cmd_info(int argc, char **argv)
             fprintf(jf, "%.17g", sum.suggested_iso);
         else
             fprintf(jf, "null");
+        fprintf(jf, ", \"suggested_level\": \"%s\", \"world_transform\": ", cli_source_suggested_level(&src));
+        if (src.has_world)
+            json_doubles(jf, src.world, 12);
+        else
+            fprintf(jf, "null");
+        fprintf(jf, ", \"dicom\": ");
+        cli_json_dicom(jf, &src, &sum);
         fprintf(jf, ", \"timings_ms\": {\"read\": %.3f}}\n", src.read_ms);
     }
     cli_source_close(&src);

@@ -58,6 +58,15 @@ static struct io_api {
     const char *(*kind_name)(int);
     int (*source_kind)(const isomend_io_source *);
     const char *(*format)(const isomend_io_source *);
+    isomend_io_status (*set_series)(isomend_io_source *, const char *);
+    isomend_io_status (*set_axes)(isomend_io_source *, int);
+    int64_t (*series_count)(const isomend_io_source *);
+    isomend_io_status (*series_get)(const isomend_io_source *, int64_t, isomend_io_series *);
+    int64_t (*series_chosen)(const isomend_io_source *);
+    isomend_io_status (*dicom_info)(const isomend_io_source *, isomend_io_dicom *);
+    isomend_io_status (*world_transform)(const isomend_io_source *, double *, int *);
+    isomend_io_status (*level_value)(isomend_io_source *, int, double *);
+    int (*suggested_level)(const isomend_io_source *);
 } io_api;
 
 static int io_load_api(char *why, size_t why_size)
@@ -112,6 +121,15 @@ static int io_load_api(char *why, size_t why_size)
     IO_SYM(kind_name, "isomend_io_kind_name");
     IO_SYM(source_kind, "isomend_io_source_kind");
     IO_SYM(format, "isomend_io_format");
+    IO_SYM(set_series, "isomend_io_set_series");
+    IO_SYM(set_axes, "isomend_io_set_axes");
+    IO_SYM(series_count, "isomend_io_series_count");
+    IO_SYM(series_get, "isomend_io_series_get");
+    IO_SYM(series_chosen, "isomend_io_series_chosen");
+    IO_SYM(dicom_info, "isomend_io_dicom_info");
+    IO_SYM(world_transform, "isomend_io_world_transform");
+    IO_SYM(level_value, "isomend_io_level_value");
+    IO_SYM(suggested_level, "isomend_io_suggested_level");
 #undef IO_SYM
     io_api.handle = h;
     return 1;
@@ -242,7 +260,19 @@ static int open_io(const char *const *paths, int n, const cli_source_opts *o, cl
     opts.threads = o->threads;
     opts.progress = io_progress; /* also how Ctrl-C cancels */
     opts.progress_user = o->progress;
+    if (o->series) io_api.set_series(io, o->series);
+    if (o->grid_axes) io_api.set_axes(io, ISOMEND_IO_AXES_GRID);
     isomend_io_status st = io_api.open(io, paths, (size_t)n, &opts);
+    if (st == ISOMEND_IO_ERR_SERIES && o->list_series && !o->series) {
+        /* `info` on a folder of several series: the list is the answer */
+        cli_progress_clear(o->progress);
+        src->io = io;
+        src->dicom = 1;
+        src->series_listed = 1;
+        snprintf(src->kind, sizeof src->kind, "dicom");
+        snprintf(src->format, sizeof src->format, "dicom");
+        return CLI_EXIT_OK;
+    }
     double seconds = 0;
     if (st == ISOMEND_IO_OK) st = io_api.load(io, &src->vol, &seconds);
     cli_progress_clear(o->progress);
@@ -262,6 +292,10 @@ static int open_io(const char *const *paths, int n, const cli_source_opts *o, cl
     const char *kind = io_api.kind_name(io_api.source_kind(io));
     snprintf(src->kind, sizeof src->kind, "%s", kind ? kind : "?");
     snprintf(src->format, sizeof src->format, "%s", io_api.format(io));
+    src->dicom = io_api.source_kind(io) == ISOMEND_IO_KIND_DICOM;
+    src->grid_axes = o->grid_axes;
+    int identity = 1;
+    if (io_api.world_transform(io, src->world, &identity) == ISOMEND_IO_OK) src->has_world = !identity;
     double spacing[3];
     int from[3] = {0, 0, 0};
     if (io_api.spacing(io, spacing, from) == ISOMEND_IO_OK)
@@ -278,6 +312,11 @@ int cli_source_open(const char *const *paths, int n, const cli_source_opts *o, c
     memset(src, 0, sizeof *src);
     snprintf(src->label, sizeof src->label, "%s", paths[0]);
     int stack_opts = o->have_first || o->have_count || o->have_step || o->have_channel;
+    if ((o->series || o->grid_axes) &&
+        ((n == 1 && (o->have_raw || isomend_fileio_is_nrrd_path(paths[0]))) || strncmp(paths[0], "builtin:", 8) == 0)) {
+        cli_error("%s: --series and --grid-axes apply to DICOM series only", paths[0]);
+        return CLI_EXIT_USAGE;
+    }
     float f[64];
     if (n == 1 && cli_builtin_volume(paths[0], f)) {
         if (o->have_raw || stack_opts) {
@@ -313,7 +352,14 @@ int cli_source_open(const char *const *paths, int n, const cli_source_opts *o, c
         cli_error("--raw describes one file, got %d sources", n);
         return CLI_EXIT_USAGE;
     }
-    return open_io(paths, n, o, src);
+    int rc = open_io(paths, n, o, src);
+    if (rc == CLI_EXIT_OK && !src->dicom && (o->series || o->grid_axes)) {
+        cli_error("%s: --series and --grid-axes apply to DICOM series only (this is a %s source)",
+                  paths[0], src->kind);
+        cli_source_close(src);
+        return CLI_EXIT_USAGE;
+    }
+    return rc;
 #else
     if (n > 1) {
         cli_error("%s: one SOURCE expected, got %d (file lists need the slice-stack importer, "
@@ -431,4 +477,203 @@ int cli_source_summary(cli_source *src, cli_summary *sum)
     sum->suggested_iso = isomend_fileio_otsu(fine, BINS, lo, hi, is_integer_type(v->type));
     sum->has_suggestion = 1;
     return CLI_EXIT_OK;
+}
+
+/* ------------------------------------------------------------------ DICOM */
+
+#ifdef ISOMEND_HAVE_IO
+/* `, "key": "value"` (or without the comma for the first member) */
+static void json_text_member(FILE *fp, int first, const char *key, const char *value)
+{
+    fprintf(fp, "%s\"%s\": ", first ? "" : ", ", key);
+    cli_json_string(fp, value);
+}
+
+static int dicom_of(const cli_source *src, isomend_io_dicom *d)
+{
+    memset(d, 0, sizeof *d);
+    d->size = sizeof *d;
+    return src->io && src->dicom && !src->series_listed &&
+           io_api.dicom_info((const isomend_io_source *)src->io, d) == ISOMEND_IO_OK;
+}
+#endif
+
+const char *cli_source_suggested_level(const cli_source *src)
+{
+#ifdef ISOMEND_HAVE_IO
+    if (src->io && !src->series_listed &&
+        io_api.suggested_level((const isomend_io_source *)src->io) == ISOMEND_IO_LEVEL_BONE)
+        return "bone";
+#else
+    (void)src;
+#endif
+    return "otsu";
+}
+
+int cli_source_level(cli_source *src, const char *name, double *value)
+{
+    int level = strcmp(name, "bone") == 0 ? 1 : strcmp(name, "skin") == 0 ? 2 : 0;
+#ifdef ISOMEND_HAVE_IO
+    if (src->io) {
+        if (io_api.level_value((isomend_io_source *)src->io, level, value) != ISOMEND_IO_OK) {
+            cli_error("--iso %s: %s", name, io_api.message((isomend_io_source *)src->io));
+            return CLI_EXIT_USAGE;
+        }
+        return CLI_EXIT_OK;
+    }
+#endif
+    if (level != 0) {
+        cli_error("--iso %s: the %s level is for CT DICOM series in Hounsfield units; %s is a %s "
+                  "source (give the level as a number)", name, name, src->label, src->kind);
+        return CLI_EXIT_USAGE;
+    }
+    cli_summary sum;
+    int rc = cli_source_summary(src, &sum);
+    if (rc) return rc;
+    *value = sum.suggested_iso;
+    return CLI_EXIT_OK;
+}
+
+void cli_print_series(FILE *fp, const cli_source *src)
+{
+#ifdef ISOMEND_HAVE_IO
+    if (!src->io) return;
+    const isomend_io_source *io = (const isomend_io_source *)src->io;
+    int64_t n = io_api.series_count(io), chosen = io_api.series_chosen(io);
+    if (n < 2 && !src->series_listed) return;
+    fprintf(fp, "  series:      %lld%s\n", (long long)n,
+            src->series_listed ? "; choose one with --series N or --series UID" : "");
+    for (int64_t i = 0; i < n; i++) {
+        isomend_io_series e;
+        memset(&e, 0, sizeof e);
+        e.size = sizeof e;
+        if (io_api.series_get(io, i, &e) != ISOMEND_IO_OK) continue;
+        fprintf(fp, "  %s %3lld: %-4s \"%s\"", i == chosen ? "*" : " ", (long long)(i + 1),
+                e.modality[0] ? e.modality : "?", e.description);
+        if (e.number >= 0) fprintf(fp, ", series number %lld", (long long)e.number);
+        fprintf(fp, ", %lld x %lld, %lld images in %lld files, UID %s\n", (long long)e.columns,
+                (long long)e.rows, (long long)e.images, (long long)e.files, e.uid);
+    }
+#else
+    (void)fp;
+    (void)src;
+#endif
+}
+
+void cli_json_series(FILE *fp, const cli_source *src)
+{
+    fprintf(fp, "[");
+#ifdef ISOMEND_HAVE_IO
+    if (src->io) {
+        const isomend_io_source *io = (const isomend_io_source *)src->io;
+        int64_t n = io_api.series_count(io);
+        for (int64_t i = 0; i < n; i++) {
+            isomend_io_series e;
+            memset(&e, 0, sizeof e);
+            e.size = sizeof e;
+            if (io_api.series_get(io, i, &e) != ISOMEND_IO_OK) continue;
+            fprintf(fp, "%s{\"index\": %lld", i ? ", " : "", (long long)(i + 1));
+            json_text_member(fp, 0, "uid", e.uid);
+            json_text_member(fp, 0, "description", e.description);
+            json_text_member(fp, 0, "modality", e.modality);
+            fprintf(fp, ", \"number\": %lld, \"files\": %lld, \"images\": %lld, \"columns\": %lld, "
+                        "\"rows\": %lld}",
+                    (long long)e.number, (long long)e.files, (long long)e.images,
+                    (long long)e.columns, (long long)e.rows);
+        }
+    }
+#else
+    (void)src;
+#endif
+    fprintf(fp, "]");
+}
+
+void cli_print_dicom(FILE *fp, cli_source *src, const cli_summary *sum)
+{
+#ifdef ISOMEND_HAVE_IO
+    isomend_io_dicom d;
+    if (!dicom_of(src, &d)) return;
+    fprintf(fp, "  dicom:       %s \"%s\", %lld file%s%s, %s\n", d.modality[0] ? d.modality : "?",
+            d.description, (long long)d.files, d.files == 1 ? "" : "s",
+            d.multiframe ? " (multi-frame)" : "", d.transfer_syntax_name);
+    fprintf(fp, "  ignored:     %lld DICOM object%s without pixel data, %lld file%s not DICOM, "
+                "%lld file%s of other series\n",
+            (long long)d.non_image, d.non_image == 1 ? "" : "s", (long long)d.non_dicom,
+            d.non_dicom == 1 ? "" : "s", (long long)d.other_series, d.other_series == 1 ? "" : "s");
+    cli_print_series(fp, src);
+    fprintf(fp, "  values:      %d-bit %s %s", d.bits_stored, d.pixel_signed ? "signed" : "unsigned",
+            d.photometric);
+    if (strcmp(d.photometric, "MONOCHROME1") == 0) fprintf(fp, " (inverted: brighter is higher)");
+    if (d.rescaled)
+        fprintf(fp, ", rescaled: slope %g, intercept %g%s", d.rescale_slope, d.rescale_intercept,
+                d.hounsfield ? " (HU)" : "");
+    fputc('\n', fp);
+    fprintf(fp, "  orientation: row %g, %g, %g; column %g, %g, %g; normal %g, %g, %g\n",
+            d.orientation[0], d.orientation[1], d.orientation[2], d.orientation[3],
+            d.orientation[4], d.orientation[5], d.normal[0], d.normal[1], d.normal[2]);
+    fprintf(fp, "  position:    %g, %g, %g (slice 0, patient LPS mm)\n", d.position[0],
+            d.position[1], d.position[2]);
+    if (d.axes == ISOMEND_IO_AXES_GRID)
+        fprintf(fp, "  axes:        grid (--grid-axes): x along the rows, y along the columns, z along "
+                    "the slices, not rotated into patient space\n");
+    else if (src->has_world)
+        fprintf(fp, "  axes:        patient (LPS mm): the mesh is turned by the direction cosines "
+                    "(world = position + R * index * spacing)\n");
+    else
+        fprintf(fp, "  axes:        patient (LPS mm): x to the patient's left, y posterior, z head\n");
+    double otsu = 0;
+    (void)sum;
+    if (d.hounsfield &&
+        io_api.level_value((isomend_io_source *)src->io, ISOMEND_IO_LEVEL_OTSU, &otsu) == ISOMEND_IO_OK)
+        fprintf(fp, "  levels (HU): bone 300, skin -500, Otsu %.9g; extract uses bone unless --iso "
+                    "skin|otsu|VALUE\n", otsu);
+#else
+    (void)fp;
+    (void)src;
+    (void)sum;
+#endif
+}
+
+void cli_json_dicom(FILE *fp, cli_source *src, const cli_summary *sum)
+{
+#ifdef ISOMEND_HAVE_IO
+    (void)sum;
+    isomend_io_dicom d;
+    if (!dicom_of(src, &d)) {
+        fprintf(fp, "null");
+        return;
+    }
+    fputc('{', fp);
+    json_text_member(fp, 1, "modality", d.modality);
+    json_text_member(fp, 0, "series_uid", d.series_uid);
+    json_text_member(fp, 0, "description", d.description);
+    json_text_member(fp, 0, "transfer_syntax", d.transfer_syntax);
+    json_text_member(fp, 0, "photometric", d.photometric);
+    fprintf(fp, ", \"bits_stored\": %d, \"signed\": %s, \"rescaled\": %s, \"rescale_slope\": %.17g, "
+                "\"rescale_intercept\": %.17g, \"hounsfield\": %s",
+            d.bits_stored, d.pixel_signed ? "true" : "false", d.rescaled ? "true" : "false",
+            d.rescale_slope, d.rescale_intercept, d.hounsfield ? "true" : "false");
+    fprintf(fp, ", \"orientation\": [%.17g, %.17g, %.17g, %.17g, %.17g, %.17g]", d.orientation[0],
+            d.orientation[1], d.orientation[2], d.orientation[3], d.orientation[4], d.orientation[5]);
+    fprintf(fp, ", \"normal\": [%.17g, %.17g, %.17g], \"position\": [%.17g, %.17g, %.17g]",
+            d.normal[0], d.normal[1], d.normal[2], d.position[0], d.position[1], d.position[2]);
+    double otsu = 0;
+    if (d.hounsfield &&
+        io_api.level_value((isomend_io_source *)src->io, ISOMEND_IO_LEVEL_OTSU, &otsu) == ISOMEND_IO_OK)
+        fprintf(fp, ", \"levels\": {\"bone\": 300, \"skin\": -500, \"otsu\": %.17g, \"extract\": \"bone\"}",
+                otsu);
+    else
+        fprintf(fp, ", \"levels\": null");
+    fprintf(fp, ", \"files\": %lld, \"multiframe\": %s, \"non_image\": %lld, \"non_dicom\": %lld, "
+                "\"other_series\": %lld, \"axes\": \"%s\", \"series\": ",
+            (long long)d.files, d.multiframe ? "true" : "false", (long long)d.non_image,
+            (long long)d.non_dicom, (long long)d.other_series,
+            d.axes == ISOMEND_IO_AXES_GRID ? "grid" : "patient");
+    cli_json_series(fp, src);
+    fprintf(fp, "}");
+#else
+    (void)src;
+    (void)sum;
+    fprintf(fp, "null");
+#endif
 }

@@ -280,6 +280,26 @@ ISOMEND_API isomend_status isomend_mesh_copy(const isomend_mesh *mesh, float *po
                                              float *normals, uint32_t *triangles,
                                              uint8_t *origins);
 
+/*
+ * isomend_mesh_copy() through an affine map, for a volume whose grid is
+ * turned or mirrored in the world (e.g. a DICOM series' direction cosines,
+ * see isomend_io_world_transform()).  `affine` is 3x4, row-major:
+ *     p'[r] = affine[4r] p[0] + affine[4r+1] p[1] + affine[4r+2] p[2] + affine[4r+3]
+ * Positions map by it (in double, rounded once to float); normals by the
+ * inverse transpose of its 3x3 part, renormalised (they stay the surface's
+ * normals, pointing to lower values); when that part's determinant is
+ * negative (a mirror) every triangle's winding is reversed, so triangles stay
+ * counter-clockwise seen from where the normals point and the surface is
+ * never turned inside out.  Array sizes and NULL as for isomend_mesh_copy().
+ * The mesh itself is unchanged (its grid box and isomend_mesh_check() stay
+ * those of the grid it was extracted on; the copy has the same topology).
+ * ISOMEND_ERR_INVALID_ARGUMENT for a non-finite or singular map.
+ */
+ISOMEND_API isomend_status isomend_mesh_copy_transformed(const isomend_mesh *mesh,
+                                                         const double affine[12],
+                                                         float *positions, float *normals,
+                                                         uint32_t *triangles, uint8_t *origins);
+
 /* ---------------------------------------------------------- continuity check */
 
 /*

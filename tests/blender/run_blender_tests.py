@@ -84,6 +84,10 @@ def run_cli(cli, work, name, source_args, params):
         cmd += ["--iso", repr(params["iso"])]
     if any(params.get("spacing", (0, 0, 0))):
         cmd += ["--spacing", ",".join(repr(float(s)) for s in params["spacing"])]
+    if params.get("series"):
+        cmd += ["--series", params["series"]]
+    if params.get("grid_axes"):
+        cmd.append("--grid-axes")
     r = subprocess.run(cmd, capture_output=True, text=True, timeout=120)
     if r.returncode != 0:
         sys.exit("isomend CLI failed on %s (%s): %s" % (name, " ".join(cmd), r.stderr.strip()))
@@ -249,6 +253,19 @@ def main():
                       "cli_source": [os.path.abspath(args.sample)]})
     if args.mode == "refuse":
         sys.exit(refuse(args, work, folder, inner))
+    # 4. DICOM (written by tests/io/gen_dicom.py with pydicom): a CT folder at
+    # the bone level by default, turned into patient space (oblique), and the
+    # second series of a folder holding two
+    dicom = os.path.join(work, "dicom")
+    if args.mode == "background":
+        subprocess.run([sys.executable, os.path.join(HERE, "..", "io", "gen_dicom.py"), dicom,
+                        os.path.join(HERE, "..", "..", "samples")], check=True, stdout=subprocess.DEVNULL)
+        dparams = {"use_suggested_iso": True, "iso": 0.0, "method": "DMC", "pad": True, "smooth": True,
+                   "spacing": (0.0, 0.0, 0.0), "unit_scale": 0.001}
+        for name, extra in (("ct_oblique", {}), ("ct", {}), ("ct_feet_first", {}),
+                            ("ct_oblique", {"grid_axes": True}), ("two_series", {"series": "2"})):
+            cases.append({"name": name, "directory": os.path.join(dicom, name), "files": [],
+                          "params": dict(dparams, **extra), "cli_source": [os.path.join(dicom, name)]})
     if args.mode == "gui":
         cases = cases[:1]  # the modal test imports the first case only
     for i, case in enumerate(cases):
@@ -276,6 +293,13 @@ def main():
         {"directory": empty, "files": [], "expect": "no image files"},
         {"directory": work, "files": ["peanut.tif"], "spacing": (1.0, 0.0, 1.0), "expect": "spacing"},
     ]
+    if args.mode == "background":
+        errors += [
+            {"directory": os.path.join(dicom, "two_series"), "files": [], "expect": "2 DICOM series|T1"},
+            {"directory": os.path.join(dicom, "two_series"), "files": [], "series": "3",
+             "expect": "no series 3"},
+            {"directory": os.path.join(dicom, "missing_slice"), "files": [], "expect": "1 missing slice"},
+        ]
 
     big = None
     if args.mode == "gui":

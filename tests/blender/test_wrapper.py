@@ -82,13 +82,18 @@ def test_struct_layouts_and_constants_match_the_headers():
     assert (isomend.ORIGIN_TABLE, isomend.ORIGIN_DURST, isomend.ORIGIN_MEND) == (
         c["ISOMEND_ORIGIN_TABLE"], c["ISOMEND_ORIGIN_DURST"], c["ISOMEND_ORIGIN_MEND"])
     assert isomend.IO_ERR_CANCELLED == c["ISOMEND_IO_ERR_CANCELLED"]
-    assert max(isomend.IO_STATUS_NAMES) == c["ISOMEND_IO_ERR_INTERNAL"]
+    assert max(isomend.IO_STATUS_NAMES) == c["ISOMEND_IO_ERR_SERIES"]
+    assert isomend.IO_STATUS_NAMES[c["ISOMEND_IO_ERR_SERIES"]] == "SERIES"
+    assert (isomend.IO_AXES_PATIENT, isomend.IO_AXES_GRID) == (
+        c["ISOMEND_IO_AXES_PATIENT"], c["ISOMEND_IO_AXES_GRID"])
+    for k, level in enumerate(("OTSU", "BONE", "SKIN")):
+        assert c["ISOMEND_IO_LEVEL_" + level] == k and isomend.IO_LEVEL_NAMES[k] == level.lower()
     assert (isomend.IO_CHANNEL_AUTO, isomend.IO_CHANNEL_LUMA) == (
         c["ISOMEND_IO_CHANNEL_AUTO"], c["ISOMEND_IO_CHANNEL_LUMA"])
     for k, stage in enumerate(("OPEN", "READ", "ANALYSE", "EXTRACT")):
         assert c["ISOMEND_IO_STAGE_" + stage] == k
         assert isomend.IO_STAGES[k] == stage.lower()
-    assert len(isomend.IO_KIND_NAMES) == c["ISOMEND_IO_KIND_NRRD"] + 1
+    assert len(isomend.IO_KIND_NAMES) == c["ISOMEND_IO_KIND_DICOM"] + 1
     assert isomend.IO_HISTOGRAM_BINS == c["ISOMEND_IO_HISTOGRAM_BINS"]
 
 

@@ -26,6 +26,8 @@ Usage (run by ctest):
   holes     F1 (thesis Chapter 5.2) tiled by mirroring into a 7^3 volume:
             the CLI's check finds holes for mc and none for dmc, and MeshLab
             agrees: MC open, DMC closed two-manifold genus 0.
+  dicom     DICOM series (tests/io/gen_dicom.py): the CLI's meshes in patient
+            space, MeshLab's measure closed, errors naming the file.
   realdata  the ITK T1 MRI (scripts/get-test-data.sh): at the suggested level
             MeshLab counts MC's hole edges as boundary edges and finds DMC's
             result closed and two-manifold; an explicit iso 2 below the
@@ -127,7 +129,8 @@ def mlx(params, topology=False):
     """A FilterScript calling the filter with every parameter (meshlabserver
     aborts on a missing one)."""
     p = {"source": "", "iso": 0.5, "method": 0, "spacingX": 0, "spacingY": 0, "spacingZ": 0,
-         "channel": -1, "pad": True, "flipNormals": False, "rawDims": "", "rawType": 0}
+         "channel": -1, "pad": True, "flipNormals": False, "rawDims": "", "rawType": 0,
+         "dicomSeries": "", "dicomGridAxes": False}
     p.update(params)
     names = p.pop("enum_names", METHODS)
     enum_methods = " ".join('enum_val%d=%s' % (i, quoteattr(m)) for i, m in enumerate(names))
@@ -147,8 +150,10 @@ def mlx(params, topology=False):
         '  <Param type="RichBool" name="flipNormals" value="%s"/>' % b(p["flipNormals"]),
         '  <Param type="RichString" name="rawDims" value=%s/>' % quoteattr(str(p["rawDims"])),
         '  <Param type="RichEnum" name="rawType" value="%d" enum_cardinality="%d" %s/>'
-        % (p["rawType"], len(TYPES), enum_types),
-        " </filter>"]
+        % (p["rawType"], len(TYPES), enum_types)]
+    lines += ['  <Param type="RichString" name="dicomSeries" value=%s/>' % quoteattr(str(p["dicomSeries"])),
+              '  <Param type="RichBool" name="dicomGridAxes" value="%s"/>' % b(p["dicomGridAxes"])]
+    lines.append(" </filter>")
     if topology:
         lines.append(' <filter name="Compute Topological Measures"/>')
     lines.append("</FilterScript>")
@@ -720,9 +725,41 @@ def test_errors(run):
     check(rc == 0 and out is not None, "exit 0 with a PLY")
 
 
+def test_dicom(run):
+    """DICOM series (tests/io/gen_dicom.py): the filter's mesh equals the CLI's
+    (axial CT, oblique CT turned into patient space, grid axes, the second of
+    two series); MeshLab's own measure finds the bone closed and two-manifold;
+    defects and a missing series choice fail with the file named."""
+    dicom = os.path.join(run.work, "dicom")
+    here = os.path.dirname(os.path.abspath(__file__))
+    subprocess.run([sys.executable, os.path.join(here, "..", "io", "gen_dicom.py"), dicom,
+                    os.path.join(here, "..", "..", "samples")], check=True, stdout=subprocess.DEVNULL)
+    for name, ml, cli in (("ct", {}, []), ("ct_oblique", {}, []),
+                          ("ct_oblique", {"dicomGridAxes": True}, ["--grid-axes"]),
+                          ("two_series", {"dicomSeries": "1"}, ["--series", "1"])):
+        compare(run, "DICOM %s %s" % (name, ml), os.path.join(dicom, name),
+                dict(ml, iso=300.0), ["--iso", "300", "--pad"] + cli, log_expect="DICOM CT series")
+    print("DICOM CT bone, MeshLab's topological measures:")
+    rc, log, out = run.meshlab({"source": os.path.join(dicom, "ct_oblique"), "iso": 300.0}, topology=True)
+    t = run.topology(log)
+    check(rc == 0 and t.get("boundary_edges") == 0 and t.get("two_manifold") and t.get("holes") == 0,
+          "closed two-manifold: %s" % t)
+    for label, params, expect in (
+            ("two series, none chosen", {"source": os.path.join(dicom, "two_series")}, "2 DICOM series"),
+            ("a missing slice", {"source": os.path.join(dicom, "missing_slice")}, "1 missing slice"),
+            ("series 7 of a folder holding one", {"source": os.path.join(dicom, "ct"), "dicomSeries": "7"},
+             "no series 7")):
+        print("%s:" % label)
+        rc, log, out = run.meshlab(dict(params, iso=300.0))
+        m = re.search(r"isomend: error: (.*)", log)
+        reason = m.group(1) if m else ""
+        check(rc == run.fail_rc and expect in reason and out is None,
+              "exit %s, %r in %r, no file" % (run.fail_rc, expect, reason))
+
+
 def main():
     ap = argparse.ArgumentParser()
-    ap.add_argument("test", choices=["counts", "topology", "holes", "errors", "realdata", "methods"])
+    ap.add_argument("test", choices=["counts", "topology", "holes", "errors", "realdata", "methods", "dicom"])
     ap.add_argument("--job", help="test_meshlab_job (methods)")
     ap.add_argument("--get-data", help="scripts/get-test-data.sh (realdata)")
     ap.add_argument("--prefix", help="MeshLab 2020.09: the private prefix with meshlabserver")
@@ -750,7 +787,7 @@ def main():
         test_methods(run, a.job)
     else:
         {"counts": test_counts, "topology": test_topology, "holes": test_holes,
-         "errors": test_errors}[a.test](run)
+         "errors": test_errors, "dicom": test_dicom}[a.test](run)
     runs = sum(1 for f in os.listdir(a.work) if f.endswith(".mlx") or f.endswith(".args"))
     print("%d %s run(s); %s" % (runs, run.name, "FAILED: %d" % len(failures) if failures else "all ok"))
     return 1 if failures else 0

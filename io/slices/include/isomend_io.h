@@ -26,7 +26,10 @@
  *   - one multi-page TIFF (pages are slices) or one multi-part OpenEXR (parts
  *     are slices) or any other multi-subimage 2D file;
  *   - one raw file (options.raw_dims / raw_type set) or NRRD file (.nrrd /
- *     .nhdr): read by io/common's readers, see isomend_io_options.
+ *     .nhdr): read by io/common's readers, see isomend_io_options;
+ *   - a DICOM series (read with GDCM): a folder holding DICOM files (any
+ *     names, found by their content), a DICOMDIR, a list, glob or pattern of
+ *     DICOM files, or one multi-frame (enhanced) DICOM file; see "DICOM" below.
  * Every 2D format OpenImageIO reads is accepted.  Tested: TIFF u8, u16, i16
  * (negative values kept), f32, packed 12-bit (restored to its real 0..4095
  * values, not OIIO's scaled 16-bit ones; likewise 1- and 4-bit), tiled TIFF,
@@ -120,7 +123,9 @@ typedef enum isomend_io_status {
     ISOMEND_IO_ERR_OUT_OF_MEMORY = 9,
     ISOMEND_IO_ERR_CANCELLED = 10,       /* the progress callback asked to stop   */
     ISOMEND_IO_ERR_EXTRACT = 11,         /* the core's isomend_extract() failed   */
-    ISOMEND_IO_ERR_INTERNAL = 12         /* unexpected exception (a bug)          */
+    ISOMEND_IO_ERR_INTERNAL = 12,        /* unexpected exception (a bug)          */
+    ISOMEND_IO_ERR_SERIES = 13           /* DICOM: several series and none chosen,
+                                            or the choice names none of them      */
 } isomend_io_status;
 
 /* A static description of a status ("corrupt or truncated data"). */
@@ -233,9 +238,13 @@ typedef enum isomend_io_spacing_source {
     ISOMEND_IO_SPACING_OPTION = 1,   /* options.spacing                       */
     ISOMEND_IO_SPACING_TIFF = 2,     /* TIFF XResolution/YResolution          */
     ISOMEND_IO_SPACING_IMAGEJ = 3,   /* ImageJ "spacing=" (z)                 */
-    ISOMEND_IO_SPACING_HEADER = 4    /* NRRD header                           */
+    ISOMEND_IO_SPACING_HEADER = 4,   /* NRRD header                           */
+    ISOMEND_IO_SPACING_DICOM = 5,    /* DICOM Pixel Spacing (x, y)            */
+    ISOMEND_IO_SPACING_POSITIONS = 6 /* DICOM: measured between the slices'
+                                        Image Position (Patient) (z)          */
 } isomend_io_spacing_source;
-/* "default", "option", "tiff", "imagej", "header"; NULL if invalid. */
+/* "default", "option", "tiff", "imagej", "header", "dicom", "positions";
+ * NULL if invalid. */
 ISOMEND_IO_API const char *isomend_io_spacing_source_name(int source);
 
 /* spacing[3]; `sources` (may be NULL) receives an isomend_io_spacing_source per axis. */
@@ -251,14 +260,16 @@ typedef enum isomend_io_kind {
     ISOMEND_IO_KIND_LIST = 3,
     ISOMEND_IO_KIND_MULTIPAGE = 4, /* pages/parts of one file */
     ISOMEND_IO_KIND_RAW = 5,
-    ISOMEND_IO_KIND_NRRD = 6
+    ISOMEND_IO_KIND_NRRD = 6,
+    ISOMEND_IO_KIND_DICOM = 7      /* a DICOM series, see "DICOM" below */
 } isomend_io_kind;
-/* "folder", "glob", "pattern", "list", "multipage", "raw", "nrrd"; NULL if invalid. */
+/* "folder", "glob", "pattern", "list", "multipage", "raw", "nrrd", "dicom";
+ * NULL if invalid. */
 ISOMEND_IO_API const char *isomend_io_kind_name(int kind);
 ISOMEND_IO_API int isomend_io_source_kind(const isomend_io_source *src); /* -1 before open */
 
 /* The OpenImageIO format name of the first slice ("tiff", "openexr", ...),
- * "raw" or "nrrd"; "" before open. Owned by the handle. */
+ * "raw", "nrrd" or "dicom"; "" before open. Owned by the handle. */
 ISOMEND_IO_API const char *isomend_io_format(const isomend_io_source *src);
 
 /* Path of slice k (for a multi-page file: the file's path for every k);
@@ -316,7 +327,8 @@ typedef struct isomend_io_summary {
  * Uses the loaded volume if isomend_io_load() was called, else streams the
  * slices one at a time (flat memory).
  *
- * Suggested iso rule (Otsu 1979): a 256-bin histogram of the finite samples
+ * Suggested iso rule: for a CT DICOM series in HU, the bone level (see
+ * isomend_io_level_value); for every other source Otsu (1979): a 256-bin histogram of the finite samples
  * over [min, max]; t = the upper edge of the bin that maximises the
  * between-class variance w0*w1*(m0 - m1)^2 (when empty bins after it give
  * the same maximum, the edge in the middle of that gap).  For integer types t is then
@@ -325,6 +337,180 @@ typedef struct isomend_io_summary {
  */
 ISOMEND_IO_API isomend_io_status isomend_io_analyse(isomend_io_source *src,
                                                     isomend_io_summary *summary);
+
+/* ------------------------------------------------------------------ DICOM */
+
+/*
+ * A DICOM source is recognised by content, before any other rule: a file is
+ * DICOM when it has the 128-byte preamble and "DICM" (files without the
+ * Part 10 header are not recognised).  A folder is a DICOM source when it
+ * holds a DICOMDIR or at least one DICOM file; its other files are ignored
+ * and counted.  A folder with neither DICOM files nor images at its top
+ * level is searched for DICOM files in its subfolders (an export's root).
+ *
+ * Series: the images are grouped by Series Instance UID and the series are
+ * listed in order of Series Number, then UID.  With several series, choose
+ * one with isomend_io_set_series() before opening; otherwise the open fails
+ * with ISOMEND_IO_ERR_SERIES and a message listing them, and the list stays
+ * available through isomend_io_series_count() / isomend_io_series_get().
+ * DICOM objects without pixel data (structured reports, presentation
+ * states, RT structures, a DICOMDIR inside a folder) are ignored and
+ * counted, and so are files that are not DICOM.
+ *
+ * Geometry: slices are ordered by their Image Position (Patient) along the
+ * slice normal n = row x column of Image Orientation (Patient) (never by
+ * file name or Instance Number); x = column index (along the row direction
+ * cosine), y = row index (along the column direction cosine), z = slice
+ * index (along n).  Spacing x, y = Pixel Spacing's second and first values
+ * (column spacing, row spacing); z = the distance between the first and
+ * last positions / (slices - 1).  The mesh is in patient coordinates (DICOM
+ * LPS: +x towards the patient's left, +y posterior, +z head; millimetres):
+ *     world = P0 + R * (index * spacing),  R = [row | column | n]
+ * with P0 the first slice's Image Position (Patient).  Because the slices
+ * are sorted along n, R is a rotation (determinant +1): a surface is never
+ * mirrored.  The core's grid is axis aligned, so isomend_io_load() describes
+ * the volume in the series' own frame, the patient frame turned by R^-1
+ * (spacing as above, origin R^-1 P0), and isomend_io_world_transform()
+ * gives the map that turns it back (the identity for an axial series whose
+ * rows and columns run along +x and +y).  With ISOMEND_IO_AXES_GRID the
+ * transform is the identity: the mesh stays in the series' own frame (x
+ * along the rows, y along the columns, z along the slices, at R^-1 P0).
+ *
+ * Values: stored values are masked to Bits Stored (sign-extended when Pixel
+ * Representation is 1); MONOCHROME1 is inverted (s' = smin + smax - s over
+ * the range Bits Stored allows: brighter is higher); then Rescale Slope and
+ * Intercept (per frame in enhanced files) are applied, so CT values are
+ * Hounsfield units.  The delivered type holds every value the header allows
+ * without clipping: the stored type when nothing is rescaled, else the
+ * smallest of u8, i16, u16, i32 that holds slope * [smin, smax] + intercept
+ * when slope and intercept are integers, else f32 (f64 for 32-bit samples).
+ * Transfer syntaxes: every one GDCM 3.0 decodes (implicit and explicit VR,
+ * deflate, RLE, JPEG baseline/lossless, JPEG-LS, JPEG 2000); uncompressed
+ * and RLE pixel data are taken from GDCM's parse and unpacked by isomend.
+ *
+ * Validation (every message names the file and the reason): files that do
+ * not parse, whose pixel data are truncated or do not decode; images whose
+ * size, Bits Allocated / Stored, Pixel Representation, photometric
+ * interpretation, Pixel Spacing or Image Orientation (beyond 1e-4) differ
+ * from the first image's; colour images; a missing Image Position,
+ * Orientation or Pixel Spacing (unless options.spacing is set); two slices
+ * at one position (duplicates, or several echoes / time points in one
+ * series); a gap between neighbours that differs from the median gap by more
+ * than 1% (a gap of k median gaps is reported as k - 1 missing slices);
+ * slice positions that leave the line through the first one along n by more
+ * than a tenth of a pixel (gantry tilt, or several stacks in one series);
+ * fewer than two slices.  Irregular series are refused, never resampled.
+ *
+ * Reading: isomend_io_read() decodes files in worker threads (a multi-frame
+ * file is decoded once, on one thread); isomend_io_read_slice() of a
+ * multi-frame file decodes the whole file.  isomend_io_analyse() of a DICOM
+ * source loads the volume first (with the memory check).
+ */
+
+/* The axes of a DICOM mesh (isomend_io_set_axes). */
+typedef enum isomend_io_axes {
+    ISOMEND_IO_AXES_PATIENT = 0, /* patient coordinates, LPS mm (default) */
+    ISOMEND_IO_AXES_GRID = 1     /* the series' own frame, no rotation     */
+} isomend_io_axes;
+
+/*
+ * Chooses the series of a DICOM source before isomend_io_open() (or
+ * isomend_io_job_start()): a Series Instance UID, or the 1-based position N
+ * in the list as text ("2"; a text of digits only is a position).  NULL or
+ * "" = the only series (the default).  Ignored by other sources.
+ */
+ISOMEND_IO_API isomend_io_status isomend_io_set_series(isomend_io_source *src, const char *series);
+
+/* Chooses the axes (isomend_io_axes) before opening; ignored by other sources. */
+ISOMEND_IO_API isomend_io_status isomend_io_set_axes(isomend_io_source *src, int axes);
+
+/* One series of a DICOM source.  Strings are owned by the handle. */
+typedef struct isomend_io_series {
+    size_t size;             /* set by the caller: sizeof(isomend_io_series) */
+    const char *uid;         /* Series Instance UID                          */
+    const char *description; /* Series Description, "" if none               */
+    const char *modality;    /* "CT", "MR", ... ("" if none)                 */
+    int64_t number;          /* Series Number, -1 if none                    */
+    int64_t files;           /* image files (a multi-frame file counts once) */
+    int64_t images;          /* 2D images (frames)                           */
+    int64_t columns, rows;   /* of its first image                           */
+} isomend_io_series;
+
+/*
+ * The series found by the last isomend_io_open() of a DICOM source, also
+ * after it failed with ISOMEND_IO_ERR_SERIES (0 for other sources).
+ * isomend_io_series_get() fills `out` (its first out->size bytes at most:
+ * set out->size first); the index is 0-based.  isomend_io_series_chosen()
+ * is the index of the series opened, -1 if none.
+ */
+ISOMEND_IO_API int64_t isomend_io_series_count(const isomend_io_source *src);
+ISOMEND_IO_API isomend_io_status isomend_io_series_get(const isomend_io_source *src, int64_t index,
+                                                       isomend_io_series *out);
+ISOMEND_IO_API int64_t isomend_io_series_chosen(const isomend_io_source *src);
+
+/* What an opened DICOM series holds.  Strings are owned by the handle. */
+typedef struct isomend_io_dicom {
+    size_t size;                 /* set by the caller: sizeof(isomend_io_dicom)  */
+    const char *modality;        /* "CT", "MR", ...                              */
+    const char *series_uid;
+    const char *description;     /* Series Description                           */
+    const char *transfer_syntax; /* of the first file, e.g. "1.2.840.10008.1.2.5" */
+    const char *transfer_syntax_name; /* GDCM's name, e.g. "RLE Lossless"        */
+    const char *photometric;     /* "MONOCHROME1" or "MONOCHROME2"               */
+    int bits_stored;
+    int pixel_signed;            /* Pixel Representation 1                       */
+    int rescaled;                /* a slope != 1 or an intercept != 0 applies    */
+    int hounsfield;              /* CT values in HU: the CT levels apply         */
+    double rescale_slope, rescale_intercept; /* the first slice's                */
+    double orientation[6];       /* Image Orientation (Patient): row, column     */
+    double normal[3];            /* row x column, the slice direction            */
+    double position[3];          /* Image Position (Patient) of slice 0          */
+    int64_t files;               /* image files of the series                    */
+    int64_t multiframe;          /* 1 when the series is one multi-frame file    */
+    int64_t non_image;           /* DICOM objects without pixel data, ignored    */
+    int64_t non_dicom;           /* files that are not DICOM, ignored            */
+    int64_t other_series;        /* image files of the series not chosen         */
+    int axes;                    /* isomend_io_axes in use                       */
+} isomend_io_dicom;
+
+/* Fills `out` (its first out->size bytes at most) for an opened DICOM
+ * source; ISOMEND_IO_ERR_UNSUPPORTED for other sources. */
+ISOMEND_IO_API isomend_io_status isomend_io_dicom_info(const isomend_io_source *src,
+                                                       isomend_io_dicom *out);
+
+/*
+ * The affine map from the core's positions (origin + index * spacing of the
+ * volume isomend_io_load() describes) to the source's world frame:
+ *     world[r] = affine[4r] x + affine[4r+1] y + affine[4r+2] z + affine[4r+3]
+ * (3x4, row-major).  The identity for every source except a DICOM series in
+ * patient axes that is not axial along +x, +y.  `identity` (may be NULL)
+ * receives 1 when it is exactly the identity.  Apply it with the core's
+ * isomend_mesh_copy_transformed(); isomend_io_extract() does not.
+ */
+ISOMEND_IO_API isomend_io_status isomend_io_world_transform(const isomend_io_source *src,
+                                                            double affine[12], int *identity);
+
+/* Named iso levels. */
+typedef enum isomend_io_level {
+    ISOMEND_IO_LEVEL_OTSU = 0, /* Otsu's threshold (isomend_io_analyse)    */
+    ISOMEND_IO_LEVEL_BONE = 1, /* CT: 300 HU, cortical and trabecular bone */
+    ISOMEND_IO_LEVEL_SKIN = 2  /* CT: -500 HU, between air and soft tissue */
+} isomend_io_level;
+/* "otsu", "bone", "skin"; NULL if invalid. */
+ISOMEND_IO_API const char *isomend_io_level_name(int level);
+
+/*
+ * The value of a named level.  OTSU analyses the volume (isomend_io_analyse;
+ * for a CT series too); BONE and SKIN are fixed Hounsfield values, for a CT
+ * series in HU only (ISOMEND_IO_ERR_UNSUPPORTED with a message otherwise).
+ * The suggested level (isomend_io_summary.suggested_iso, what
+ * isomend_io_extract() uses) is BONE for a CT series in HU and OTSU for
+ * every other source; isomend_io_suggested_level() says which (-1 before
+ * open).
+ */
+ISOMEND_IO_API isomend_io_status isomend_io_level_value(isomend_io_source *src, int level,
+                                                        double *value);
+ISOMEND_IO_API int isomend_io_suggested_level(const isomend_io_source *src);
 
 /* ---- one call from source to mesh ---- */
 

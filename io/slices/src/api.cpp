@@ -9,6 +9,7 @@
 // Raw and NRRD sources are delegated to io/common's readers
 // (volume_readers.h), so the command line, this library and the plug-ins
 // read them with the same code and give the same messages.
+#include "dicom.hpp"
 #include "image.hpp"
 
 #include <algorithm>
@@ -45,6 +46,12 @@ struct isomend_io_source {
     double load_seconds = 0;
     bool analysed = false;
     isomend_io_summary summary{};
+    double otsu = 0;                     // Otsu's level (the suggestion unless CT)
+    // DICOM: the choices made before opening, the series found, the one opened
+    std::string series_choice;
+    int axes = ISOMEND_IO_AXES_PATIENT;
+    std::vector<DicomSeriesEntry> series_found;
+    std::unique_ptr<DicomSeries> dicom;
 };
 
 namespace {
@@ -270,6 +277,11 @@ void do_read(isomend_io_source *s, void *buffer, size_t size, isomend_io_progres
         read_file_volume(s, buffer, size, fn, user);
         return;
     }
+    if (s->dicom) {
+        dicom_read(*s->dicom, buffer, s->opts.threads,
+                   [&](double f) -> bool { return fn ? fn(user, ISOMEND_IO_STAGE_READ, f) != 0 : false; });
+        return;
+    }
     const size_t sb = (size_t)slice_bytes(s);
     read_parallel(
         s->slices, s->info, s->opts.threads,
@@ -305,6 +317,9 @@ void range_any(isomend_type t, const void *p, size_t n, double &mn, double &mx, 
 }
 
 constexpr int kOtsuBins = 256;
+// CT levels in Hounsfield units (docs/dicom.md says where they come from).
+constexpr double kBoneHU = 300.0;
+constexpr double kSkinHU = -500.0;
 
 struct Hist {
     uint64_t coarse[ISOMEND_IO_HISTOGRAM_BINS] = {};
@@ -355,9 +370,10 @@ template <typename F> void for_each_slice(isomend_io_source *s, F &&f, double ba
     const size_t sb = (size_t)slice_bytes(s);
     isomend_io_progress_fn fn = s->opts.progress;
     void *user = s->opts.progress_user;
-    if (!s->loaded && s->is_file_volume && s->file_info.encoding == ISOMEND_FILEIO_ENC_GZIP) {
-        // Slice k of a gzip stream costs decompressing slices 0..k: load once
-        // (with the memory check) rather than stream in quadratic time.
+    if (!s->loaded && ((s->is_file_volume && s->file_info.encoding == ISOMEND_FILEIO_ENC_GZIP) || s->dicom)) {
+        // Slice k of a gzip stream costs decompressing slices 0..k (and a
+        // frame of a DICOM file decoding the file): load once (with the
+        // memory check) rather than stream in quadratic time.
         do_load(s, nullptr, nullptr);
     }
     if (s->loaded) {
@@ -406,7 +422,8 @@ void do_analyse(isomend_io_source *s) {
     sum.samples = (uint64_t)dim(s, 0) * (uint64_t)dim(s, 1) * (uint64_t)dim(s, 2);
     sum.nan_samples = bad;
     std::memcpy(sum.histogram, h.coarse, sizeof h.coarse);
-    sum.suggested_iso = otsu(h.fine, kOtsuBins, mn, mx, is_integer_type(t));
+    s->otsu = otsu(h.fine, kOtsuBins, mn, mx, is_integer_type(t));
+    sum.suggested_iso = s->dicom && s->dicom->hounsfield ? kBoneHU : s->otsu;
     sum.read_seconds = s->loaded ? s->load_seconds
                                  : std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
     s->analysed = true;
@@ -461,6 +478,24 @@ void apply_overrides(isomend_io_source *s) {
         }
     }
     bool origin_given = o.origin[0] != 0 || o.origin[1] != 0 || o.origin[2] != 0;
+    if (s->dicom) {
+        DicomSeries &d = *s->dicom;
+        if (origin_given) {
+            // the world position of sample (0, 0, 0), in the series' own frame
+            // and, through the rotation, in patient space
+            const double *R = d.rotation;
+            bool rotated = d.axes == ISOMEND_IO_AXES_PATIENT && !d.identity;
+            for (int a = 0; a < 3; a++)
+                d.origin[a] = rotated ? R[a] * o.origin[0] + R[3 + a] * o.origin[1] + R[6 + a] * o.origin[2]
+                                      : o.origin[a];
+            if (rotated)
+                for (int r = 0; r < 3; r++)
+                    d.affine[4 * r + 3] = o.origin[r] - (R[3 * r] * d.origin[0] + R[3 * r + 1] * d.origin[1] +
+                                                         R[3 * r + 2] * d.origin[2]);
+        }
+        for (int a = 0; a < 3; a++) s->origin[a] = d.origin[a];
+        return;
+    }
     for (int a = 0; a < 3; a++) {
         if (origin_given || !s->is_file_volume) {
             s->origin[a] = o.origin[a];
@@ -495,6 +530,49 @@ void open_file_volume(isomend_io_source *s, const std::string &path, bool nrrd) 
                       path + ": dimensions " + dims_text(s) + "; every dimension must be at least 2");
 }
 
+// A DICOM series (dicom.cpp) presented as a stack: one Slice per frame, so
+// that the dimensions and queries are the stack's; reads go to dicom.cpp.
+void open_dicom(isomend_io_source *s, const DicomFiles &files) {
+    const isomend_io_options &o = s->opts;
+    DicomOptions d;
+    d.series = s->series_choice;
+    d.axes = s->axes;
+    d.threads = o.threads;
+    d.spacing_given = o.spacing[0] > 0 && o.spacing[1] > 0 && o.spacing[2] > 0;
+    s->dicom.reset(new DicomSeries);
+    isomend_io_progress_fn fn = o.progress;
+    void *user = o.progress_user;
+    try {
+        dicom_open(files, d, *s->dicom, [&](double f) {
+            if (fn && fn(user, ISOMEND_IO_STAGE_OPEN, f))
+                throw IoError(ISOMEND_IO_ERR_CANCELLED, "cancelled while opening the DICOM files");
+        });
+    } catch (...) {
+        s->series_found = s->dicom->series;
+        s->dicom.reset();
+        throw;
+    }
+    s->series_found = s->dicom->series;
+    const DicomSeries &ds = *s->dicom;
+    s->kind = ISOMEND_IO_KIND_DICOM;
+    s->info = StackInfo{};
+    s->info.width = ds.width;
+    s->info.height = ds.height;
+    s->info.file_channels = 1;
+    s->info.type = ds.type;
+    s->info.format = "dicom";
+    for (int a = 0; a < 3; a++) {
+        s->info.spacing[a] = ds.spacing[a];
+        s->info.spacing_source[a] = ds.spacing_source[a];
+    }
+    for (const auto &f : ds.frames) s->slices.push_back(Slice{f.path, (int)f.frame, ds.multiframe});
+    apply_overrides(s);
+    if (d.spacing_given) { // the slice spacing measured stays the positions' unless overridden
+        for (int a = 0; a < 3; a++) s->dicom->spacing[a] = s->info.spacing[a];
+    }
+    s->opened = true;
+}
+
 void do_open(isomend_io_source *s, const char *const *paths, size_t count, const isomend_io_options *opts) {
     if (s->open_attempted)
         throw IoError(ISOMEND_IO_ERR_INVALID_ARGUMENT, "isomend_io_open may be called once per handle");
@@ -513,7 +591,43 @@ void do_open(isomend_io_source *s, const char *const *paths, size_t count, const
 
     std::vector<std::string> files;
     bool raw_requested = o.raw_dims[0] > 0 || o.raw_dims[1] > 0 || o.raw_dims[2] > 0;
-    if (count >= 2) {
+    DicomFiles dicom_files;
+    bool is_dicom = false;
+    if (!raw_requested) {
+        std::string p0 = paths[0];
+        if (count >= 2) {
+            if (is_regular_file(p0) && is_dicom_file(p0)) {
+                is_dicom = true;
+                dicom_files.label = p0;
+                dicom_files.files.assign(paths, paths + count);
+                dicom_files.explicit_list = true;
+            }
+        } else if (is_directory(p0)) {
+            is_dicom = dicom_folder_files(p0, false, dicom_files);
+            if (!is_dicom) {
+                try {
+                    files = list_folder(p0);
+                } catch (const IoError &e) {
+                    // no images either: an export's root with the series in subfolders?
+                    if (e.status != ISOMEND_IO_ERR_NOT_FOUND || !dicom_folder_files(p0, true, dicom_files)) throw;
+                    is_dicom = true;
+                }
+            }
+        } else if (is_regular_file(p0) && !isomend_fileio_is_nrrd_path(p0.c_str()) && is_dicom_file(p0)) {
+            is_dicom = true;
+            if (!dicomdir_files(p0, dicom_files)) {
+                dicom_files.label = p0;
+                dicom_files.files = {p0};
+            }
+        }
+    }
+    if (is_dicom) {
+        open_dicom(s, dicom_files);
+        return;
+    }
+    if (!files.empty()) {
+        s->kind = ISOMEND_IO_KIND_FOLDER;
+    } else if (count >= 2) {
         s->kind = ISOMEND_IO_KIND_LIST;
         files.assign(paths, paths + count);
         for (const auto &f : files)
@@ -549,6 +663,15 @@ void do_open(isomend_io_source *s, const char *const *paths, size_t count, const
         } else {
             throw IoError(ISOMEND_IO_ERR_NOT_FOUND, p + ": no such file or folder");
         }
+    }
+    if (!raw_requested && (s->kind == ISOMEND_IO_KIND_GLOB || s->kind == ISOMEND_IO_KIND_PATTERN) &&
+        !files.empty() && is_dicom_file(files[0])) {
+        // 'ct/*.dcm', 'IM%04d': the files it names, as a list of DICOM files
+        dicom_files.label = paths[0];
+        dicom_files.files = files;
+        dicom_files.explicit_list = true;
+        open_dicom(s, dicom_files);
+        return;
     }
     if (raw_requested && s->kind != ISOMEND_IO_KIND_MULTIPAGE && !files.empty())
         throw IoError(ISOMEND_IO_ERR_INVALID_ARGUMENT, "raw dimensions apply to a single raw file only");
@@ -599,6 +722,7 @@ ISOMEND_IO_API const char *isomend_io_status_string(isomend_io_status status) {
     case ISOMEND_IO_ERR_CANCELLED: return "cancelled";
     case ISOMEND_IO_ERR_EXTRACT: return "extraction failed";
     case ISOMEND_IO_ERR_INTERNAL: return "internal error";
+    case ISOMEND_IO_ERR_SERIES: return "several DICOM series: choose one";
     }
     return "unknown status";
 }
@@ -682,6 +806,8 @@ ISOMEND_IO_API const char *isomend_io_spacing_source_name(int source) {
     case ISOMEND_IO_SPACING_TIFF: return "tiff";
     case ISOMEND_IO_SPACING_IMAGEJ: return "imagej";
     case ISOMEND_IO_SPACING_HEADER: return "header";
+    case ISOMEND_IO_SPACING_DICOM: return "dicom";
+    case ISOMEND_IO_SPACING_POSITIONS: return "positions";
     default: return nullptr;
     }
 }
@@ -711,6 +837,7 @@ ISOMEND_IO_API const char *isomend_io_kind_name(int kind) {
     case ISOMEND_IO_KIND_MULTIPAGE: return "multipage";
     case ISOMEND_IO_KIND_RAW: return "raw";
     case ISOMEND_IO_KIND_NRRD: return "nrrd";
+    case ISOMEND_IO_KIND_DICOM: return "dicom";
     default: return nullptr;
     }
 }
@@ -750,6 +877,7 @@ ISOMEND_IO_API isomend_io_status isomend_io_read_slice(isomend_io_source *src, i
                           "buffer of " + std::to_string(buffer_size) + " bytes is too small for one slice (" +
                               std::to_string(slice_bytes(src)) + " bytes)");
         if (src->is_file_volume) read_file_slice(src, k, buffer, buffer_size);
+        else if (src->dicom) dicom_read_slice(*src->dicom, k, buffer);
         else read_slice(src->slices[(size_t)k], src->info, buffer);
     });
 }
@@ -798,6 +926,136 @@ ISOMEND_IO_API isomend_io_status isomend_io_extract(isomend_io_source *src, cons
             throw IoError(ISOMEND_IO_ERR_EXTRACT,
                           std::string("extraction failed: ") + isomend_status_string(st));
     });
+}
+
+// ---------------------------------------------------------------- DICOM
+
+ISOMEND_IO_API isomend_io_status isomend_io_set_series(isomend_io_source *src, const char *series) {
+    if (!src || src->in_job) return ISOMEND_IO_ERR_INVALID_ARGUMENT;
+    return guard(src, [&] {
+        if (src->open_attempted)
+            throw IoError(ISOMEND_IO_ERR_INVALID_ARGUMENT, "the series is chosen before isomend_io_open");
+        src->series_choice = series ? series : "";
+    });
+}
+
+ISOMEND_IO_API isomend_io_status isomend_io_set_axes(isomend_io_source *src, int axes) {
+    if (!src || src->in_job) return ISOMEND_IO_ERR_INVALID_ARGUMENT;
+    return guard(src, [&] {
+        if (src->open_attempted)
+            throw IoError(ISOMEND_IO_ERR_INVALID_ARGUMENT, "the axes are chosen before isomend_io_open");
+        if (axes != ISOMEND_IO_AXES_PATIENT && axes != ISOMEND_IO_AXES_GRID)
+            throw IoError(ISOMEND_IO_ERR_INVALID_ARGUMENT, "invalid axes " + std::to_string(axes));
+        src->axes = axes;
+    });
+}
+
+ISOMEND_IO_API int64_t isomend_io_series_count(const isomend_io_source *src) {
+    return src && !src->in_job ? (int64_t)src->series_found.size() : 0;
+}
+
+ISOMEND_IO_API isomend_io_status isomend_io_series_get(const isomend_io_source *src, int64_t index,
+                                                       isomend_io_series *out) {
+    if (!src || !out || src->in_job || index < 0 || index >= (int64_t)src->series_found.size())
+        return ISOMEND_IO_ERR_INVALID_ARGUMENT;
+    const DicomSeriesEntry &e = src->series_found[(size_t)index];
+    isomend_io_series v;
+    std::memset(&v, 0, sizeof v);
+    v.size = std::min(out->size, sizeof v);
+    v.uid = e.uid.c_str();
+    v.description = e.description.c_str();
+    v.modality = e.modality.c_str();
+    v.number = e.number;
+    v.files = e.files;
+    v.images = e.images;
+    v.columns = e.columns;
+    v.rows = e.rows;
+    std::memcpy(out, &v, v.size);
+    return ISOMEND_IO_OK;
+}
+
+ISOMEND_IO_API int64_t isomend_io_series_chosen(const isomend_io_source *src) {
+    return src && src->opened && src->dicom ? src->dicom->chosen : -1;
+}
+
+ISOMEND_IO_API isomend_io_status isomend_io_dicom_info(const isomend_io_source *src, isomend_io_dicom *out) {
+    if (!src || !out || !src->opened) return ISOMEND_IO_ERR_INVALID_ARGUMENT;
+    if (!src->dicom) return ISOMEND_IO_ERR_UNSUPPORTED;
+    const DicomSeries &d = *src->dicom;
+    isomend_io_dicom v;
+    std::memset(&v, 0, sizeof v);
+    v.size = std::min(out->size, sizeof v);
+    v.modality = d.modality.c_str();
+    v.series_uid = d.uid.c_str();
+    v.description = d.description.c_str();
+    v.transfer_syntax = d.ts_uid.c_str();
+    v.transfer_syntax_name = d.ts_name.c_str();
+    v.photometric = d.photometric.c_str();
+    v.bits_stored = d.bits_stored;
+    v.pixel_signed = d.pixel_signed ? 1 : 0;
+    v.rescaled = d.rescaled ? 1 : 0;
+    v.hounsfield = d.hounsfield ? 1 : 0;
+    v.rescale_slope = d.frames.empty() ? 1.0 : d.frames[0].slope;
+    v.rescale_intercept = d.frames.empty() ? 0.0 : d.frames[0].intercept;
+    std::memcpy(v.orientation, d.orientation, sizeof v.orientation);
+    std::memcpy(v.normal, d.normal, sizeof v.normal);
+    std::memcpy(v.position, d.position, sizeof v.position);
+    v.files = d.files;
+    v.multiframe = d.multiframe ? 1 : 0;
+    v.non_image = d.non_image;
+    v.non_dicom = d.non_dicom;
+    v.other_series = d.other_series;
+    v.axes = d.axes;
+    std::memcpy(out, &v, v.size);
+    return ISOMEND_IO_OK;
+}
+
+ISOMEND_IO_API isomend_io_status isomend_io_world_transform(const isomend_io_source *src, double affine[12],
+                                                            int *identity) {
+    if (!src || !affine || !src->opened) return ISOMEND_IO_ERR_INVALID_ARGUMENT;
+    bool id = !src->dicom || src->dicom->identity;
+    for (int i = 0; i < 12; i++) affine[i] = id ? (i % 5 == 0 ? 1.0 : 0.0) : src->dicom->affine[i];
+    if (identity) *identity = id ? 1 : 0;
+    return ISOMEND_IO_OK;
+}
+
+ISOMEND_IO_API const char *isomend_io_level_name(int level) {
+    switch (level) {
+    case ISOMEND_IO_LEVEL_OTSU: return "otsu";
+    case ISOMEND_IO_LEVEL_BONE: return "bone";
+    case ISOMEND_IO_LEVEL_SKIN: return "skin";
+    default: return nullptr;
+    }
+}
+
+ISOMEND_IO_API isomend_io_status isomend_io_level_value(isomend_io_source *src, int level, double *value) {
+    if (!src) return ISOMEND_IO_ERR_INVALID_ARGUMENT;
+    return guard(src, [&] {
+        require_open(src);
+        if (!value) throw IoError(ISOMEND_IO_ERR_INVALID_ARGUMENT, "value is NULL");
+        if (level == ISOMEND_IO_LEVEL_OTSU) {
+            do_analyse(src);
+            *value = src->otsu;
+            return;
+        }
+        if (level != ISOMEND_IO_LEVEL_BONE && level != ISOMEND_IO_LEVEL_SKIN)
+            throw IoError(ISOMEND_IO_ERR_INVALID_ARGUMENT, "invalid level " + std::to_string(level));
+        if (!src->dicom || !src->dicom->hounsfield) {
+            std::string what = src->dicom ? "a DICOM series of modality " +
+                                                (src->dicom->modality.empty() ? std::string("(none)") : src->dicom->modality)
+                                          : std::string("not a DICOM series");
+            throw IoError(ISOMEND_IO_ERR_UNSUPPORTED,
+                          std::string("the ") + isomend_io_level_name(level) +
+                              " level is for CT in Hounsfield units; the source is " + what +
+                              " (give the level as a number)");
+        }
+        *value = level == ISOMEND_IO_LEVEL_BONE ? kBoneHU : kSkinHU;
+    });
+}
+
+ISOMEND_IO_API int isomend_io_suggested_level(const isomend_io_source *src) {
+    if (!src || !src->opened) return -1;
+    return src->dicom && src->dicom->hounsfield ? ISOMEND_IO_LEVEL_BONE : ISOMEND_IO_LEVEL_OTSU;
 }
 
 // ---------------------------------------------------------------- jobs
