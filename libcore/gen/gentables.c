@@ -256,19 +256,19 @@ static void emit(FILE *out)
                  " */\n\n");
 
     fprintf(out, "/* Elementary case (0..14) of each configuration. */\n");
-    fprintf(out, "const unsigned char isomend_mc_case_of[256] = {");
+    fprintf(out, "const unsigned char mc_case_of[256] = {");
     for (int c = 0; c < 256; c++)
         fprintf(out, "%s%2d,", c % 16 ? " " : "\n    ", table[c].elementary);
     fprintf(out, "\n};\n\n");
 
     fprintf(out, "/* Number of triangles of each configuration. */\n");
-    fprintf(out, "const unsigned char isomend_mc_tri_count[256] = {");
+    fprintf(out, "const unsigned char mc_tri_count[256] = {");
     for (int c = 0; c < 256; c++)
         fprintf(out, "%s%d,", c % 16 ? " " : "\n    ", table[c].ntri);
     fprintf(out, "\n};\n\n");
 
     fprintf(out, "/* Triangles of each configuration as edge triples, -1 padded. */\n");
-    fprintf(out, "const signed char isomend_mc_tri_edges[256][%d] = {\n", 3 * MAX_TRI);
+    fprintf(out, "const signed char mc_tri_edges[256][%d] = {\n", 3 * MAX_TRI);
     for (int c = 0; c < 256; c++) {
         fprintf(out, "    {");
         for (int i = 0; i < 3 * MAX_TRI; i++) {
@@ -280,7 +280,7 @@ static void emit(FILE *out)
     fprintf(out, "};\n\n");
 
     fprintf(out, "/* Ambiguous faces of each configuration, bit f for face f. */\n");
-    fprintf(out, "const unsigned char isomend_mc_ambiguous_faces[256] = {");
+    fprintf(out, "const unsigned char mc_ambiguous_faces[256] = {");
     for (int c = 0; c < 256; c++) {
         int m = 0;
         for (int f = 0; f < 6; f++)
@@ -291,7 +291,7 @@ static void emit(FILE *out)
 
     fprintf(out, "/*\n * Directed face segments p->q, r->s of each configuration on each\n"
                  " * ambiguous face (edge numbers, in loop order), -1 elsewhere.\n */\n");
-    fprintf(out, "const signed char isomend_mc_face_loop[256][6][4] = {\n");
+    fprintf(out, "const signed char mc_face_loop[256][6][4] = {\n");
     for (int c = 0; c < 256; c++) {
         fprintf(out, "    {");
         for (int f = 0; f < 6; f++) {

@@ -17,6 +17,27 @@
  *                         one of the two cubes has 5+ positive corners),
  *                         which is exactly where MC leaves a hole.  Default.
  *
+ * and five methods that decide each ambiguous face (or the cube) so that
+ * neighbours agree, with triangles from tables generated for every decision:
+ *
+ *   ISOMEND_METHOD_FACIAL      joins a face's positive corners when the mean
+ *                              of its four samples is >= iso (Wyvill,
+ *                              McPheeters & Wyvill 1986);
+ *   ISOMEND_METHOD_GRADIENT    ... when the face centre estimated along the
+ *                              in-face gradients is >= iso (Wilhelms & Van
+ *                              Gelder 1990);
+ *   ISOMEND_METHOD_ASYMPTOTIC  ... when the bilinear saddle value is >= iso
+ *                              (Nielson & Hamann 1991);
+ *   ISOMEND_METHOD_TETRA       five tetrahedra per cube, marched separately
+ *                              (Payne & Toga 1990);
+ *   ISOMEND_METHOD_MC33        the asymptotic decider on faces and the
+ *                              trilinear interpolant's connectivity inside
+ *                              the cube (Chernyaev 1995).
+ *
+ * DMC and these five give hole-free, consistently oriented 2-manifolds
+ * (closed with ISOMEND_FLAG_PAD); only MC33 follows the topology of the
+ * trilinear interpolant.
+ *
  * Conventions (applied identically by every cube, so neighbours agree):
  *   - a sample is *positive* (inside) when  sample >= iso;
  *   - NaN samples and the optional padding layer are *outside*; an edge with
@@ -24,7 +45,12 @@
  *     edge direction (towards the outside endpoint);
  *   - one vertex per intersected grid edge, shared by every cube around it;
  *     the vertex is at  p0 + t (p1 - p0),  t = (iso - f0) / (f1 - f0),
- *     p0 the endpoint with the lower index;
+ *     p0 the endpoint with the lower index.  TETRA also cuts the face
+ *     diagonals joining a face's corners of even parity (i + j + k even, in
+ *     the padded grid with ISOMEND_FLAG_PAD), one vertex each, shared by
+ *     the face's two cubes; FACIAL, GRADIENT, ASYMPTOTIC and MC33 may add
+ *     vertices private to a cube, at the mean of its edge vertices (and,
+ *     for MC33, halfway between that and an edge vertex);
  *   - positions are float32 world coordinates: origin + index * spacing;
  *   - normals are unit vectors from central-difference gradients (one-sided
  *     at the border and next to NaN/padding), interpolated along the edge,
@@ -75,7 +101,7 @@ extern "C" {
 typedef enum isomend_status {
     ISOMEND_OK = 0,
     ISOMEND_ERR_INVALID_ARGUMENT = 1, /* NULL pointer, bad enum, bad flag    */
-    ISOMEND_ERR_BAD_DIMENSIONS = 2,   /* a dimension < 2 (or < 1 with pad)    */
+    ISOMEND_ERR_BAD_DIMENSIONS = 2,   /* a dimension < 2 (< 1 with pad), > 2^31 */
     ISOMEND_ERR_BAD_SPACING = 3,      /* spacing <= 0 or not finite          */
     ISOMEND_ERR_BAD_ISO = 4,          /* iso level NaN or infinite            */
     ISOMEND_ERR_OUT_OF_MEMORY = 5,
@@ -140,11 +166,11 @@ typedef enum isomend_method {
     ISOMEND_METHOD_MC = 0,
     ISOMEND_METHOD_DURST = 1,
     ISOMEND_METHOD_DMC = 2,
-    ISOMEND_METHOD_FACIAL = 3,     /* reserved: face average (Wyvill 1986)        */
-    ISOMEND_METHOD_GRADIENT = 4,   /* reserved: centre-pointing gradient (1990)   */
-    ISOMEND_METHOD_ASYMPTOTIC = 5, /* reserved: asymptotic decider (1991)         */
-    ISOMEND_METHOD_TETRA = 6,      /* reserved: 5 mirrored tetrahedra (1990)      */
-    ISOMEND_METHOD_MC33 = 7        /* reserved: Marching Cubes 33 (Chernyaev 1995) */
+    ISOMEND_METHOD_FACIAL = 3,     /* face average (Wyvill et al. 1986)            */
+    ISOMEND_METHOD_GRADIENT = 4,   /* centre-pointing gradient (1990)              */
+    ISOMEND_METHOD_ASYMPTOTIC = 5, /* asymptotic decider (Nielson & Hamann 1991)   */
+    ISOMEND_METHOD_TETRA = 6,      /* 5 mirrored tetrahedra (Payne & Toga 1990)    */
+    ISOMEND_METHOD_MC33 = 7        /* Marching Cubes 33 (Chernyaev 1995)           */
 } isomend_method;
 #define ISOMEND_METHOD_COUNT 8
 
@@ -168,21 +194,22 @@ enum {
 };
 #define ISOMEND_FLAGS_ALL 0x1Fu
 /*
- * Pages.  By default the output arrays are offered to the kernel for
- * transparent huge pages: far fewer page faults and TLB misses for arrays of
- * tens to hundreds of MB.  ISOMEND_FLAG_SMALL_PAGES asks for none.  It paid
- * off on one virtual machine, whose host took freed huge pages back (virtio
- * free page reporting) so that a process extracting once got them at
- * 3-4 ms/MB; on another with the same reporting, small pages made a one-off
- * extraction 1.5-2x slower and repeated ones 8x slower (see the README).
- * Measure before using it.  The mesh is the same either way.
+ * Pages.  By default the output arrays of 2 MiB and more are offered to the
+ * kernel (Linux) for transparent huge pages: fewer page faults and TLB
+ * misses.  ISOMEND_FLAG_SMALL_PAGES asks for none in the output arrays.
+ * Whether that is faster depends on the machine (on some virtual machines
+ * fresh huge pages are expensive; docs/core-internals.md, "Pages", has the
+ * measurements): measure before using it.  The mesh is the same either way.
  */
 
 /*
  * Progress: called from the thread that called isomend_extract(), with a
- * fraction in [0, 1], a few times per second at most for large volumes.
- * Return non-zero to cancel: the extraction then returns
- * ISOMEND_ERR_CANCELLED and no mesh.
+ * fraction in [0, 1], from time to time while it runs (after
+ * each chunk of layers, or every 16 slices on the one-pass path, and about
+ * every 100 ms while that thread waits for another) and with 1.0 once the
+ * mesh is complete.  Return non-zero to cancel: the extraction then returns
+ * ISOMEND_ERR_CANCELLED and no mesh.  The return value of the final 1.0 call
+ * is ignored.
  */
 typedef int (*isomend_progress_fn)(void *user, double fraction);
 
@@ -190,7 +217,8 @@ typedef struct isomend_options {
     double iso;                   /* iso level (finite)                          */
     isomend_method method;        /* default ISOMEND_METHOD_DMC                  */
     unsigned flags;               /* ISOMEND_FLAG_*                              */
-    int threads;                  /* 0 = all cores; the mesh does not depend on it */
+    int threads;                  /* 0 = all cores; at most 64; the mesh does not  */
+                                  /* depend on it                                */
     isomend_progress_fn progress; /* may be NULL                                 */
     void *progress_user;
 } isomend_options;
@@ -202,7 +230,7 @@ ISOMEND_API void isomend_options_init(isomend_options *opts);
 
 /* Where a triangle comes from. */
 typedef enum isomend_origin {
-    ISOMEND_ORIGIN_TABLE = 0, /* the 256-case table                             */
+    ISOMEND_ORIGIN_TABLE = 0, /* the 256-case table (or the method's own)       */
     ISOMEND_ORIGIN_DURST = 1, /* Durst's quad on an ambiguous face              */
     ISOMEND_ORIGIN_MEND = 2   /* DMC's quad on an inverted combination          */
 } isomend_origin;
@@ -239,12 +267,12 @@ ISOMEND_API isomend_status isomend_extract(const isomend_volume *vol, const isom
  * not be used again).  The call destroys it, in every case, and where it can
  * it moves the old mesh's memory into the new mesh first, so that the new
  * arrays are written on memory already in place: no page faults and no
- * zeroing by the kernel for that part (on the 256^3 gyroid at 1 thread,
- * 0.89-0.92x the time of isomend_mesh_destroy() then isomend_extract()).  The
- * new mesh, the same byte for byte as isomend_extract()'s, is stored in
- * *mesh; NULL on failure.  Memory is reused on the one-pass path (methods
- * MC, Durst and DMC, 1 or 2 threads, grids of 2^21 samples or more);
- * otherwise the old mesh is destroyed before the new one is allocated.
+ * zeroing by the kernel for that part (docs/core-internals.md has the
+ * measured gain).  The new mesh, the same byte for byte as
+ * isomend_extract()'s, is stored in *mesh; NULL on failure.  Memory is
+ * reused on the one-pass path (methods MC, Durst and DMC, 1 or 2 threads,
+ * grids of 2^21 samples or more, Linux); otherwise the old mesh is
+ * destroyed before the new one is allocated.
  */
 ISOMEND_API isomend_status isomend_extract_recycle(const isomend_volume *vol,
                                                    const isomend_options *opts,
@@ -342,8 +370,11 @@ ISOMEND_API isomend_status isomend_mesh_check(const isomend_mesh *mesh,
 /*
  * Read-only access to the generated tables (for tests, tools and teaching).
  * Cube corner c (0..7) sits at (c & 1, (c >> 1) & 1, (c >> 2) & 1); bit c of
- * a configuration is set when corner c is positive.  See libcore/src/tables.h
- * for the edge and face numbering.
+ * a configuration is set when corner c is positive.  Edge e (0..11) runs
+ * along axis e / 4 (x, y, z) from its lower corner; for k = e % 4, the
+ * lower-numbered of the two other axes is at k & 1, the other at k >> 1
+ * (edge 5 joins corners 1 and 3).  libcore/src/cube.h draws the cube and
+ * lists the faces.
  */
 /* Elementary case 0..14 of a configuration 0..255 (-1 for an invalid one). */
 ISOMEND_API int isomend_case_of(unsigned config);

@@ -1,10 +1,13 @@
 /*
  * api.c - small public helpers: status strings, voxel types, method names,
- * option defaults.
+ * option defaults, and the mesh's accessors.
  */
 #include "isomend.h"
+
+#include "extract_internal.h"
 #include "methods.h"
 
+#include <stdlib.h>
 #include <string.h>
 
 const char *isomend_status_string(isomend_status status)
@@ -106,4 +109,59 @@ void isomend_volume_init(isomend_volume *vol, const void *data, isomend_type typ
     vol->dims[2] = nz;
     for (int a = 0; a < 3; a++)
         vol->spacing[a] = 1.0;
+}
+
+/* ------------------------------------------------------------------- mesh */
+
+void isomend_mesh_destroy(isomend_mesh *mesh)
+{
+    if (!mesh)
+        return;
+    release_output(mesh->pos, mesh->mapped[0]);
+    release_output(mesh->nrm, mesh->mapped[1]);
+    release_output(mesh->tri, mesh->mapped[2]);
+    release_output(mesh->org, mesh->mapped[3]);
+    free(mesh);
+}
+
+size_t isomend_mesh_vertex_count(const isomend_mesh *mesh) { return mesh ? mesh->nv : 0; }
+size_t isomend_mesh_triangle_count(const isomend_mesh *mesh) { return mesh ? mesh->nt : 0; }
+const float *isomend_mesh_positions(const isomend_mesh *mesh) { return mesh ? mesh->pos : NULL; }
+const float *isomend_mesh_normals(const isomend_mesh *mesh) { return mesh ? mesh->nrm : NULL; }
+const uint32_t *isomend_mesh_triangles(const isomend_mesh *mesh) { return mesh ? mesh->tri : NULL; }
+const uint8_t *isomend_mesh_triangle_origins(const isomend_mesh *mesh)
+{
+    return mesh ? mesh->org : NULL;
+}
+
+void isomend_mesh_grid_box(const isomend_mesh *mesh, double box[6])
+{
+    if (!mesh || !box)
+        return;
+    memcpy(box, mesh->box, sizeof(mesh->box));
+}
+
+isomend_status isomend_mesh_copy(const isomend_mesh *mesh, float *positions, float *normals,
+                                 uint32_t *triangles, uint8_t *origins)
+{
+    if (!mesh)
+        return ISOMEND_ERR_INVALID_ARGUMENT;
+    if ((normals && !mesh->nrm) || (origins && !mesh->org))
+        return ISOMEND_ERR_INVALID_ARGUMENT;
+    if (positions)
+        memcpy(positions, mesh->pos, sizeof(float) * 3 * mesh->nv);
+    if (normals)
+        memcpy(normals, mesh->nrm, sizeof(float) * 3 * mesh->nv);
+    if (triangles)
+        memcpy(triangles, mesh->tri, sizeof(uint32_t) * 3 * mesh->nt);
+    if (origins)
+        memcpy(origins, mesh->org, mesh->nt);
+    return ISOMEND_OK;
+}
+
+isomend_status isomend_mesh_check(const isomend_mesh *mesh, isomend_check_report *report)
+{
+    if (!mesh)
+        return ISOMEND_ERR_INVALID_ARGUMENT;
+    return isomend_check(mesh->pos, mesh->nv, mesh->tri, mesh->nt, mesh->box, report);
 }

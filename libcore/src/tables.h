@@ -11,15 +11,15 @@
 #define MC_MAX_TRI 4
 
 /* Elementary case (0..14) of each configuration. */
-extern const unsigned char isomend_mc_case_of[256];
+extern const unsigned char mc_case_of[256];
 /* Triangles per configuration (0..4). */
-extern const unsigned char isomend_mc_tri_count[256];
+extern const unsigned char mc_tri_count[256];
 /* Edge triples of each configuration's triangles, -1 padded. */
-extern const signed char isomend_mc_tri_edges[256][3 * MC_MAX_TRI];
+extern const signed char mc_tri_edges[256][3 * MC_MAX_TRI];
 /* Bit f set when face f of the configuration is ambiguous. */
-extern const unsigned char isomend_mc_ambiguous_faces[256];
+extern const unsigned char mc_ambiguous_faces[256];
 /* Directed face segments p->q, r->s on each ambiguous face, in loop order. */
-extern const signed char isomend_mc_face_loop[256][6][4];
+extern const signed char mc_face_loop[256][6][4];
 
 /* A configuration is inverted when it has 5 or more positive corners. */
 static inline int mc_is_inverted(unsigned config)

@@ -1,5 +1,6 @@
 # Runs two programs and requires their standard output to be identical
-# (core_simd_identical: tests/core/test_digest.c built two ways).
+# (core_one_pass_identical and the split variants: tests/core/test_digest.c
+# built against the shipped library and against a variant).
 #   cmake -DA=PROGRAM_A -DB=PROGRAM_B -P compare_outputs.cmake
 foreach(p A B)
   execute_process(COMMAND ${${p}} OUTPUT_VARIABLE out_${p} RESULT_VARIABLE rc_${p})

@@ -1,14 +1,20 @@
 /*
  * test_digest.c - one line per extraction: its case, vertex and triangle
  * counts and a 64-bit FNV-1a digest of the mesh's bytes (positions, normals,
- * triangles, origins) and of the statistics.  Built against the library as
- * shipped (SSE2 scanning, and on AVX2 machines four vertices at a time; two
- * threads, so the two passes), against the portable build (ISOMEND_NO_SIMD)
- * and against a build that takes the one-pass path at one thread
- * (DIGEST_THREADS=1).  The tests core_simd_identical and
- * core_one_pass_identical require the outputs to equal the first, i.e. every
- * vectorised path to give the scalar path's mesh bit for bit, and the one
- * pass the two passes' mesh and statistics.
+ * triangles, origins) and of the statistics.
+ *
+ *   test_digest                    the lines, with the kernels the CPU takes
+ *   test_digest --compare-targets  the lines with the kernels of every CPU
+ *                                  target the machine runs (AVX2: four
+ *                                  vertices at a time; SSE2 scanning; the
+ *                                  portable C), which must be identical
+ *                                  (core_simd_identical)
+ *
+ * Built against the library as shipped (two threads, so the two passes) and
+ * against builds that take the one-pass path at every size
+ * (DIGEST_THREADS=1 and 2, tests/core/CMakeLists.txt): those must print the
+ * shipped library's lines, i.e. the one pass the two passes' mesh and
+ * statistics (core_one_pass_identical and the split variants).
  *
  * The cases: every sample type; a dense field (many crossings per row: the
  * wide-span path) and a sphere (a few per row: the lists); odd sizes with the
@@ -16,6 +22,7 @@
  * negative stride; padding, flipped normals, no normals; MC, Durst and DMC.
  */
 #include "isomend.h"
+#include "cpu_target.h"
 
 #include <math.h>
 #include <stdint.h>
@@ -28,6 +35,26 @@
 #endif
 
 enum { NX = 53, NY = 38, NZ = 41 };
+
+/* The lines printed so far (out_text, out_len bytes). */
+static char *out_text;
+static size_t out_len, out_cap;
+
+static int out_line(const char *line)
+{
+    const size_t n = strlen(line);
+    if (out_len + n + 1 > out_cap) {
+        const size_t cap = 2 * (out_len + n + 1);
+        char *t = realloc(out_text, cap);
+        if (!t)
+            return 0;
+        out_text = t;
+        out_cap = cap;
+    }
+    memcpy(out_text + out_len, line, n + 1);
+    out_len += n;
+    return 1;
+}
 
 static uint64_t fnv(uint64_t h, const void *p, size_t n)
 {
@@ -119,13 +146,15 @@ static int run(const char *name, const isomend_volume *vol, double iso, isomend_
     if (isomend_mesh_triangle_origins(m))
         h = fnv(h, isomend_mesh_triangle_origins(m), nt);
     h = fnv(h, &st, sizeof st); /* the statistics too */
-    printf("%-34s %s flags %u: %7zu vertices %7zu triangles %016llx\n", name,
-           isomend_method_name(method), flags, nv, nt, (unsigned long long)h);
+    char line[160];
+    snprintf(line, sizeof line, "%-34s %s flags %u: %7zu vertices %7zu triangles %016llx\n",
+             name, isomend_method_name(method), flags, nv, nt, (unsigned long long)h);
     isomend_mesh_destroy(m);
-    return nt == 0; /* every case has a surface */
+    return !out_line(line) || nt == 0; /* every case has a surface */
 }
 
-int main(void)
+/* Runs every case into out_text; returns non-zero on a failure. */
+static int run_all(void)
 {
     static const struct {
         const char *name;
@@ -166,5 +195,65 @@ int main(void)
                 free(data);
             }
         }
+    return failed;
+}
+
+/* The lines of every target the CPU runs, compared with the first's. */
+static int compare_targets(void)
+{
+    char *first = NULL;
+    const char *first_name = NULL;
+    int targets = 0, failed = 0;
+    char names[64] = "";
+    for (int t = 0; t < CPU_TARGET_COUNT && !failed; t++) {
+        if (cpu_target_use(cpu_targets[t].name) != 1) {
+            printf("%s: not on this CPU\n", cpu_targets[t].name);
+            continue;
+        }
+        out_len = 0;
+        failed |= run_all();
+        if (failed)
+            break;
+        if (!first) {
+            first = malloc(out_len + 1);
+            if (!first)
+                return 1;
+            memcpy(first, out_text, out_len + 1);
+            first_name = cpu_targets[t].name;
+            fputs(first, stdout);
+        } else if (strcmp(first, out_text) != 0) {
+            printf("the %s kernels' meshes differ from the %s kernels':\n%s", cpu_targets[t].name,
+                   first_name, out_text);
+            failed = 1;
+        }
+        snprintf(names + strlen(names), sizeof names - strlen(names), "%s%s", targets ? ", " : "",
+                 cpu_targets[t].name);
+        targets++;
+    }
+    cpu_features_set_test_mask(CPU_FEATURES_ALL);
+    if (!failed && first) { /* with one target (no SSE2), "1 targets": nothing compared */
+        int lines = 0;
+        for (const char *c = first; *c; c++)
+            lines += *c == '\n';
+        printf("identical: %d meshes on %d targets (%s)\n", lines, targets, names);
+    }
+    free(first);
+    return failed;
+}
+
+int main(int argc, char **argv)
+{
+    int failed;
+    if (argc == 2 && strcmp(argv[1], "--compare-targets") == 0) {
+        failed = compare_targets();
+    } else if (argc == 1) {
+        failed = run_all();
+        if (out_text)
+            fputs(out_text, stdout);
+    } else {
+        fprintf(stderr, "usage: %s [--compare-targets]\n", argv[0]);
+        return 2;
+    }
+    free(out_text);
     return failed;
 }

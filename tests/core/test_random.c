@@ -11,6 +11,7 @@
  *     view gives the same mesh as a contiguous copy.
  */
 #include "isomend.h"
+#include "cpu_target.h"
 #include "meshcmp.h"
 #include "testutil.h"
 
@@ -344,8 +345,10 @@ static void test_strides(void)
     free(copy);
 }
 
-int main(void)
+int main(int argc, char **argv)
 {
+    if (cpu_target_from_args(argc, argv))
+        return 1;
     test_noise_shapes();
     test_ties_and_types();
     test_nan();

@@ -233,7 +233,7 @@ static void test_configurations(void)
                     CHECK_EQ_INT(inner[b][a], 1); /* used twice, opposite directions */
                 }
         /* Faces: the number of segments matches the signs. */
-        unsigned amb = isomend_mc_ambiguous_faces[c];
+        unsigned amb = mc_ambiguous_faces[c];
         for (int f = 0; f < 6; f++) {
             int s[4], changes = 0;
             for (int i = 0; i < 4; i++)
@@ -248,7 +248,7 @@ static void test_configurations(void)
             /* Separation: each segment goes around a corner of the minority
              * sign (positive for <= 4 positive corners, negative otherwise). */
             int minority = popcount(c) <= 4 ? 1 : 0;
-            const signed char *l = isomend_mc_face_loop[c][f];
+            const signed char *l = mc_face_loop[c][f];
             for (int q = 0; q < 4; q += 2) {
                 int ia = edge_on_face(l[q], f), ib = edge_on_face(l[q + 1], f);
                 CHECK(ia >= 0 && ib >= 0);
