@@ -190,6 +190,88 @@ def test_cancel_and_errors_end_cancelled_with_the_reason(blob, tmp_path):
     assert j.outcome()[:2] == ('CANCELLED', 'ERROR') and "m_2.tif" in j.outcome()[2]
 
 
+@pytest.fixture(scope="module")
+def two_series(tmp_path_factory):
+    """A folder holding two DICOM series written with pydicom: a CT ball in
+    Hounsfield units (stored + 1024, 12 bits, rescaled) on tilted axes and
+    a small MR of the same ball."""
+    pydicom = pytest.importorskip("pydicom")
+    from pydicom.dataset import Dataset, FileMetaDataset
+    from pydicom.uid import ExplicitVRLittleEndian, generate_uid
+    folder = tmp_path_factory.mktemp("dicom") / "two"
+    folder.mkdir()
+    z, y, x = np.meshgrid(np.arange(10.0), np.arange(12.0), np.arange(14.0), indexing="ij")
+    ball = np.sqrt((x - 6.5) ** 2 + (y - 5.5) ** 2 + (z - 4.5) ** 2) < 4.0
+    uids = {}
+    c, s = np.cos(np.radians(20)), np.sin(np.radians(20))
+    for modality, sop, stored, row, col in (
+            ("CT", "1.2.840.10008.5.1.4.1.1.2", np.where(ball, 1024 + 700, 1024 - 1000), (c, s, 0), (-s, c, 0)),
+            ("MR", "1.2.840.10008.5.1.4.1.1.4", np.where(ball, 900, 100), (1, 0, 0), (0, 1, 0))):
+        uids[modality] = series_uid = generate_uid()
+        study, frame = generate_uid(), generate_uid()
+        normal = np.cross(row, col)
+        for k in range(stored.shape[0]):
+            ds = Dataset()
+            ds.SOPClassUID, ds.SOPInstanceUID = sop, generate_uid()
+            ds.StudyInstanceUID, ds.SeriesInstanceUID, ds.FrameOfReferenceUID = study, series_uid, frame
+            ds.Modality, ds.SeriesNumber, ds.InstanceNumber = modality, 3 if modality == "CT" else 7, k + 1
+            ds.SeriesDescription = "ball " + modality
+            ds.PatientName, ds.PatientID = "Phantom^Isomend", "ISOMEND-TEST"
+            ds.ImagePositionPatient = ["%.6g" % v for v in np.array((-5.0, -6.0, 20.0)) + 1.5 * k * normal]
+            ds.ImageOrientationPatient = ["%.6g" % v for v in list(row) + list(col)]
+            ds.PixelSpacing, ds.SliceThickness = ["0.8", "0.7"], "1.5"
+            if modality == "CT":
+                ds.RescaleSlope, ds.RescaleIntercept, ds.RescaleType = "1", "-1024", "HU"
+            ds.SamplesPerPixel, ds.PhotometricInterpretation = 1, "MONOCHROME2"
+            ds.Rows, ds.Columns = stored.shape[1], stored.shape[2]
+            ds.BitsAllocated, ds.BitsStored, ds.HighBit, ds.PixelRepresentation = 16, 12, 11, 0
+            ds.PixelData = stored[k].astype("<u2").tobytes()
+            meta = FileMetaDataset()
+            meta.MediaStorageSOPClassUID, meta.MediaStorageSOPInstanceUID = ds.SOPClassUID, ds.SOPInstanceUID
+            meta.TransferSyntaxUID = ExplicitVRLittleEndian
+            ds.file_meta, ds.is_little_endian, ds.is_implicit_VR = meta, True, False
+            ds.preamble = b"\0" * 128
+            pydicom.dcmwrite(str(folder / ("%s%03d.dcm" % (modality, k))), ds, write_like_original=False)
+    return {"folder": str(folder), "uids": uids}
+
+
+def test_a_dicom_series_is_chosen_placed_and_reported(two_series):
+    folder, uids = two_series["folder"], two_series["uids"]
+    j = job([folder])       # two series and none chosen: an error listing them
+    j.run()
+    status, level, message = j.outcome()
+    assert (status, level) == ('CANCELLED', 'ERROR') and "2 DICOM series" in message
+    meshes = []
+    for grid_axes in (False, True):
+        j = import_stack.ImportJob([folder], None, "dmc", None, -1, True, True,
+                                   series=uids["CT"], grid_axes=grid_axes)
+        j.run()
+        assert j.error is None, j.error
+        mesh, info = j.result
+        assert info["kind"] == "dicom" and info["dims"] == (14, 12, 10)
+        assert mesh.iso == 300.0          # a CT in HU: the bone level is the suggestion
+        props = import_stack.custom_properties(mesh, info)
+        assert props["isomend_dicom_series_uid"] == uids["CT"]
+        assert props["isomend_dicom_axes"] == ("grid" if grid_axes else "patient")
+        text = import_stack.report("two", mesh, info, suggested=True)
+        assert 'DICOM CT series "ball CT", %s axes (bone level, HU)' % props["isomend_dicom_axes"] in text
+        want = isomend.extract_source([folder], pad=True, series=uids["CT"], grid_axes=grid_axes)
+        same(mesh, want)
+        meshes.append(mesh)
+    # the tilted series: patient space turns it (the same triangles elsewhere)
+    assert meshes[0].triangle_count == meshes[1].triangle_count
+    assert not np.allclose(meshes[0].positions, meshes[1].positions, atol=0.1)
+    # the other series, by its UID, and an explicit iso with it
+    j = import_stack.ImportJob([folder], 500.0, "dmc", None, -1, True, True, series=uids["MR"])
+    j.run()
+    mesh, info = j.result
+    assert mesh.iso == 500.0 and info["dicom"]["modality"] == "MR" and info["dims"] == (14, 12, 10)
+    assert "(bone level" not in import_stack.report("two", mesh, info, suggested=False)
+    # a TIFF stack has no DICOM properties
+    assert not any(k.startswith("isomend_dicom") for k in
+                   import_stack.custom_properties(mesh, dict(info, dicom=None)))
+
+
 # ------------------------------------------------------------ the mesh
 
 def test_mesh_buffers_are_relative_to_the_origin_scaled_and_typed(blob):
