@@ -42,7 +42,7 @@ Library lookup (done once, on first use):
   3. the dynamic linker's search path (LD_LIBRARY_PATH, an installed
      ``libisomend.so.0``).
 The core (libisomend) is loaded at the first call; the slice importer
-(libisomend_io, which pulls in OpenImageIO) only when a source is opened.
+(libisomend_io, which pulls in its image libraries) only when a source is opened.
 
 Errors.  A failed call raises ``IsomendError`` (a RuntimeError) carrying
 ``.status`` (the C status code), ``.status_name`` and a message that names the
@@ -72,7 +72,7 @@ import numpy as np
 __all__ = [
     "IsomendError", "Cancelled", "LibraryNotFound", "Mesh", "Source",
     "extract", "check", "open_source", "extract_source",
-    "methods", "available_methods", "version", "io_version", "library_path", "io_library_path",
+    "methods", "available_methods", "version", "io_version", "io_image_libraries", "library_path", "io_library_path",
     "METHODS", "ORIGIN_TABLE", "ORIGIN_DURST", "ORIGIN_MEND",
 ]
 
@@ -384,6 +384,7 @@ def _io_lib():
         c_int, c_char_p, c_void_p = ctypes.c_int, ctypes.c_char_p, ctypes.c_void_p
         _declare(lib, "isomend_io_status_string", c_char_p, [c_int])
         _declare(lib, "isomend_io_version", c_char_p, [])
+        _declare(lib, "isomend_io_image_libraries", c_char_p, [])
         _declare(lib, "isomend_io_options_init", None, [P(IOOptions)])
         _declare(lib, "isomend_io_create", c_int, [P(c_void_p)])
         _declare(lib, "isomend_io_destroy", None, [c_void_p])
@@ -433,7 +434,7 @@ def library_path():
 
 
 def io_library_path():
-    """Path of the loaded slice importer library (loads it and OpenImageIO)."""
+    """Path of the loaded slice importer library (loads it and its image libraries)."""
     _io_lib()
     return _io_path
 
@@ -446,6 +447,14 @@ def version():
 def io_version():
     """The slice importer's version string."""
     return _io_lib().isomend_io_version().decode()
+
+
+def io_image_libraries():
+    """The image libraries the loaded slice importer reads with: "OpenImageIO
+    2.4.7" (every format it reads), or "libtiff 4.5.0, OpenEXR 3.1.5, libpng
+    1.6.39" for the portable build the Blender add-on carries (TIFF, OpenEXR,
+    PNG)."""
+    return _io_lib().isomend_io_image_libraries().decode()
 
 
 def _status_text(status):

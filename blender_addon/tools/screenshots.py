@@ -7,9 +7,13 @@ Writes OUT_DIR/blender-dialog.png (File > Import > Slice Stack as Isosurface:
 the file browser on STACK_FOLDER with the operator's options) and
 OUT_DIR/blender-result.png (the imported stack in the viewport, with the
 report in the status bar).  Timers drive the steps; the files are written by
-bpy.ops.screen.screenshot.
+bpy.ops.screen.screenshot, or with ISOMEND_SCREENSHOT=x11 by ImageMagick's
+`import -window root` (the whole X screen: Blender 4.3 under Xvfb with
+Mesa's software OpenGL reads back a black window), after closing 4.3's
+first-start splash with `xdotool key Escape`.
 """
 import os
+import subprocess
 import sys
 import time
 
@@ -35,6 +39,14 @@ def override(win, area_type=None):
     return bpy.context.temp_override(window=win, area=area, region=region)
 
 
+def screenshot(win, path):
+    if os.environ.get("ISOMEND_SCREENSHOT") == "x11":
+        subprocess.run(["import", "-window", "root", path], check=True)
+    else:
+        with override(win):
+            bpy.ops.screen.screenshot(filepath=path)
+
+
 def tick():
     try:
         return step()
@@ -50,6 +62,9 @@ def step():
         print("screenshots: timed out", flush=True)
         os._exit(1)
     if s == 0:
+        if os.environ.get("ISOMEND_SCREENSHOT") == "x11":
+            # Blender 4.2+ opens its first-start splash: Esc closes it
+            subprocess.run(["xdotool", "key", "Escape"], check=False)
         # delete the default cube, open the file browser of the operator on the stack
         for obj in list(bpy.data.objects):
             if obj.type == "MESH":
@@ -61,8 +76,7 @@ def step():
     if s == 1:
         wins = bpy.context.window_manager.windows
         win = wins[-1]  # the file browser opens in a window of its own
-        with override(win):
-            bpy.ops.screen.screenshot(filepath=os.path.join(out_dir, "blender-dialog.png"))
+        screenshot(win, os.path.join(out_dir, "blender-dialog.png"))
         with override(win, "FILE_BROWSER"):
             bpy.ops.file.cancel()
         return 1.0
@@ -83,8 +97,7 @@ def step():
         print("imported", r, flush=True)
         return 2.0
     if s == 3:
-        with override(main_window(), "VIEW_3D"):
-            bpy.ops.screen.screenshot(filepath=os.path.join(out_dir, "blender-result.png"))
+        screenshot(main_window(), os.path.join(out_dir, "blender-result.png"))
         print("screenshots written to " + out_dir, flush=True)
         os._exit(0)
     return None

@@ -2,8 +2,9 @@
 
     blender -b --factory-startup -noaudio --python-exit-code 1 --python blender_import_test.py -- cases.json
 
-Installs the add-on zip as a user would (Preferences > Add-ons > Install),
-enables it, and for each case calls bpy.ops.import_mesh.slice_stack, then
+Installs the add-on as a user would (the legacy zip through Preferences >
+Add-ons > Install, or the extension zip through Install from Disk in Blender
+4.2+: blender_install.py), enables it, and for each case calls bpy.ops.import_mesh.slice_stack, then
 asserts: exactly one new object named after the stack; vertex and triangle
 counts (and mending triangles) equal to the `isomend extract` command line's
 on the same input; mesh.validate() returns False (nothing to repair); every
@@ -15,10 +16,10 @@ Any failed assertion exits non-zero (--python-exit-code 1).
 """
 import json
 import math
+import os
 import sys
 import time
 
-import addon_utils
 import bpy
 import numpy as np
 
@@ -36,11 +37,10 @@ def check(cond, message):
 
 
 # ------------------------------------------------------------ install + enable
-bpy.ops.preferences.addon_install(filepath=SPEC["zip"], overwrite=True)
-module = addon_utils.enable("isomend_import", default_set=True, handle_error=None)
-assert module is not None, "addon_utils.enable('isomend_import') failed (see the traceback above)"
-assert hasattr(bpy.types, "IMPORT_MESH_OT_slice_stack"), "operator import_mesh.slice_stack not registered"
-assert "isomend_import" in bpy.context.preferences.addons.keys()
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+import blender_install  # noqa: E402
+
+ADDON, module = blender_install.install(SPEC)
 # the menu entry exists
 assert any(getattr(f, "__name__", "") == "menu_func_import"
            for f in bpy.types.TOPBAR_MT_file_import._dyn_ui_initialize()), "File > Import entry missing"
@@ -69,9 +69,11 @@ def run_case(i, case):
     reset()
     p = case["params"]
     kwargs = dict(directory=case["directory"], files=[{"name": n} for n in case["files"]],
-                  use_suggested_iso=p["use_suggested_iso"], iso=p["iso"], method=p["method"],
+                  use_suggested_iso=p["use_suggested_iso"], method=p["method"],
                   spacing=p["spacing"], unit_scale=p["unit_scale"], pad=p["pad"], smooth=p["smooth"],
                   gradient_normals=p.get("gradient_normals", True))
+    if not p["use_suggested_iso"]:
+        kwargs["iso"] = p["iso"]  # an iso that is passed is the level used
     for key in ("series", "grid_axes"):  # DICOM
         if key in p:
             kwargs[key] = p[key]
@@ -127,15 +129,18 @@ def run_case(i, case):
     if p["smooth"] and p.get("gradient_normals", True):
         check(me.has_custom_normals, "%s: no custom normals" % tag)
         paths = ([case["directory"]] if not case["files"] else
-                 [case["directory"] + "/" + n for n in sorted(case["files"], key=module._natural_key)])
+                 [case["directory"] + "/" + n for n in sorted(case["files"], key=module.import_stack.natural_key)])
         spacing = p["spacing"] if any(p["spacing"]) else None
         core = module.isomend.extract_source(
             paths, iso=None if p["use_suggested_iso"] else p["iso"], method=p["method"].lower(),
             pad=p["pad"], spacing=spacing, series=p.get("series") or None,
             grid_axes=p.get("grid_axes", False))
-        me.calc_normals_split()
         ln = np.empty(3 * len(me.loops), np.float32)
-        me.loops.foreach_get("normal", ln)
+        if hasattr(me, "corner_normals"):   # Blender 4.1+: computed on demand
+            me.corner_normals.foreach_get("vector", ln)
+        else:                               # Blender < 4.1
+            me.calc_normals_split()
+            me.loops.foreach_get("normal", ln)
         ln = ln.reshape(-1, 3)
         want = core.normals[vi]
         cos = np.einsum("ij,ij->i", ln, want)
@@ -158,7 +163,8 @@ def run_case(i, case):
         smooth = np.empty(len(me.polygons), bool)
         me.polygons.foreach_get("use_smooth", smooth)
         check(bool(smooth.all()), "%s: faces not smooth" % tag)
-        me.free_normals_split()
+        if hasattr(me, "free_normals_split"):
+            me.free_normals_split()
     else:
         check(not me.has_custom_normals, "%s: custom normals without gradient_normals" % tag)
         smooth = np.empty(len(me.polygons), bool)
@@ -218,6 +224,33 @@ if peanut:
           and len(objs[0].data.polygons) == c["cli"]["triangles"],
           "filepath= import: %s" % [(o.name, len(o.data.polygons)) for o in objs])
 
+# ------------------------------------------------------------ an explicit iso is never ignored
+# (issue 26 item 5) on a real MRI stack: iso passed alone, as a script user
+# would, and together with use_suggested_iso=True; the suggestion otherwise
+real = SPEC.get("explicit_iso")
+if real:
+    calls = [("iso=%g, pad=True" % real["iso"], dict(iso=real["iso"]), real["iso"], real["cli_explicit"]),
+             ("iso=%g, use_suggested_iso=True, pad=True" % real["iso"],
+              dict(iso=real["iso"], use_suggested_iso=True), real["iso"], real["cli_explicit"]),
+             ("pad=True (no iso)", {}, real["suggested"], real["cli_suggested"])]
+    for what, kwargs, want_iso, cli in calls:
+        reset()
+        r = bpy.ops.import_mesh.slice_stack(directory=real["directory"], pad=True, **kwargs)
+        objs = list(bpy.data.objects)
+        check(r == {"FINISHED"} and len(objs) == 1, "real stack, %s: %s, %d objects" % (what, r, len(objs)))
+        if len(objs) == 1:
+            obj = objs[0]
+            check(obj["isomend_iso"] == want_iso, "real stack, %s: built at iso %r, not %r"
+                  % (what, obj["isomend_iso"], want_iso))
+            check((len(obj.data.vertices), len(obj.data.polygons)) == (cli["vertices"], cli["triangles"]),
+                  "real stack, %s: %d vertices, %d triangles; the CLI at iso %g: %d, %d"
+                  % (what, len(obj.data.vertices), len(obj.data.polygons), want_iso, cli["vertices"],
+                     cli["triangles"]))
+            print("real stack, %s: iso %g, %d triangles (the suggestion is %g)"
+                  % (what, obj["isomend_iso"], len(obj.data.polygons), real["suggested"]), flush=True)
+    check(real["cli_explicit"]["triangles"] != real["cli_suggested"]["triangles"],
+          "the explicit iso must give another surface than the suggestion")
+
 # ------------------------------------------------------------ errors leave nothing behind
 for err in SPEC["errors"]:
     reset()
@@ -237,7 +270,7 @@ for err in SPEC["errors"]:
           "error case %s left %d objects, %d meshes" % (err["directory"], len(bpy.data.objects),
                                                         len(bpy.data.meshes)))
 
-addon_utils.disable("isomend_import", default_set=True)
+blender_install.uninstall(ADDON)
 check(not hasattr(bpy.types, "IMPORT_MESH_OT_slice_stack"), "unregister left the operator")
 
 if failures:

@@ -29,7 +29,6 @@ import sys
 import threading
 import time
 
-import addon_utils
 import bpy
 
 spec_path = sys.argv[sys.argv.index("--") + 1]
@@ -42,10 +41,13 @@ def fail(message):
     os._exit(1)
 
 
-bpy.ops.preferences.addon_install(filepath=SPEC["zip"], overwrite=True)
-module = addon_utils.enable("isomend_import", default_set=True, handle_error=None)
-if module is None or not hasattr(bpy.types, "IMPORT_MESH_OT_slice_stack"):
-    fail("the add-on could not be enabled")
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+import blender_install  # noqa: E402
+
+try:
+    ADDON, module = blender_install.install(SPEC)
+except AssertionError as exc:
+    fail("the add-on could not be installed: %s" % exc)
 
 case = SPEC["cases"][0]
 state = {"step": "start", "t0": time.time(), "cycle": 0, "ended": {"CANCELLED": 0, "FINISHED": 0}}
@@ -71,8 +73,9 @@ def start(directory, **kwargs):
 
 def start_case():
     p = case["params"]
-    return start(case["directory"], use_suggested_iso=p["use_suggested_iso"], iso=p["iso"],
-                 method=p["method"], spacing=p["spacing"], unit_scale=p["unit_scale"], pad=p["pad"])
+    iso = {} if p["use_suggested_iso"] else {"iso": p["iso"]}
+    return start(case["directory"], use_suggested_iso=p["use_suggested_iso"], method=p["method"],
+                 spacing=p["spacing"], unit_scale=p["unit_scale"], pad=p["pad"], **iso)
 
 
 def tick():

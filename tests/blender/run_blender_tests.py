@@ -7,11 +7,16 @@
    parameters as the add-on and keeps its JSON (vertex, triangle and mending
    triangle counts);
 3. runs Blender in background mode with a fresh user-scripts/config/cache/tmp
-   folder (nothing in $HOME), which installs the add-on zip, enables it and
+   folder (nothing in $HOME), which installs the add-on package, enables it and
    runs blender_import_test.py on those cases.
 
-Usage: run_blender_tests.py --blender EXE --zip isomend_import.zip --cli isomend --work DIR
-                            [--sample samples/anatomical.nrrd] [--mode background|gui]
+Usage: run_blender_tests.py --blender EXE --package ZIP [--install legacy|extension]
+                            --cli isomend --work DIR [--sample samples/anatomical.nrrd]
+                            [--get-test-data scripts/get-test-data.sh] [--mode background|gui]
+--package is the legacy add-on zip (--install legacy, the default; Blender 3.4+)
+or the extension zip (--install extension; Blender 4.2+).  --get-test-data adds
+the real MRI of scripts/get-test-data.sh, imported with an explicit iso that
+differs from the suggested one (it must win); a failed download fails the test.
 --mode gui runs Blender's interface under Xvfb instead (blender_modal_test.py):
 the modal import with its worker thread, and Esc cancelling it.
 """
@@ -21,6 +26,7 @@ import os
 import shutil
 import subprocess
 import sys
+import zipfile
 
 import numpy as np
 import tifffile
@@ -91,16 +97,102 @@ def run_cli(cli, work, name, source_args, params):
     return result
 
 
+def blender_env(work, tag):
+    """A fresh user-scripts/config/cache/tmp folder for one Blender run (nothing in $HOME)."""
+    home = os.path.join(work, "blender_home" + tag)
+    for sub in ("scripts", "config", "cache", "tmp"):
+        os.makedirs(os.path.join(home, sub), exist_ok=True)
+    env = dict(os.environ, BLENDER_USER_SCRIPTS=os.path.join(home, "scripts"),
+               BLENDER_USER_CONFIG=os.path.join(home, "config"),
+               XDG_CACHE_HOME=os.path.join(home, "cache"), TMPDIR=os.path.join(home, "tmp"),
+               HOME=home)
+    env.pop("ISOMEND_LIB_DIR", None)  # the add-on must use its own lib/
+    return env
+
+
+def refuse(args, work, stack, inner):
+    """Two broken copies of the package: one recording that its libraries need
+    glibc 99.0, one without its importer library.  Each must install, enable
+    and refuse the import with a message naming the reason, printing no
+    traceback.  Returns the exit status."""
+    variants = [("glibc", "need glibc 99.0 or newer"), ("missing", "libisomend_io")]
+    status = 0
+    for tag, expect in variants:
+        copy = os.path.join(work, "broken_" + tag)
+        shutil.copytree(os.path.dirname(inner) if args.install == "legacy" else inner, copy)
+        lib = os.path.join(copy, "isomend_import" if args.install == "legacy" else "", "lib")
+        if tag == "glibc":
+            path = os.path.join(lib, "build-info.json")
+            info = json.load(open(path)) if os.path.exists(path) else {}
+            info["glibc"] = "99.0"
+            json.dump(info, open(path, "w"))
+        else:
+            os.remove(os.path.join(lib, "libisomend_io.so.0"))
+        package = os.path.join(work, "broken_%s.zip" % tag)
+        with zipfile.ZipFile(package, "w", zipfile.ZIP_DEFLATED) as zf:
+            for root, _, files in os.walk(copy):
+                for f in files:
+                    full = os.path.join(root, f)
+                    zf.write(full, os.path.relpath(full, copy))
+        spec = os.path.join(work, "refuse_%s.json" % tag)
+        json.dump({"package": package, "install": args.install, "directory": stack, "expect": expect},
+                  open(spec, "w"))
+        cmd = [args.blender, "-b", "--factory-startup", "-noaudio", "--python-exit-code", "1",
+               "--python", os.path.join(HERE, "blender_refuse_test.py"), "--", spec]
+        r = subprocess.run(cmd, env=blender_env(work, "_" + tag), capture_output=True, text=True,
+                           timeout=300)
+        out = r.stdout + r.stderr
+        print(out)
+        if r.returncode != 0 or "refuse test: passed" not in out:
+            print("FAIL: %s: Blender exit %d" % (tag, r.returncode))
+            status = 1
+        elif "Traceback" in out:
+            print("FAIL: %s: a traceback was printed" % tag)
+            status = 1
+    return status
+
+
+def real_stack_case(args, work):
+    """The real MRI's TIFF folder, the suggested iso and a level halfway
+    between it and the maximum (never the suggestion), with the CLI's counts
+    for both, padded, DMC."""
+    r = subprocess.run(["bash", args.get_test_data, "mri_t1_small"], capture_output=True, text=True)
+    if r.returncode != 0:
+        sys.exit("scripts/get-test-data.sh could not provide the real MRI (exit %d): %s"
+                 % (r.returncode, r.stderr.strip()))
+    root = os.environ.get("ISOMEND_TESTDATA") or os.path.join(
+        os.environ.get("XDG_CACHE_HOME") or os.path.expanduser("~/.cache"), "isomend")
+    folder = os.path.join(root, "mri_t1_small", "tiff")
+    info = subprocess.run([args.cli, "info", folder, "--json", "-"], capture_output=True, text=True)
+    if info.returncode != 0:
+        sys.exit("isomend info %s failed: %s" % (folder, info.stderr))
+    summary = json.loads(info.stdout.splitlines()[-1])
+    suggested = summary["suggested_iso"]
+    iso = float(int((suggested + summary["max"]) / 2)) + 0.5
+    assert iso != suggested
+    base = {"method": "DMC", "pad": True}
+    explicit = run_cli(args.cli, work, "real_explicit", [folder], dict(base, use_suggested_iso=False, iso=iso))
+    sugg = run_cli(args.cli, work, "real_suggested", [folder], dict(base, use_suggested_iso=True))
+    assert sugg["iso"] == suggested, (sugg["iso"], suggested)
+    print("real MRI %s: suggested iso %g (%d triangles), explicit iso %g (%d triangles)"
+          % (folder, suggested, sugg["triangles"], iso, explicit["triangles"]))
+    return {"directory": folder, "iso": iso, "suggested": suggested, "cli_explicit": explicit,
+            "cli_suggested": sugg}
+
+
 def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("--blender", required=True)
-    ap.add_argument("--zip", required=True)
+    ap.add_argument("--package", "--zip", dest="package", required=True)
+    ap.add_argument("--install", choices=("legacy", "extension"), default="legacy")
+    ap.add_argument("--get-test-data")
     ap.add_argument("--cli", required=True)
     ap.add_argument("--work", required=True)
     ap.add_argument("--sample")
-    ap.add_argument("--mode", choices=("background", "gui"), default="background",
+    ap.add_argument("--mode", choices=("background", "gui", "refuse"), default="background",
                     help="gui: the interactive, modal import under Xvfb (progress in a worker "
-                         "thread, Esc cancels) with blender_modal_test.py")
+                         "thread, Esc cancels) with blender_modal_test.py; refuse: packages whose "
+                         "libraries cannot load here refuse with a message (blender_refuse_test.py)")
     args = ap.parse_args()
 
     work = os.path.abspath(args.work)
@@ -129,8 +221,16 @@ def main():
                                  gradient_normals=False),
                   "cli_source": [os.path.join(folder, n) for n in names]})
     # methods added to the library after the thesis's three appear in the enum
-    sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(args.zip)), "isomend_import"))
-    import isomend  # the staged wrapper next to the zip
+    # the package's own wrapper and libraries, unpacked
+    unpacked = os.path.join(work, "package")
+    with zipfile.ZipFile(args.package) as zf:
+        zf.extractall(unpacked)
+    inner = os.path.join(unpacked, "isomend_import") if args.install == "legacy" else unpacked
+    for name in os.listdir(os.path.join(inner, "lib")):
+        os.chmod(os.path.join(inner, "lib", name), 0o755)
+    sys.path.insert(0, inner)
+    os.environ.pop("ISOMEND_LIB_DIR", None)
+    import isomend  # the package's wrapper
     extra = [m for m in isomend.available_methods() if m not in ("dmc", "mc", "durst")]
     if extra:
         pick = "mc33" if "mc33" in extra else extra[0]
@@ -151,6 +251,8 @@ def main():
                       "params": {"use_suggested_iso": True, "iso": 0.0, "method": "DMC", "pad": True,
                                  "smooth": True, "spacing": (0.0, 0.0, 0.0), "unit_scale": 0.001},
                       "cli_source": [os.path.abspath(args.sample)]})
+    if args.mode == "refuse":
+        sys.exit(refuse(args, work, folder, inner))
     # 4. DICOM (written by tests/io/gen_dicom.py with pydicom): a CT folder at
     # the bone level by default, turned into patient space (oblique), and the
     # second series of a folder holding two
@@ -212,19 +314,16 @@ def main():
         for k in range(v.shape[0]):
             tifffile.imwrite(os.path.join(big, "b_%03d.tif" % k), v[k])
 
+    explicit = None
+    if args.get_test_data and args.mode == "background":
+        explicit = real_stack_case(args, work)
+
     spec = os.path.join(work, "cases.json")
     with open(spec, "w") as fp:
-        json.dump({"zip": os.path.abspath(args.zip), "cases": cases, "errors": errors, "big": big},
-                  fp, indent=1)
+        json.dump({"package": os.path.abspath(args.package), "install": args.install, "cases": cases,
+                   "errors": errors, "big": big, "explicit_iso": explicit}, fp, indent=1)
 
-    home = os.path.join(work, "blender_home")
-    for sub in ("scripts", "config", "cache", "tmp"):
-        os.makedirs(os.path.join(home, sub))
-    env = dict(os.environ, BLENDER_USER_SCRIPTS=os.path.join(home, "scripts"),
-               BLENDER_USER_CONFIG=os.path.join(home, "config"),
-               XDG_CACHE_HOME=os.path.join(home, "cache"), TMPDIR=os.path.join(home, "tmp"),
-               HOME=home)
-    env.pop("ISOMEND_LIB_DIR", None)  # the add-on must use its own lib/
+    env = blender_env(work, "")
     if args.mode == "background":
         cmd = [args.blender, "-b", "--factory-startup", "-noaudio", "--python-exit-code", "1",
                "--python", os.path.join(HERE, "blender_import_test.py"), "--", spec]
@@ -235,9 +334,15 @@ def main():
         cmd = [xvfb, "-a", "-s", "-screen 0 1024x768x24", args.blender, "--factory-startup", "-noaudio",
                "--enable-event-simulate", "--python", os.path.join(HERE, "blender_modal_test.py"),
                "--", spec]
-    r = subprocess.run(cmd, env=env, timeout=300)
+    r = subprocess.run(cmd, env=env, timeout=300, stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
+                       text=True)
+    print(r.stdout, flush=True)
     if r.returncode != 0:
         sys.exit("Blender test failed (exit %d)" % r.returncode)
+    # an exception inside the add-on (an update callback, a draw function) is
+    # printed by Blender and swallowed: any traceback fails the test
+    if "Traceback (most recent call last)" in r.stdout:
+        sys.exit("Blender printed a Python traceback (above)")
 
 
 if __name__ == "__main__":

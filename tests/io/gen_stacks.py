@@ -7,7 +7,10 @@ written next to it as little-endian raw (x fastest, then y, then z), computed
 with numpy from the same arrays, so the C test compares what isomend_io reads
 with what was meant, sample by sample.
 
-manifest.tsv, one case per line, tab-separated:
+manifest.tsv (the OpenImageIO build of isomend_io) and manifest_portable.tsv
+(the portable build on libtiff/OpenEXR/libpng), one case per line,
+tab-separated; the two differ only where a build's image library differs
+(a case given with only="oiio" or only="portable"):
   ok   NAME TYPE NX NY NZ EXPECTED.raw KIND CHANNEL FIRST COUNT STEP SX SY SZ SPSRC SOURCE...
   err  NAME STATUS MESSAGE-SUBSTRING CHANNEL FIRST COUNT STEP SOURCE...
 CHANNEL: -1 auto, -2 luma, else index.  SX SY SZ: expected spacing (0 0 0 =
@@ -70,19 +73,19 @@ def save_expected(name, vol):
 
 
 def ok(name, tname, vol, kind, sources, channel=AUTO, first=0, count=0, step=1,
-       spacing=(0, 0, 0), spsrc="-"):
+       spacing=(0, 0, 0), spsrc="-", only=None):
     nz, ny, nx = vol.shape
     exp = save_expected(name, vol)
     rel = [os.path.relpath(s, OUT) for s in sources]
-    LINES.append("\t".join(["ok", name, tname, str(nx), str(ny), str(nz), exp, kind, str(channel),
+    LINES.append((only, "\t".join(["ok", name, tname, str(nx), str(ny), str(nz), exp, kind, str(channel),
                             str(first), str(count), str(step)] + ["%.17g" % s for s in spacing] +
-                           [spsrc] + rel))
+                           [spsrc] + rel)))
 
 
-def err(name, status, substring, sources, channel=AUTO, first=0, count=0, step=1):
+def err(name, status, substring, sources, channel=AUTO, first=0, count=0, step=1, only=None):
     rel = [os.path.relpath(s, OUT) if os.path.isabs(s) else s for s in sources]
-    LINES.append("\t".join(["err", name, str(status), substring, str(channel), str(first),
-                            str(count), str(step)] + rel))
+    LINES.append((only, "\t".join(["err", name, str(status), substring, str(channel), str(first),
+                                   str(count), str(step)] + rel)))
 
 
 def rand(shape, dtype, lo, hi):
@@ -279,6 +282,180 @@ vol = rand((70, NY, NX), np.uint8, 0, 255)
 tifffile.imwrite(os.path.join(f, "pages_big.tif"), vol, photometric="minisblack", bigtiff=True)
 ok("many_pages_bigtiff", "u8", vol, "multipage", [os.path.join(f, "pages_big.tif")])
 
+# ---- more encodings: each read the same by both builds of isomend_io --------------------------
+
+def png_write(path, rows, width, depth, colour, chunks=b""):
+    """A PNG written here, byte by byte (rows: the filtered-free scanline bytes)."""
+    import zlib
+
+    def chunk(kind, data):
+        return struct.pack(">I", len(data)) + kind + data + struct.pack(">I", zlib.crc32(kind + data))
+    ihdr = struct.pack(">IIBBBBB", width, len(rows), depth, colour, 0, 0, 0)
+    data = zlib.compress(b"".join(b"\x00" + r for r in rows))
+    with open(path, "wb") as fh:
+        fh.write(b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", ihdr) + chunks + chunk(b"IDAT", data) +
+                 chunk(b"IEND", b""))
+
+
+def png_chunk(kind, data):
+    import zlib
+    return struct.pack(">I", len(data)) + kind + data + struct.pack(">I", zlib.crc32(kind + data))
+
+
+def pack_bits(values, bits):
+    """A row of samples packed most significant bit first (TIFF and PNG)."""
+    acc, n, out = 0, 0, bytearray()
+    for v in values:
+        acc = (acc << bits) | int(v)
+        n += bits
+        while n >= 8:
+            n -= 8
+            out.append((acc >> n) & 0xFF)
+    if n:
+        out.append((acc << (8 - n)) & 0xFF)
+    return bytes(out)
+
+
+# grey PNG of 1, 2 and 4 bits: the stored values (0..15), as for TIFF; pHYs in pixels per metre
+for bits in (1, 2, 4):
+    f = d("png_%dbit" % bits)
+    vol = rand((3, NY, NX), np.uint8, 0, (1 << bits) - 1)
+    for k in range(3):
+        png_write(os.path.join(f, "p%d.png" % k), [pack_bits(r, bits) for r in vol[k]], NX, bits, 0,
+                  png_chunk(b"pHYs", struct.pack(">IIB", 2000, 4000, 1)))
+    ok("png_%dbit" % bits, "u8", vol, "folder", [f], spacing=(0.5, 0.25, 1.0), spsrc="tiff,tiff,default")
+
+# grey PNG with a tRNS chunk: grey and alpha (the grey is channel 0); palette PNG: R, G, B
+f = d("png_trns")
+vol = rand((2, NY, NX), np.uint8, 0, 255)
+for k in range(2):
+    png_write(os.path.join(f, "t%d.png" % k), [bytes(r) for r in vol[k]], NX, 8, 0,
+              png_chunk(b"tRNS", struct.pack(">H", 7)))
+ok("png_trns", "u8", vol, "folder", [f], channel=0)
+f = d("png_palette")
+palette = rand((16, 3), np.uint8, 0, 255)
+idx = rand((2, NY, NX), np.uint8, 0, 15)
+for k in range(2):
+    png_write(os.path.join(f, "c%d.png" % k), [bytes(r) for r in idx[k]], NX, 8, 3,
+              png_chunk(b"PLTE", palette.tobytes()))
+ok("png_palette_g", "u8", palette[idx][..., 1], "folder", [f], channel=1)
+
+# 16-bit RGBA PNG, channel 3 (alpha); an oFFs origin (pixels)
+f = d("png_rgba16")
+rgba = rand((2, NY, NX, 4), np.uint16, 0, 65535)
+for k in range(2):
+    png_write(os.path.join(f, "q%d.png" % k), [r.astype(">u2").tobytes() for r in rgba[k]], NX, 16, 6,
+              png_chunk(b"oFFs", struct.pack(">iiB", 3, 5, 0)))
+ok("png_rgba16_a", "u16", rgba[..., 3], "folder", [f], channel=3)
+
+# TIFF codecs and layouts: LZW, PackBits, tiled u16, separate planes, MinIsWhite, palette, half
+f = d("tiff_lzw")
+vol = rand((3, NY, NX), np.uint16, 0, 65535)
+for k in range(3):
+    oiio_write(os.path.join(f, "l%d.tif" % k), vol[k], "uint16", "lzw")
+ok("tiff_lzw", "u16", vol, "folder", [f])
+f = d("tiff_packbits")
+vol = rand((3, NY, NX), np.uint8, 0, 3)   # runs: PackBits compresses them
+for k in range(3):
+    oiio_write(os.path.join(f, "b%d.tif" % k), vol[k], "uint8", "packbits")
+ok("tiff_packbits", "u8", vol, "folder", [f])
+f = d("tiff_tiled")
+vol = rand((3, 40, 37), np.int16, -32768, 32767)
+for k in range(3):
+    tifffile.imwrite(os.path.join(f, "t%d.tif" % k), vol[k], photometric="minisblack", tile=(16, 16),
+                     compression="zlib")
+ok("tiff_tiled_i16", "i16", vol, "folder", [f])
+f = d("tiff_planar")
+rgb16 = rand((3, 3, NY, NX), np.uint16, 0, 65535)       # [slice, channel, row, column]
+for k in range(3):
+    tifffile.imwrite(os.path.join(f, "s%d.tif" % k), rgb16[k], photometric="rgb", planarconfig="separate")
+ok("tiff_planar_g", "u16", rgb16[:, 1], "folder", [f], channel=1)
+f = d("tiff_miniswhite")
+vol = rand((3, NY, NX), np.uint8, 0, 255)
+for k in range(3):
+    tifffile.imwrite(os.path.join(f, "w%d.tif" % k), vol[k], photometric="miniswhite")
+ok("tiff_miniswhite", "u8", 255 - vol, "folder", [f])        # inverted to MinIsBlack
+f = d("tiff_miniswhite16")
+vol = rand((3, NY, NX), np.uint16, 0, 65535)
+for k in range(3):
+    tifffile.imwrite(os.path.join(f, "w%d.tif" % k), vol[k], photometric="miniswhite")
+ok("tiff_miniswhite16", "u16", vol, "folder", [f])           # OpenImageIO inverts 8 bits only
+f = d("tiff_palette")
+cmap = rand((3, 256), np.uint16, 0, 65535)
+idx = rand((3, NY, NX), np.uint8, 0, 255)
+for k in range(3):
+    tifffile.imwrite(os.path.join(f, "c%d.tif" % k), idx[k], photometric="palette", colormap=cmap)
+ok("tiff_palette_b", "u8", (cmap[2][idx] // 257).astype(np.uint8), "folder", [f], channel=2)
+f = d("tiff_half")
+vol = RNG.normal(0, 100, size=(3, NY, NX)).astype(np.float16)
+for k in range(3):
+    tifffile.imwrite(os.path.join(f, "h%d.tif" % k), vol[k], photometric="minisblack")
+ok("tiff_half", "f32", vol.astype(np.float32), "folder", [f])
+for tname, dt in (("i8", np.int8), ("i32", np.int32), ("f64", np.float64)):
+    f = d("tiff_" + tname)
+    info = np.iinfo(dt) if np.issubdtype(dt, np.integer) else None
+    vol = (rand((2, NY, NX), dt, info.min, info.max) if info else
+           RNG.normal(0, 1e9, size=(2, NY, NX)).astype(dt))
+    for k in range(2):
+        tifffile.imwrite(os.path.join(f, "v%d.tif" % k), vol[k], photometric="minisblack",
+                         byteorder=">" if tname == "f64" else "<")
+    ok("tiff_" + tname, tname, vol, "folder", [f])
+f = d("tiff_u32")
+vol = rand((2, NY, NX), np.uint32, 0, 2**32 - 1)
+for k in range(2):
+    tifffile.imwrite(os.path.join(f, "v%d.tif" % k), vol[k], photometric="minisblack")
+ok("tiff_u32", "f64", vol.astype(np.float64), "folder", [f])
+# JPEG-compressed RGB (lossy): expected as OpenImageIO's own bindings decode it (both builds
+# decode with libtiff and libjpeg, so they agree with each other and with this)
+f = d("tiff_jpeg")
+src = rand((2, 16, 24, 3), np.uint8, 0, 255)
+src = np.repeat(np.repeat(src[:, ::4, ::4], 4, axis=1), 4, axis=2)     # blocks JPEG keeps well
+jpeg_expected = []
+for k in range(2):
+    path = os.path.join(f, "j%d.tif" % k)
+    oiio_write(path, src[k], "uint8", "jpeg")
+    inp = oiio.ImageInput.open(path)
+    jpeg_expected.append(inp.read_image(0, 0, 1, 2, "uint8")[:, :, 0])
+    inp.close()
+ok("tiff_jpeg_g", "u8", np.stack(jpeg_expected), "folder", [f], channel=1)
+
+# JPEG slices: the OpenImageIO build reads them (expected as OpenImageIO's bindings decode
+# them); the portable build lists them and refuses them by name
+f = d("jpeg_folder")
+jpeg_expected = []
+for k in range(2):
+    path = os.path.join(f, "j%d.jpg" % k)
+    oiio_write(path, src[k][:, :, 0], "uint8", None)
+    inp = oiio.ImageInput.open(path)
+    jpeg_expected.append(inp.read_image(0, 0, 0, 1, "uint8")[:, :, 0])
+    inp.close()
+ok("jpeg_folder", "u8", np.stack(jpeg_expected), "folder", [f], only="oiio")
+err("jpeg_folder", UNSUPPORTED, "j0.jpg: JPEG images are not read by this build", [f], only="portable")
+
+# OpenEXR: channels in OpenImageIO's order (R, G, B, A, then the rest), uint channels
+f = d("exr_channels")
+chans = RNG.normal(0, 10, size=(2, NY, NX, 5)).astype(np.float32)   # written as Z, B, G, R, A
+for k in range(2):
+    spec = oiio.ImageSpec(NX, NY, 5, "float")
+    spec.channelnames = ("Z", "B", "G", "R", "A")
+    out = oiio.ImageOutput.create(os.path.join(f, "c%d.exr" % k))
+    assert out.open(os.path.join(f, "c%d.exr" % k), spec), out.geterror()
+    assert out.write_image(np.ascontiguousarray(chans[k])), out.geterror()
+    out.close()
+ok("exr_channel_z", "f32", chans[..., 0], "folder", [f], channel=4)  # R G B A Z: Z is channel 4
+ok("exr_channel_r", "f32", chans[..., 3], "folder", [f], channel=0)
+f = d("exr_uint")
+vol = rand((2, NY, NX), np.uint32, 0, 2**32 - 1)
+for k in range(2):
+    oiio_write(os.path.join(f, "u%d.exr" % k), vol[k], "uint", "zip", channels=["Y"])
+ok("exr_uint", "f64", vol.astype(np.float64), "folder", [f])
+f = d("exr_tiled")
+vol = RNG.normal(0, 10, size=(2, 40, 37)).astype(np.float16)
+for k in range(2):
+    oiio_write(os.path.join(f, "t%d.exr" % k), vol[k], "half", "zip", channels=["Y"],
+               extra={"tile_width": 16, "tile_height": 16})
+ok("exr_tiled", "f32", vol.astype(np.float32), "folder", [f])
+
 # ---- bad stacks ------------------------------------------------------------------------------
 
 def gray_folder(name, n=3, dt=np.uint8, fmt="uint8", compression="none", ext="tif"):
@@ -336,6 +513,16 @@ with open(paths[2], "r+b") as fh:
     fh.write(bytes(RNG.integers(0, 255, size=64, endpoint=True).astype(np.uint8)))
 err("tiled_corrupt", CORRUPT, "t_2.tif", [f])
 
+# a truncated EXR (uncompressed: one line per chunk), the second slice loses its end
+f = d("exr_truncated")
+paths = []
+for k in range(3):
+    paths.append(os.path.join(f, "e_%d.exr" % k))
+    oiio_write(paths[-1], RNG.normal(0, 1, size=(64, 64)).astype(np.float32), "float", "none",
+               channels=["Y"])
+os.truncate(paths[1], os.path.getsize(paths[1]) // 2)
+err("exr_truncated", CORRUPT, "e_1.exr", [f])
+
 f, paths = gray_folder("size_mismatch")
 oiio_write(paths[1], rand((NY - 1, NX), np.uint8, 0, 9), "uint8")
 err("size_mismatch", MISMATCH, "b_01.tif", [f])
@@ -391,7 +578,12 @@ for k in range(2):
     m = np.zeros((NY, NX), bool)
     m[2:5, 3:9 + k] = True
     tifffile.imwrite(os.path.join(f, "mask_%d.tif" % k), m)
-err("bilevel", UNSUPPORTED, "mask_0.tif: a 1-bit", [f])
+err("bilevel", UNSUPPORTED, "mask_0.tif: a 1-bit", [f], only="oiio")
+# libtiff reads them right (BitsPerSample's default is 1); tifffile marks them MinIsWhite, so
+# the delivered samples are inverted, as for every MinIsWhite image (1 - the stored bit)
+ok("bilevel", "u8", 1 - np.stack([tifffile.imread(os.path.join(f, "mask_%d.tif" % k))
+                                  for k in range(2)]).astype(np.uint8),
+   "folder", [f], only="portable")
 err("multipage_in_list", UNSUPPORTED, "stack.tif: has 5 pages",
     [os.path.join(OUT, "multipage", "stack.tif"), os.path.join(OUT, "u16_pattern", "slice_0000.tif")])
 err("rgb_no_channel", UNSUPPORTED, "--channel", [os.path.join(OUT, "rgb")])
@@ -421,6 +613,7 @@ f = d("too_large")
 huge_tiff(os.path.join(f, "huge.tif"), 60000, 60000, 40)   # 40 x 3.35 GiB = 134 GiB of u8
 err("too_large", TOO_LARGE, "GiB", [os.path.join(f, "huge.tif")])
 
-with open(os.path.join(OUT, "manifest.tsv"), "w") as fh:
-    fh.write("\n".join(LINES) + "\n")
+for backend, manifest in (("oiio", "manifest.tsv"), ("portable", "manifest_portable.tsv")):
+    with open(os.path.join(OUT, manifest), "w") as fh:
+        fh.write("\n".join(line for only, line in LINES if only in (None, backend)) + "\n")
 print("gen_stacks: %d cases in %s" % (len(LINES), OUT))

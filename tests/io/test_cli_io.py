@@ -117,9 +117,10 @@ with tempfile.TemporaryDirectory() as tmp:
             check(np.allclose(info["spacing"], spacing, rtol=1e-6), "%s: spacing %s" % (name, info["spacing"]))
             check(",".join(info["spacing_from"]) == f[15], "%s: spacing from %s" % (name, info["spacing_from"]))
         sp = spacing if spacing[0] > 0 else [1.0, 1.0, 1.0]
-        dt = {"u8": "<u1", "u16": "<u2", "i16": "<i2", "f32": "<f4"}[tname]
+        dt = {"u8": "<u1", "i8": "<i1", "u16": "<u2", "i16": "<i2", "i32": "<i4", "f32": "<f4",
+              "f64": "<f8"}[tname]
         vol = np.fromfile(os.path.join(STACKS, exp), dtype=dt)
-        iso = float(np.median(vol)) + (0.5 if tname != "f32" else 0.0)
+        iso = float(np.median(vol)) + (0.5 if tname[0] in "ui" else 0.0)
         spacing_arg = ",".join(repr(s) for s in sp)
         a, b = os.path.join(tmp, name + "_stack.ply"), os.path.join(tmp, name + "_raw.ply")
         common = ["--iso", repr(iso), "--pad", "--quiet", "--spacing", spacing_arg, "--origin", "0,0,0"]

@@ -1,7 +1,8 @@
 /*
  * test_io_api.c - the isomend_io C API on the stacks written by gen_stacks.py.
  *
- * Usage: test_io_api DIR   (DIR holds manifest.tsv and the stacks)
+ * Usage: test_io_api DIR [MANIFEST]   (DIR holds the stacks and MANIFEST, by
+ *        default manifest.tsv; the portable build reads manifest_portable.tsv)
  *
  *   - every good stack reads back exactly (whole volume, slice by slice, and
  *     loaded), with the right dimensions, type, kind and spacing;
@@ -743,18 +744,20 @@ static void test_raw(void) {
 }
 
 int main(int argc, char **argv) {
-    if (argc != 2) {
-        fprintf(stderr, "usage: %s DIR\n", argv[0]);
+    if (argc != 2 && argc != 3) {
+        fprintf(stderr, "usage: %s DIR [MANIFEST]\n", argv[0]);
         return 2;
     }
     g_dir = argv[1];
-    char *mpath = join("manifest.tsv");
+    const char *manifest = argc == 3 ? argv[2] : "manifest.tsv";
+    char *mpath = join(manifest);
     FILE *m = fopen(mpath, "r");
     free(mpath);
     if (!m) {
-        fprintf(stderr, "%s/manifest.tsv not found (run gen_stacks.py first)\n", g_dir);
+        fprintf(stderr, "%s/%s not found (run gen_stacks.py first)\n", g_dir, manifest);
         return 2;
     }
+    printf("image libraries: %s\n", isomend_io_image_libraries());
     char line[8192];
     int cases = 0;
     while (fgets(line, sizeof line, m)) {

@@ -134,6 +134,13 @@ ISOMEND_IO_API const char *isomend_io_status_string(isomend_io_status status);
 /* The library's version string (same as the core's, e.g. "0.1.0"). */
 ISOMEND_IO_API const char *isomend_io_version(void);
 
+/* The image libraries this build reads slices with and their versions:
+ * "OpenImageIO 2.4.7" (every format OpenImageIO reads), or
+ * "libtiff 4.5.0, OpenEXR 3.1.5, libpng 1.6.39" for the portable build that
+ * reads TIFF, OpenEXR and PNG (the one the Blender add-on carries).  A static
+ * string. */
+ISOMEND_IO_API const char *isomend_io_image_libraries(void);
+
 /* ------------------------------------------------------------------ options */
 
 /* Progress stages passed to the callback. */

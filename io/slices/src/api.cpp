@@ -10,7 +10,7 @@
 // (volume_readers.h), so the command line, this library and the plug-ins
 // read them with the same code and give the same messages.
 #include "dicom.hpp"
-#include "internal.hpp"
+#include "image.hpp"
 
 #include <algorithm>
 #include <chrono>
@@ -144,7 +144,7 @@ isomend_type src_type(const isomend_io_source *s) {
 }
 
 uint64_t slice_bytes(const isomend_io_source *s) {
-    // dims are < 2^31 each (OIIO ints), so x*y < 2^62; saturate the last product
+    // dims are < 2^31 each (the image libraries' ints), so x*y < 2^62; saturate the last product
     uint64_t xy = (uint64_t)dim(s, 0) * (uint64_t)dim(s, 1);
     uint64_t size = isomend_type_size(src_type(s));
     return xy > UINT64_MAX / size ? UINT64_MAX : xy * size;
@@ -587,7 +587,7 @@ void do_open(isomend_io_source *s, const char *const *paths, size_t count, const
         throw IoError(ISOMEND_IO_ERR_INVALID_ARGUMENT, "invalid channel " + std::to_string(o.channel));
     if (o.step == 0) throw IoError(ISOMEND_IO_ERR_INVALID_ARGUMENT, "step must not be 0");
     if (o.count < 0) throw IoError(ISOMEND_IO_ERR_INVALID_ARGUMENT, "count must be >= 0");
-    init_oiio();
+    init_images();
 
     std::vector<std::string> files;
     bool raw_requested = o.raw_dims[0] > 0 || o.raw_dims[1] > 0 || o.raw_dims[2] > 0;
@@ -728,6 +728,17 @@ ISOMEND_IO_API const char *isomend_io_status_string(isomend_io_status status) {
 }
 
 ISOMEND_IO_API const char *isomend_io_version(void) { return isomend_version(); }
+
+ISOMEND_IO_API const char *isomend_io_image_libraries(void) {
+    static const std::string libraries = [] {
+        try {
+            return image_backend();
+        } catch (...) {
+            return std::string("unknown");
+        }
+    }();
+    return libraries.c_str();
+}
 
 ISOMEND_IO_API void isomend_io_options_init(isomend_io_options *opts) {
     if (!opts) return;

@@ -3,10 +3,12 @@
 // The importer is in three parts:
 //   resolve.cpp  turns what the user typed (folder, glob, printf pattern,
 //                list, one multi-page file) into an ordered list of slices;
-//   stack.cpp    opens every slice's header with OpenImageIO and checks that
-//                they agree (size, data window, channels, type, depth), reads
-//                slices (checking every decode), and reads whole stacks with
-//                worker threads while the calling thread reports progress;
+//   stack.cpp    opens every slice's header and checks that they agree (size,
+//                data window, channels, type, depth), reads slices (checking
+//                every decode), and reads whole stacks with worker threads
+//                while the calling thread reports progress; it reaches the
+//                image library only through image.hpp (OpenImageIO, or
+//                libtiff/OpenEXR/libpng directly);
 //   api.cpp      the C API: the handle, exception barriers, analysis (range,
 //                histogram, Otsu) and the one-call extraction.
 // Errors travel as IoError (status + message naming the file); only api.cpp
@@ -39,6 +41,7 @@ struct Slice {
     // opened directly (0: reach it with seek_subimage(), O(page) in OIIO 2.4).
     uint64_t ifd = 0;
     bool big_tiff = false, big_endian = false;
+    bool no_bits_tag = false; // the page has no BitsPerSample tag (set with ifd)
 };
 
 // Locates every page's IFD of a multi-page TIFF and stores it in `slices`
@@ -66,7 +69,21 @@ std::vector<std::string> expand_pattern(const std::string &pattern, int64_t firs
                                         int64_t step);
 std::string lower_extension(const std::string &path);
 
+// ---- tiff_layout.cpp ----
+// The page structure of a TIFF file, read directly (no image library): the
+// offset of every page's IFD and whether the page lacks a BitsPerSample tag.
+// Classic and BigTIFF, either byte order; an unreadable structure returns
+// what was read so far (the image library reports real damage itself).
+struct TiffLayout {
+    bool big_tiff = false, big_endian = false;
+    std::vector<uint64_t> ifd;   // offset of every page's IFD
+    std::vector<bool> no_bits;   // page lacks BitsPerSample
+};
+TiffLayout tiff_layout(const std::string &path);
+
 // ---- stack.cpp ----
+enum class Sample; // image.hpp
+
 struct StackInfo {
     int width = 0, height = 0;        // data window size
     int xorigin = 0, yorigin = 0;     // data window origin
@@ -74,17 +91,19 @@ struct StackInfo {
     int channel = 0;                  // channel read (or first of R,G,B for luma)
     int luma_channels[3] = {0, 1, 2}; // R, G, B for luma
     bool luma = false;
-    unsigned file_type = 0;           // OIIO TypeDesc::BASETYPE of the channel read
-    int bits = 0;                     // oiio:BitsPerSample (12 for packed 12-bit)
-    int shift = 0;                    // right shift restoring the real values
+    Sample file_type{};               // stored type of the channel read
+    int bits = 0;                     // stored bits per sample (12 for packed 12-bit)
     bool u32_to_f64 = false;          // uint32 delivered as f64
     isomend_type type = ISOMEND_U8;   // delivered type
-    std::string format;               // OIIO format name of the first slice
+    std::string format;               // format name of the first slice ("tiff", ...)
     double spacing[3] = {1, 1, 1};
     int spacing_source[3] = {0, 0, 0};
     size_t sample_size() const;
     size_t slice_bytes() const { return (size_t)width * (size_t)height * sample_size(); }
 };
+
+// "path" or "path (page k)": how messages name a slice.
+std::string slice_name(const Slice &s);
 
 // Opens every slice's header and checks that it agrees with the first;
 // fills `info` (spacing from the first slice's metadata).  `channel` is the
@@ -92,9 +111,6 @@ struct StackInfo {
 // is called on the calling thread with 0..1 and may throw to cancel.
 void scan_stack(const std::vector<Slice> &slices, int channel, int threads, StackInfo &info,
                 const std::function<void(double)> &progress);
-
-// Counts the subimages of one file (1 for an ordinary image).
-int count_subimages(const std::string &path);
 
 // Reads one slice into `out` (info.slice_bytes()), checking it against info.
 void read_slice(const Slice &slice, const StackInfo &info, void *out);
@@ -111,9 +127,6 @@ void read_parallel(const std::vector<Slice> &slices, const StackInfo &info, int 
                    const std::function<void *(int64_t)> &target,
                    const std::function<void(int64_t, const void *)> &sink,
                    const std::function<bool(double)> &progress);
-
-// OpenImageIO's global attributes, set once.
-void init_oiio();
 
 } // namespace isomend_io
 

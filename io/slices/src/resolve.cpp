@@ -7,10 +7,10 @@
 // a printf pattern is ordered by index; an explicit list keeps its order.
 //
 // A folder contributes the images with its most common image extension
-// (recognised by OpenImageIO's extension list), so a stray preview.png or
+// (recognised by the image library's extension list, image.hpp), so a stray preview.png or
 // notes.txt next to 300 TIFFs is ignored; a tie between two extensions is an
 // error that asks for a glob, rather than a guess.
-#include "internal.hpp"
+#include "image.hpp"
 
 #include <algorithm>
 #include <cctype>
@@ -23,7 +23,6 @@
 #include <glob.h>
 #include <sys/stat.h>
 
-#include <OpenImageIO/imageio.h>
 
 namespace isomend_io {
 
@@ -147,36 +146,6 @@ std::string lower_extension(const std::string &path) {
     std::string e = path.substr(dot + 1);
     for (char &c : e) c = (char)std::tolower((unsigned char)c);
     return e;
-}
-
-// The extensions OpenImageIO can read ("tif", "exr", ...).
-static std::set<std::string> image_extensions() {
-    std::set<std::string> exts;
-    std::string list = OIIO::get_string_attribute("extension_list");
-    // "tiff:tif,tiff,tx;openexr:exr,sxr;..."
-    size_t i = 0;
-    while (i < list.size()) {
-        size_t semi = list.find(';', i);
-        if (semi == std::string::npos) semi = list.size();
-        std::string item = list.substr(i, semi - i);
-        size_t colon = item.find(':');
-        if (colon != std::string::npos) {
-            std::string e = item.substr(colon + 1);
-            size_t k = 0;
-            while (k <= e.size()) {
-                size_t comma = e.find(',', k);
-                if (comma == std::string::npos) comma = e.size();
-                if (comma > k) {
-                    std::string one = e.substr(k, comma - k);
-                    for (char &c : one) c = (char)std::tolower((unsigned char)c);
-                    exts.insert(one);
-                }
-                k = comma + 1;
-            }
-        }
-        i = semi + 1;
-    }
-    return exts;
 }
 
 std::vector<std::string> list_folder(const std::string &dir) {

@@ -1,0 +1,347 @@
+"""pytest tests of blender_addon/isomend_import/import_stack.py, the add-on's
+bpy-free half (which files, which iso, the job, the mesh arrays, the report,
+the library check), in plain Python with numpy: no Blender.
+
+Run by ctest (blender_logic_pytest) with Debian's python3-pytest:
+    ISOMEND_STAGE=<build>/blender_addon/isomend_import python3 -m pytest -q test_import_stack.py
+ISOMEND_STAGE is the staged add-on folder (the package with lib/).  The
+package's __init__.py needs bpy, so the test makes the package from its
+folder without running it (a module whose __path__ is the folder) and
+imports import_stack from it: its relative imports work as in Blender.
+"""
+import json
+import os
+import sys
+import types
+
+import numpy as np
+import pytest
+
+STAGE = os.environ.get("ISOMEND_STAGE")
+if not STAGE:
+    pytest.exit("ISOMEND_STAGE is not set (the staged add-on folder)", returncode=2)
+os.environ.pop("ISOMEND_LIB_DIR", None)  # the package's own lib/
+_pkg = types.ModuleType("isomend_import")
+_pkg.__path__ = [STAGE]
+sys.modules["isomend_import"] = _pkg
+from isomend_import import import_stack, isomend  # noqa: E402
+
+tifffile = pytest.importorskip("tifffile")
+
+
+@pytest.fixture(scope="module")
+def blob(tmp_path_factory):
+    """12 slices s_0.tif .. s_11.tif of a u16 blob in a folder named "tiff"
+    inside "knee_scan" (a generic folder name: the object is named after the
+    parent)."""
+    root = tmp_path_factory.mktemp("blob")
+    folder = root / "knee_scan" / "tiff"
+    folder.mkdir(parents=True)
+    z, y, x = np.meshgrid(np.arange(12.0), np.arange(14.0), np.arange(16.0), indexing="ij")
+    vol = (1000 * np.exp(-((x - 7.5) ** 2 + (y - 6.2) ** 2 + (z - 5.3) ** 2) / 12)).astype(np.uint16)
+    for k in range(12):
+        tifffile.imwrite(str(folder / ("s_%d.tif" % k)), vol[k])
+    return {"folder": str(folder), "volume": vol, "names": ["s_%d.tif" % k for k in range(12)]}
+
+
+# ------------------------------------------------------------ the files
+
+def test_natural_order_puts_2_before_10_and_ignores_case():
+    names = ["s_10.tif", "S_2.tif", "s_1.tif", "s_100.tif", "s_02b.tif"]
+    assert sorted(names, key=import_stack.natural_key) == [
+        "s_1.tif", "S_2.tif", "s_02b.tif", "s_10.tif", "s_100.tif"]
+
+
+def test_resolve_paths_folder_selection_and_filepath(blob, tmp_path):
+    folder = blob["folder"]
+    assert import_stack.resolve_paths(folder, []) == [folder]
+    assert import_stack.resolve_paths(folder, [""]) == [folder]  # "folder chosen, nothing selected"
+    picked = import_stack.resolve_paths(folder, ["s_10.tif", "s_2.tif", "s_1.tif"])
+    assert [os.path.basename(p) for p in picked] == ["s_1.tif", "s_2.tif", "s_10.tif"]
+    one = os.path.join(folder, "s_3.tif")
+    assert import_stack.resolve_paths("", [], one) == [one]
+    assert import_stack.resolve_paths("", [], folder) == [folder]
+    with pytest.raises(ValueError, match="no folder or file chosen"):
+        import_stack.resolve_paths("", [])
+    missing = str(tmp_path / "gone")
+    with pytest.raises(ValueError, match="folder not found: .*gone"):
+        import_stack.resolve_paths(missing, [])
+
+
+def test_spacing_zero_means_from_the_files_and_partial_spacing_is_refused():
+    assert import_stack.spacing_argument((0, 0, 0)) is None
+    assert import_stack.spacing_argument((0.5, 0.5, 2)) == (0.5, 0.5, 2.0)
+    for bad in ((1, 0, 1), (1, -1, 1), (float("nan"), 1, 1)):
+        with pytest.raises(ValueError, match="spacing: all three values must be > 0"):
+            import_stack.spacing_argument(bad)
+
+
+def test_an_iso_that_is_set_always_wins():
+    # (use_suggested_iso, iso, iso set by the caller) -> level asked for (None: suggestion)
+    assert import_stack.choose_iso(True, 0.0, False) is None          # the defaults
+    assert import_stack.choose_iso(True, 237.5, True) == 237.5        # iso=237.5 passed alone
+    assert import_stack.choose_iso(False, 237.5, True) == 237.5
+    assert import_stack.choose_iso(False, 0.0, False) == 0.0          # box off: the level shown
+    assert import_stack.choose_iso(True, 12.0, False) is None         # not set: the suggestion
+
+
+def test_object_names(blob, tmp_path):
+    knee = os.path.dirname(blob["folder"])
+    assert import_stack.stack_name([knee]) == "knee_scan"
+    assert import_stack.stack_name([blob["folder"] + "/"]) == "knee_scan"   # "tiff" says nothing
+    (tmp_path / "data" / "Slices").mkdir(parents=True)
+    assert import_stack.stack_name([str(tmp_path / "data" / "Slices")]) == "data"
+    assert import_stack.stack_name(["/data/head.nrrd"]) == "head"
+    assert import_stack.stack_name(["/d/ct_001.tif", "/d/ct_002.tif"]) == "ct"
+    assert import_stack.stack_name(["/d/001.tif", "/d/002.tif"]) == "d"
+
+
+def test_method_items_start_with_the_thesis_methods_and_list_the_library_ones():
+    items = import_stack.method_items()
+    assert [i[0] for i in items[:3]] == ["DMC", "MC", "DURST"]
+    numbers = [i[3] for i in items]
+    assert len(set(numbers)) == len(numbers)
+    names = {i[0].lower() for i in items}
+    assert names == {"dmc", "mc", "durst"} | set(isomend.available_methods())
+
+
+def test_overall_progress_is_monotone_and_clamped():
+    order = ["open", "read", "analyse", "extract", "mesh"]
+    values = [import_stack.overall(s, f) for s in order for f in (0.0, 0.5, 1.0)]
+    assert values == sorted(values) and values[0] == 0.0 and values[-1] == 1.0
+    assert import_stack.overall("read", -1) == import_stack.overall("read", 0)
+    assert import_stack.overall("read", 7) == import_stack.overall("read", 1)
+
+
+def test_background_printer_prints_each_stage_and_quarter_once():
+    lines = []
+    p = import_stack.BackgroundPrinter(lines.append)
+    for stage in ("read", "extract"):
+        for f in (0.0, 0.1, 0.3, 0.3, 0.6, 0.99, 1.0):
+            p(stage, f)
+    assert lines == ["isomend: %-7s %3d%%" % (s, v) for s in ("read", "extract")
+                     for v in (0, 30, 60, 99, 100)]
+
+
+# ------------------------------------------------------------ the import
+
+def job(paths, iso=None, method="dmc", spacing=None, pad=True, normals=True):
+    return import_stack.ImportJob(paths, iso, method, spacing, -1, pad, normals)
+
+
+def same(a, b):
+    assert (a.vertex_count, a.triangle_count) == (b.vertex_count, b.triangle_count)
+    np.testing.assert_array_equal(a.positions, b.positions)
+    np.testing.assert_array_equal(a.triangles, b.triangles)
+
+
+def test_run_gives_the_wrappers_mesh_at_the_suggested_or_the_given_iso(blob):
+    j = job([blob["folder"]], spacing=(0.5, 0.5, 2.0))
+    j.run()
+    assert j.error is None and j.outcome() == ('FINISHED', None, None)
+    mesh, info = j.result
+    want = isomend.extract_source(blob["folder"], spacing=(0.5, 0.5, 2.0), pad=True)
+    same(mesh, want)
+    assert info["dims"] == (16, 14, 12) and info["dtype"] == "uint16" and info["format"] == "tiff"
+    assert info["spacing"] == (0.5, 0.5, 2.0) and info["kind"] == "folder"
+    j = job([blob["folder"]], iso=300.0, method="mc")
+    j.run()
+    assert j.result[0].iso == 300.0 and j.result[0].method == "mc"
+
+
+def test_start_and_poll_give_the_same_mesh(blob):
+    j = job([blob["folder"]], iso=250.0)
+    j.start()
+    while not j.poll():
+        pass
+    assert j.outcome()[0] == 'FINISHED' and j.seconds > 0
+    same(j.result[0], isomend.extract_source(blob["folder"], iso=250.0, pad=True))
+
+
+def test_cancel_and_errors_end_cancelled_with_the_reason(blob, tmp_path):
+    j = job([blob["folder"]])
+    j.printer = lambda stage, fraction: j.request_cancel()   # Esc at the first report
+    j.run()
+    assert isinstance(j.error, isomend.Cancelled)
+    assert j.outcome() == ('CANCELLED', 'WARNING', "Import cancelled")
+    # Esc as the work ended without error: still cancelled, nothing is built
+    j = job([blob["folder"]])
+    j.run()
+    j.cancel = True
+    assert j.outcome() == ('CANCELLED', 'WARNING', "Import cancelled")
+    # started, then abandoned (Blender ended the operator): the thread is joined
+    j = job([blob["folder"]])
+    j.start()
+    j.abandon()
+    assert j.poll() is True
+    # a mismatched stack: an error naming the file
+    bad = tmp_path / "mismatch"
+    bad.mkdir()
+    for k in range(3):
+        tifffile.imwrite(str(bad / ("m_%d.tif" % k)), np.zeros((8, 9 if k == 2 else 8), np.uint8))
+    j = job([str(bad)])
+    j.run()
+    status, level, message = j.outcome()
+    assert (status, level) == ('CANCELLED', 'ERROR') and "m_2.tif" in message
+    j = job([str(bad)])
+    j.start()   # the open runs on the library's thread: its error comes with the result
+    while not j.poll():
+        pass
+    assert j.outcome()[:2] == ('CANCELLED', 'ERROR') and "m_2.tif" in j.outcome()[2]
+
+
+@pytest.fixture(scope="module")
+def two_series(tmp_path_factory):
+    """A folder holding two DICOM series written with pydicom: a CT ball in
+    Hounsfield units (stored + 1024, 12 bits, rescaled) on tilted axes and
+    a small MR of the same ball."""
+    pydicom = pytest.importorskip("pydicom")
+    from pydicom.dataset import Dataset, FileMetaDataset
+    from pydicom.uid import ExplicitVRLittleEndian, generate_uid
+    folder = tmp_path_factory.mktemp("dicom") / "two"
+    folder.mkdir()
+    z, y, x = np.meshgrid(np.arange(10.0), np.arange(12.0), np.arange(14.0), indexing="ij")
+    ball = np.sqrt((x - 6.5) ** 2 + (y - 5.5) ** 2 + (z - 4.5) ** 2) < 4.0
+    uids = {}
+    c, s = np.cos(np.radians(20)), np.sin(np.radians(20))
+    for modality, sop, stored, row, col in (
+            ("CT", "1.2.840.10008.5.1.4.1.1.2", np.where(ball, 1024 + 700, 1024 - 1000), (c, s, 0), (-s, c, 0)),
+            ("MR", "1.2.840.10008.5.1.4.1.1.4", np.where(ball, 900, 100), (1, 0, 0), (0, 1, 0))):
+        uids[modality] = series_uid = generate_uid()
+        study, frame = generate_uid(), generate_uid()
+        normal = np.cross(row, col)
+        for k in range(stored.shape[0]):
+            ds = Dataset()
+            ds.SOPClassUID, ds.SOPInstanceUID = sop, generate_uid()
+            ds.StudyInstanceUID, ds.SeriesInstanceUID, ds.FrameOfReferenceUID = study, series_uid, frame
+            ds.Modality, ds.SeriesNumber, ds.InstanceNumber = modality, 3 if modality == "CT" else 7, k + 1
+            ds.SeriesDescription = "ball " + modality
+            ds.PatientName, ds.PatientID = "Phantom^Isomend", "ISOMEND-TEST"
+            ds.ImagePositionPatient = ["%.6g" % v for v in np.array((-5.0, -6.0, 20.0)) + 1.5 * k * normal]
+            ds.ImageOrientationPatient = ["%.6g" % v for v in list(row) + list(col)]
+            ds.PixelSpacing, ds.SliceThickness = ["0.8", "0.7"], "1.5"
+            if modality == "CT":
+                ds.RescaleSlope, ds.RescaleIntercept, ds.RescaleType = "1", "-1024", "HU"
+            ds.SamplesPerPixel, ds.PhotometricInterpretation = 1, "MONOCHROME2"
+            ds.Rows, ds.Columns = stored.shape[1], stored.shape[2]
+            ds.BitsAllocated, ds.BitsStored, ds.HighBit, ds.PixelRepresentation = 16, 12, 11, 0
+            ds.PixelData = stored[k].astype("<u2").tobytes()
+            meta = FileMetaDataset()
+            meta.MediaStorageSOPClassUID, meta.MediaStorageSOPInstanceUID = ds.SOPClassUID, ds.SOPInstanceUID
+            meta.TransferSyntaxUID = ExplicitVRLittleEndian
+            ds.file_meta, ds.is_little_endian, ds.is_implicit_VR = meta, True, False
+            ds.preamble = b"\0" * 128
+            pydicom.dcmwrite(str(folder / ("%s%03d.dcm" % (modality, k))), ds, write_like_original=False)
+    return {"folder": str(folder), "uids": uids}
+
+
+def test_a_dicom_series_is_chosen_placed_and_reported(two_series):
+    folder, uids = two_series["folder"], two_series["uids"]
+    j = job([folder])       # two series and none chosen: an error listing them
+    j.run()
+    status, level, message = j.outcome()
+    assert (status, level) == ('CANCELLED', 'ERROR') and "2 DICOM series" in message
+    meshes = []
+    for grid_axes in (False, True):
+        j = import_stack.ImportJob([folder], None, "dmc", None, -1, True, True,
+                                   series=uids["CT"], grid_axes=grid_axes)
+        j.run()
+        assert j.error is None, j.error
+        mesh, info = j.result
+        assert info["kind"] == "dicom" and info["dims"] == (14, 12, 10)
+        assert mesh.iso == 300.0          # a CT in HU: the bone level is the suggestion
+        props = import_stack.custom_properties(mesh, info)
+        assert props["isomend_dicom_series_uid"] == uids["CT"]
+        assert props["isomend_dicom_axes"] == ("grid" if grid_axes else "patient")
+        text = import_stack.report("two", mesh, info, suggested=True)
+        assert 'DICOM CT series "ball CT", %s axes (bone level, HU)' % props["isomend_dicom_axes"] in text
+        want = isomend.extract_source([folder], pad=True, series=uids["CT"], grid_axes=grid_axes)
+        same(mesh, want)
+        meshes.append(mesh)
+    # the tilted series: patient space turns it (the same triangles elsewhere)
+    assert meshes[0].triangle_count == meshes[1].triangle_count
+    assert not np.allclose(meshes[0].positions, meshes[1].positions, atol=0.1)
+    # the other series, by its UID, and an explicit iso with it
+    j = import_stack.ImportJob([folder], 500.0, "dmc", None, -1, True, True, series=uids["MR"])
+    j.run()
+    mesh, info = j.result
+    assert mesh.iso == 500.0 and info["dicom"]["modality"] == "MR" and info["dims"] == (14, 12, 10)
+    assert "(bone level" not in import_stack.report("two", mesh, info, suggested=False)
+    # a TIFF stack has no DICOM properties
+    assert not any(k.startswith("isomend_dicom") for k in
+                   import_stack.custom_properties(mesh, dict(info, dicom=None)))
+
+
+# ------------------------------------------------------------ the mesh
+
+def test_mesh_buffers_are_relative_to_the_origin_scaled_and_typed(blob):
+    with isomend.open_source(blob["folder"], spacing=(0.5, 0.5, 2.0), origin=(10.0, -20.0, 30.0)) as src:
+        mesh = src.extract(iso=250.0, pad=True)
+    b = import_stack.mesh_buffers(mesh, 0.001)
+    assert b.coords.dtype == np.float32 and b.coords.shape == (3 * mesh.vertex_count,)
+    assert b.loop_vertices.dtype == np.int32 and b.loop_starts.dtype == np.int32
+    assert b.loop_totals.dtype == np.int32 and set(b.loop_totals) == {3}
+    np.testing.assert_array_equal(b.loop_vertices, mesh.triangles.reshape(-1).astype(np.int32))
+    np.testing.assert_array_equal(b.loop_starts, 3 * np.arange(mesh.triangle_count))
+    assert b.location == pytest.approx((0.010, -0.020, 0.030))
+    world = b.coords.reshape(-1, 3).astype(np.float64) + np.array(b.location)
+    np.testing.assert_allclose(world, mesh.positions * 0.001, rtol=1e-5, atol=1e-7)
+    assert b.normals is mesh.normals and b.normals.shape == (mesh.vertex_count, 3)
+    props = import_stack.custom_properties(mesh, {"spacing": (0.5, 0.5, 2.0)})
+    assert props == {"isomend_iso": 250.0, "isomend_method": "dmc",
+                     "isomend_mending_triangles": mesh.stats["mending_triangles"],
+                     "isomend_spacing_mm": [0.5, 0.5, 2.0]}
+
+
+def test_report_names_the_object_counts_iso_and_spacing(blob):
+    j = job([blob["folder"]])
+    j.run()
+    mesh, info = j.result
+    text = import_stack.report("knee_scan", mesh, info, suggested=True)
+    assert text.startswith("Imported knee_scan: %d vertices, %d triangles"
+                           % (mesh.vertex_count, mesh.triangle_count))
+    assert "iso %g (suggested)" % mesh.iso in text and "16x14x12 samples" in text
+    assert "(suggested)" not in import_stack.report("x", mesh, info, suggested=False)
+
+
+# ------------------------------------------------------------ can the libraries load?
+
+def test_library_check_refuses_a_package_built_for_a_newer_glibc(tmp_path):
+    info = tmp_path / "build-info.json"
+    info.write_text(json.dumps({"glibc": "2.41"}))
+    problem = import_stack.library_problem(str(info), glibc="2.36")
+    assert "need glibc 2.41 or newer" in problem and "this system has glibc 2.36" in problem
+    assert import_stack.library_problem(str(info), glibc="2.41") is None
+    assert import_stack.library_problem(str(info), glibc="2.100") is None   # numeric, not text
+    info.write_text("{not json")
+    assert "unreadable" in import_stack.library_problem(str(info), glibc="2.36")
+    # the package itself loads here
+    assert import_stack.library_problem() is None
+
+
+def test_the_staged_package_records_what_it_needs():
+    path = import_stack.BUILD_INFO
+    if not os.path.exists(path):
+        pytest.skip("the add-on carries the system's libraries (ISOMEND_ADDON_PORTABLE=OFF)")
+    with open(path) as fp:
+        info = json.load(fp)
+    have = import_stack.system_glibc()
+    assert import_stack._version_tuple(info["glibc"]) <= import_stack._version_tuple(have)
+
+
+# ------------------------------------------------------------ one source, two package formats
+
+def test_bl_info_and_the_extension_manifest_agree():
+    import ast
+    import tomllib
+    tree = ast.parse(open(os.path.join(STAGE, "__init__.py")).read())
+    bl_info = next(ast.literal_eval(node.value) for node in tree.body
+                   if isinstance(node, ast.Assign) and getattr(node.targets[0], "id", "") == "bl_info")
+    with open(os.path.join(STAGE, "blender_manifest.toml"), "rb") as fp:
+        manifest = tomllib.load(fp)
+    assert manifest["id"] == os.path.basename(STAGE.rstrip("/")) == "isomend_import"
+    assert manifest["version"] == ".".join(map(str, bl_info["version"])) == isomend.version()
+    assert manifest["name"] == bl_info["name"] and manifest["type"] == "add-on"
+    assert bl_info["blender"] == (3, 4, 0) and manifest["blender_version_min"] == "4.2.0"
+    assert manifest["platforms"] == ["linux-x64"]
+    assert set(manifest["permissions"]) == {"files"}
