@@ -1,0 +1,359 @@
+/*
+ * stream.c - streaming extraction: slices pushed one at a time, the mesh
+ * handed to a sink as it is made (isomend_stream_*, isomend.h).
+ *
+ * A stream is the one pass (one_pass.c) driven by the arrival of slices: it
+ * calls the same kernels on the same units, scan_slice for slice m and
+ * march_layer for layer m - 1, as soon as the samples they read are there,
+ * and numbers the vertices from the running count, so the ids, the order
+ * and the bytes are isomend_extract()'s.  What it keeps:
+ *
+ *   the window   WINDOW planes of samples, contiguous: the grid's data
+ *                points at its first plane, volume slice g.z0.  Scanning
+ *                slice m reads samples m - 1 .. m + 2 (normals: central
+ *                differences at both ends of the z edges), marching layer
+ *                m - 1 reads m - 2 .. m + 1 (the general methods' corners,
+ *                gradient's ring, the private vertices' edge points), so
+ *                slice m is scanned once slice m + 2 has arrived and the
+ *                window needs KEEP + 1 = 5 planes; when it is full the last
+ *                KEEP planes move to its start (one plane moved per push on
+ *                average with WINDOW = 8).
+ *   the worker   as an extraction's (extract.c): the sign ring (SIGN_RING
+ *                slices), the id maps of two slices, the row buffers.
+ *   staging      one slice's vertices (positions, normals) and one layer's
+ *                triangles (ids, origins), as address-space reservations of
+ *                their largest possible size (mesh_memory.c): only what the
+ *                largest slice and layer use is ever touched.  The kernels
+ *                write vertex `id` at vertex_at(ctx.vertex_base, id), the
+ *                slice's first id being vertex_base, and keep ids modulo
+ *                2^32 in the id maps: a triangle of layer k has ids in
+ *                [first of slice k, that + 2^32), which makes them 64-bit
+ *                again (to_global).
+ *
+ * The table methods sweep (PASS_SWEEP: count and write at once); the
+ * general methods (methods.h) march each layer twice, counting its
+ * cube-private vertices first, as the two passes do, so that they can be
+ * numbered after slice m's vertices, where isomend_extract() puts them.
+ */
+#include "extract_internal.h"
+#include "isomend.h"
+#include "tables.h"
+#include "methods.h"
+
+#include <stdlib.h>
+
+enum {
+    KEEP = 4,              /* planes kept when the window moves: slices m - 2 .. m + 1 */
+    WINDOW = 2 * KEEP,     /* planes of samples in the window                          */
+    TRIANGLE_BATCH = 8192, /* triangles converted to 64-bit ids per sink call          */
+};
+
+/* A reservation, or when refused a heap block (mapped 0). */
+typedef struct staging {
+    void *p;
+    size_t mapped;
+} staging;
+
+struct isomend_stream {
+    ctx c;
+    worker w;
+    isomend_mesh_sink sink;
+    isomend_status failed; /* the first failure, returned from then on */
+    int finished;
+    size_t plane_bytes;    /* a volume slice's samples */
+    char *window;
+    int64_t pushed;        /* volume slices pushed */
+    int64_t next_scan;     /* the next slice (marched grid) to scan */
+    uint64_t first_id;     /* the first vertex id: 0 (tests: stream_set_first_id) */
+    uint64_t next_id;      /* the next vertex id */
+    uint64_t slice_first[2]; /* first ids of the slices last scanned, ring m % 2 */
+    uint64_t triangles;
+    uint64_t max_slice_vertices, max_layer_vertices, max_layer_triangles;
+    staging pos, nrm, tri, org;
+    uint64_t *ids; /* [3 * TRIANGLE_BATCH] */
+};
+
+/* Internal (tests): the first vertex id of a stream not yet pushed to. */
+void stream_set_first_id(isomend_stream *s, uint64_t first);
+
+static int staging_alloc(staging *st, size_t size)
+{
+    st->p = reserve_output(size, SIZE_MAX);
+    st->mapped = st->p ? huge_round(size) : 0;
+    if (!st->p)
+        st->p = calloc(1, size ? size : 1);
+    return st->p != NULL;
+}
+
+static void staging_free(staging *st)
+{
+    if (st->p)
+        release_output(st->p, st->mapped);
+    st->p = NULL;
+}
+
+/* The largest possible counts: a slice's vertices (an edge or diagonal per
+ * id-map plane and sample), a layer's cube-private vertices (one for each
+ * private slot of a cube) and triangles (the table's and two for each of a
+ * cube's +x, +y, +z faces; the general methods' per cube). */
+static void stream_bounds(const ctx *c, uint64_t *slice_vertices, uint64_t *layer_vertices,
+                          uint64_t *layer_triangles)
+{
+    const uint64_t N0 = (uint64_t)c->g.N[0], N1 = (uint64_t)c->g.N[1];
+    const uint64_t cubes = (N0 - 1) * (N1 - 1);
+    *slice_vertices = (uint64_t)c->id_planes * N0 * N1;
+    *layer_vertices = c->general ? (uint64_t)(METHODS_SLOT_COUNT - METHODS_SLOT_CENTRE) * cubes : 0;
+    *layer_triangles = (c->general ? (uint64_t)METHODS_MAX_TRI : (uint64_t)MC_MAX_TRI + 6) * cubes;
+}
+
+/* The staging sizes in bytes: positions, normals, triangles, origins. */
+static void stream_sizes(const ctx *c, uint64_t size[4])
+{
+    uint64_t sv, lv, lt;
+    stream_bounds(c, &sv, &lv, &lt);
+    const uint64_t v = sv > lv ? sv : lv;
+    size[0] = 3 * sizeof(float) * v;
+    size[1] = c->want_normals ? size[0] : 0;
+    size[2] = 3 * sizeof(uint32_t) * lt;
+    size[3] = c->want_origins ? lt : 0;
+}
+
+static isomend_status stream_init(isomend_stream *s, const isomend_volume *desc,
+                                  const isomend_options *opts, const isomend_mesh_sink *sink)
+{
+    isomend_options defaults;
+    isomend_options_init(&defaults);
+    const isomend_options *o = opts ? opts : &defaults;
+    if (!desc || !sink || !sink->vertices || !sink->triangles || !sink->retire)
+        return ISOMEND_ERR_INVALID_ARGUMENT;
+    isomend_volume v = *desc;
+    memset(v.strides, 0, sizeof v.strides); /* the window is contiguous */
+    ctx *c = &s->c;
+    isomend_status status = ctx_setup(c, &v, o);
+    if (status != ISOMEND_OK)
+        return status;
+    s->sink = *sink;
+    const grid *g = &c->g;
+    if ((uint64_t)g->N[0] * (uint64_t)g->N[1] > (uint64_t)SIZE_MAX / 64)
+        return ISOMEND_ERR_OUT_OF_MEMORY;
+    s->plane_bytes = (size_t)g->n[0] * (size_t)g->n[1] * isomend_type_size(g->type);
+    s->window = malloc(WINDOW * s->plane_bytes);
+    s->ids = malloc(3 * sizeof(uint64_t) * TRIANGLE_BATCH);
+    if (!s->window || !s->ids || !worker_init(&s->w, c))
+        return ISOMEND_ERR_OUT_OF_MEMORY;
+    s->w.is_main = 1;
+    c->g.data = s->window;
+    c->g.z0 = 0;
+    c->pass = PASS_SWEEP; /* signs are classified (and NaNs counted), never cached */
+    c->layer_private = NULL;
+    stream_bounds(c, &s->max_slice_vertices, &s->max_layer_vertices, &s->max_layer_triangles);
+    uint64_t size[4];
+    stream_sizes(c, size);
+    staging *st[4] = {&s->pos, &s->nrm, &s->tri, &s->org};
+    for (int q = 0; q < 4; q++)
+        if (size[q] && !staging_alloc(st[q], (size_t)size[q]))
+            return ISOMEND_ERR_OUT_OF_MEMORY;
+    c->pos = s->pos.p;
+    c->nrm = s->nrm.p;
+    c->tri = s->tri.p;
+    c->org = s->org.p; /* zero bytes: ISOMEND_ORIGIN_TABLE, as the one pass's */
+    return ISOMEND_OK;
+}
+
+isomend_status isomend_stream_begin(const isomend_volume *desc, const isomend_options *opts,
+                                    const isomend_mesh_sink *sink, isomend_stream **out)
+{
+    if (!out)
+        return ISOMEND_ERR_INVALID_ARGUMENT;
+    *out = NULL;
+    isomend_stream *s = calloc(1, sizeof(*s));
+    if (!s)
+        return ISOMEND_ERR_OUT_OF_MEMORY;
+    const isomend_status status = stream_init(s, desc, opts, sink);
+    if (status != ISOMEND_OK) {
+        isomend_stream_destroy(s);
+        return status;
+    }
+    *out = s;
+    return ISOMEND_OK;
+}
+
+void isomend_stream_destroy(isomend_stream *s)
+{
+    if (!s)
+        return;
+    free(s->window);
+    free(s->ids);
+    free(s->w.block);
+    staging_free(&s->pos);
+    staging_free(&s->nrm);
+    staging_free(&s->tri);
+    staging_free(&s->org);
+    free(s);
+}
+
+void stream_set_first_id(isomend_stream *s, uint64_t first)
+{
+    if (s && s->pushed == 0)
+        s->first_id = s->next_id = first;
+}
+
+/* A sink's answer as a status (and the stream's failure). */
+static isomend_status sink_status(isomend_stream *s, int rc)
+{
+    return rc ? (s->failed = ISOMEND_ERR_SINK) : ISOMEND_OK;
+}
+
+/* Hands the n staged vertices (ids from s->next_id) to the sink. */
+static isomend_status deliver_vertices(isomend_stream *s, uint64_t n)
+{
+    if (!n)
+        return ISOMEND_OK;
+    const ctx *c = &s->c;
+    const isomend_status status =
+        sink_status(s, s->sink.vertices(s->sink.user, s->next_id, (size_t)n, c->pos,
+                                        c->want_normals ? c->nrm : NULL, NULL));
+    s->next_id += n;
+    return status;
+}
+
+/* Layer k's n staged triangles, their ids made 64-bit from `base` (the
+ * first id of slice k: every id of the layer is in [base, base + 2^32)). */
+static isomend_status deliver_triangles(isomend_stream *s, uint64_t n, uint64_t base)
+{
+    const ctx *c = &s->c;
+    const uint32_t low = (uint32_t)base;
+    for (uint64_t done = 0; done < n;) {
+        const uint64_t b = n - done < TRIANGLE_BATCH ? n - done : TRIANGLE_BATCH;
+        const uint32_t *t = c->tri + 3 * done;
+        for (uint64_t q = 0; q < 3 * b; q++)
+            s->ids[q] = base + (uint32_t)(t[q] - low);
+        const int rc = s->sink.triangles(s->sink.user, (size_t)b, s->ids,
+                                         c->org ? c->org + done : NULL);
+        if (rc)
+            return sink_status(s, rc);
+        done += b;
+    }
+    if (c->org) /* the next layer's table triangles are zero bytes again */
+        memset(c->org, 0, (size_t)n);
+    s->triangles += n;
+    return ISOMEND_OK;
+}
+
+/* Scans slice m (numbering from the running count) and marches layer
+ * m - 1, delivering each's part of the mesh. */
+static isomend_status step(isomend_stream *s, int64_t m)
+{
+    ctx *c = &s->c;
+    worker *w = &s->w;
+    const extract_kernels *kr = c->kernels;
+    c->vertex_base = s->next_id;
+    const uint64_t nv = kr->scan_slice(w, m, PASS_SWEEP, s->next_id, 1);
+    w->stats.nan_samples += w->slice_nans[m % SIGN_RING];
+    const uint64_t below = m > 0 ? s->slice_first[(m - 1) % 2] : s->next_id;
+    s->slice_first[m % 2] = s->next_id;
+    if (s->next_id + nv - below > UINT32_MAX)
+        return s->failed = ISOMEND_ERR_TOO_LARGE; /* the id maps' 32 bits */
+    isomend_status status = deliver_vertices(s, nv);
+    if (status != ISOMEND_OK || m == 0)
+        return status;
+    const int64_t k = m - 1;
+    uint64_t nt;
+    if (c->general) {
+        nt = kr->march_layer(w, k, PASS_COUNT, 0);
+        const uint64_t np = w->private_count;
+        if (s->next_id + np - below > UINT32_MAX)
+            return s->failed = ISOMEND_ERR_TOO_LARGE;
+        c->vertex_base = c->private_first = s->next_id;
+        (void)kr->march_layer(w, k, PASS_FILL, 0);
+        status = deliver_vertices(s, np);
+    } else {
+        nt = kr->march_layer(w, k, PASS_SWEEP, 0);
+    }
+    if (status == ISOMEND_OK)
+        status = deliver_triangles(s, nt, below);
+    if (status == ISOMEND_OK)
+        status = sink_status(s, s->sink.retire(s->sink.user, s->slice_first[m % 2]));
+    return status;
+}
+
+/* Scans and marches what the samples of marched slices up to `avail` allow. */
+static isomend_status advance(isomend_stream *s, int64_t avail)
+{
+    const int64_t N2 = s->c.g.N[2];
+    while (s->next_scan < N2) {
+        const int64_t m = s->next_scan, need = m + 2 < N2 - 1 ? m + 2 : N2 - 1;
+        if (need > avail)
+            break;
+        const isomend_status status = step(s, m);
+        if (status != ISOMEND_OK)
+            return status;
+        s->next_scan++;
+    }
+    return ISOMEND_OK;
+}
+
+isomend_status isomend_stream_push(isomend_stream *s, const void *slice)
+{
+    if (!s || !slice)
+        return ISOMEND_ERR_INVALID_ARGUMENT;
+    if (s->failed != ISOMEND_OK)
+        return s->failed;
+    grid *g = &s->c.g;
+    const int64_t z = s->pushed;
+    if (z >= g->n[2] || s->finished)
+        return s->failed = ISOMEND_ERR_SLICE_COUNT;
+    if (z - g->z0 >= WINDOW) { /* keep the planes still needed, from the lowest */
+        int64_t lo = s->next_scan - 2 - g->pad; /* layer next_scan - 1 reads next_scan - 2 */
+        if (lo < g->z0)
+            lo = g->z0;
+        memmove(s->window, s->window + (size_t)(lo - g->z0) * s->plane_bytes,
+                (size_t)(z - lo) * s->plane_bytes);
+        g->z0 = lo;
+    }
+    memcpy(s->window + (size_t)(z - g->z0) * s->plane_bytes, slice, s->plane_bytes);
+    s->pushed = z + 1;
+    return advance(s, z + g->pad);
+}
+
+isomend_status isomend_stream_finish(isomend_stream *s, isomend_stats *stats)
+{
+    if (!s)
+        return ISOMEND_ERR_INVALID_ARGUMENT;
+    if (s->failed != ISOMEND_OK)
+        return s->failed;
+    const grid *g = &s->c.g;
+    if (s->pushed != g->n[2])
+        return s->failed = ISOMEND_ERR_SLICE_COUNT;
+    const isomend_status status = advance(s, g->N[2] - 1);
+    if (status != ISOMEND_OK)
+        return status;
+    s->finished = 1;
+    if (stats)
+        gather_stats(&s->c, &s->w, 1, s->next_id - s->first_id, s->triangles, stats);
+    return ISOMEND_OK;
+}
+
+uint64_t isomend_stream_memory(const isomend_volume *desc, const isomend_options *opts)
+{
+    isomend_options defaults;
+    isomend_options_init(&defaults);
+    const isomend_options *o = opts ? opts : &defaults;
+    if (!desc)
+        return 0;
+    isomend_volume v = *desc;
+    memset(v.strides, 0, sizeof v.strides);
+    ctx c;
+    memset(&c, 0, sizeof c);
+    if (ctx_setup(&c, &v, o) != ISOMEND_OK)
+        return 0;
+    worker w;
+    uint64_t size[4];
+    stream_sizes(&c, size);
+    const uint64_t plane = (uint64_t)c.g.n[0] * (uint64_t)c.g.n[1] * isomend_type_size(c.g.type);
+    uint64_t total = sizeof(isomend_stream) + WINDOW * plane + worker_layout(&w, &c, NULL) +
+                     3 * sizeof(uint64_t) * TRIANGLE_BATCH;
+    for (int q = 0; q < 4; q++)
+        total += huge_round((size_t)size[q]);
+    return total;
+}
