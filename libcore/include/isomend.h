@@ -344,12 +344,13 @@ ISOMEND_API isomend_status isomend_mesh_copy_transformed(const isomend_mesh *mes
  *
  * The order.  Slice k (of the marched grid: the volume plus the padding
  * layer with ISOMEND_FLAG_PAD) owns the vertices on the grid edges whose
- * lower end is in it; layer k is the cubes between slices k and k + 1.  The
- * sink receives slice 0's vertices, then for k = 0, 1, ...: slice k + 1's
- * vertices, layer k's cube-private vertices (methods.h: mc33, and facial,
- * gradient, asymptotic where needed), layer k's triangles, and
- * retire(first id of slice k + 1).  isomend_extract() numbers its vertices
- * in that order.
+ * lower end is in it (and tetra's face diagonals whose lowest corner is);
+ * layer k is the cubes between slices k and k + 1.  The sink receives
+ * slice 0's vertices, then for k = 0, 1, ...: layer k's cube-private
+ * vertices (mc33, and facial, gradient, asymptotic where needed) and slice
+ * k + 1's vertices (one call), layer k's triangles, and retire(first id of
+ * slice k + 1).  isomend_extract() numbers its vertices in that order:
+ * slice 0, layer 0's private vertices, slice 1, layer 1's, ...
  */
 
 /* A vertex with no key (cube-private), in the keys of a piece's vertices. */

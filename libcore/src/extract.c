@@ -30,8 +30,8 @@
  * Methods of methods.h (facial, gradient, asymptotic, tetra, mc33) replace
  * the table by a per-cube hook (march_general.c) and always take the two
  * passes: face-diagonal vertices (tetra) are numbered with their slice,
- * layer k's cube-private vertices after slice k + 1's vertices (where a
- * stream delivers them, stream.c).
+ * layer k's cube-private vertices after slice k's vertices (before slice
+ * k + 1's: where a stream delivers them, stream.c).
  *
  * Padding and NaN.  With ISOMEND_FLAG_PAD the marched grid is the volume
  * plus one layer of samples on every side; padding samples, like NaN

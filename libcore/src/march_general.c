@@ -4,8 +4,8 @@
  *
  * The table methods' loops (march_template.h, scan_template.h) call these
  * for every busy cube and, with tetra, every row.  Cube-private vertices
- * (methods.h slots 18..30) of layer k are numbered after slice k + 1's
- * vertices; face-diagonal vertices with their slice, after its edges'
+ * (methods.h slots 18..30) of layer k are numbered after slice k's
+ * vertices, before slice k + 1's; face-diagonal vertices with their slice, after its edges'
  * in row order.
  */
 #include "extract_internal.h"

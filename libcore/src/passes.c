@@ -144,16 +144,17 @@ isomend_status run_two_passes(ctx *c, worker *ws, int nw, isomend_mesh **out, ui
         return status;
 
     /* Prefix sums: first vertex of each slice, first triangle of each layer.
-     * Layer k's cube-private vertices (methods.h) follow slice k + 1's: a
-     * stream delivers them there, as soon as the layer is marched. */
+     * Layer k's cube-private vertices (methods.h) follow slice k's, so that
+     * slices and layers [a, b) own one run of ids: a stream delivers them
+     * there, a piece of the grid owns them with its layers (stream.c). */
     uint64_t v = 0, t = 0;
     for (int64_t k = 0; k < N2; k++) {
         uint64_t n = c->slice_first[k];
         c->slice_first[k] = v;
         v += n;
-        if (k >= 1) {
-            n = c->layer_private[k - 1];
-            c->layer_private[k - 1] = v;
+        if (k < layers) {
+            n = c->layer_private[k];
+            c->layer_private[k] = v;
             v += n;
         }
     }

@@ -111,7 +111,7 @@ static void stream_sizes(const ctx *c, uint64_t size[4])
 {
     uint64_t sv, lv, lt;
     stream_bounds(c, &sv, &lv, &lt);
-    const uint64_t v = sv > lv ? sv : lv;
+    const uint64_t v = sv + lv; /* layer m - 1's private vertices, then slice m's */
     size[0] = 3 * sizeof(float) * v;
     size[1] = c->want_normals ? size[0] : 0;
     size[2] = 3 * sizeof(uint32_t) * lt;
@@ -240,38 +240,39 @@ static isomend_status deliver_triangles(isomend_stream *s, uint64_t n, uint64_t 
     return ISOMEND_OK;
 }
 
-/* Scans slice m (numbering from the running count) and marches layer
- * m - 1, delivering each's part of the mesh. */
+/*
+ * Scans slice m (numbering from the running count) and marches layer m - 1,
+ * delivering layer m - 1's cube-private vertices (general methods: counted
+ * first, from the signs alone, so that slice m is numbered after them), slice
+ * m's vertices, then layer m - 1's triangles.
+ */
 static isomend_status step(isomend_stream *s, int64_t m)
 {
     ctx *c = &s->c;
     worker *w = &s->w;
     const extract_kernels *kr = c->kernels;
-    c->vertex_base = s->next_id;
-    const uint64_t nv = kr->scan_slice(w, m, PASS_SWEEP, s->next_id, 1);
+    const int64_t k = m - 1;
+    uint64_t np = 0, nt = 0;
+    if (m > 0 && c->general) {
+        nt = kr->march_layer(w, k, PASS_COUNT, 0);
+        np = w->private_count;
+    }
+    c->vertex_base = c->private_first = s->next_id;
+    const uint64_t first = s->next_id + np;
+    const uint64_t nv = kr->scan_slice(w, m, PASS_SWEEP, first, 1);
     w->stats.nan_samples += w->slice_nans[m % SIGN_RING];
-    const uint64_t below = m > 0 ? s->slice_first[(m - 1) % 2] : s->next_id;
-    s->slice_first[m % 2] = s->next_id;
-    if (s->next_id + nv - below > UINT32_MAX)
+    const uint64_t below = m > 0 ? s->slice_first[(m - 1) % 2] : first;
+    s->slice_first[m % 2] = first;
+    if (first + nv - below > UINT32_MAX)
         return s->failed = ISOMEND_ERR_TOO_LARGE; /* the id maps' 32 bits */
-    isomend_status status = deliver_vertices(s, nv);
+    if (m > 0 && c->general) /* the private vertices and the triangles */
+        (void)kr->march_layer(w, k, PASS_FILL, 0);
+    isomend_status status = deliver_vertices(s, np + nv);
     if (status != ISOMEND_OK || m == 0)
         return status;
-    const int64_t k = m - 1;
-    uint64_t nt;
-    if (c->general) {
-        nt = kr->march_layer(w, k, PASS_COUNT, 0);
-        const uint64_t np = w->private_count;
-        if (s->next_id + np - below > UINT32_MAX)
-            return s->failed = ISOMEND_ERR_TOO_LARGE;
-        c->vertex_base = c->private_first = s->next_id;
-        (void)kr->march_layer(w, k, PASS_FILL, 0);
-        status = deliver_vertices(s, np);
-    } else {
+    if (!c->general)
         nt = kr->march_layer(w, k, PASS_SWEEP, 0);
-    }
-    if (status == ISOMEND_OK)
-        status = deliver_triangles(s, nt, below);
+    status = deliver_triangles(s, nt, below);
     if (status == ISOMEND_OK)
         status = sink_status(s, s->sink.retire(s->sink.user, s->slice_first[m % 2]));
     return status;
