@@ -441,6 +441,59 @@ ISOMEND_API void isomend_stream_destroy(isomend_stream *s);
 ISOMEND_API uint64_t isomend_stream_memory(const isomend_volume *desc,
                                            const isomend_options *opts);
 
+/*
+ * Pieces: a stream restricted to a slab of the marched grid, for extracting
+ * one volume in several processes (isomend-mpi) whose meshes are stitched by
+ * keys into isomend_extract()'s mesh.
+ *
+ * Ownership: the piece that owns marched slice k owns slice k's vertices
+ * and layer k's triangles and cube-private vertices, so a piece [a, b)
+ * delivers exactly the run of isomend_extract()'s vertex ids from slice a's
+ * first to slice b's first, and its triangles in order.  The mending and
+ * Durst quadrilaterals on the plane z = b belong to the piece below (its
+ * layer b - 1 judges that face), the plane's vertices to the piece above.
+ *
+ * A piece numbers its vertices from 0 (local ids) and gives every vertex on
+ * a grid edge or face diagonal its key in the global marched grid:
+ *     key = ((k * N1 + j) * N0 + i) * 8 + kind
+ * (i, j, k) the edge's lower end or the face's lowest corner, kind 0/1/2 an
+ * x/y/z edge, 3/4/5 tetra's diagonal of an x/y/z face; ISOMEND_KEY_NONE
+ * for cube-private vertices.  Its last layer's triangles refer to the next
+ * piece's vertices of slice b (x and y edges and z-face diagonals in it) as
+ * ISOMEND_FOREIGN | f, f indexing the keys delivered through sink.foreign
+ * (required unless b == N2) before those triangles.
+ */
+typedef struct isomend_piece {
+    int64_t owned_first, owned_end; /* marched slices [owned_first, owned_end), */
+} isomend_piece;                    /* 0 <= first < end <= N2 (dims[2] + 2 pad) */
+
+/*
+ * The volume slices a piece reads, [*first, *end): marched slices
+ * owned_first - 1 .. owned_end + 1 (the gradients' neighbours, the z edges
+ * into slice owned_end, the +z neighbours of the last layer's cubes),
+ * clamped to the volume.  ISOMEND_ERR_INVALID_ARGUMENT for a piece outside
+ * the grid, else isomend_stream_begin()'s checks.
+ */
+ISOMEND_API isomend_status isomend_piece_halo(const isomend_volume *desc,
+                                              const isomend_options *opts,
+                                              const isomend_piece *piece, int64_t *first,
+                                              int64_t *end);
+
+/*
+ * Begins a piece: a stream (isomend_stream_push/finish/destroy) to which
+ * exactly the volume slices of isomend_piece_halo() are pushed, in order,
+ * starting with *first.  Vertices come with keys (above).  The statistics
+ * at finish are the piece's: its layers' cubes, cases, faces and triangles,
+ * the NaN samples of its slices, its own vertices; summed over the pieces
+ * of a grid they are isomend_extract()'s.  The memory is
+ * isomend_stream_memory() plus 12 bytes per vertex of a slice's bound.
+ */
+ISOMEND_API isomend_status isomend_piece_begin(const isomend_volume *desc,
+                                               const isomend_options *opts,
+                                               const isomend_piece *piece,
+                                               const isomend_mesh_sink *sink,
+                                               isomend_stream **out);
+
 /* ---------------------------------------------------------- continuity check */
 
 /*

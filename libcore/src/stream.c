@@ -64,6 +64,14 @@ struct isomend_stream {
     char *window;
     int64_t pushed;        /* volume slices pushed */
     int64_t next_scan;     /* the next slice (marched grid) to scan */
+    /* A piece (isomend_piece_begin): marched slices and layers [own_first,
+     * own_end) owned, volume slices [push_first, push_end) pushed; a stream
+     * owns all: 0, N2, 0, n2. */
+    int64_t own_first, own_end, push_first, push_end;
+    int piece;
+    uint64_t *keys;  /* a piece's keys of the vertices staged */
+    uint32_t *fmap;  /* slice own_end's ids to foreign indices, UINT32_MAX none */
+    uint64_t nforeign;
     uint64_t first_id;     /* the first vertex id: 0 (tests: stream_set_first_id) */
     uint64_t next_id;      /* the next vertex id */
     uint64_t slice_first[2]; /* first ids of the slices last scanned, ring m % 2 */
@@ -144,6 +152,10 @@ static isomend_status stream_init(isomend_stream *s, const isomend_volume *desc,
     s->w.is_main = 1;
     c->g.data = s->window;
     c->g.z0 = 0;
+    s->own_first = 0;
+    s->own_end = g->N[2];
+    s->push_first = 0;
+    s->push_end = g->n[2];
     c->pass = PASS_SWEEP; /* signs are classified (and NaNs counted), never cached */
     c->layer_private = NULL;
     stream_bounds(c, &s->max_slice_vertices, &s->max_layer_vertices, &s->max_layer_triangles);
@@ -184,6 +196,8 @@ void isomend_stream_destroy(isomend_stream *s)
         return;
     free(s->window);
     free(s->ids);
+    free(s->keys);
+    free(s->fmap);
     free(s->w.block);
     staging_free(&s->pos);
     staging_free(&s->nrm);
@@ -194,7 +208,7 @@ void isomend_stream_destroy(isomend_stream *s)
 
 void stream_set_first_id(isomend_stream *s, uint64_t first)
 {
-    if (s && s->pushed == 0)
+    if (s && s->pushed == s->push_first)
         s->first_id = s->next_id = first;
 }
 
@@ -212,22 +226,27 @@ static isomend_status deliver_vertices(isomend_stream *s, uint64_t n)
     const ctx *c = &s->c;
     const isomend_status status =
         sink_status(s, s->sink.vertices(s->sink.user, s->next_id, (size_t)n, c->pos,
-                                        c->want_normals ? c->nrm : NULL, NULL));
+                                        c->want_normals ? c->nrm : NULL,
+                                        s->piece ? s->keys : NULL));
     s->next_id += n;
     return status;
 }
 
 /* Layer k's n staged triangles, their ids made 64-bit from `base` (the
- * first id of slice k: every id of the layer is in [base, base + 2^32)). */
-static isomend_status deliver_triangles(isomend_stream *s, uint64_t n, uint64_t base)
+ * first id of slice k: every id of the layer is in [base, base + 2^32));
+ * ids from `foreign` on (a piece's last layer) are the next piece's. */
+static isomend_status deliver_triangles(isomend_stream *s, uint64_t n, uint64_t base,
+                                        uint64_t foreign)
 {
     const ctx *c = &s->c;
     const uint32_t low = (uint32_t)base;
     for (uint64_t done = 0; done < n;) {
         const uint64_t b = n - done < TRIANGLE_BATCH ? n - done : TRIANGLE_BATCH;
         const uint32_t *t = c->tri + 3 * done;
-        for (uint64_t q = 0; q < 3 * b; q++)
-            s->ids[q] = base + (uint32_t)(t[q] - low);
+        for (uint64_t q = 0; q < 3 * b; q++) {
+            const uint64_t id = base + (uint32_t)(t[q] - low);
+            s->ids[q] = id < foreign ? id : ISOMEND_FOREIGN | s->fmap[id - foreign];
+        }
         const int rc = s->sink.triangles(s->sink.user, (size_t)b, s->ids,
                                          c->org ? c->org + done : NULL);
         if (rc)
@@ -238,6 +257,87 @@ static isomend_status deliver_triangles(isomend_stream *s, uint64_t n, uint64_t 
         memset(c->org, 0, (size_t)n);
     s->triangles += n;
     return ISOMEND_OK;
+}
+
+/* The key of the vertex on grid edge (or face diagonal) `kind` at (i, j, m). */
+static uint64_t edge_key(const grid *g, int64_t i, int64_t j, int64_t m, int kind)
+{
+    return (((uint64_t)m * (uint64_t)g->N[1] + (uint64_t)j) * (uint64_t)g->N[0] + (uint64_t)i) *
+               8u +
+           (uint64_t)kind;
+}
+
+/* Whether tetra's diagonal of face `kind` (x, y, z face: 0, 1, 2) at
+ * (i, j, m) is cut: its ends are the face's even corners (scan_diagonals). */
+static int diagonal_cut(const uint8_t *a, const uint8_t *b, const uint8_t *d, const uint8_t *e,
+                        int64_t i, int even, int kind)
+{
+    switch (kind) {
+    case 0: return even ? a[i] != e[i] : b[i] != d[i];
+    case 1: return even ? a[i] != d[i + 1] : a[i + 1] != d[i];
+    default: return even ? a[i] != b[i + 1] : a[i + 1] != b[i];
+    }
+}
+
+/*
+ * A piece's keys of slice m's nv vertices (ids from first) into
+ * s->keys[np ..], np = first - s->next_id (the private vertices before
+ * them).  For the next piece's slice (`last`), the foreign table instead:
+ * the in-plane vertices (x, y edges, z-face diagonals), in id order,
+ * delivered through sink.foreign, and s->fmap from ids to their indices.
+ */
+static isomend_status slice_keys(isomend_stream *s, int64_t m, uint64_t first, uint64_t nv,
+                                 int last)
+{
+    const ctx *c = &s->c;
+    const grid *g = &c->g;
+    worker *w = &s->w;
+    const int64_t N0 = g->N[0], N1 = g->N[1], N2 = g->N[2], plane = N0 * N1;
+    const row_span *spans;
+    const uint8_t *t = m + 1 < N2 ? c->kernels->signs(w, m + 1, &spans) : NULL;
+    const uint8_t *sg = c->kernels->signs(w, m, &spans);
+    const uint32_t *map = w->edge_ids[m % 2];
+    uint64_t *keys = s->keys + (first - s->next_id);
+    const uint32_t low = (uint32_t)first;
+    for (int64_t j = 0; j < N1; j++) {
+        const uint8_t *a = sg + j * N0, *b = j + 1 < N1 ? a + N0 : NULL;
+        const uint8_t *d = t ? t + j * N0 : NULL, *e = t && b ? d + N0 : NULL;
+        for (int64_t i = 0; i < N0; i++) {
+            const int64_t at = j * N0 + i;
+            int cut[6] = {i + 1 < N0 && a[i] != a[i + 1], b && a[i] != b[i], d && a[i] != d[i],
+                          0, 0, 0};
+            if (c->tetra) {
+                const int even = ((i + j + m) & 1) == 0;
+                cut[3] = e && diagonal_cut(a, b, d, e, i, even, 0);
+                cut[4] = d && i + 1 < N0 && diagonal_cut(a, b, d, e, i, even, 1);
+                cut[5] = b && i + 1 < N0 && diagonal_cut(a, b, d, e, i, even, 2);
+            }
+            for (int kind = 0; kind < 6; kind++) {
+                if (!cut[kind])
+                    continue;
+                const uint64_t r = (uint32_t)(map[kind * plane + at] - low);
+                if (r >= nv)
+                    return s->failed = ISOMEND_ERR_INVALID_ARGUMENT; /* not reached */
+                keys[r] = edge_key(g, i, j, m, kind);
+            }
+        }
+    }
+    if (!last)
+        return ISOMEND_OK;
+    /* In id order, the in-plane vertices: kinds 0, 1 and 5 (z-face diagonal). */
+    uint64_t nf = 0;
+    for (uint64_t r = 0; r < nv; r++) {
+        const unsigned kind = (unsigned)(keys[r] & 7u);
+        s->fmap[r] = UINT32_MAX;
+        if (kind == 0 || kind == 1 || kind == 5) {
+            s->fmap[r] = (uint32_t)nf;
+            keys[nf++] = keys[r];
+        }
+    }
+    s->nforeign = nf;
+    if (!nf)
+        return ISOMEND_OK;
+    return sink_status(s, s->sink.foreign(s->sink.user, 0, (size_t)nf, keys));
 }
 
 /*
@@ -252,29 +352,39 @@ static isomend_status step(isomend_stream *s, int64_t m)
     worker *w = &s->w;
     const extract_kernels *kr = c->kernels;
     const int64_t k = m - 1;
+    const int layer = m > s->own_first; /* layer m - 1 is this piece's */
+    const int last = m == s->own_end;   /* a piece's next slice: ids only */
     uint64_t np = 0, nt = 0;
-    if (m > 0 && c->general) {
+    if (layer && c->general) {
         nt = kr->march_layer(w, k, PASS_COUNT, 0);
         np = w->private_count;
     }
     c->vertex_base = c->private_first = s->next_id;
     const uint64_t first = s->next_id + np;
-    const uint64_t nv = kr->scan_slice(w, m, PASS_SWEEP, first, 1);
-    w->stats.nan_samples += w->slice_nans[m % SIGN_RING];
-    const uint64_t below = m > 0 ? s->slice_first[(m - 1) % 2] : first;
+    const uint64_t nv = kr->scan_slice(w, m, PASS_SWEEP, first, !last);
+    if (!last)
+        w->stats.nan_samples += w->slice_nans[m % SIGN_RING];
+    const uint64_t below = layer ? s->slice_first[(m - 1) % 2] : first;
     s->slice_first[m % 2] = first;
     if (first + nv - below > UINT32_MAX)
         return s->failed = ISOMEND_ERR_TOO_LARGE; /* the id maps' 32 bits */
-    if (m > 0 && c->general) /* the private vertices and the triangles */
+    if (layer && c->general) /* the private vertices and the triangles */
         (void)kr->march_layer(w, k, PASS_FILL, 0);
-    isomend_status status = deliver_vertices(s, np + nv);
-    if (status != ISOMEND_OK || m == 0)
+    isomend_status status = ISOMEND_OK;
+    if (s->piece) {
+        for (uint64_t q = 0; q < np; q++)
+            s->keys[q] = ISOMEND_KEY_NONE;
+        status = slice_keys(s, m, first, nv, last);
+    }
+    if (status == ISOMEND_OK)
+        status = deliver_vertices(s, last ? np : np + nv);
+    if (status != ISOMEND_OK || !layer)
         return status;
     if (!c->general)
         nt = kr->march_layer(w, k, PASS_SWEEP, 0);
-    status = deliver_triangles(s, nt, below);
+    status = deliver_triangles(s, nt, below, last ? first : UINT64_MAX);
     if (status == ISOMEND_OK)
-        status = sink_status(s, s->sink.retire(s->sink.user, s->slice_first[m % 2]));
+        status = sink_status(s, s->sink.retire(s->sink.user, last ? s->next_id : first));
     return status;
 }
 
@@ -282,8 +392,12 @@ static isomend_status step(isomend_stream *s, int64_t m)
 static isomend_status advance(isomend_stream *s, int64_t avail)
 {
     const int64_t N2 = s->c.g.N[2];
-    while (s->next_scan < N2) {
-        const int64_t m = s->next_scan, need = m + 2 < N2 - 1 ? m + 2 : N2 - 1;
+    const int64_t end = s->own_end < N2 ? s->own_end + 1 : N2; /* and a piece's next slice */
+    while (s->next_scan < end) {
+        const int64_t m = s->next_scan;
+        int64_t need = m + (m == s->own_end ? 1 : 2); /* the next slice: signs of m + 1 */
+        if (need > N2 - 1)
+            need = N2 - 1;
         if (need > avail)
             break;
         const isomend_status status = step(s, m);
@@ -302,7 +416,7 @@ isomend_status isomend_stream_push(isomend_stream *s, const void *slice)
         return s->failed;
     grid *g = &s->c.g;
     const int64_t z = s->pushed;
-    if (z >= g->n[2] || s->finished)
+    if (z >= s->push_end || s->finished)
         return s->failed = ISOMEND_ERR_SLICE_COUNT;
     if (z - g->z0 >= WINDOW) { /* keep the planes still needed, from the lowest */
         int64_t lo = s->next_scan - 2 - g->pad; /* layer next_scan - 1 reads next_scan - 2 */
@@ -324,14 +438,85 @@ isomend_status isomend_stream_finish(isomend_stream *s, isomend_stats *stats)
     if (s->failed != ISOMEND_OK)
         return s->failed;
     const grid *g = &s->c.g;
-    if (s->pushed != g->n[2])
+    if (s->pushed != s->push_end)
         return s->failed = ISOMEND_ERR_SLICE_COUNT;
     const isomend_status status = advance(s, g->N[2] - 1);
     if (status != ISOMEND_OK)
         return status;
     s->finished = 1;
-    if (stats)
+    if (stats) {
         gather_stats(&s->c, &s->w, 1, s->next_id - s->first_id, s->triangles, stats);
+        const int64_t layers = (s->own_end < g->N[2] ? s->own_end : g->N[2] - 1) - s->own_first;
+        stats->cubes = (uint64_t)(g->N[0] - 1) * (uint64_t)(g->N[1] - 1) * (uint64_t)layers;
+    }
+    return ISOMEND_OK;
+}
+
+/* ------------------------------------------------------------------ pieces */
+
+/* The volume slices [*first, *end) a piece reads: marched slices
+ * owned_first - 1 .. owned_end + 1, clamped to the volume. */
+static isomend_status piece_range(const grid *g, const isomend_piece *piece, int64_t *first,
+                                  int64_t *end)
+{
+    if (!piece || piece->owned_first < 0 || piece->owned_first >= piece->owned_end ||
+        piece->owned_end > g->N[2])
+        return ISOMEND_ERR_INVALID_ARGUMENT;
+    int64_t lo = piece->owned_first - 1 - g->pad, hi = piece->owned_end + 2 - g->pad;
+    *first = lo < 0 ? 0 : lo;
+    *end = hi > g->n[2] ? g->n[2] : hi;
+    return ISOMEND_OK;
+}
+
+isomend_status isomend_piece_halo(const isomend_volume *desc, const isomend_options *opts,
+                                  const isomend_piece *piece, int64_t *first, int64_t *end)
+{
+    isomend_options defaults;
+    isomend_options_init(&defaults);
+    if (!desc || !first || !end)
+        return ISOMEND_ERR_INVALID_ARGUMENT;
+    isomend_volume v = *desc;
+    memset(v.strides, 0, sizeof v.strides);
+    ctx c;
+    memset(&c, 0, sizeof c);
+    const isomend_status status = ctx_setup(&c, &v, opts ? opts : &defaults);
+    if (status != ISOMEND_OK)
+        return status;
+    return piece_range(&c.g, piece, first, end);
+}
+
+isomend_status isomend_piece_begin(const isomend_volume *desc, const isomend_options *opts,
+                                   const isomend_piece *piece, const isomend_mesh_sink *sink,
+                                   isomend_stream **out)
+{
+    if (!out)
+        return ISOMEND_ERR_INVALID_ARGUMENT;
+    *out = NULL;
+    isomend_stream *s = calloc(1, sizeof(*s));
+    if (!s)
+        return ISOMEND_ERR_OUT_OF_MEMORY;
+    isomend_status status = stream_init(s, desc, opts, sink);
+    const grid *g = &s->c.g;
+    if (status == ISOMEND_OK)
+        status = piece_range(g, piece, &s->push_first, &s->push_end);
+    if (status == ISOMEND_OK && piece->owned_end < g->N[2] && !sink->foreign)
+        status = ISOMEND_ERR_INVALID_ARGUMENT;
+    if (status == ISOMEND_OK) {
+        s->piece = 1;
+        s->own_first = s->next_scan = piece->owned_first;
+        s->own_end = piece->owned_end;
+        s->pushed = s->c.g.z0 = s->push_first;
+        const uint64_t cap = s->max_slice_vertices + s->max_layer_vertices;
+        s->keys = malloc(sizeof(uint64_t) * (size_t)cap);
+        s->fmap = malloc(sizeof(uint32_t) * (size_t)s->max_slice_vertices);
+        if (!s->keys || !s->fmap)
+            status = ISOMEND_ERR_OUT_OF_MEMORY;
+    }
+    if (status != ISOMEND_OK) {
+        isomend_stream_destroy(s);
+        return status;
+    }
+    *out = s;
     return ISOMEND_OK;
 }
 

@@ -48,6 +48,8 @@ typedef struct collect {
     long calls, stop_at; /* stop (return 1) at call stop_at; 0: never */
     long calls_after_stop;
     uint64_t id_offset;
+    uint64_t *fkeys; /* a piece's foreign keys */
+    size_t nf;
 } collect;
 
 static int count_call(collect *c)
@@ -101,7 +103,8 @@ static int on_triangles(void *user, size_t count, const uint64_t *ids, const uin
             abort();
     }
     for (size_t q = 0; q < 3 * count; q++)
-        if (ids[q] < c->floor || ids[q] >= c->id_offset + c->nv)
+        if ((ids[q] & ISOMEND_FOREIGN) ? (ids[q] & ~ISOMEND_FOREIGN) >= c->nf
+                                       : ids[q] < c->floor || ids[q] >= c->id_offset + c->nv)
             c->order_errors++;
     memcpy(c->tri + 3 * c->nt, ids, 3 * sizeof(uint64_t) * count);
     if (org) {
@@ -123,9 +126,24 @@ static int on_retire(void *user, uint64_t floor)
     return 0;
 }
 
+static int on_foreign(void *user, size_t first, size_t count, const uint64_t *keys)
+{
+    collect *c = user;
+    if (count_call(c))
+        return 1;
+    if (first != c->nf) /* appended (triangles check f < nf: before them) */
+        c->order_errors++;
+    c->fkeys = realloc(c->fkeys, sizeof(uint64_t) * (c->nf + count));
+    if (!c->fkeys)
+        abort();
+    memcpy(c->fkeys + c->nf, keys, sizeof(uint64_t) * count);
+    c->nf += count;
+    return 0;
+}
+
 static isomend_mesh_sink sink_of(collect *c)
 {
-    isomend_mesh_sink s = {c, on_vertices, on_triangles, on_retire, NULL};
+    isomend_mesh_sink s = {c, on_vertices, on_triangles, on_retire, on_foreign};
     return s;
 }
 
@@ -136,6 +154,7 @@ static void collect_free(collect *c)
     free(c->keys);
     free(c->tri);
     free(c->org);
+    free(c->fkeys);
     memset(c, 0, sizeof *c);
 }
 
@@ -352,6 +371,175 @@ static void test_ids_past_2_32(void)
     }
 }
 
+/* ------------------------------------------------------------------ pieces */
+
+typedef struct keyed {
+    uint64_t key, id;
+} keyed;
+
+static int keyed_cmp(const void *a, const void *b)
+{
+    const uint64_t x = ((const keyed *)a)->key, y = ((const keyed *)b)->key;
+    return x < y ? -1 : x > y;
+}
+
+/* Whether key's edge (kinds 0..2) holds position p (the other two
+ * coordinates are the grid's). */
+static int key_on_edge(const isomend_volume *vol, unsigned flags, uint64_t key, const float *p)
+{
+    const int64_t pad = (flags & ISOMEND_FLAG_PAD) ? 1 : 0;
+    const uint64_t N0 = (uint64_t)(vol->dims[0] + 2 * pad), N1 = (uint64_t)(vol->dims[1] + 2 * pad);
+    const unsigned kind = (unsigned)(key & 7);
+    const uint64_t lin = key >> 3;
+    const int64_t idx[3] = {(int64_t)(lin % N0), (int64_t)(lin / N0 % N1), (int64_t)(lin / N0 / N1)};
+    if (kind > 5)
+        return 0;
+    for (int a = 0; a < 3; a++) {
+        const double lo = vol->origin[a] + (double)(idx[a] - pad) * vol->spacing[a];
+        if (kind <= 2 && a != (int)kind && p[a] != (float)lo)
+            return 0;
+        if (p[a] < (float)lo - 1e-3f * (float)vol->spacing[a] ||
+            p[a] > (float)(lo + vol->spacing[a]) + 1e-3f * (float)vol->spacing[a])
+            return 0;
+    }
+    return 1;
+}
+
+static int pieces_compared;
+
+/* Extracts vol as np pieces at random boundaries, stitches them by keys and
+ * compares with the in-memory mesh. */
+static void compare_pieces(const isomend_volume *vol, const isomend_options *o, int npieces,
+                           const char *what)
+{
+    isomend_mesh *mesh = NULL;
+    isomend_stats es, sum;
+    CHECK_EQ_INT(isomend_extract(vol, o, &mesh, &es), ISOMEND_OK);
+    const int64_t N2 = vol->dims[2] + ((o->flags & ISOMEND_FLAG_PAD) ? 2 : 0);
+    if (npieces > N2)
+        npieces = (int)N2;
+    int64_t cut[8];
+    cut[0] = 0;
+    cut[npieces] = N2;
+    for (int p = 1; p < npieces; p++) { /* distinct, increasing */
+        const int64_t lo = cut[p - 1] + 1, hi = N2 - (npieces - p);
+        cut[p] = lo + (int64_t)(rng() % (uint64_t)(hi - lo + 1));
+    }
+    collect c[8];
+    memset(c, 0, sizeof c);
+    memset(&sum, 0, sizeof sum);
+    const size_t plane = (size_t)(vol->dims[0] * vol->dims[1]) * isomend_type_size(vol->type);
+    int ok = 1;
+    for (int p = 0; p < npieces && ok; p++) {
+        isomend_piece piece = {cut[p], cut[p + 1]};
+        int64_t first, end;
+        CHECK_EQ_INT(isomend_piece_halo(vol, o, &piece, &first, &end), ISOMEND_OK);
+        isomend_mesh_sink sink = sink_of(&c[p]);
+        isomend_stream *s = NULL;
+        ok = isomend_piece_begin(vol, o, &piece, &sink, &s) == ISOMEND_OK;
+        for (int64_t z = first; z < end && ok; z++)
+            ok = isomend_stream_push(s, (const char *)vol->data + (size_t)z * plane) == ISOMEND_OK;
+        isomend_stats ps;
+        ok = ok && isomend_stream_finish(s, &ps) == ISOMEND_OK && c[p].order_errors == 0 &&
+             c[p].saw_keys == (c[p].nv > 0);
+        isomend_stream_destroy(s);
+        uint64_t *a = (uint64_t *)(void *)&sum, *b = (uint64_t *)(void *)&ps;
+        for (size_t q = 0; q < sizeof sum / sizeof(uint64_t); q++)
+            a[q] += b[q];
+    }
+    /* Stitch: global ids by prefix sums, foreign keys through the next piece's. */
+    size_t nv = 0, nt = 0;
+    for (int p = 0; p < npieces; p++) {
+        nv += c[p].nv;
+        nt += c[p].nt;
+    }
+    ok = ok && nv == isomend_mesh_vertex_count(mesh) && nt == isomend_mesh_triangle_count(mesh) &&
+         memcmp(&sum, &es, sizeof es) == 0;
+    const float *mp = isomend_mesh_positions(mesh), *mn = isomend_mesh_normals(mesh);
+    const uint32_t *mt = isomend_mesh_triangles(mesh);
+    const uint8_t *mo = isomend_mesh_triangle_origins(mesh);
+    size_t vbase = 0, tbase = 0;
+    for (int p = 0; p < npieces && ok; p++) {
+        const collect *q = &c[p];
+        ok = (!q->nv || memcmp(q->pos, mp + 3 * vbase, 12 * q->nv) == 0) &&
+             (!mn || !q->nv || memcmp(q->nrm, mn + 3 * vbase, 12 * q->nv) == 0) &&
+             (!mo || !q->nt || memcmp(q->org, mo + tbase, q->nt) == 0);
+        for (size_t v = 0; ok && v < q->nv; v++)
+            ok = q->keys[v] == ISOMEND_KEY_NONE || key_on_edge(vol, o->flags, q->keys[v], q->pos + 3 * v);
+        keyed *next = NULL;
+        size_t nnext = 0;
+        if (p + 1 < npieces) {
+            next = malloc(sizeof(keyed) * (c[p + 1].nv + 1));
+            for (size_t v = 0; v < c[p + 1].nv; v++)
+                if (c[p + 1].keys[v] != ISOMEND_KEY_NONE) {
+                    next[nnext].key = c[p + 1].keys[v];
+                    next[nnext++].id = vbase + q->nv + v;
+                }
+            qsort(next, nnext, sizeof(keyed), keyed_cmp);
+        }
+        for (size_t t = 0; ok && t < 3 * q->nt; t++) {
+            uint64_t id = q->tri[t];
+            if (id & ISOMEND_FOREIGN) {
+                keyed k = {q->fkeys[id & ~ISOMEND_FOREIGN], 0};
+                const keyed *hit = next ? bsearch(&k, next, nnext, sizeof(keyed), keyed_cmp) : NULL;
+                ok = hit != NULL;
+                id = hit ? hit->id : 0;
+            } else {
+                id += vbase;
+            }
+            ok = ok && id == mt[3 * tbase + t];
+        }
+        free(next);
+        vbase += q->nv;
+        tbase += q->nt;
+    }
+    if (!ok)
+        fprintf(stderr, "pieces != extract: %s, %d pieces\n", what, npieces);
+    CHECK(ok);
+    pieces_compared++;
+    for (int p = 0; p < npieces; p++)
+        collect_free(&c[p]);
+    isomend_mesh_destroy(mesh);
+}
+
+static void test_pieces(void)
+{
+    static const unsigned flag_sets[] = {0, ISOMEND_FLAG_PAD,
+                                         ISOMEND_FLAG_NO_NORMALS | ISOMEND_FLAG_FLIP,
+                                         ISOMEND_FLAG_PAD | ISOMEND_FLAG_NO_ORIGINS};
+    for (int shape = 0; shape < SHAPES; shape++)
+        for (int t = 0; t < ISOMEND_TYPE_COUNT; t++) {
+            const isomend_type type = (isomend_type)t;
+            int64_t n[3];
+            for (int a = 0; a < 3; a++)
+                n[a] = 2 + (int64_t)(rng() % 15);
+            const int nans = (type == ISOMEND_F32 || type == ISOMEND_F64) && shape != SPHERE;
+            double *f = make_field(shape, n, nans);
+            double iso;
+            void *data = to_type(f, (size_t)(n[0] * n[1] * n[2]), type, &iso);
+            free(f);
+            isomend_volume vol;
+            isomend_volume_init(&vol, data, type, n[0], n[1], n[2]);
+            vol.spacing[1] = 0.75;
+            vol.origin[2] = 2.0;
+            for (int m = 0; m < ISOMEND_METHOD_COUNT; m++)
+                for (size_t fl = 0; fl < sizeof flag_sets / sizeof flag_sets[0]; fl++) {
+                    isomend_options o;
+                    isomend_options_init(&o);
+                    o.iso = iso;
+                    o.method = (isomend_method)m;
+                    o.flags = flag_sets[fl];
+                    char what[160];
+                    snprintf(what, sizeof what, "%s %s %lldx%lldx%lld %s flags %u",
+                             shape_names[shape], isomend_type_name(type), (long long)n[0],
+                             (long long)n[1], (long long)n[2],
+                             isomend_method_name((isomend_method)m), o.flags);
+                    compare_pieces(&vol, &o, 1 + (int)(rng() % 5), what);
+                }
+            free(data);
+        }
+}
+
 /* ------------------------------------------------------------------ memory, bad input */
 
 static void test_memory_bound(void)
@@ -444,6 +632,40 @@ static void test_bad_input(void)
     sink = sink_of(&c);
     CHECK_EQ_INT(isomend_stream_begin(&vol, &o, &sink, &s), ISOMEND_OK);
     CHECK_EQ_INT(isomend_stream_push(s, data), ISOMEND_OK);
+    isomend_stream_destroy(s);
+    collect_free(&c);
+
+    /* Pieces: outside the grid, no foreign callback, the wrong slices. */
+    isomend_piece piece = {0, 3};
+    int64_t first = -1, end = -1;
+    CHECK_EQ_INT(isomend_piece_halo(&vol, &o, &piece, &first, &end), ISOMEND_OK);
+    CHECK(first == 0 && end == 5); /* marched slices -1 .. 4 */
+    piece.owned_first = 3;
+    piece.owned_end = 7;
+    CHECK_EQ_INT(isomend_piece_halo(&vol, &o, &piece, &first, &end), ISOMEND_OK);
+    CHECK(first == 2 && end == 7);
+    const isomend_piece bad_pieces[] = {{-1, 2}, {3, 3}, {4, 2}, {0, 8}};
+    for (int q = 0; q < 4; q++) {
+        CHECK_EQ_INT(isomend_piece_halo(&vol, &o, &bad_pieces[q], &first, &end),
+                     ISOMEND_ERR_INVALID_ARGUMENT);
+        CHECK_EQ_INT(isomend_piece_begin(&vol, &o, &bad_pieces[q], &sink, &s),
+                     ISOMEND_ERR_INVALID_ARGUMENT);
+    }
+    CHECK_EQ_INT(isomend_piece_halo(&vol, &o, NULL, &first, &end), ISOMEND_ERR_INVALID_ARGUMENT);
+    piece.owned_first = 0;
+    piece.owned_end = 3;
+    partial = sink;
+    partial.foreign = NULL;
+    CHECK_EQ_INT(isomend_piece_begin(&vol, &o, &piece, &partial, &s), ISOMEND_ERR_INVALID_ARGUMENT);
+    piece.owned_end = 7; /* the last piece needs no foreign keys */
+    CHECK_EQ_INT(isomend_piece_begin(&vol, &o, &piece, &partial, &s), ISOMEND_OK);
+    isomend_stream_destroy(s);
+    piece.owned_first = 3;
+    sink = sink_of(&c);
+    CHECK_EQ_INT(isomend_piece_begin(&vol, &o, &piece, &sink, &s), ISOMEND_OK);
+    for (int z = 2; z < 7; z++)
+        CHECK_EQ_INT(isomend_stream_push(s, data + z * 72), ISOMEND_OK);
+    CHECK_EQ_INT(isomend_stream_push(s, data), ISOMEND_ERR_SLICE_COUNT);
     isomend_stream_destroy(s);
     collect_free(&c);
 
@@ -604,5 +826,7 @@ int main(int argc, char **argv)
     test_ids_past_2_32();
     test_all_methods_types();
     printf("%d streams identical to isomend_extract()\n", compared);
+    test_pieces();
+    printf("%d extractions in pieces stitched to isomend_extract()'s mesh\n", pieces_compared);
     TEST_EXIT();
 }
