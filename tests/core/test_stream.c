@@ -229,6 +229,19 @@ static void *to_type(const double *f, size_t count, isomend_type type, double *i
     return out;
 }
 
+/* A volume of `shape` and `type` on n samples (NaNs in float types except
+ * the sphere) into *vol; returns its samples (free them) and *iso. */
+static void *make_volume(int shape, isomend_type type, const int64_t n[3], isomend_volume *vol,
+                         double *iso)
+{
+    const int nans = (type == ISOMEND_F32 || type == ISOMEND_F64) && shape != SPHERE;
+    double *f = make_field(shape, n, nans);
+    void *data = to_type(f, (size_t)(n[0] * n[1] * n[2]), type, iso);
+    free(f);
+    isomend_volume_init(vol, data, type, n[0], n[1], n[2]);
+    return data;
+}
+
 /* ------------------------------------------------------------------ stream == extract */
 
 static int compared;
@@ -315,13 +328,9 @@ static void test_all_methods_types(void)
                 n[0] = n[1] = 140;
                 n[2] = 110;
             }
-            const int nans = (type == ISOMEND_F32 || type == ISOMEND_F64) && shape != SPHERE;
-            double *f = make_field(shape, n, nans);
             double iso;
-            void *data = to_type(f, (size_t)(n[0] * n[1] * n[2]), type, &iso);
-            free(f);
             isomend_volume vol;
-            isomend_volume_init(&vol, data, type, n[0], n[1], n[2]);
+            void *data = make_volume(shape, type, n, &vol, &iso);
             vol.spacing[0] = 0.5;
             vol.spacing[2] = 1.25;
             vol.origin[1] = -3.0;
@@ -513,13 +522,9 @@ static void test_pieces(void)
             int64_t n[3];
             for (int a = 0; a < 3; a++)
                 n[a] = 2 + (int64_t)(rng() % 15);
-            const int nans = (type == ISOMEND_F32 || type == ISOMEND_F64) && shape != SPHERE;
-            double *f = make_field(shape, n, nans);
             double iso;
-            void *data = to_type(f, (size_t)(n[0] * n[1] * n[2]), type, &iso);
-            free(f);
             isomend_volume vol;
-            isomend_volume_init(&vol, data, type, n[0], n[1], n[2]);
+            void *data = make_volume(shape, type, n, &vol, &iso);
             vol.spacing[1] = 0.75;
             vol.origin[2] = 2.0;
             for (int m = 0; m < ISOMEND_METHOD_COUNT; m++)
