@@ -374,7 +374,8 @@ ISOMEND_API isomend_status isomend_mesh_copy_transformed(const isomend_mesh *mes
  *              origins (one isomend_origin each) NULL with
  *              ISOMEND_FLAG_NO_ORIGINS.
  *   retire     no triangle delivered later uses an id below `floor`.
- *   foreign    pieces only (may be NULL for streams): the keys of foreign
+ *   foreign    pieces only (may be NULL for streams): the keys and positions
+ *              (3 floats each, as the next piece computes them) of foreign
  *              vertices first .. first + count - 1, before any triangle that
  *              refers to them.
  */
@@ -384,7 +385,8 @@ typedef struct isomend_mesh_sink {
                     const float *normals, const uint64_t *keys);
     int (*triangles)(void *user, size_t count, const uint64_t *ids, const uint8_t *origins);
     int (*retire)(void *user, uint64_t floor);
-    int (*foreign)(void *user, size_t first, size_t count, const uint64_t *keys);
+    int (*foreign)(void *user, size_t first, size_t count, const uint64_t *keys,
+                   const float *positions);
 } isomend_mesh_sink;
 
 /* A streaming extraction (one thread; not to be shared between threads). */
@@ -460,8 +462,9 @@ ISOMEND_API uint64_t isomend_stream_memory(const isomend_volume *desc,
  * x/y/z edge, 3/4/5 tetra's diagonal of an x/y/z face; ISOMEND_KEY_NONE
  * for cube-private vertices.  Its last layer's triangles refer to the next
  * piece's vertices of slice b (x and y edges and z-face diagonals in it) as
- * ISOMEND_FOREIGN | f, f indexing the keys delivered through sink.foreign
- * (required unless b == N2) before those triangles.
+ * ISOMEND_FOREIGN | f, f indexing the keys (and positions, for writers such
+ * as STL's that need them) delivered through sink.foreign (required unless
+ * b == N2) before those triangles.
  */
 typedef struct isomend_piece {
     int64_t owned_first, owned_end; /* marched slices [owned_first, owned_end), */
@@ -486,7 +489,7 @@ ISOMEND_API isomend_status isomend_piece_halo(const isomend_volume *desc,
  * at finish are the piece's: its layers' cubes, cases, faces and triangles,
  * the NaN samples of its slices, its own vertices; summed over the pieces
  * of a grid they are isomend_extract()'s.  The memory is
- * isomend_stream_memory() plus 12 bytes per vertex of a slice's bound.
+ * isomend_stream_memory() plus 24 bytes per vertex of a slice's bound.
  */
 ISOMEND_API isomend_status isomend_piece_begin(const isomend_volume *desc,
                                                const isomend_options *opts,

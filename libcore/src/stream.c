@@ -71,6 +71,7 @@ struct isomend_stream {
     int piece;
     uint64_t *keys;  /* a piece's keys of the vertices staged */
     uint32_t *fmap;  /* slice own_end's ids to foreign indices, UINT32_MAX none */
+    float *fpos;     /* the foreign vertices' positions */
     uint64_t nforeign;
     uint64_t first_id;     /* the first vertex id: 0 (tests: stream_set_first_id) */
     uint64_t next_id;      /* the next vertex id */
@@ -198,6 +199,7 @@ void isomend_stream_destroy(isomend_stream *s)
     free(s->ids);
     free(s->keys);
     free(s->fmap);
+    free(s->fpos);
     free(s->w.block);
     staging_free(&s->pos);
     staging_free(&s->nrm);
@@ -337,7 +339,23 @@ static isomend_status slice_keys(isomend_stream *s, int64_t m, uint64_t first, u
     s->nforeign = nf;
     if (!nf)
         return ISOMEND_OK;
-    return sink_status(s, s->sink.foreign(s->sink.user, 0, (size_t)nf, keys));
+    /* Their positions by the general vertex path (the same as the vertex
+     * loops', vertices.c), which reads slices m - 1 .. m + 1 only. */
+    for (uint64_t f = 0; f < nf; f++) {
+        const unsigned kind = (unsigned)(keys[f] & 7u);
+        const uint64_t lin = keys[f] >> 3;
+        const int64_t i = (int64_t)(lin % (uint64_t)N0);
+        const int64_t j = (int64_t)(lin / (uint64_t)N0 % (uint64_t)N1);
+        float *p = s->fpos + 3 * f;
+        if (kind < 3) {
+            make_vertex(g, c->flip, i, j, m, (int)kind, p, NULL);
+        } else { /* the z face's diagonal between its even corners, lower sample first */
+            const int even = ((i + j + m) & 1) == 0;
+            const int64_t lo[3] = {even ? i : i + 1, j, m}, hi[3] = {even ? i + 1 : i, j + 1, m};
+            make_vertex_between(g, c->flip, lo, hi, p, NULL);
+        }
+    }
+    return sink_status(s, s->sink.foreign(s->sink.user, 0, (size_t)nf, keys, s->fpos));
 }
 
 /*
@@ -509,7 +527,8 @@ isomend_status isomend_piece_begin(const isomend_volume *desc, const isomend_opt
         const uint64_t cap = s->max_slice_vertices + s->max_layer_vertices;
         s->keys = malloc(sizeof(uint64_t) * (size_t)cap);
         s->fmap = malloc(sizeof(uint32_t) * (size_t)s->max_slice_vertices);
-        if (!s->keys || !s->fmap)
+        s->fpos = malloc(3 * sizeof(float) * (size_t)s->max_slice_vertices);
+        if (!s->keys || !s->fmap || !s->fpos)
             status = ISOMEND_ERR_OUT_OF_MEMORY;
     }
     if (status != ISOMEND_OK) {

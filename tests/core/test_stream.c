@@ -48,7 +48,8 @@ typedef struct collect {
     long calls, stop_at; /* stop (return 1) at call stop_at; 0: never */
     long calls_after_stop;
     uint64_t id_offset;
-    uint64_t *fkeys; /* a piece's foreign keys */
+    uint64_t *fkeys; /* a piece's foreign keys and positions */
+    float *fpos;
     size_t nf;
 } collect;
 
@@ -126,7 +127,8 @@ static int on_retire(void *user, uint64_t floor)
     return 0;
 }
 
-static int on_foreign(void *user, size_t first, size_t count, const uint64_t *keys)
+static int on_foreign(void *user, size_t first, size_t count, const uint64_t *keys,
+                      const float *pos)
 {
     collect *c = user;
     if (count_call(c))
@@ -134,9 +136,11 @@ static int on_foreign(void *user, size_t first, size_t count, const uint64_t *ke
     if (first != c->nf) /* appended (triangles check f < nf: before them) */
         c->order_errors++;
     c->fkeys = realloc(c->fkeys, sizeof(uint64_t) * (c->nf + count));
-    if (!c->fkeys)
+    c->fpos = realloc(c->fpos, 3 * sizeof(float) * (c->nf + count));
+    if (!c->fkeys || !c->fpos)
         abort();
     memcpy(c->fkeys + c->nf, keys, sizeof(uint64_t) * count);
+    memcpy(c->fpos + 3 * c->nf, pos, 3 * sizeof(float) * count);
     c->nf += count;
     return 0;
 }
@@ -155,6 +159,7 @@ static void collect_free(collect *c)
     free(c->tri);
     free(c->org);
     free(c->fkeys);
+    free(c->fpos);
     memset(c, 0, sizeof *c);
 }
 
@@ -493,6 +498,9 @@ static void compare_pieces(const isomend_volume *vol, const isomend_options *o, 
                 const keyed *hit = next ? bsearch(&k, next, nnext, sizeof(keyed), keyed_cmp) : NULL;
                 ok = hit != NULL;
                 id = hit ? hit->id : 0;
+                /* the foreign position is the next piece's vertex's */
+                ok = ok && memcmp(q->fpos + 3 * (q->tri[t] & ~ISOMEND_FOREIGN), mp + 3 * id,
+                                  12) == 0;
             } else {
                 id += vbase;
             }
