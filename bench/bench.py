@@ -27,21 +27,28 @@ How it is measured
   vtkSMPTools.Initialize(N), isomend options.threads = N).  The child loads the volume
   from a .npy file, warms the extractor up on a 16^3 subsample of it (thread pools, lazy
   binding), measures the floor, then makes 1 + C full-size calls (C = --calls, 3 by
-  default, 2 in quick mode for isomend and 1 for the peers), resetting its peak-RSS mark (/proc/self/clear_refs = 5)
-  before each: the first is reported apart ("first call"), the other C are the
-  measurement: wall time, CPU time (and its system part) and the peak RSS above what it
-  held before the call (the "extra" memory: output, temporaries).  The first call of a
-  process pays for memory the kernel hands out afresh; on a virtual machine that
-  returns freed memory to its host (virtio-balloon free page reporting, as on the
-  machine of docs/bench-results.md) that cost depends on
-  what the previous process did, and two threads faulting at once contend for the
-  host's page tables; the later calls measure the extractor in steady state, reusing
-  memory, as a program extracting many surfaces does.  Where the kernel has the
-  page_reporting module, the run records how much free memory it handed back to the host
-  (reported_kib) over the run and, in the JSON, from the end of each call to the end of
-  the next.  The runs are made in rounds --
-  every extractor once, then again -- so that the extractors compared take turns on a
-  shared machine.  Times are medians over all timed calls of all rounds.
+  default; quick mode's plan is quick_policy's), resetting its peak-RSS mark
+  (/proc/self/clear_refs = 5) before each: the first is reported apart ("first call"),
+  the other C are the measurement: wall time, CPU time (and its system part), minor page
+  faults (ru_minflt) and the peak RSS above what it held before the call (the "extra"
+  memory: output, temporaries).
+
+  Two memory regimes (see REGIMES below), every extractor alike: *warm*, the headline
+  and what the goals are judged on, a child whose allocator keeps the memory a call
+  frees, so that the timed calls, back to back after the first, reuse it as a program
+  extracting many surfaces does; *cold*, glibc's default allocator, which hands large
+  freed arrays back to the kernel, so that every call faults its arrays in again (on a
+  virtual machine whose every 4 KiB fault traps to the host, a large part of a peer's
+  call: its large arrays are on small pages).  The first call of a process pays for
+  fresh memory in either regime; on a
+  virtual machine that returns freed memory to its host (virtio-balloon free page
+  reporting, as on the machine of docs/bench-results.md) that cost depends on what the
+  previous process did.  Where the kernel has the page_reporting module, the run
+  records how much free memory it handed back to the host (reported_kib) over the run
+  and, in the JSON, from the end of each call to the end of the next.  The runs are made
+  in rounds -- every extractor in each of its regimes once, then again -- so that the
+  extractors and regimes compared take turns on a shared machine.  Times are medians
+  over all timed calls of all rounds.
 
 Modes: --smoke (seconds, for ctest), --quick (under two minutes: the goal volumes),
 default full (every field, size, type, thread count, and the Colin27 MRI).
@@ -464,6 +471,82 @@ def _reported_kib():
     return int(v) if v and v.isdigit() else None
 
 
+# ------------------------------------------------------------- memory regimes
+# What a call costs depends on whether the memory it allocates is already the
+# process's.  glibc's malloc hands large freed blocks straight back to the kernel
+# (blocks above 32 MiB are mmapped and unmapped on free; below, the top of the heap
+# is trimmed), so a program that calls Flying Edges again gets its arrays as fresh
+# pages, one minor fault per 4 KiB, which the kernel must zero (and, on a virtual
+# machine, often get from the host): 0.5-0.9 ms per MB on the Intel PVM guest of
+# 2026-12-03, 2.9-3.8 on the AMD one of 2026-12-02, a few ms per call elsewhere.
+# Whether a program pays it depends on its past: the first time glibc unmaps a freed
+# block of up to 32 MiB, it raises its mapping threshold to that size and its trim
+# threshold to twice it, and blocks that size stay in the heap from then on (one
+# 16 MB numpy array freed before Flying Edges' calls makes them fault-free).  So
+# the regime is set, not left to chance:
+#
+#   warm  (the headline) the child's allocator keeps freed memory:
+#         GLIBC_TUNABLES=glibc.malloc.mmap_max=0:glibc.malloc.trim_threshold=16 GiB
+#         in its environment, so the calls after the first full-size one reuse the
+#         memory the one before freed, as a long-running program's do.
+#   cold  the default allocator, in a child where nothing raises its thresholds
+#         before the timed calls: memory handed back between calls (the measurement
+#         before issue 27).
+#
+# Both apply to every extractor alike.  isomend maps its output and work arrays
+# itself (2 MiB pages) and unmaps them when the mesh is destroyed: the tunables do
+# not change that, which is its behaviour in any program.  Each call's minor page
+# faults (getrusage ru_minflt) are recorded, so a reader sees what the regimes change.
+REGIMES = ("warm", "cold")
+WARM_TUNABLES = ("glibc.malloc.mmap_max=0", "glibc.malloc.trim_threshold=17179869184")
+
+
+def regime_env(regime, env=None):
+    """The environment of a child in a regime: the caller's, with GLIBC_TUNABLES'
+    glibc.malloc.* entries replaced by WARM_TUNABLES (warm) or removed (cold)."""
+    if regime not in REGIMES:
+        raise ValueError("unknown memory regime %r" % regime)
+    env = dict(os.environ if env is None else env)
+    kept = [t for t in env.get("GLIBC_TUNABLES", "").split(":")
+            if t and not t.startswith("glibc.malloc.")]
+    if regime == "warm":
+        kept += WARM_TUNABLES
+    if kept:
+        env["GLIBC_TUNABLES"] = ":".join(kept)
+    else:
+        env.pop("GLIBC_TUNABLES", None)
+    return env
+
+
+class _Mallinfo2(ctypes.Structure):
+    _fields_ = [(n, ctypes.c_size_t) for n in (
+        "arena", "ordblks", "smblks", "hblks", "hblkhd", "usmblks", "fsmblks", "uordblks",
+        "fordblks", "keepcost")]
+
+
+def allocator_keeps_freed_memory():
+    """Whether this process's malloc keeps a large freed block (the warm regime):
+    64 MiB are allocated and freed; True if they came from the heap rather than a
+    mapping of their own and are still free in it afterwards; None without glibc's
+    mallinfo2 (glibc < 2.33)."""
+    libc = ctypes.CDLL(None)
+    info = getattr(libc, "mallinfo2", None)
+    if info is None:
+        return None
+    info.restype = _Mallinfo2
+    libc.malloc.restype = ctypes.c_void_p
+    libc.malloc.argtypes = [ctypes.c_size_t]
+    libc.free.argtypes = [ctypes.c_void_p]
+    size = 64 << 20
+    before = info()
+    p = libc.malloc(size)
+    if not p:
+        return None
+    mapped = info().hblkhd - before.hblkhd >= size
+    libc.free(p)
+    return not mapped and info().fordblks >= size
+
+
 def _reset_peak():
     try:
         with open("/proc/self/clear_refs", "w") as f:
@@ -507,6 +590,7 @@ def floor_sum(lib, a, threads):
 
 def child_main(args):
     threads = args.child_threads
+    keeps = allocator_keeps_freed_memory()
     ncpu = os.cpu_count() or 1
     if threads <= ncpu:
         os.sched_setaffinity(0, set(sorted(os.sched_getaffinity(0))[:threads]))
@@ -541,9 +625,9 @@ def child_main(args):
         nsum = float(a.sum(dtype=np.float64))
         numpy_times.append(time.perf_counter() - t0)
 
-    times, cpus, systems, peaks, reported = [], [], [], [], []
+    times, cpus, systems, peaks, reported, faults = [], [], [], [], [], []
     result = None
-    first_times, first_cpus = [], []
+    first_times, first_cpus, first_faults = [], [], []
     # Memory the VM reported to its host from the end of the previous call (whose
     # output is freed after it) to the end of this one: what the call may have had
     # to get back from the host.
@@ -559,6 +643,7 @@ def child_main(args):
         ru1 = resource.getrusage(resource.RUSAGE_SELF)
         cpus.append(ru1.ru_utime - ru0.ru_utime + ru1.ru_stime - ru0.ru_stime)
         systems.append(ru1.ru_stime - ru0.ru_stime)  # the kernel's share (page faults)
+        faults.append(ru1.ru_minflt - ru0.ru_minflt)  # pages the call touched first
         rep = _reported_kib()
         reported.append(None if rep is None or rep_prev is None else rep - rep_prev)
         rep_prev = rep
@@ -569,6 +654,7 @@ def child_main(args):
         if r == 0:  # the first full-size call of the process, reported apart
             first_times.append(dt)
             first_cpus.append(cpus.pop())
+            first_faults.append(faults.pop())
             systems.pop()
             reported.pop()
         else:
@@ -579,10 +665,11 @@ def child_main(args):
             raise RuntimeError("%s: output changed between repetitions" % label)
     ntri, nvert, nbytes, extra = result
     extra.pop("keep", None)
-    json.dump({"times": times, "cpu_times": cpus, "sys_times": systems,
-               "reported_kib": reported,
+    json.dump({"regime": args.child_regime, "allocator_keeps": keeps,
+               "times": times, "cpu_times": cpus, "sys_times": systems,
+               "minflt": faults, "reported_kib": reported,
                "first_times": first_times,
-               "first_cpu_times": first_cpus,
+               "first_cpu_times": first_cpus, "first_minflt": first_faults,
                "peak_extra_kb": None if None in peaks else max(peaks),
                "triangles": ntri, "vertices": nvert, "output_bytes": nbytes,
                "input_bytes": int(a.nbytes), "rss_input_kb": rss_input - rss_before_input,
@@ -593,20 +680,31 @@ def child_main(args):
 
 # ------------------------------------------------------------------------ the parent
 
-def run_child(args, extractor, vol_path, iso, threads, repeats):
+def child_command(args, extractor, vol_path, iso, threads, repeats, regime):
+    """The command line and environment of one child process (one round)."""
     cmd = [sys.executable, os.path.abspath(__file__), "--child-extractor", extractor,
            "--child-volume", vol_path, "--child-iso", repr(iso), "--child-threads",
-           str(threads), "--repeats", str(repeats)]
+           str(threads), "--repeats", str(repeats), "--child-regime", regime]
     if args.lib_dir:
         cmd += ["--lib-dir", args.lib_dir]
     if args.floor_lib:
         cmd += ["--floor-lib", args.floor_lib]
+    return cmd, regime_env(regime)
+
+
+def run_child(args, extractor, vol_path, iso, threads, repeats, regime):
+    cmd, env = child_command(args, extractor, vol_path, iso, threads, repeats, regime)
+    t0 = time.perf_counter()
     p = subprocess.run(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-                       timeout=args.child_timeout)
+                       timeout=args.child_timeout, env=env)
     if p.returncode != 0:
         msg = (p.stderr.strip().splitlines() or ["exit status %d" % p.returncode])[-1]
         return {"error": msg}
-    return json.loads(p.stdout)
+    r = json.loads(p.stdout)
+    r["child_seconds"] = time.perf_counter() - t0  # the whole child: what a round costs
+    if r["regime"] != regime:
+        return {"error": "the child measured regime %r, not %r" % (r["regime"], regime)}
+    return r
 
 
 def plan(args):
@@ -633,55 +731,58 @@ def plan(args):
 
 
 def quick_policy(args, name, field, size, dtype):
-    """Which measurements quick mode makes, so that it stays under two minutes:
-    the goal's comparison (isomend DMC against Flying Edges) everywhere, isomend in 3
-    rounds and Flying Edges in 2 (its rounds were most of the run, and its calls vary less
-    than isomend's); isomend without normals once, at one thread, on the 256^3 fields
-    (isomend recycling its previous mesh not at all); the other extractors (Flying Edges
-    with normals among them) once, at one thread, on the 256^3 sphere only; at 512^3 the
-    sphere with isomend and Flying Edges geometry only, and the uint8 noise volume of the
-    memory goal with isomend alone, once.  The peers make one timed call a round instead
-    of --calls: their calls take 5-15 times isomend's, and every one of them pays for
-    fresh memory (their large arrays are mapped anew), so their first and later calls
-    differ little.
-    Returns (measure?, rounds, calls or None for --calls), rounds being None for the
-    default, ONCE (one round, at one thread; isomend at all threads) or a cap on the
-    default."""
+    """Which measurements a mode makes: a list of (regime, rounds, calls), empty for
+    none; rounds None for the default, ONCE (one round, at one thread; isomend at all
+    threads) or a cap on the default; calls None for --calls.
+
+    Full and smoke modes measure every extractor in both regimes.  Quick mode stays
+    under two minutes on an idle machine with the goal's comparison (isomend DMC
+    against Flying Edges geometry) in both regimes on every volume, warm (the
+    headline) in more rounds than cold: isomend warm in 3 rounds, cold in 1 (it maps
+    its own arrays in either regime: its cold calls differ little from its warm ones);
+    Flying Edges warm in 2 rounds of 2 calls, cold in 1 round of 1 call (its cold calls
+    are all alike: each one's arrays are fresh pages, the first call's too, which every
+    child reports beside).  Warm only: isomend without normals once, at one thread,
+    on the 256^3 fields; the other extractors (Flying Edges with normals among them)
+    once, at one thread, on the 256^3 sphere, one timed call; the uint8 noise volume
+    of the memory goal with isomend alone, once.  isomend recycling its previous mesh
+    is left to full mode."""
     if not args.quick:
-        return True, None, None
-    calls = None if name.startswith("isomend") else 1
-    if size == 512:
-        if (field, dtype) == ("noise", "u8"):
-            return name == "isomend", ONCE, calls
-        if name == "fe":
-            return True, 2, calls
-        return name == "isomend", None, calls
-    if name == "fe":
-        return True, 2, calls
-    if name == "isomend":
-        return True, None, calls
-    if name == "isomend-recycle":  # full mode only: quick mode has no time left for it
-        return False, None, calls
+        return [(regime, None, None) for regime in REGIMES]
+    goal = (name in ("isomend", "fe") and size in (256, 512)
+            and (field, dtype) != ("noise", "u8"))
+    if goal and name == "fe":
+        return [("warm", 2, 2), ("cold", 1, 1)]
+    if goal:
+        return [("warm", None, None), ("cold", 1, None)]
+    if (field, size, dtype) == ("noise", 512, "u8"):
+        return [("warm", ONCE, None)] if name == "isomend" else []
+    if name == "isomend-recycle" or size == 512:
+        return []
     if name == "isomend-geom":
-        return True, ONCE, calls
-    return (size == 256 and field == "sphere"), ONCE, calls
+        return [("warm", ONCE, None)]
+    if (field, size) == ("sphere", 256):
+        return [("warm", ONCE, None if name.startswith("isomend") else 1)]
+    return []
 
 
 def volume_jobs(args, peers, field, n, dtype, t, thread_counts, repeats):
-    """The (extractor, rounds, calls) measured on one volume at t threads."""
+    """The (extractor, regime, rounds, calls) measured on one volume at t threads,
+    in the order a round runs them: each extractor's regimes one after the other."""
     jobs = []
     for ext in peers:
         _label, _setup, parallel = EXTRACTORS[ext]
-        wanted, rounds, calls = quick_policy(args, ext, field, n, dtype)
-        if not wanted:
-            continue
         if not parallel and t != thread_counts[0]:
             continue  # single-threaded: its 1-thread time stands for every count
-        if rounds is ONCE:
-            if t != (thread_counts[-1] if ext == "isomend" else thread_counts[0]):
-                continue  # measured once: at 1 thread (isomend: all threads)
-            rounds = 1
-        jobs.append((ext, min(rounds, repeats) if rounds else repeats, calls or args.calls))
+        for regime, rounds, calls in quick_policy(args, ext, field, n, dtype):
+            if regime not in getattr(args, "regimes", REGIMES):
+                continue
+            if rounds is ONCE:
+                if t != (thread_counts[-1] if ext == "isomend" else thread_counts[0]):
+                    continue  # measured once: at 1 thread (isomend: all threads)
+                rounds = 1
+            jobs.append((ext, regime, min(rounds, repeats) if rounds else repeats,
+                         calls or args.calls))
     return jobs
 
 
@@ -734,16 +835,17 @@ def machine_info(outputs=()):
 
 def measure_volume(args, peers, field, n, dtype, vol_path, iso, t, thread_counts, repeats):
     """Measures every extractor on one volume at t threads, in rounds: round r runs
-    each extractor once, in a fresh child, so that the extractors being compared
-    take turns and a change of load on a shared machine hits them alike."""
+    each (extractor, regime) once, in a fresh child, so that the extractors and
+    regimes being compared take turns and a change of load on a shared machine hits
+    them alike."""
     jobs = volume_jobs(args, peers, field, n, dtype, t, thread_counts, repeats)
     acc = {}
-    for rnd in range(max([reps for _e, reps, _c in jobs] or [0])):
-        for ext, reps, calls in jobs:
-            if rnd >= reps or "error" in acc.get(ext, {}):
+    for rnd in range(max([reps for _e, _g, reps, _c in jobs] or [0])):
+        for ext, regime, reps, calls in jobs:
+            a = acc.setdefault((ext, regime), {})
+            if rnd >= reps or "error" in a:
                 continue
-            r = run_child(args, ext, vol_path, iso, t, calls)
-            a = acc.setdefault(ext, {})
+            r = run_child(args, ext, vol_path, iso, t, calls, regime)
             if "error" in r:
                 a.clear()
                 a["error"] = r["error"]
@@ -753,31 +855,40 @@ def measure_volume(args, peers, field, n, dtype, vol_path, iso, t, thread_counts
                 a.clear()
                 a["error"] = "output changed between runs"
             else:
-                for key in ("times", "cpu_times", "sys_times", "reported_kib", "first_times",
-                            "first_cpu_times", "floor_times", "numpy_sum_times"):
+                a["child_seconds"] += r["child_seconds"]
+                for key in ("times", "cpu_times", "sys_times", "minflt", "reported_kib",
+                            "first_times", "first_cpu_times", "first_minflt", "floor_times",
+                            "numpy_sum_times"):
                     a[key] = a[key] + r[key]
                 if a["peak_extra_kb"] is not None and r["peak_extra_kb"] is not None:
                     a["peak_extra_kb"] = max(a["peak_extra_kb"], r["peak_extra_kb"])
+                if a["allocator_keeps"] != r["allocator_keeps"]:
+                    a["allocator_keeps"] = None  # --check reports it
     out = []
-    for ext, reps, calls in jobs:
+    for ext, regime, reps, calls in jobs:
         label, _setup, parallel = EXTRACTORS[ext]
-        r = acc[ext]
+        r = acc[(ext, regime)]
         r.update({"field": field, "size": n, "dtype": dtype, "extractor": ext, "label": label,
-                  "threads": t, "iso": iso, "parallel": parallel, "repeats": reps,
-                  "calls": calls})
+                  "regime": regime, "threads": t, "iso": iso, "parallel": parallel,
+                  "repeats": reps, "calls": calls})
         if "times" in r:
             r["median"] = statistics.median(r["times"])
             r["min"] = min(r["times"])
             r["cpu"] = statistics.median(r["cpu_times"])
             r["sys"] = statistics.median(r["sys_times"])
+            r["user"] = statistics.median([c - k for c, k in zip(r["cpu_times"],
+                                                                   r["sys_times"])])
+            r["faults"] = statistics.median(r["minflt"])
             r["floor"] = statistics.median(r["floor_times"])
             r["first"] = statistics.median(r["first_times"])
-            print("[bench]   %-32s %d thr: %8.1f ms (CPU %7.1f ms, kernel %6.1f) %9d tri  "
-                  "floor %.1f ms" % (label, t, 1e3 * r["median"], 1e3 * r["cpu"],
-                                     1e3 * r["sys"], r["triangles"], 1e3 * r["floor"]),
+            r["first_faults"] = statistics.median(r["first_minflt"])
+            print("[bench]   %-32s %s %d thr: %8.1f ms (CPU %7.1f ms, kernel %6.1f, %6d "
+                  "faults) %9d tri  floor %.1f ms"
+                  % (label, regime, t, 1e3 * r["median"], 1e3 * r["cpu"], 1e3 * r["sys"],
+                     r["faults"], r["triangles"], 1e3 * r["floor"]),
                   file=sys.stderr, flush=True)
         else:
-            print("[bench]   %-32s %d thr: FAILED: %s" % (label, t, r["error"]),
+            print("[bench]   %-32s %s %d thr: FAILED: %s" % (label, regime, t, r["error"]),
                   file=sys.stderr, flush=True)
         out.append(r)
     return out
@@ -800,6 +911,10 @@ def main(argv=None):
     ap.add_argument("--peers", default="all",
                     help="comma list of %s, or all"
                     % ",".join(ALL_PEERS))
+    ap.add_argument("--regimes", default=",".join(REGIMES),
+                    help="memory regimes to measure, a comma list of warm (the headline: "
+                         "the allocator keeps freed memory) and cold (glibc's default); "
+                         "default both")
     ap.add_argument("--lib-dir", help="folder with libisomend.so (else $ISOMEND_LIB_DIR)")
     ap.add_argument("--floor-lib", help="libisomend_bench_floor.so (else numpy's sum)")
     ap.add_argument("--cache-dir", help="where generated volumes are kept "
@@ -813,6 +928,7 @@ def main(argv=None):
     ap.add_argument("--child-volume", help=argparse.SUPPRESS)
     ap.add_argument("--child-iso", type=float, help=argparse.SUPPRESS)
     ap.add_argument("--child-threads", type=int, help=argparse.SUPPRESS)
+    ap.add_argument("--child-regime", choices=REGIMES, help=argparse.SUPPRESS)
     args = ap.parse_args(argv)
 
     if args.child_extractor:
@@ -834,6 +950,10 @@ def main(argv=None):
             print("bench.py: --peers: unknown extractor %r (known: %s)"
                   % (p, ", ".join(EXTRACTORS)), file=sys.stderr)
             return 2
+    args.regimes = args.regimes.split(",")
+    if not args.regimes or any(g not in REGIMES for g in args.regimes):
+        print("bench.py: --regimes: a comma list of %s" % ", ".join(REGIMES), file=sys.stderr)
+        return 2
     ncpu = os.cpu_count() or 1
     if args.threads:
         try:
@@ -913,7 +1033,7 @@ def main(argv=None):
         sys.stdout.write(text)
     print("[bench] done in %.0f s" % info["seconds"], file=sys.stderr)
     if args.check:
-        problems = check(results, peers)
+        problems = check(results, peers, args.regimes)
         if args.floor_lib and not (info.get("page_cost") and min(info["page_cost"]) > 0):
             problems.append("the fresh-memory cost was not measured (isomend_bench_page_cost)")
         for p in problems:
@@ -936,7 +1056,7 @@ def _write_atomic(path, text):
         raise
 
 
-def check(results, peers):
+def check(results, peers, regimes=REGIMES):
     """Consistency of a run (the smoke test): every measurement succeeded, the
     floor read every voxel, isomend's mesh has Flying Edges' vertices (one per
     intersected edge), the Python wrapper and the geometry-only run give the
@@ -949,7 +1069,15 @@ def check(results, peers):
             problems.append("%s %s %s %s: %s" % (r["field"], r["size"], r["dtype"],
                                                   r.get("extractor", "volume"), r["error"]))
             continue
-        by[(r["field"], r["size"], r["dtype"], r["extractor"], r["threads"])] = r
+        by[(r["field"], r["size"], r["dtype"], r["extractor"], r["regime"], r["threads"])] = r
+        # The regime is the one the child's allocator was in (None: not known there).
+        if r.get("allocator_keeps") is not None and \
+                r["allocator_keeps"] != (r["regime"] == "warm"):
+            problems.append("%s %s: measured as %s, but the child's allocator %s freed "
+                            "memory" % (r["label"], r["regime"], r["regime"],
+                                        "kept" if r["allocator_keeps"] else "did not keep"))
+        if len(r.get("minflt", [])) != len(r["times"]):
+            problems.append("%s: page faults not recorded per call" % r["label"])
         if abs(r["floor_sum"] - r["numpy_sum"]) > 1e-4 * max(1.0, abs(r["numpy_sum"])) + 1e-3 * \
                 r["input_bytes"]:
             problems.append("%s: floor sum %g != numpy sum %g" % (r["label"], r["floor_sum"],
@@ -960,10 +1088,10 @@ def check(results, peers):
         if len(rep) != len(r["times"]) or (reporting and None in rep):
             problems.append("%s: memory reported to the host not recorded per call" % r["label"])
     for key, r in by.items():
-        f, n, d, ext, t = key
+        f, n, d, ext, regime, t = key
         if ext == "isomend":
             for other in ("isomend-geom", "isomend-recycle", "isomend-py"):
-                o = by.get((f, n, d, other, t))
+                o = by.get((f, n, d, other, regime, t))
                 if o and (o["triangles"], o["vertices"]) != (r["triangles"], r["vertices"]):
                     problems.append("%s %d %s: %s differs from isomend (%d/%d vs %d/%d)" % (
                         f, n, d, other, o["triangles"], o["vertices"], r["triangles"],
@@ -971,7 +1099,7 @@ def check(results, peers):
             # Flying Edges also shares one vertex per intersected edge: same vertices.
             # (Its table triangulates some inverted cases with more triangles, so
             # triangle counts differ by design; they stay within 15 %.)
-            fe = by.get((f, n, d, "fe", t))
+            fe = by.get((f, n, d, "fe", regime, t))
             if fe:
                 if r["vertices"] != fe["vertices"]:
                     problems.append("%s %d %s: isomend has %d vertices, Flying Edges %d" % (
@@ -979,12 +1107,14 @@ def check(results, peers):
                 if abs(r["triangles"] - fe["triangles"]) > 0.15 * fe["triangles"]:
                     problems.append("%s %d %s: isomend %d triangles, Flying Edges %d" % (
                         f, n, d, r["triangles"], fe["triangles"]))
-            base = by.get((f, n, d, "isomend", 1))
+            base = by.get((f, n, d, "isomend", "warm", 1))
             if base and (base["triangles"], base["vertices"]) != (r["triangles"], r["vertices"]):
-                problems.append("%s %d %s: isomend output depends on the thread count" % (f, n, d))
+                problems.append("%s %d %s: isomend output depends on the thread count or "
+                                "the regime" % (f, n, d))
     for p in peers:
-        if not any(k[3] == p for k in by):
-            problems.append("extractor %s never ran" % p)
+        for regime in regimes:
+            if not any(k[3] == p and k[4] == regime for k in by):
+                problems.append("extractor %s never ran %s" % (p, regime))
     return problems
 
 
@@ -1009,39 +1139,93 @@ def _vol_name(f, n, d):
     return "%s %s" % (f, d) if f == "colin27" else "%s %d³ %s" % (f, n, d)
 
 
+def _rounds_note(info, results):
+    """How rows depart from the run's rounds x calls: '; vtkFlyingEdges3D geometry: warm
+    2 rounds of 2 calls, cold 1 of 1' (single rounds of the default calls are marked ¹)."""
+    combos = {}
+    for r in results:
+        if "repeats" not in r:
+            continue
+        rc = (r["repeats"], r["calls"])
+        if rc == (info["repeats"], info["calls"]) or rc == (1, info["calls"]):
+            continue
+        combos.setdefault(r["label"], {}).setdefault(r["regime"], set()).add(rc)
+    parts = []
+    for label in sorted(combos):
+        parts.append("%s: %s" % (label, ", ".join(
+            "%s %s" % (regime, " or ".join("%d round%s of %d call%s" % (
+                n, "" if n == 1 else "s", c, "" if c == 1 else "s") for n, c in sorted(rcs)))
+            for regime, rcs in sorted(combos[label].items(), key=lambda x: REGIMES.index(x[0])))))
+    return "".join("; " + p for p in parts)
+
+
+def _faults(r):
+    return "—" if r is None else "%.0f" % r["faults"]
+
+
+def _regimes_paragraph(info, by, vols, thread_counts):
+    """Why warm and cold differ, with this run's figures: the per-call faults of
+    Flying Edges on the first goal volume and their price on this machine."""
+    parts = []
+    w = parts.append
+    w("**Memory regimes.** *Warm* (the headline; the goals are judged on it): every "
+      "extractor runs in a child whose allocator keeps the memory a call frees "
+      "(`GLIBC_TUNABLES=%s`), and the timed calls come back to back after a full-size first "
+      "call, as in a program that extracts one surface after another. *Cold* (marked so "
+      "wherever it appears): glibc's default allocator, which hands large freed arrays back "
+      "to the kernel (unmapped, or trimmed from the heap), so that every call touches its "
+      "arrays as fresh pages again, one minor fault per 4 KiB page, each page zeroed by the "
+      "kernel. The first call of a process, fresh memory in either regime, is reported "
+      "apart. isomend maps its output and work arrays itself, on 2 MiB pages, and unmaps "
+      "them when a mesh is destroyed: it pays for its fresh output in both regimes, as it "
+      "does in any program (few faults, one per 2 MiB page, but the kernel zeroes every "
+      "page, and gets it back from the host first where the host had taken it: its "
+      "*kernel ms*). *faults* = the median minor page faults of a call (getrusage "
+      "`ru_minflt`); *kernel ms* = the median system time of a call." % ":".join(WARM_TUNABLES))
+    pc = info.get("page_cost")
+    for v in vols:
+        t = thread_counts[0]
+        fw, fc = by.get(v + ("fe", "warm", t)), by.get(v + ("fe", "cold", t))
+        if not (fw and fc):
+            continue
+        mb = fc["faults"] * 4096 / 2**20
+        w(" On the %s at %d thread%s Flying Edges took %.0f faults per cold call (%.0f MB of "
+          "4 KiB pages)%s and %.0f per warm call: %s ms cold, %s ms warm (CPU time %s / %s "
+          "ms)." % (_vol_name(*v), t, "" if t == 1 else "s", fc["faults"], mb,
+                    ", %.0f ms at this run's %.3g ms/MB for 4 KiB pages" % (mb * pc[2], pc[2])
+                    if pc else "", fw["faults"], _ms(fc["median"]), _ms(fw["median"]),
+                    _ms(fc["cpu"]), _ms(fw["cpu"])))
+        break
+    if pc:
+        w(" Where a 4 KiB fault is cheap (an ordinary machine, not a guest that traps to "
+          "its host on every fault) the two regimes come closer; the warm figures leave the "
+          "fault price out of every extractor's calls alike.")
+    return "".join(parts) + "\n"
+
+
 def render(info, results, thread_counts):
     out = []
     w = out.append
     w("# isomend benchmark results\n")
     w("Generated by `%s` (%s mode) on %s in %.0f s. "
-      "**Do not edit: rerun the benchmark** (see the README's performance section).\n"
+      "**Do not edit: rerun the benchmark** (see docs/performance.md).\n"
       % (info.get("command"), info["mode"], info["started"], info["seconds"]))
-    # quick mode's peers time fewer calls than isomend: "1", or "1 or 2"
-    fewer = " or ".join(str(c) for c in sorted(
-        {r["calls"] for r in results if r.get("calls", info["calls"]) != info["calls"]}))
-    # quick mode's Flying Edges makes fewer rounds than isomend
-    rounds = "".join("; %s: %d rounds" % lr for lr in sorted(
-        {(r["label"], r["repeats"]) for r in results if 1 < r["repeats"] < info["repeats"]}))
-    w("Machine: %s, %s cores, %s GB RAM, Debian %s (timings are medians of %d rounds of "
-      "%d timed calls, single rounds where marked ¹%s%s). "
+    w("Machine: %s, %s cores, %s GB RAM, Debian %s (timings are medians of %d rounds — "
+      "child processes — of %d timed calls each, single rounds where marked ¹%s). "
       "isomend %s (git %s); VTK %s (SMP backend %s), scikit-image %s, OpenVDB %s, numpy %s, "
       "Python %s.\n"
       % (info.get("cpu", "?"), info.get("cpus"), info.get("mem_gb"), info.get("debian", "?"),
-         info["repeats"], info["calls"],
-         "; the peers make %s timed call%s a round" % (fewer, "" if fewer == "1" else "s")
-         if fewer else "",
-         rounds,
+         info["repeats"], info["calls"], _rounds_note(info, results),
          _first_extra(results, "version") or "?", info.get("git", "?"), info.get("vtk", "?"),
          info.get("vtk_smp", "?"), info.get("skimage", "?"), info.get("openvdb", "?"),
          info.get("numpy", "?"), info.get("python")))
     pc = info.get("page_cost")
     if pc:
         w("Fresh memory at the start of the run (the kernel zeroing the pages a process "
-          "touches first, which every extractor pays for its output): 2 MiB pages %.3g ms/MB "
-          "the first time, %.3g ms/MB reused; 4 KiB pages %.3g ms/MB reused. A first time "
-          "far above the reused figure means the host had taken the memory back (free page "
-          "reporting); calls then pay that price on part of their output.\n"
-          % (pc[0], pc[1], pc[2]))
+          "touches first): 2 MiB pages %.3g ms/MB the first time, %.3g ms/MB reused; 4 KiB "
+          "pages %.3g ms/MB reused. A first time far above the reused figure means the host "
+          "had taken the memory back (free page reporting); calls then pay that price on "
+          "part of their output.\n" % (pc[0], pc[1], pc[2]))
     pr = info.get("page_reporting")
     if pr and "run_kib" in pr:
         w("Free page reporting: this VM's kernel handed %.0f MB of free memory back to its "
@@ -1058,7 +1242,8 @@ def render(info, results, thread_counts):
               ", ".join("%.2f" % x for x in info.get("loadavg_end", ())), 100 * share,
               "the machine was not idle, compare the CPU-time ratios." if share < 0.9 else
               "the machine was close to idle."))
-    by = {(r["field"], r["size"], r["dtype"], r["extractor"], r["threads"]): r for r in ok}
+    by = {(r["field"], r["size"], r["dtype"], r["extractor"], r["regime"], r["threads"]): r
+          for r in ok}
     vols = []
     for r in results:
         v = (r["field"], r["size"], r["dtype"])
@@ -1070,43 +1255,53 @@ def render(info, results, thread_counts):
     w("Goal 2: isomend DMC (normals, shared vertices, no holes) at least 2x faster than "
       "vtkFlyingEdges3D geometry-only at equal threads on every field at 256³ and 512³, and "
       "within 4x of the memory-read floor on the sphere. Floor = sum of every voxel by a C "
-      "loop at the same thread count, same process, same array.\n")
-    w("Three views of the same runs, because the machine may be shared: the median wall "
-      "time (the spec's measure), the best run's wall time, and the CPU time the process "
-      "used during the call (user + system, all threads; at 1 thread it is the least "
-      "sensitive to other jobs, at 2 threads it includes TBB's idle spinning). *Kernel ms* "
-      "is the median system time of a call (the kernel's page faults for the output; "
-      "sampled by the kernel at its clock tick): on a virtual machine that returns freed "
-      "memory to its host, this is the part that varies from call to call.\n")
+      "loop at the same thread count, same process, same array. **The goals are evaluated "
+      "on the warm figures**; the cold ones are beside them, labelled *cold*.\n")
+    w(_regimes_paragraph(info, by, vols, thread_counts))
+    w("Three views of the warm runs, because the machine may be shared: the median wall "
+      "time (the spec's measure), the CPU time the process used during the call (user + "
+      "system, all threads; at 1 thread it is the least sensitive to other jobs, at 2 "
+      "threads it includes TBB's idle spinning), and its user part alone, the work of the "
+      "call without the kernel's (page faults, zeroing the pages of fresh memory: the part "
+      "that depends on the machine's price of fresh memory; the kernel splits the two by "
+      "sampling at its clock tick, so it is approximate).\n")
     w("| volume | threads | isomend DMC+normals ms | FE geometry ms | speed-up vs FE, median "
-      "(goal ≥ 2) | best runs | CPU time | kernel ms, isomend / FE | floor ms | "
-      "isomend / floor (goal ≤ 4 on the sphere) | triangles |")
-    w("|---|---|---|---|---|---|---|---|---|---|---|")
+      "(goal ≥ 2) | CPU time | user time | faults per call, isomend / FE | kernel ms, "
+      "isomend / FE | floor ms | "
+      "isomend / floor (goal ≤ 4 on the sphere) | cold: isomend / FE ms | cold: speed-up | "
+      "cold: faults per call, isomend / FE | triangles |")
+    w("|---" * 15 + "|")
     for v in vols:
         for t in thread_counts:
-            i = by.get(v + ("isomend", t))
-            fe = by.get(v + ("fe", t))
+            i = by.get(v + ("isomend", "warm", t))
+            fe = by.get(v + ("fe", "warm", t))
             if not i:
                 continue
+            ic, fc = by.get(v + ("isomend", "cold", t)), by.get(v + ("fe", "cold", t))
             goal_size = v[1] in (256, 512)
 
-            def ratio(key, mark):
-                if not fe:
+            def ratio(a, b, key, mark):
+                if not (a and b):
                     return "—"
-                x = fe[key] / i[key]
+                x = b[key] / a[key]
                 return "%.2f%s" % (x, (" ✔" if x >= 2 else " ✘") if mark and goal_size else "")
             fl = i["median"] / i["floor"]
             fmark = (" ✔" if fl <= 4 else " ✘") if v[0] == "sphere" and goal_size else ""
-            kernel = "%s / %s" % (_ms(i["sys"]), _ms(fe["sys"]) if fe else "—")
-            w("| %s | %d | %s | %s | %s | %s | %s | %s | %s | %.1f%s | %s |" % (
-                _vol_name(*v), t, _ms(i["median"]), _ms(fe["median"]) if fe else "—",
-                ratio("median", True), ratio("min", False), ratio("cpu", False), kernel,
-                _ms(i["floor"]), fl, fmark, _count(i["triangles"])))
+            w("| %s | %d | %s | %s | %s | %s | %s | %s / %s | %s / %s | %s | %.1f%s | %s / %s | "
+              "%s | %s / %s | %s |" % (
+                  _vol_name(*v), t, _ms(i["median"]), _ms(fe["median"]) if fe else "—",
+                  ratio(i, fe, "median", True), ratio(i, fe, "cpu", False),
+                  ratio(i, fe, "user", False), _faults(i), _faults(fe), _ms(i["sys"]),
+                  _ms(fe["sys"]) if fe else "—", _ms(i["floor"]), fl,
+                  fmark, _ms(ic["median"]) if ic else "—", _ms(fc["median"]) if fc else "—",
+                  ratio(ic, fc, "median", False), _faults(ic), _faults(fc),
+                  _count(i["triangles"])))
     w("")
-    mem = [r for r in ok if r["extractor"] == "isomend" and r.get("peak_extra_kb") is not None]
+    mem = [r for r in ok if r["extractor"] == "isomend" and r["regime"] == "warm"
+           and r.get("peak_extra_kb") is not None]
     if mem:
         w("Goal 3, memory: peak resident memory of the extraction (input + the largest "
-          "increase of RSS during the call) against input + output mesh + 10 %.\n")
+          "increase of RSS during the call; warm) against input + output mesh + 10 %.\n")
         w("| volume | threads | input MB | output MB | peak MB | limit MB | met |")
         w("|---|---|---|---|---|---|---|")
         for r in mem:
@@ -1121,18 +1316,17 @@ def render(info, results, thread_counts):
 
     # Details per volume.
     w("## Every extractor, per volume\n")
-    w("Times in ms (median). Each child process (a round) makes 1 + %d full-size calls and "
-      "times the last %d%s: *first call* is the first one, which on this virtual machine also "
-      "pays for memory fresh from the host (the kernel returns freed memory to the host; "
-      "isomend's huge-page output arrays are the slowest to get back, see the README). "
-      % (info["calls"], info["calls"],
-         " (the peers 1 + %s and the last %s, as quick mode has them)" % (fewer, fewer)
-         if fewer else "") +
-      "*speed-up* = the extractor's time / isomend DMC+normals' time at "
-      "the same thread count (> 1: isomend is faster). *extra MB* = the largest RSS increase "
-      "during the call (output and temporaries; the input is already resident). "
-      "Single-threaded peers (vtkMarchingCubes, scikit-image) run once at 1 thread: that time "
-      "stands for every thread count.\n")
+    w("Times in ms (median), warm unless marked *(cold)*. Each child process (a round) "
+      "makes 1 + N full-size calls and times the last N: *first call* is the first one, "
+      "which pays for fresh memory in either regime (on this virtual machine, memory the "
+      "host may have taken back; isomend's huge-page output arrays are the slowest to get "
+      "back, see docs/performance.md). *speed-up* = the extractor's time / isomend "
+      "DMC+normals' time at the same thread count in the same regime (> 1: isomend is "
+      "faster). *faults* = minor page faults per timed call at %d thread%s. *extra MB* = the "
+      "largest RSS increase during the call (output and temporaries; the input is already "
+      "resident). Single-threaded peers (vtkMarchingCubes, scikit-image) run once at 1 "
+      "thread: that time stands for every thread count.\n"
+      % (thread_counts[0], "" if thread_counts[0] == 1 else "s"))
     for v in vols:
         errs = [r for r in results if (r["field"], r["size"], r["dtype"]) == v and "error" in r]
         rows = [r for r in ok if (r["field"], r["size"], r["dtype"]) == v]
@@ -1146,20 +1340,21 @@ def render(info, results, thread_counts):
         head = "| extractor |"
         for t in thread_counts:
             head += " %d thr ms | speed-up | × floor |" % t
-        head += " triangles | vertices | extra MB | first call, %d thr ms |" % thread_counts[0]
+        head += " faults | triangles | vertices | extra MB | first call, %d thr ms |" \
+            % thread_counts[0]
         w(head)
-        w("|---" * (1 + 3 * len(thread_counts) + 4) + "|")
-        exts = []
+        w("|---" * (1 + 3 * len(thread_counts) + 5) + "|")
+        kinds = []
         for r in rows:
-            if r["extractor"] not in exts:
-                exts.append(r["extractor"])
-        for ext in exts:
-            any_r = next(r for r in rows if r["extractor"] == ext)
-            line = "| %s |" % any_r["label"]
+            if (r["extractor"], r["regime"]) not in kinds:
+                kinds.append((r["extractor"], r["regime"]))
+        for ext, regime in kinds:
+            any_r = next(r for r in rows if (r["extractor"], r["regime"]) == (ext, regime))
+            line = "| %s%s |" % (any_r["label"], " *(cold)*" if regime == "cold" else "")
             for t in thread_counts:
-                r = by.get(v + (ext, t))
+                r = by.get(v + (ext, regime, t))
                 if r is None and not any_r["parallel"]:
-                    r = by.get(v + (ext, thread_counts[0]))
+                    r = by.get(v + (ext, regime, thread_counts[0]))
                     note = " (1 thr)" if t != thread_counts[0] else ""
                 else:
                     note = ""
@@ -1167,26 +1362,28 @@ def render(info, results, thread_counts):
                     line += " not run | | |"
                     continue
                 once = "¹" if r["repeats"] == 1 else ""
-                iso_r = by.get(v + ("isomend", t))
+                iso_r = by.get(v + ("isomend", regime, t))
                 sp = r["median"] / iso_r["median"] if iso_r else None
                 fl = floors.get(t)
                 line += " %s%s%s | %s | %s |" % (_ms(r["median"]), once, note,
                                                   "%.2f" % sp if sp else "—",
                                                   "%.1f" % (r["median"] / fl) if fl else "—")
-            peak = max([x["peak_extra_kb"] for x in rows if x["extractor"] == ext
-                        and x["peak_extra_kb"] is not None] or [None], key=lambda x: x or 0)
-            r1 = by.get(v + (ext, thread_counts[0]))
-            line += " %s | %s | %s | %s |" % (_count(any_r["triangles"]),
-                                              _count(any_r["vertices"]), _mb(peak),
-                                              _ms(r1["first"]) if r1 else "—")
+            same = [x for x in rows if (x["extractor"], x["regime"]) == (ext, regime)]
+            peak = max([x["peak_extra_kb"] for x in same if x["peak_extra_kb"] is not None]
+                       or [None], key=lambda x: x or 0)
+            r1 = by.get(v + (ext, regime, thread_counts[0]))
+            line += " %s | %s | %s | %s | %s |" % (_faults(r1), _count(any_r["triangles"]),
+                                                   _count(any_r["vertices"]), _mb(peak),
+                                                   _ms(r1["first"]) if r1 else "—")
             w(line)
         w("| memory-read floor (%s sum) |" % rows[0]["floor_impl"] +
-          "".join(" %s | | |" % _ms(floors.get(t)) for t in thread_counts) + " | | | |")
+          "".join(" %s | | |" % _ms(floors.get(t)) for t in thread_counts) + " | | | | |")
         np_t = statistics.median([min(r["numpy_sum_times"]) for r in rows])
         w("\nnumpy `a.sum(dtype=float64)` of the same array: %s ms (1 thread).\n" % _ms(np_t))
         for r in errs:
-            w("- %s at %s threads: failed: %s" % (r.get("label", r.get("extractor")),
-                                                  r.get("threads"), r["error"]))
+            w("- %s%s at %s threads: failed: %s" % (
+                r.get("label", r.get("extractor")),
+                " (cold)" if r.get("regime") == "cold" else "", r.get("threads"), r["error"]))
         if errs:
             w("")
     w("## Fields\n")

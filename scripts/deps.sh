@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # Installs, with apt-get, the Debian 12 packages isomend needs and that are missing.
 # Usage: scripts/deps.sh [build|test|all]   (default all)
-#   build: compilers, CMake, zlib, OpenImageIO, GDCM, Qt/MeshLab headers' needs
+#   build: compilers, CMake, zlib, OpenImageIO, GDCM, Qt/MeshLab headers' needs, Open MPI
+#          (isomend-mpi and its tests)
 #   test:  build + the peers and hosts the tests drive (VTK, scikit-image,
 #          MeshLab, Blender, Xvfb, pytest, pydicom, gdcmconv) and mmdebstrap
 #          (the Debian 13 root of scripts/trixie-root.sh)
@@ -10,7 +11,7 @@ what="${1:-all}"
 BUILD_PKGS=(build-essential cmake pkg-config zlib1g-dev
   libopenimageio-dev openimageio-tools libgdcm-dev
   qtbase5-dev libqt5opengl5-dev libglew-dev libeigen3-dev dpkg-dev meshlab
-  python3-numpy)
+  python3-numpy libopenmpi-dev openmpi-bin)
 TEST_PKGS=(python3-pytest python3-vtk9 python3-skimage python3-openimageio python3-tifffile
   xvfb xauth blender libtiff-tools libopenvdb-dev python3-openvdb python3-nibabel
   python3-scipy mmdebstrap python3-pydicom libgdcm-tools)

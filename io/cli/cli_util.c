@@ -9,6 +9,7 @@
 
 #include "cli.h"
 
+#include <ctype.h>
 #include <errno.h>
 #include <math.h>
 #include <signal.h>
@@ -36,14 +37,33 @@ void cli_install_signal_handlers(void)
     sa.sa_flags = SA_RESTART;
     sigaction(SIGINT, &sa, NULL);
     sigaction(SIGTERM, &sa, NULL);
+    /* a file size limit (ulimit -f) is then a write error with a message and
+     * no output, not a kill that leaves the temporary file behind */
+    signal(SIGXFSZ, SIG_IGN);
+}
+
+const char *cli_program = "isomend";
+static char *capture;
+static size_t capture_size;
+
+void cli_error_capture(char *buf, size_t size)
+{
+    capture = buf;
+    capture_size = size;
+    if (buf && size) buf[0] = '\0';
 }
 
 void cli_error(const char *fmt, ...)
 {
-    if (cli_active_progress) cli_progress_clear(cli_active_progress);
     va_list ap;
     va_start(ap, fmt);
-    fputs("isomend: ", stderr);
+    if (capture) { /* the first message is the one that matters */
+        if (!capture[0]) vsnprintf(capture, capture_size, fmt, ap);
+        va_end(ap);
+        return;
+    }
+    if (cli_active_progress) cli_progress_clear(cli_active_progress);
+    fprintf(stderr, "%s: ", cli_program);
     vfprintf(stderr, fmt, ap);
     fputc('\n', stderr);
     va_end(ap);
@@ -89,6 +109,55 @@ int cli_parse_doubles(const char *s, double *out, int n)
         p = comma ? comma + 1 : p;
     }
     return 1;
+}
+
+int cli_parse_size(const char *s, uint64_t *out)
+{
+    if (!s || !*s || *s == '-' || *s == '+') return 0;
+    char *end;
+    errno = 0;
+    double v = strtod(s, &end);
+    if (end == s || errno == ERANGE || !isfinite(v) || v < 0) return 0;
+    double scale = 1;
+    const char *units = "KMGT";
+    if (*end) {
+        const char *u = strchr(units, toupper((unsigned char)*end));
+        if (!u) return 0;
+        scale = ldexp(1.0, 10 * (int)(u - units + 1));
+        end++;
+        if (*end == 'i' && (end[1] == 'B' || end[1] == 'b')) end += 2; /* 4GiB */
+        else if (*end == 'B' || *end == 'b') end++; /* 4GB means the same, binary */
+    } else if (v != floor(v)) {
+        return 0; /* a fraction of a byte */
+    }
+    if (*end) return 0;
+    double bytes = floor(v * scale);
+    if (!(bytes < 18446744073709551616.0)) return 0;
+    *out = (uint64_t)bytes;
+    return 1;
+}
+
+const char *cli_bytes_text(uint64_t bytes, char *buf, size_t size)
+{
+    double b = (double)bytes;
+    if (b >= 1024.0 * 1024.0 * 1024.0)
+        snprintf(buf, size, "%.2f GiB", b / (1024.0 * 1024.0 * 1024.0));
+    else
+        snprintf(buf, size, "%.1f MiB", b / (1024.0 * 1024.0));
+    return buf;
+}
+
+uint64_t cli_proc_kib(const char *path, const char *key)
+{
+    FILE *fp = fopen(path, "r");
+    if (!fp) return 0;
+    char line[256];
+    size_t n = strlen(key);
+    unsigned long long kib = 0;
+    while (fgets(line, sizeof line, fp))
+        if (strncmp(line, key, n) == 0 && sscanf(line + n, " %llu kB", &kib) == 1) break;
+    fclose(fp);
+    return (uint64_t)kib;
 }
 
 double cli_now_ms(void)

@@ -11,6 +11,7 @@
 #include "cli.h"
 
 #include <inttypes.h>
+#include <string.h>
 
 static int case_is_ambiguous(int c)
 {
@@ -77,4 +78,98 @@ void cli_json_check(FILE *fp, const isomend_check_report *r)
             r->misoriented_edges, r->nonmanifold_vertices, r->degenerate_triangles, r->components,
             r->euler, r->vertices, r->triangles, r->edges,
             cli_check_has_defects(r) ? "false" : "true");
+}
+
+/* ------------------------------------------------------------------ JSON outputs */
+
+
+
+int cli_json_prepare(cli_json_out *j, const char *path)
+{
+    memset(j, 0, sizeof *j);
+    if (!path) return CLI_EXIT_OK;
+    if (strcmp(path, "-") == 0) {
+        j->to_stdout = 1;
+        return CLI_EXIT_OK;
+    }
+    char msg[ISOMEND_FILEIO_MSG_SIZE];
+    if (isomend_atomic_open(&j->af, path, msg, sizeof msg) != ISOMEND_FILEIO_OK) {
+        cli_error("--json %s", msg);
+        return CLI_EXIT_FAIL;
+    }
+    j->open = 1;
+    return CLI_EXIT_OK;
+}
+
+FILE *cli_json_stream(cli_json_out *j)
+{
+    return j->to_stdout ? stdout : j->open ? j->af.fp : NULL;
+}
+
+int cli_json_finish(cli_json_out *j)
+{
+    if (j->to_stdout) return fflush(stdout) == 0 ? CLI_EXIT_OK : CLI_EXIT_FAIL;
+    if (!j->open) return CLI_EXIT_OK;
+    char msg[ISOMEND_FILEIO_MSG_SIZE];
+    j->open = 0;
+    if (isomend_atomic_commit(&j->af, msg, sizeof msg) != ISOMEND_FILEIO_OK) {
+        cli_error("--json %s", msg);
+        return CLI_EXIT_FAIL;
+    }
+    return CLI_EXIT_OK;
+}
+
+void cli_json_abort(cli_json_out *j)
+{
+    if (j->open) isomend_atomic_abort(&j->af);
+    j->open = 0;
+}
+
+void cli_json_doubles(FILE *fp, const double *v, int n)
+{
+    fputc('[', fp);
+    for (int i = 0; i < n; i++) fprintf(fp, "%s%.17g", i ? ", " : "", v[i]);
+    fputc(']', fp);
+}
+
+void cli_json_dims(FILE *fp, const int64_t *d)
+{
+    fprintf(fp, "[%lld, %lld, %lld]", (long long)d[0], (long long)d[1], (long long)d[2]);
+}
+
+void cli_json_run(FILE *jf, const char *source, const char *kind, const char *output,
+                  const isomend_volume *v, const isomend_options *opts, int iso_suggested)
+{
+    fprintf(jf, "\"source\": ");
+    cli_json_string(jf, source);
+    fprintf(jf, ", \"source_kind\": ");
+    cli_json_string(jf, kind);
+    fprintf(jf, ", \"output\": ");
+    cli_json_string(jf, output);
+    fprintf(jf, ", \"dims\": ");
+    cli_json_dims(jf, v->dims);
+    fprintf(jf, ", \"type\": \"%s\", \"spacing\": ", isomend_type_name(v->type));
+    cli_json_doubles(jf, v->spacing, 3);
+    fprintf(jf, ", \"origin\": ");
+    cli_json_doubles(jf, v->origin, 3);
+    fprintf(jf, ", \"method\": \"%s\", \"iso\": %.17g, \"iso_suggested\": %s",
+            isomend_method_name(opts->method), opts->iso, iso_suggested ? "true" : "false");
+    fprintf(jf, ", \"pad\": %s, \"flip\": %s, \"normals\": %s",
+            (opts->flags & ISOMEND_FLAG_PAD) ? "true" : "false",
+            (opts->flags & ISOMEND_FLAG_FLIP) ? "true" : "false",
+            (opts->flags & ISOMEND_FLAG_NO_NORMALS) ? "false" : "true");
+}
+
+void cli_json_stats(FILE *jf, const isomend_stats *st)
+{
+    fprintf(jf, ", \"vertices\": %" PRIu64 ", \"triangles\": %" PRIu64, st->vertices, st->triangles);
+    fprintf(jf, ", \"triangles_by_origin\": {\"table\": %" PRIu64 ", \"durst\": %" PRIu64
+                ", \"mend\": %" PRIu64 "}",
+            st->triangles_by_origin[ISOMEND_ORIGIN_TABLE], st->triangles_by_origin[ISOMEND_ORIGIN_DURST],
+            st->triangles_by_origin[ISOMEND_ORIGIN_MEND]);
+    fprintf(jf, ", \"cubes\": %" PRIu64 ", \"case_histogram\": [", st->cubes);
+    for (int c = 0; c < 15; c++) fprintf(jf, "%s%" PRIu64, c ? ", " : "", st->case_histogram[c]);
+    fprintf(jf, "], \"ambiguous_faces\": %" PRIu64 ", \"inverted_combinations\": %" PRIu64
+                ", \"nan_samples\": %" PRIu64,
+            st->ambiguous_faces, st->inverted_combinations, st->nan_samples);
 }

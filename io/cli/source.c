@@ -58,6 +58,10 @@ static struct io_api {
     const char *(*kind_name)(int);
     int (*source_kind)(const isomend_io_source *);
     const char *(*format)(const isomend_io_source *);
+    isomend_io_status (*dims)(const isomend_io_source *, int64_t *);
+    isomend_io_status (*type)(const isomend_io_source *, isomend_type *);
+    isomend_io_status (*origin)(const isomend_io_source *, double *);
+    isomend_io_status (*read_slice)(isomend_io_source *, int64_t, void *, size_t);
     isomend_io_status (*set_series)(isomend_io_source *, const char *);
     isomend_io_status (*set_axes)(isomend_io_source *, int);
     int64_t (*series_count)(const isomend_io_source *);
@@ -121,6 +125,10 @@ static int io_load_api(char *why, size_t why_size)
     IO_SYM(kind_name, "isomend_io_kind_name");
     IO_SYM(source_kind, "isomend_io_source_kind");
     IO_SYM(format, "isomend_io_format");
+    IO_SYM(dims, "isomend_io_dims");
+    IO_SYM(type, "isomend_io_type");
+    IO_SYM(origin, "isomend_io_origin");
+    IO_SYM(read_slice, "isomend_io_read_slice");
     IO_SYM(set_series, "isomend_io_set_series");
     IO_SYM(set_axes, "isomend_io_set_axes");
     IO_SYM(series_count, "isomend_io_series_count");
@@ -154,76 +162,55 @@ int cli_builtin_volume(const char *name, float out[64])
     return 1;
 }
 
-static int apply_overrides(const cli_source_opts *o, cli_source *src)
+static void apply_overrides(const cli_source_opts *o, isomend_volume *v, const char **from)
 {
     for (int a = 0; a < 3; a++) {
         if (o->have_spacing) {
-            src->vol.spacing[a] = o->spacing[a];
-            src->spacing_from[a] = "option";
+            v->spacing[a] = o->spacing[a];
+            from[a] = "option";
         }
-        if (o->have_origin) src->vol.origin[a] = o->origin[a];
+        if (o->have_origin) v->origin[a] = o->origin[a];
     }
-    return CLI_EXIT_OK;
 }
 
-/* MemAvailable from /proc/meminfo in bytes, 0 if unknown. */
-static uint64_t memory_available(void)
+uint64_t cli_memory_available(void)
 {
-    FILE *fp = fopen("/proc/meminfo", "r");
-    if (!fp) return 0;
-    char line[256];
-    unsigned long long kib = 0;
-    while (fgets(line, sizeof line, fp))
-        if (sscanf(line, "MemAvailable: %llu kB", &kib) == 1) break;
-    fclose(fp);
-    return (uint64_t)kib * 1024u;
+    return cli_proc_kib("/proc/meminfo", "MemAvailable:") * 1024u;
 }
 
-/* Maps a reader status to an exit code: every reader failure is a failure (1). */
-static int open_fileio(const char *path, const cli_source_opts *o, cli_source *src)
+/* Raw and NRRD: the probe (no sample read). */
+static int open_fileio(const char *path, const cli_source_opts *o, cli_slices *s)
 {
-    isomend_fileio_info info;
     char msg[ISOMEND_FILEIO_MSG_SIZE];
     isomend_fileio_status st;
     if (o->have_raw) {
-        st = isomend_fileio_probe_raw(path, o->raw_dims, o->raw_type, o->raw_big_endian, 0, &info,
-                                      msg, sizeof msg);
-        snprintf(src->kind, sizeof src->kind, "raw");
+        st = isomend_fileio_probe_raw(path, o->raw_dims, o->raw_type, o->raw_big_endian, 0,
+                                      &s->info, msg, sizeof msg);
+        snprintf(s->kind, sizeof s->kind, "raw");
     } else {
-        st = isomend_fileio_probe_nrrd(path, &info, msg, sizeof msg);
-        snprintf(src->kind, sizeof src->kind, "nrrd");
+        st = isomend_fileio_probe_nrrd(path, &s->info, msg, sizeof msg);
+        snprintf(s->kind, sizeof s->kind, "nrrd");
     }
     if (st != ISOMEND_FILEIO_OK) {
         cli_error("%s", msg);
         return CLI_EXIT_FAIL;
     }
-    snprintf(src->format, sizeof src->format, "%s",
-             info.encoding == ISOMEND_FILEIO_ENC_GZIP ? "gzip" : "raw");
-    /* refuse before allocating: Linux overcommits, so a too large malloc
-     * would "succeed" and the kernel would kill us half-way through */
-    uint64_t need = isomend_fileio_volume_bytes(&info), avail = memory_available();
-    if (avail && need > avail) {
-        cli_error("%s: the volume needs %.1f MiB, only %.1f MiB of memory is available", path,
-                  (double)need / 1048576.0, (double)avail / 1048576.0);
-        return CLI_EXIT_FAIL;
+    s->is_fileio = 1;
+    snprintf(s->format, sizeof s->format, "%s",
+             s->info.encoding == ISOMEND_FILEIO_ENC_GZIP ? "gzip" : "raw");
+    /* what isomend_fileio_describe() will present: a reversed axis starts at its last sample */
+    const isomend_fileio_info *in = &s->info;
+    isomend_volume_init(&s->desc, NULL, in->type, in->dims[0], in->dims[1], in->dims[2]);
+    for (int a = 0; a < 3; a++) {
+        s->desc.spacing[a] = in->spacing[a];
+        s->desc.origin[a] = in->origin[a];
+        if (in->axis_negative[a] && !in->oblique && in->dims[a] > 1)
+            s->desc.origin[a] -= (double)(in->dims[a] - 1) * in->spacing[a];
     }
-    double t0 = cli_now_ms();
-    st = isomend_fileio_load(&info, &src->owned, cli_progress_read_cb, o->progress, msg,
-                             sizeof msg);
-    cli_progress_clear(o->progress);
-    if (st == ISOMEND_FILEIO_ERR_CANCELLED) {
-        cli_error("%s: interrupted", path);
-        return CLI_EXIT_INTERRUPTED;
-    }
-    if (st != ISOMEND_FILEIO_OK) {
-        cli_error("%s", msg);
-        return CLI_EXIT_FAIL;
-    }
-    src->read_ms = cli_now_ms() - t0;
-    isomend_fileio_describe(&info, src->owned, &src->vol);
-    for (int a = 0; a < 3; a++) src->spacing_from[a] = info.spacing_known ? "header" : "default";
-    src->oblique = info.oblique;
-    return apply_overrides(o, src);
+    for (int a = 0; a < 3; a++) s->spacing_from[a] = s->info.spacing_known ? "header" : "default";
+    s->oblique = s->info.oblique;
+    apply_overrides(o, &s->desc, s->spacing_from);
+    return CLI_EXIT_OK;
 }
 
 #ifdef ISOMEND_HAVE_IO
@@ -234,7 +221,19 @@ static int io_progress(void *user, int stage, double fraction)
     return cli_interrupted;
 }
 
-static int open_io(const char *const *paths, int n, const cli_source_opts *o, cli_source *src)
+static int io_failed(isomend_io_source *io, isomend_io_status st, const char *label)
+{
+    if (st == ISOMEND_IO_ERR_CANCELLED) {
+        cli_error("%s: interrupted", label);
+        return CLI_EXIT_INTERRUPTED;
+    }
+    const char *m = io_api.message(io);
+    cli_error("%s", m && *m ? m : io_api.status_string(st));
+    return st == ISOMEND_IO_ERR_INVALID_ARGUMENT ? CLI_EXIT_USAGE : CLI_EXIT_FAIL;
+}
+
+/* Image stacks: the importer resolves the source and checks every header. */
+static int open_io(const char *const *paths, int n, const cli_source_opts *o, cli_slices *s)
 {
     isomend_io_source *io = NULL;
     char why[512];
@@ -263,113 +262,268 @@ static int open_io(const char *const *paths, int n, const cli_source_opts *o, cl
     if (o->series) io_api.set_series(io, o->series);
     if (o->grid_axes) io_api.set_axes(io, ISOMEND_IO_AXES_GRID);
     isomend_io_status st = io_api.open(io, paths, (size_t)n, &opts);
+    cli_progress_clear(o->progress);
     if (st == ISOMEND_IO_ERR_SERIES && o->list_series && !o->series) {
         /* `info` on a folder of several series: the list is the answer */
-        cli_progress_clear(o->progress);
-        src->io = io;
-        src->dicom = 1;
-        src->series_listed = 1;
-        snprintf(src->kind, sizeof src->kind, "dicom");
-        snprintf(src->format, sizeof src->format, "dicom");
+        s->io = io;
+        s->dicom = 1;
+        s->series_listed = 1;
+        snprintf(s->kind, sizeof s->kind, "dicom");
+        snprintf(s->format, sizeof s->format, "dicom");
         return CLI_EXIT_OK;
     }
-    double seconds = 0;
-    if (st == ISOMEND_IO_OK) st = io_api.load(io, &src->vol, &seconds);
-    cli_progress_clear(o->progress);
-    if (st == ISOMEND_IO_ERR_CANCELLED) {
-        cli_error("%s: interrupted", paths[0]);
-        io_api.destroy(io);
-        return CLI_EXIT_INTERRUPTED;
-    }
-    if (st != ISOMEND_IO_OK) {
-        const char *m = io_api.message(io);
-        cli_error("%s", m && *m ? m : io_api.status_string(st));
-        io_api.destroy(io);
-        return st == ISOMEND_IO_ERR_INVALID_ARGUMENT ? CLI_EXIT_USAGE : CLI_EXIT_FAIL;
-    }
-    src->io = io;
-    src->read_ms = seconds * 1e3;
-    const char *kind = io_api.kind_name(io_api.source_kind(io));
-    snprintf(src->kind, sizeof src->kind, "%s", kind ? kind : "?");
-    snprintf(src->format, sizeof src->format, "%s", io_api.format(io));
-    src->dicom = io_api.source_kind(io) == ISOMEND_IO_KIND_DICOM;
-    src->grid_axes = o->grid_axes;
-    int identity = 1;
-    if (io_api.world_transform(io, src->world, &identity) == ISOMEND_IO_OK) src->has_world = !identity;
-    double spacing[3];
+    int64_t dims[3];
+    isomend_type type = ISOMEND_U8;
+    double spacing[3], origin[3];
     int from[3] = {0, 0, 0};
-    if (io_api.spacing(io, spacing, from) == ISOMEND_IO_OK)
-        for (int a = 0; a < 3; a++) {
-            const char *name = io_api.spacing_source_name(from[a]);
-            src->spacing_from[a] = name ? name : "?";
-        }
+    if (st == ISOMEND_IO_OK) st = io_api.dims(io, dims);
+    if (st == ISOMEND_IO_OK) st = io_api.type(io, &type);
+    if (st == ISOMEND_IO_OK) st = io_api.spacing(io, spacing, from);
+    if (st == ISOMEND_IO_OK) st = io_api.origin(io, origin);
+    if (st != ISOMEND_IO_OK) {
+        int rc = io_failed(io, st, paths[0]);
+        io_api.destroy(io);
+        return rc;
+    }
+    s->io = io;
+    isomend_volume_init(&s->desc, NULL, type, dims[0], dims[1], dims[2]);
+    for (int a = 0; a < 3; a++) {
+        s->desc.spacing[a] = spacing[a];
+        s->desc.origin[a] = origin[a];
+        const char *name = io_api.spacing_source_name(from[a]);
+        s->spacing_from[a] = name ? name : "?";
+    }
+    const char *kind = io_api.kind_name(io_api.source_kind(io));
+    snprintf(s->kind, sizeof s->kind, "%s", kind ? kind : "?");
+    snprintf(s->format, sizeof s->format, "%s", io_api.format(io));
+    s->dicom = io_api.source_kind(io) == ISOMEND_IO_KIND_DICOM;
+    s->grid_axes = o->grid_axes;
+    int identity = 1;
+    if (io_api.world_transform(io, s->world, &identity) == ISOMEND_IO_OK) s->has_world = !identity;
     return CLI_EXIT_OK;
 }
 #endif
 
-int cli_source_open(const char *const *paths, int n, const cli_source_opts *o, cli_source *src)
+int cli_slices_open(const char *const *paths, int n, const cli_source_opts *o, cli_slices *s)
 {
-    memset(src, 0, sizeof *src);
-    snprintf(src->label, sizeof src->label, "%s", paths[0]);
+    memset(s, 0, sizeof *s);
+    snprintf(s->label, sizeof s->label, "%s", paths[0]);
+    s->progress = o->progress;
     int stack_opts = o->have_first || o->have_count || o->have_step || o->have_channel;
     if ((o->series || o->grid_axes) &&
-        ((n == 1 && (o->have_raw || isomend_fileio_is_nrrd_path(paths[0]))) || strncmp(paths[0], "builtin:", 8) == 0)) {
+        ((n == 1 && (o->have_raw || isomend_fileio_is_nrrd_path(paths[0]))) ||
+         strncmp(paths[0], "builtin:", 8) == 0)) {
         cli_error("%s: --series and --grid-axes apply to DICOM series only", paths[0]);
         return CLI_EXIT_USAGE;
     }
-    float f[64];
-    if (n == 1 && cli_builtin_volume(paths[0], f)) {
+    int rc;
+    if (n == 1 && cli_builtin_volume(paths[0], s->builtin)) {
         if (o->have_raw || stack_opts) {
             cli_error("%s: --raw/--first/--count/--step/--channel do not apply to a built-in volume",
                       paths[0]);
             return CLI_EXIT_USAGE;
         }
-        src->owned = malloc(sizeof f);
-        if (!src->owned) {
-            cli_error("%s: out of memory", paths[0]);
-            return CLI_EXIT_FAIL;
-        }
-        memcpy(src->owned, f, sizeof f);
-        isomend_volume_init(&src->vol, src->owned, ISOMEND_F32, 4, 4, 4);
-        snprintf(src->kind, sizeof src->kind, "builtin");
-        snprintf(src->format, sizeof src->format, "generated");
-        for (int a = 0; a < 3; a++) src->spacing_from[a] = "default";
-        return apply_overrides(o, src);
-    }
-    if (strncmp(paths[0], "builtin:", 8) == 0) {
+        s->is_builtin = 1;
+        isomend_volume_init(&s->desc, NULL, ISOMEND_F32, 4, 4, 4);
+        snprintf(s->kind, sizeof s->kind, "builtin");
+        snprintf(s->format, sizeof s->format, "generated");
+        for (int a = 0; a < 3; a++) s->spacing_from[a] = "default";
+        apply_overrides(o, &s->desc, s->spacing_from);
+        rc = CLI_EXIT_OK;
+    } else if (strncmp(paths[0], "builtin:", 8) == 0) {
         cli_error("%s: unknown built-in volume (builtin:f1 or builtin:f2)", paths[0]);
         return CLI_EXIT_USAGE;
-    }
-    if (n == 1 && (o->have_raw || isomend_fileio_is_nrrd_path(paths[0]))) {
+    } else if (n == 1 && (o->have_raw || isomend_fileio_is_nrrd_path(paths[0]))) {
         if (stack_opts) {
             cli_error("%s: --first/--count/--step/--channel only apply to slice stacks", paths[0]);
             return CLI_EXIT_USAGE;
         }
-        return open_fileio(paths[0], o, src);
-    }
+        rc = open_fileio(paths[0], o, s);
+    } else {
 #ifdef ISOMEND_HAVE_IO
-    if (o->have_raw) {
-        cli_error("--raw describes one file, got %d sources", n);
-        return CLI_EXIT_USAGE;
-    }
-    int rc = open_io(paths, n, o, src);
-    if (rc == CLI_EXIT_OK && !src->dicom && (o->series || o->grid_axes)) {
-        cli_error("%s: --series and --grid-axes apply to DICOM series only (this is a %s source)",
-                  paths[0], src->kind);
-        cli_source_close(src);
-        return CLI_EXIT_USAGE;
-    }
-    return rc;
+        if (o->have_raw) {
+            cli_error("--raw describes one file, got %d sources", n);
+            return CLI_EXIT_USAGE;
+        }
+        rc = open_io(paths, n, o, s);
+        if (rc == CLI_EXIT_OK && !s->dicom && (o->series || o->grid_axes)) {
+            cli_error("%s: --series and --grid-axes apply to DICOM series only (this is a %s "
+                      "source)", paths[0], s->kind);
+            cli_slices_close(s);
+            return CLI_EXIT_USAGE;
+        }
 #else
-    if (n > 1) {
-        cli_error("%s: one SOURCE expected, got %d (file lists need the slice-stack importer, "
-                  "built with -DISOMEND_BUILD_IO=ON)", paths[0], n);
+        if (n > 1) {
+            cli_error("%s: one SOURCE expected, got %d (file lists need the slice-stack importer, "
+                      "built with -DISOMEND_BUILD_IO=ON)", paths[0], n);
+            return CLI_EXIT_USAGE;
+        }
+        cli_error("%s: not a NRRD file (.nrrd/.nhdr) and no --raw NX,NY,NZ:TYPE given; image "
+                  "stacks need the slice-stack importer (build with -DISOMEND_BUILD_IO=ON)",
+                  paths[0]);
         return CLI_EXIT_USAGE;
-    }
-    cli_error("%s: not a NRRD file (.nrrd/.nhdr) and no --raw NX,NY,NZ:TYPE given; image stacks "
-              "need the slice-stack importer (build with -DISOMEND_BUILD_IO=ON)", paths[0]);
-    return CLI_EXIT_USAGE;
 #endif
+    }
+    if (rc) return rc;
+    s->slice_bytes = (uint64_t)s->desc.dims[0] * (uint64_t)s->desc.dims[1] *
+                     isomend_type_size(s->desc.type);
+    return CLI_EXIT_OK;
+}
+
+int cli_slices_next(cli_slices *s, void *buffer)
+{
+    if (s->next >= s->desc.dims[2]) {
+        cli_error("%s: no slice %lld (internal error)", s->label, (long long)s->next);
+        return CLI_EXIT_FAIL;
+    }
+    double t0 = cli_now_ms();
+    int rc = CLI_EXIT_OK;
+    if (s->is_builtin) {
+        memcpy(buffer, s->builtin + 16 * s->next, 16 * sizeof(float));
+    } else if (s->is_fileio) {
+        char msg[ISOMEND_FILEIO_MSG_SIZE];
+        isomend_fileio_status st = ISOMEND_FILEIO_OK;
+        if (!s->reader) st = isomend_fileio_slices_open(&s->info, &s->reader, msg, sizeof msg);
+        if (st == ISOMEND_FILEIO_OK)
+            st = isomend_fileio_slices_next(s->reader, buffer, (size_t)s->slice_bytes, msg,
+                                            sizeof msg);
+        if (st != ISOMEND_FILEIO_OK) {
+            cli_error("%s", msg);
+            rc = CLI_EXIT_FAIL;
+        }
+    } else {
+#ifdef ISOMEND_HAVE_IO
+        isomend_io_status st = io_api.read_slice(s->io, s->next, buffer, (size_t)s->slice_bytes);
+        if (st != ISOMEND_IO_OK) rc = io_failed(s->io, st, s->label);
+#endif
+    }
+    s->read_ms += cli_now_ms() - t0;
+    if (rc == CLI_EXIT_OK) s->next++;
+    return rc;
+}
+
+int cli_slices_seek(cli_slices *s, int64_t k)
+{
+    if (k < 0 || k > s->desc.dims[2]) {
+        cli_error("%s: no slice %lld (internal error)", s->label, (long long)k);
+        return CLI_EXIT_FAIL;
+    }
+    if (s->reader) {
+        char msg[ISOMEND_FILEIO_MSG_SIZE];
+        if (isomend_fileio_slices_seek(s->reader, k, msg, sizeof msg) != ISOMEND_FILEIO_OK) {
+            cli_error("%s", msg);
+            return CLI_EXIT_FAIL;
+        }
+    } else if (s->is_fileio && k > 0) {
+        char msg[ISOMEND_FILEIO_MSG_SIZE];
+        if (isomend_fileio_slices_open(&s->info, &s->reader, msg, sizeof msg) !=
+                ISOMEND_FILEIO_OK ||
+            isomend_fileio_slices_seek(s->reader, k, msg, sizeof msg) != ISOMEND_FILEIO_OK) {
+            cli_error("%s", msg);
+            return CLI_EXIT_FAIL;
+        }
+    }
+    s->next = k;
+    return CLI_EXIT_OK;
+}
+
+void cli_slices_rewind(cli_slices *s)
+{
+    isomend_fileio_slices_close(s->reader); /* the next slice opens it again */
+    s->reader = NULL;
+    s->next = 0;
+}
+
+void cli_slices_close(cli_slices *s)
+{
+    if (!s) return;
+    isomend_fileio_slices_close(s->reader);
+#ifdef ISOMEND_HAVE_IO
+    if (s->io) io_api.destroy(s->io);
+#endif
+    memset(s, 0, sizeof *s);
+}
+
+int cli_source_load(cli_slices *s, cli_source *src)
+{
+    memset(src, 0, sizeof *src);
+    snprintf(src->label, sizeof src->label, "%s", s->label);
+    snprintf(src->kind, sizeof src->kind, "%s", s->kind);
+    snprintf(src->format, sizeof src->format, "%s", s->format);
+    for (int a = 0; a < 3; a++) src->spacing_from[a] = s->spacing_from[a];
+    src->oblique = s->oblique;
+    src->dicom = s->dicom;
+    src->series_listed = s->series_listed;
+    src->grid_axes = s->grid_axes;
+    src->has_world = s->has_world;
+    memcpy(src->world, s->world, sizeof src->world);
+    int rc = CLI_EXIT_OK;
+    if (s->is_builtin) {
+        src->owned = malloc(sizeof s->builtin);
+        if (!src->owned) {
+            cli_error("%s: out of memory", s->label);
+            rc = CLI_EXIT_FAIL;
+        } else {
+            memcpy(src->owned, s->builtin, sizeof s->builtin);
+            src->vol = s->desc;
+            src->vol.data = src->owned;
+        }
+    } else if (s->is_fileio) {
+        /* refuse before allocating: Linux overcommits, so a too large malloc
+         * would "succeed" and the kernel would kill us half-way through */
+        uint64_t need = isomend_fileio_volume_bytes(&s->info), avail = cli_memory_available();
+        char msg[ISOMEND_FILEIO_MSG_SIZE];
+        if (avail && need > avail) {
+            cli_error("%s: the volume needs %.1f MiB, only %.1f MiB of memory is available",
+                      s->label, (double)need / 1048576.0, (double)avail / 1048576.0);
+            rc = CLI_EXIT_FAIL;
+        } else {
+            double t0 = cli_now_ms();
+            isomend_fileio_status st = isomend_fileio_load(&s->info, &src->owned,
+                                                           cli_progress_read_cb, s->progress, msg,
+                                                           sizeof msg);
+            cli_progress_clear(s->progress);
+            if (st == ISOMEND_FILEIO_ERR_CANCELLED) {
+                cli_error("%s: interrupted", s->label);
+                rc = CLI_EXIT_INTERRUPTED;
+            } else if (st != ISOMEND_FILEIO_OK) {
+                cli_error("%s", msg);
+                rc = CLI_EXIT_FAIL;
+            } else {
+                src->read_ms = cli_now_ms() - t0;
+                isomend_fileio_describe(&s->info, src->owned, &src->vol);
+                for (int a = 0; a < 3; a++) { /* the overrides, as opened */
+                    src->vol.spacing[a] = s->desc.spacing[a];
+                    src->vol.origin[a] = s->desc.origin[a];
+                }
+            }
+        }
+    } else {
+#ifdef ISOMEND_HAVE_IO
+        double seconds = 0;
+        isomend_io_status st = io_api.load(s->io, &src->vol, &seconds);
+        cli_progress_clear(s->progress);
+        if (st != ISOMEND_IO_OK) {
+            rc = io_failed(s->io, st, s->label);
+        } else {
+            src->io = s->io; /* the loaded volume belongs to the handle */
+            s->io = NULL;
+            src->read_ms = seconds * 1e3;
+        }
+#endif
+    }
+    cli_slices_close(s);
+    if (rc) cli_source_close(src);
+    return rc;
+}
+
+int cli_source_open(const char *const *paths, int n, const cli_source_opts *o, cli_source *src)
+{
+    cli_slices s;
+    memset(src, 0, sizeof *src);
+    int rc = cli_slices_open(paths, n, o, &s);
+    if (rc) return rc;
+    return cli_source_load(&s, src);
 }
 
 void cli_source_close(cli_source *src)
@@ -383,28 +537,6 @@ void cli_source_close(cli_source *src)
 }
 
 /* ------------------------------------------------------------------ analysis */
-
-static double sample_at(const isomend_volume *v, int64_t i, int64_t j, int64_t k)
-{
-    size_t ts = isomend_type_size(v->type);
-    int64_t s0 = v->strides[0], s1 = v->strides[1], s2 = v->strides[2];
-    if (!s0 && !s1 && !s2) {
-        s0 = (int64_t)ts;
-        s1 = s0 * v->dims[0];
-        s2 = s1 * v->dims[1];
-    }
-    const char *p = (const char *)v->data + i * s0 + j * s1 + k * s2;
-    switch (v->type) {
-    case ISOMEND_U8: { uint8_t x; memcpy(&x, p, 1); return x; }
-    case ISOMEND_I8: { int8_t x; memcpy(&x, p, 1); return x; }
-    case ISOMEND_U16: { uint16_t x; memcpy(&x, p, 2); return x; }
-    case ISOMEND_I16: { int16_t x; memcpy(&x, p, 2); return x; }
-    case ISOMEND_I32: { int32_t x; memcpy(&x, p, 4); return x; }
-    case ISOMEND_F32: { float x; memcpy(&x, p, 4); return x; }
-    case ISOMEND_F64: { double x; memcpy(&x, p, 8); return x; }
-    }
-    return NAN;
-}
 
 /* Histogram bin of d over [mn, mx] (the importer's formula, clamped). */
 static int bin_of(double d, double mn, double mx, int bins)
@@ -420,63 +552,162 @@ static int is_integer_type(isomend_type t)
            t == ISOMEND_I32;
 }
 
-int cli_source_summary(cli_source *src, cli_summary *sum)
+double cli_sample_value(const void *sample, isomend_type t)
 {
-    memset(sum, 0, sizeof *sum);
-#ifdef ISOMEND_HAVE_IO
-    if (src->io) {
-        isomend_io_summary s;
-        isomend_io_status st = io_api.analyse(src->io, &s);
-        if (st != ISOMEND_IO_OK) {
-            cli_error("%s", io_api.message(src->io));
-            return CLI_EXIT_FAIL;
-        }
-        sum->min = s.min;
-        sum->max = s.max;
-        sum->samples = s.samples;
-        sum->nan_samples = s.nan_samples;
-        for (int b = 0; b < 16; b++) sum->histogram[b] = s.histogram[b];
-        sum->suggested_iso = s.suggested_iso;
-        sum->has_suggestion = s.max > s.min;
-        return CLI_EXIT_OK;
+    const char *p = sample;
+    switch (t) {
+    case ISOMEND_U8: { uint8_t x; memcpy(&x, p, 1); return x; }
+    case ISOMEND_I8: { int8_t x; memcpy(&x, p, 1); return x; }
+    case ISOMEND_U16: { uint16_t x; memcpy(&x, p, 2); return x; }
+    case ISOMEND_I16: { int16_t x; memcpy(&x, p, 2); return x; }
+    case ISOMEND_I32: { int32_t x; memcpy(&x, p, 4); return x; }
+    case ISOMEND_F32: { float x; memcpy(&x, p, 4); return x; }
+    case ISOMEND_F64: { double x; memcpy(&x, p, 8); return x; }
     }
-#endif
-    const isomend_volume *v = &src->vol;
-    double lo = INFINITY, hi = -INFINITY;
-    uint64_t finite = 0;
-    for (int64_t k = 0; k < v->dims[2]; k++)
-        for (int64_t j = 0; j < v->dims[1]; j++)
-            for (int64_t i = 0; i < v->dims[0]; i++) {
-                double x = sample_at(v, i, j, k);
+    return NAN;
+}
+
+/*
+ * The summary is computed plane by plane in two passes (range, then
+ * histograms), so that a loaded volume (any strides) and a source read slice
+ * by slice go through the same code and give the same numbers.
+ */
+typedef cli_summary_acc summary_acc; /* short names inside this file */
+#define OTSU_BINS CLI_OTSU_BINS
+
+void cli_summary_plane(summary_acc *a, int pass, const char *base, int64_t s0, int64_t s1,
+                          int64_t nx, int64_t ny)
+{
+    cli_summary *sum = a->sum;
+    for (int64_t j = 0; j < ny; j++)
+        for (int64_t i = 0; i < nx; i++) {
+            double x = cli_sample_value(base + i * s0 + j * s1, a->type);
+            if (pass == 0) {
                 sum->samples++;
                 if (!isfinite(x)) {
                     sum->nan_samples++;
                     continue;
                 }
-                finite++;
-                if (x < lo) lo = x;
-                if (x > hi) hi = x;
+                a->finite++;
+                if (x < a->lo) a->lo = x;
+                if (x > a->hi) a->hi = x;
+            } else if (isfinite(x)) {
+                sum->histogram[bin_of(x, a->lo, a->hi, 16)]++;
+                a->fine[bin_of(x, a->lo, a->hi, OTSU_BINS)]++;
             }
-    if (finite == 0) return CLI_EXIT_OK;
-    sum->min = lo;
-    sum->max = hi;
-    sum->suggested_iso = lo;
-    if (!(hi > lo)) return CLI_EXIT_OK;
-    enum { BINS = 256 };
-    uint64_t fine[BINS];
-    memset(fine, 0, sizeof fine);
-    for (int64_t k = 0; k < v->dims[2]; k++)
-        for (int64_t j = 0; j < v->dims[1]; j++)
-            for (int64_t i = 0; i < v->dims[0]; i++) {
-                double x = sample_at(v, i, j, k);
-                if (!isfinite(x)) continue;
-                sum->histogram[bin_of(x, lo, hi, 16)]++;
-                fine[bin_of(x, lo, hi, BINS)]++;
-            }
+        }
+}
+
+void cli_summary_start(summary_acc *a, cli_summary *sum, isomend_type type)
+{
+    memset(sum, 0, sizeof *sum);
+    memset(a, 0, sizeof *a);
+    a->sum = sum;
+    a->type = type;
+    a->lo = INFINITY;
+    a->hi = -INFINITY;
+}
+
+/* After pass 0: 1 if a histogram pass is needed. */
+int cli_summary_range_done(summary_acc *a)
+{
+    if (a->finite == 0) return 0;
+    a->sum->min = a->lo;
+    a->sum->max = a->hi;
+    a->sum->suggested_iso = a->lo;
+    return a->hi > a->lo;
+}
+
+void cli_summary_finish(summary_acc *a)
+{
     /* Otsu, exactly as the importer does it (io/common) */
-    sum->suggested_iso = isomend_fileio_otsu(fine, BINS, lo, hi, is_integer_type(v->type));
-    sum->has_suggestion = 1;
+    a->sum->suggested_iso = isomend_fileio_otsu(a->fine, OTSU_BINS, a->lo, a->hi,
+                                                is_integer_type(a->type));
+    a->sum->has_suggestion = 1;
+}
+
+#ifdef ISOMEND_HAVE_IO
+static int io_summary(void *io, cli_summary *sum)
+{
+    isomend_io_summary s;
+    isomend_io_status st = io_api.analyse(io, &s);
+    if (st != ISOMEND_IO_OK) return io_failed(io, st, "analysis");
+    sum->min = s.min;
+    sum->max = s.max;
+    sum->samples = s.samples;
+    sum->nan_samples = s.nan_samples;
+    for (int b = 0; b < 16; b++) sum->histogram[b] = s.histogram[b];
+    sum->suggested_iso = s.suggested_iso;
+    sum->has_suggestion = s.max > s.min;
     return CLI_EXIT_OK;
+}
+#endif
+
+int cli_source_summary(cli_source *src, cli_summary *sum)
+{
+    memset(sum, 0, sizeof *sum);
+#ifdef ISOMEND_HAVE_IO
+    if (src->io) return io_summary(src->io, sum);
+#endif
+    const isomend_volume *v = &src->vol;
+    int64_t ts = (int64_t)isomend_type_size(v->type), s0 = v->strides[0], s1 = v->strides[1],
+            s2 = v->strides[2];
+    if (!s0 && !s1 && !s2) {
+        s0 = ts;
+        s1 = s0 * v->dims[0];
+        s2 = s1 * v->dims[1];
+    }
+    summary_acc a;
+    cli_summary_start(&a, sum, v->type);
+    for (int pass = 0; pass < 2; pass++) {
+        if (pass == 1 && !cli_summary_range_done(&a)) return CLI_EXIT_OK;
+        for (int64_t k = 0; k < v->dims[2]; k++)
+            cli_summary_plane(&a, pass, (const char *)v->data + k * s2, s0, s1, v->dims[0], v->dims[1]);
+    }
+    cli_summary_finish(&a);
+    return CLI_EXIT_OK;
+}
+
+int cli_slices_summary(cli_slices *s, cli_summary *sum)
+{
+    memset(sum, 0, sizeof *sum);
+#ifdef ISOMEND_HAVE_IO
+    if (s->io) { /* the importer streams the slices itself when nothing is loaded */
+        int rc = io_summary(s->io, sum);
+        cli_progress_clear(s->progress);
+        return rc;
+    }
+#endif
+    char *slice = malloc((size_t)s->slice_bytes);
+    if (!slice) {
+        cli_error("%s: out of memory for a slice of %llu bytes", s->label,
+                  (unsigned long long)s->slice_bytes);
+        return CLI_EXIT_FAIL;
+    }
+    const int64_t nx = s->desc.dims[0], ny = s->desc.dims[1], nz = s->desc.dims[2];
+    const int64_t ts = (int64_t)isomend_type_size(s->desc.type);
+    summary_acc a;
+    cli_summary_start(&a, sum, s->desc.type);
+    int rc = CLI_EXIT_OK;
+    for (int pass = 0; pass < 2 && rc == CLI_EXIT_OK; pass++) {
+        if (pass == 1 && !cli_summary_range_done(&a)) break;
+        cli_slices_rewind(s);
+        for (int64_t k = 0; k < nz && rc == CLI_EXIT_OK; k++) {
+            if (cli_interrupted) {
+                cli_error("%s: interrupted", s->label);
+                rc = CLI_EXIT_INTERRUPTED;
+                break;
+            }
+            rc = cli_slices_next(s, slice);
+            if (rc == CLI_EXIT_OK) cli_summary_plane(&a, pass, slice, ts, ts * nx, nx, ny);
+            cli_progress_update(s->progress, "analyse", (double)(pass * nz + k + 1) / (double)(2 * nz));
+        }
+        if (pass == 1 && rc == CLI_EXIT_OK) cli_summary_finish(&a);
+    }
+    cli_progress_clear(s->progress);
+    cli_slices_rewind(s);
+    free(slice);
+    return rc;
 }
 
 /* ------------------------------------------------------------------ DICOM */
@@ -676,4 +907,22 @@ void cli_json_dicom(FILE *fp, cli_source *src, const cli_summary *sum)
     (void)sum;
     fprintf(fp, "null");
 #endif
+}
+
+void cli_source_view(const cli_slices *s, cli_source *view)
+{
+    memset(view, 0, sizeof *view);
+    view->vol = s->desc;
+    view->io = s->io;
+    snprintf(view->kind, sizeof view->kind, "%s", s->kind);
+    snprintf(view->format, sizeof view->format, "%s", s->format);
+    for (int a = 0; a < 3; a++) view->spacing_from[a] = s->spacing_from[a];
+    view->oblique = s->oblique;
+    view->dicom = s->dicom;
+    view->series_listed = s->series_listed;
+    view->grid_axes = s->grid_axes;
+    view->has_world = s->has_world;
+    memcpy(view->world, s->world, sizeof view->world);
+    view->read_ms = s->read_ms;
+    snprintf(view->label, sizeof view->label, "%s", s->label);
 }

@@ -7,6 +7,7 @@
  * renamed over the target only after every byte was written and the stream
  * closed without error.  rename() within one folder is atomic on POSIX, so
  * a reader never sees a partial mesh, and a failure leaves nothing behind.
+ * Scratch files (isomend_spool_open) are unlinked as soon as they exist.
  */
 #ifndef ISOMEND_ATOMIC_FILE_H
 #define ISOMEND_ATOMIC_FILE_H
@@ -30,6 +31,16 @@ isomend_fileio_status isomend_atomic_commit(isomend_atomic_file *af, char *msg, 
 
 /* Closes and removes the temporary file (after a write error). Accepts a closed file. */
 void isomend_atomic_abort(isomend_atomic_file *af);
+
+/*
+ * A scratch file for data that is appended to an output at the end (the
+ * faces of a PLY written while extracting): created in the folder of
+ * `near_path` (where the output goes, so it uses that disk, not /tmp) as
+ * ".NAME.PID.N.spool", opened read/write, and unlinked at once, so that it
+ * vanishes when closed or when the process dies, whatever happens.
+ */
+isomend_fileio_status isomend_spool_open(const char *near_path, FILE **out, char *msg,
+                                         size_t msg_size);
 
 /* Formats "PATH: reason" style messages into msg (no-op when msg is NULL). */
 void isomend_fileio_set_msg(char *msg, size_t msg_size, const char *fmt, ...)

@@ -21,6 +21,8 @@
 #include <sys/stat.h>
 
 #include "atomic_file.h"
+#include "byte_order.h"
+#include "mesh_writer.h"
 
 #define SET_MSG isomend_fileio_set_msg
 
@@ -36,132 +38,10 @@ isomend_mesh_format isomend_mesh_format_of(const char *path)
     return ISOMEND_MESH_UNKNOWN;
 }
 
-static int machine_is_big_endian(void)
-{
-    const uint16_t one = 1;
-    unsigned char first;
-    memcpy(&first, &one, 1);
-    return first == 0;
-}
-
-static void put_le32(unsigned char *p, const void *v)
-{
-    memcpy(p, v, 4);
-    if (machine_is_big_endian()) {
-        unsigned char t = p[0];
-        p[0] = p[3];
-        p[3] = t;
-        t = p[1];
-        p[1] = p[2];
-        p[2] = t;
-    }
-}
-
 /* ------------------------------------------------------------------ writers */
 
-static int write_ply(FILE *fp, const float *pos, const float *nrm, size_t nv, const uint32_t *tri,
-                     size_t nt)
-{
-    fprintf(fp,
-            "ply\nformat binary_little_endian 1.0\ncomment written by isomend %s\n"
-            "element vertex %zu\nproperty float x\nproperty float y\nproperty float z\n",
-            isomend_version(), nv);
-    if (nrm) fprintf(fp, "property float nx\nproperty float ny\nproperty float nz\n");
-    fprintf(fp, "element face %zu\nproperty list uchar uint vertex_indices\nend_header\n", nt);
-    unsigned char buf[24];
-    for (size_t v = 0; v < nv; v++) {
-        for (int c = 0; c < 3; c++) put_le32(buf + 4 * c, &pos[3 * v + (size_t)c]);
-        if (nrm)
-            for (int c = 0; c < 3; c++) put_le32(buf + 12 + 4 * c, &nrm[3 * v + (size_t)c]);
-        size_t n = nrm ? 24 : 12;
-        if (fwrite(buf, 1, n, fp) != n) return -1;
-    }
-    unsigned char fb[13];
-    fb[0] = 3;
-    for (size_t t = 0; t < nt; t++) {
-        for (int c = 0; c < 3; c++) put_le32(fb + 1 + 4 * c, &tri[3 * t + (size_t)c]);
-        if (fwrite(fb, 1, 13, fp) != 13) return -1;
-    }
-    return 0;
-}
-
-/* Appends the decimal digits of v to p; returns the new end. */
-static char *put_uint(char *p, unsigned long v)
-{
-    char tmp[24];
-    int n = 0;
-    do {
-        tmp[n++] = (char)('0' + v % 10);
-        v /= 10;
-    } while (v);
-    while (n) *p++ = tmp[--n];
-    return p;
-}
-
-/* OBJ is text: positions with 9 significant digits (float32 round-trips),
- * indices formatted by hand (printf costs ~3x more on million-face meshes). */
-static int write_obj(FILE *fp, const float *pos, const float *nrm, size_t nv, const uint32_t *tri,
-                     size_t nt)
-{
-    fprintf(fp, "# written by isomend %s: %zu vertices, %zu triangles\n", isomend_version(), nv, nt);
-    for (size_t v = 0; v < nv; v++)
-        fprintf(fp, "v %.9g %.9g %.9g\n", pos[3 * v], pos[3 * v + 1], pos[3 * v + 2]);
-    if (nrm)
-        for (size_t v = 0; v < nv; v++)
-            fprintf(fp, "vn %.9g %.9g %.9g\n", nrm[3 * v], nrm[3 * v + 1], nrm[3 * v + 2]);
-    char line[128];
-    for (size_t t = 0; t < nt; t++) {
-        char *p = line;
-        *p++ = 'f';
-        for (int c = 0; c < 3; c++) {
-            unsigned long k = (unsigned long)tri[3 * t + (size_t)c] + 1;
-            *p++ = ' ';
-            p = put_uint(p, k);
-            if (nrm) {
-                *p++ = '/';
-                *p++ = '/';
-                p = put_uint(p, k);
-            }
-        }
-        *p++ = '\n';
-        if (fwrite(line, 1, (size_t)(p - line), fp) != (size_t)(p - line)) return -1;
-    }
-    return ferror(fp) ? -1 : 0;
-}
-
-static int write_stl(FILE *fp, const float *pos, size_t nt, const uint32_t *tri)
-{
-    unsigned char header[84];
-    memset(header, 0, sizeof header);
-    snprintf((char *)header, 80, "binary STL written by isomend %s", isomend_version());
-    uint32_t count = (uint32_t)nt;
-    put_le32(header + 80, &count);
-    if (fwrite(header, 1, 84, fp) != 84) return -1;
-    unsigned char rec[50];
-    memset(rec, 0, sizeof rec);
-    for (size_t t = 0; t < nt; t++) {
-        const float *p[3];
-        for (int c = 0; c < 3; c++) p[c] = pos + 3 * (size_t)tri[3 * t + (size_t)c];
-        double e1[3], e2[3], n[3];
-        for (int c = 0; c < 3; c++) {
-            e1[c] = (double)p[1][c] - p[0][c];
-            e2[c] = (double)p[2][c] - p[0][c];
-        }
-        n[0] = e1[1] * e2[2] - e1[2] * e2[1];
-        n[1] = e1[2] * e2[0] - e1[0] * e2[2];
-        n[2] = e1[0] * e2[1] - e1[1] * e2[0];
-        double len = sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
-        for (int c = 0; c < 3; c++) {
-            float f = len > 0 ? (float)(n[c] / len) : 0.0f;
-            put_le32(rec + 4 * c, &f);
-        }
-        for (int v = 0; v < 3; v++)
-            for (int c = 0; c < 3; c++) put_le32(rec + 12 + 12 * v + 4 * c, &p[v][c]);
-        if (fwrite(rec, 1, 50, fp) != 50) return -1;
-    }
-    return 0;
-}
-
+/* The whole mesh at once: a client of the streaming writer (mesh_writer.h), so
+ * the bytes are the same as a mesh written while it is extracted. */
 isomend_fileio_status isomend_write_mesh(const char *path, isomend_mesh_format format,
                                          const float *positions, const float *normals,
                                          size_t vertex_count, const uint32_t *triangles,
@@ -176,41 +56,24 @@ isomend_fileio_status isomend_write_mesh(const char *path, isomend_mesh_format f
         return ISOMEND_FILEIO_ERR_INVALID_ARGUMENT;
     }
     if (format == ISOMEND_MESH_UNKNOWN) format = isomend_mesh_format_of(path);
-    if (format == ISOMEND_MESH_UNKNOWN) {
-        const char *dot = strrchr(path, '.');
-        const char *slash = strrchr(path, '/');
-        SET_MSG(msg, msg_size, "%s: unknown mesh format '%s' (use .ply, .obj or .stl)", path,
-                dot && (!slash || dot > slash) ? dot : "(no extension)");
-        return ISOMEND_FILEIO_ERR_INVALID_ARGUMENT;
-    }
+    /* refused before anything is created */
     for (size_t i = 0; i < 3 * triangle_count; i++) {
         if (triangles[i] >= vertex_count) {
             SET_MSG(msg, msg_size, "%s: triangle %zu uses vertex %lu of %zu", path, i / 3,
-                    (unsigned long)triangles[i], vertex_count);
+                    (unsigned long)triangles[i],
+                    vertex_count);
             return ISOMEND_FILEIO_ERR_INVALID_ARGUMENT;
         }
     }
-    if (format == ISOMEND_MESH_STL && triangle_count > UINT32_MAX) {
-        SET_MSG(msg, msg_size, "%s: %zu triangles do not fit a binary STL", path, triangle_count);
-        return ISOMEND_FILEIO_ERR_INVALID_ARGUMENT;
-    }
-    isomend_atomic_file af;
-    isomend_fileio_status st = isomend_atomic_open(&af, path, msg, msg_size);
+    isomend_mesh_writer *w;
+    isomend_fileio_status st = isomend_mesh_writer_begin(path, format, normals != NULL,
+                                                         ISOMEND_MESH_WRITER_BORROW, &w, msg,
+                                                         msg_size);
     if (st != ISOMEND_FILEIO_OK) return st;
-    int r;
-    if (format == ISOMEND_MESH_PLY)
-        r = write_ply(af.fp, positions, normals, vertex_count, triangles, triangle_count);
-    else if (format == ISOMEND_MESH_OBJ)
-        r = write_obj(af.fp, positions, normals, vertex_count, triangles, triangle_count);
-    else
-        r = write_stl(af.fp, positions, triangle_count, triangles);
-    if (r != 0) {
-        int err = errno;
-        isomend_atomic_abort(&af);
-        SET_MSG(msg, msg_size, "%s: write failed: %s", path, strerror(err ? err : EIO));
-        return ISOMEND_FILEIO_ERR_WRITE;
-    }
-    return isomend_atomic_commit(&af, msg, msg_size);
+    isomend_mesh_writer_vertices(w, vertex_count, positions, normals);
+    isomend_mesh_writer_end_vertices(w);
+    isomend_mesh_writer_triangles_u32(w, triangle_count, triangles);
+    return isomend_mesh_writer_commit(w, msg, msg_size); /* reports the first failure */
 }
 
 /* ------------------------------------------------------------------ growable arrays */

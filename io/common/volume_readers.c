@@ -27,6 +27,7 @@
 #include <zlib.h>
 
 #include "atomic_file.h"
+#include "byte_order.h"
 
 #define SET_MSG isomend_fileio_set_msg
 #define CHUNK_BYTES (4u << 20)  /* read/decompress granularity and progress step */
@@ -49,14 +50,6 @@ const char *isomend_fileio_status_string(isomend_fileio_status status)
     case ISOMEND_FILEIO_ERR_CANCELLED: return "cancelled";
     }
     return "unknown status";
-}
-
-static int machine_is_big_endian(void)
-{
-    const uint16_t one = 1;
-    unsigned char first;
-    memcpy(&first, &one, 1);
-    return first == 0;
 }
 
 static void swap_bytes(void *data, size_t count, size_t size)
@@ -572,179 +565,230 @@ done:
 
 /* ------------------------------------------------------------------ reading */
 
-typedef struct read_ctx {
+/*
+ * One incremental decoder serves every read: isomend_fileio_read() (a range
+ * of slices, with progress) and the slice reader (one slice per call, in
+ * order, for volumes larger than memory).  Raw data is read where it lies;
+ * gzip data is inflated from the start of the stream, so a later range costs
+ * the decompression of everything before it, and the end of the stream is
+ * checked only when the last slice has been produced.
+ */
+typedef struct decoder {
     const isomend_fileio_info *info;
+    FILE *fp;
+    int gzip;
+    z_stream z;
+    int z_ready;
+    unsigned char *in, *scratch;
+    int input_eof;
+    int ended;              /* gzip: the last member ended with no input left */
+    uint64_t produced;      /* bytes decoded so far (raw: the offset in the data) */
+    /* progress of the current isomend_fileio_read() (NULL: none) */
     isomend_fileio_progress_fn progress;
     void *progress_user;
-    uint64_t done, total;
-    uint64_t next_report;
+    uint64_t done, total, next_report;
     char *msg;
     size_t msg_size;
-} read_ctx;
+} decoder;
 
-static int report(read_ctx *c, uint64_t advance)
+enum { GZ_IN_SIZE = 1 << 18, GZ_SCRATCH = 1 << 16 };
+
+static isomend_fileio_status decoder_open(decoder *d, const isomend_fileio_info *info, char *msg,
+                                          size_t msg_size)
 {
-    c->done += advance;
-    if (c->progress && (c->done >= c->next_report || c->done == c->total)) {
-        c->next_report = c->done + CHUNK_BYTES;
-        if (c->progress(c->progress_user, c->total ? (double)c->done / (double)c->total : 1.0))
+    memset(d, 0, sizeof *d);
+    d->info = info;
+    d->msg = msg;
+    d->msg_size = msg_size;
+    d->gzip = info->encoding == ISOMEND_FILEIO_ENC_GZIP;
+    d->fp = fopen(info->data_path, "rb");
+    if (!d->fp) {
+        int err = errno;
+        SET_MSG(msg, msg_size, "%s: %s", info->data_path, strerror(err));
+        return err == ENOENT ? ISOMEND_FILEIO_ERR_NOT_FOUND : ISOMEND_FILEIO_ERR_UNREADABLE;
+    }
+    if (fseeko(d->fp, (off_t)info->data_offset, SEEK_SET) != 0) {
+        SET_MSG(msg, msg_size, "%s: cannot seek to byte %llu", info->data_path,
+                (unsigned long long)info->data_offset);
+        return ISOMEND_FILEIO_ERR_UNREADABLE;
+    }
+    if (!d->gzip) return ISOMEND_FILEIO_OK;
+    d->in = malloc(GZ_IN_SIZE);
+    d->scratch = malloc(GZ_SCRATCH);
+    if (!d->in || !d->scratch || inflateInit2(&d->z, 15 + 32) != Z_OK) {
+        SET_MSG(msg, msg_size, "%s: out of memory for the decompressor", info->path);
+        return ISOMEND_FILEIO_ERR_OUT_OF_MEMORY;
+    }
+    d->z_ready = 1;
+    return ISOMEND_FILEIO_OK;
+}
+
+static void decoder_close(decoder *d)
+{
+    if (d->z_ready) inflateEnd(&d->z);
+    free(d->in);
+    free(d->scratch);
+    if (d->fp) fclose(d->fp);
+    memset(d, 0, sizeof *d);
+}
+
+/* Progress for `advance` more useful bytes; 1 if the caller cancels. */
+static int report(decoder *d, uint64_t advance)
+{
+    d->done += advance;
+    if (d->progress && (d->done >= d->next_report || d->done == d->total)) {
+        d->next_report = d->done + CHUNK_BYTES;
+        if (d->progress(d->progress_user, d->total ? (double)d->done / (double)d->total : 1.0))
             return 1;
     }
     return 0;
 }
 
-static isomend_fileio_status read_raw(read_ctx *c, FILE *fp, uint64_t skip, unsigned char *out,
-                                      uint64_t bytes)
+static isomend_fileio_status cancelled(decoder *d)
 {
-    const isomend_fileio_info *info = c->info;
-    if (fseeko(fp, (off_t)(info->data_offset + skip), SEEK_SET) != 0) {
-        SET_MSG(c->msg, c->msg_size, "%s: cannot seek to byte %llu", info->data_path,
-                (unsigned long long)(info->data_offset + skip));
+    SET_MSG(d->msg, d->msg_size, "%s: reading cancelled", d->info->path);
+    return ISOMEND_FILEIO_ERR_CANCELLED;
+}
+
+/* Raw: `bytes` from data byte `at` into `out`. */
+static isomend_fileio_status raw_read(decoder *d, uint64_t at, unsigned char *out, uint64_t bytes)
+{
+    const isomend_fileio_info *info = d->info;
+    if (at != d->produced && fseeko(d->fp, (off_t)(info->data_offset + at), SEEK_SET) != 0) {
+        SET_MSG(d->msg, d->msg_size, "%s: cannot seek to byte %llu", info->data_path,
+                (unsigned long long)(info->data_offset + at));
         return ISOMEND_FILEIO_ERR_UNREADABLE;
     }
+    d->produced = at;
     uint64_t pos = 0;
     while (pos < bytes) {
         size_t want = (size_t)(bytes - pos < CHUNK_BYTES ? bytes - pos : CHUNK_BYTES);
-        size_t got = fread(out + pos, 1, want, fp);
+        size_t got = fread(out + pos, 1, want, d->fp);
         pos += got;
+        d->produced += got;
         if (got < want) {
-            if (ferror(fp))
-                SET_MSG(c->msg, c->msg_size, "%s: read error: %s", info->data_path, strerror(errno));
+            if (ferror(d->fp))
+                SET_MSG(d->msg, d->msg_size, "%s: read error: %s", info->data_path, strerror(errno));
             else
-                SET_MSG(c->msg, c->msg_size, "%s: file ended after %llu of %llu data bytes (truncated?)",
-                        info->data_path, (unsigned long long)(skip + pos),
+                SET_MSG(d->msg, d->msg_size,
+                        "%s: file ended after %llu of %llu data bytes (truncated?)",
+                        info->data_path, (unsigned long long)d->produced,
                         (unsigned long long)volume_bytes(info->dims, info->type));
-            return ferror(fp) ? ISOMEND_FILEIO_ERR_UNREADABLE : ISOMEND_FILEIO_ERR_SIZE;
+            return ferror(d->fp) ? ISOMEND_FILEIO_ERR_UNREADABLE : ISOMEND_FILEIO_ERR_SIZE;
         }
-        if (report(c, got)) {
-            SET_MSG(c->msg, c->msg_size, "%s: reading cancelled", info->path);
-            return ISOMEND_FILEIO_ERR_CANCELLED;
-        }
+        if (report(d, got)) return cancelled(d);
     }
     return ISOMEND_FILEIO_OK;
 }
 
-/*
- * Inflates the stream into `out` after discarding `skip` bytes.  When
- * `to_end` is set the stream must end exactly after the output.
- */
-static isomend_fileio_status read_gzip(read_ctx *c, FILE *fp, uint64_t skip, unsigned char *out,
-                                       uint64_t bytes, int to_end)
+static isomend_fileio_status gz_refill(decoder *d)
 {
-    const isomend_fileio_info *info = c->info;
-    const uint64_t total_bytes = volume_bytes(info->dims, info->type);
-    if (fseeko(fp, (off_t)info->data_offset, SEEK_SET) != 0) {
-        SET_MSG(c->msg, c->msg_size, "%s: cannot seek to byte %llu", info->data_path,
-                (unsigned long long)info->data_offset);
+    if (d->z.avail_in != 0 || d->input_eof) return ISOMEND_FILEIO_OK;
+    size_t got = fread(d->in, 1, GZ_IN_SIZE, d->fp);
+    if (ferror(d->fp)) {
+        SET_MSG(d->msg, d->msg_size, "%s: read error: %s", d->info->data_path, strerror(errno));
         return ISOMEND_FILEIO_ERR_UNREADABLE;
     }
-    enum { IN_SIZE = 1 << 18, SCRATCH = 1 << 16 };
-    unsigned char *in = malloc(IN_SIZE), *scratch = malloc(SCRATCH);
-    z_stream z;
-    memset(&z, 0, sizeof z);
-    isomend_fileio_status st = ISOMEND_FILEIO_OK;
-    if (!in || !scratch || inflateInit2(&z, 15 + 32) != Z_OK) {
-        free(in);
-        free(scratch);
-        SET_MSG(c->msg, c->msg_size, "%s: out of memory for the decompressor", info->path);
-        return ISOMEND_FILEIO_ERR_OUT_OF_MEMORY;
-    }
-    uint64_t produced = 0; /* decompressed bytes so far, including skipped ones */
-    const uint64_t want_total = skip + bytes;
-    int input_eof = 0;
-    unsigned char probe;
+    if (got < GZ_IN_SIZE) d->input_eof = 1;
+    d->z.next_in = d->in;
+    d->z.avail_in = (uInt)got;
+    return ISOMEND_FILEIO_OK;
+}
+
+static isomend_fileio_status gz_truncated(decoder *d)
+{
+    SET_MSG(d->msg, d->msg_size, "%s: gzip data ends after %llu of %llu bytes (truncated?)",
+            d->info->path, (unsigned long long)d->produced,
+            (unsigned long long)volume_bytes(d->info->dims, d->info->type));
+    return ISOMEND_FILEIO_ERR_SIZE;
+}
+
+/*
+ * Gzip: the next `bytes` of the stream into `out`, or discarded when `out`
+ * is NULL.  With `probe` set, `bytes` is ignored: the stream must end here
+ * (more members may follow, but none may hold data).
+ */
+static isomend_fileio_status gz_inflate(decoder *d, unsigned char *out, uint64_t bytes, int probe)
+{
+    z_stream *z = &d->z;
+    unsigned char probe_byte;
     for (;;) {
-        /* where the next output goes: scratch (skipping), out, or the overrun probe */
-        int probing = produced >= want_total;
-        if (probing && !to_end) break;
-        if (produced < skip) {
-            uint64_t left = skip - produced;
-            z.next_out = scratch;
-            z.avail_out = (uInt)(left < SCRATCH ? left : SCRATCH);
-        } else if (!probing) {
-            uint64_t left = want_total - produced;
-            z.next_out = out + (produced - skip);
-            z.avail_out = (uInt)(left < CHUNK_BYTES ? left : CHUNK_BYTES);
+        if (probe) {
+            if (d->ended) return ISOMEND_FILEIO_OK;
+            z->next_out = &probe_byte;
+            z->avail_out = 1;
         } else {
-            z.next_out = &probe;
-            z.avail_out = 1;
+            if (bytes == 0) return ISOMEND_FILEIO_OK;
+            if (d->ended) return gz_truncated(d);
+            z->next_out = out ? out : d->scratch;
+            uint64_t cap = out ? CHUNK_BYTES : GZ_SCRATCH;
+            z->avail_out = (uInt)(bytes < cap ? bytes : cap);
         }
-        if (z.avail_in == 0 && !input_eof) {
-            size_t got = fread(in, 1, IN_SIZE, fp);
-            if (ferror(fp)) {
-                SET_MSG(c->msg, c->msg_size, "%s: read error: %s", info->data_path, strerror(errno));
-                st = ISOMEND_FILEIO_ERR_UNREADABLE;
-                break;
-            }
-            if (got < IN_SIZE) input_eof = 1;
-            z.next_in = in;
-            z.avail_in = (uInt)got;
-        }
-        uInt before = z.avail_out;
-        int zr = inflate(&z, Z_NO_FLUSH);
-        uint64_t made = before - z.avail_out;
-        if (probing && made > 0) {
-            SET_MSG(c->msg, c->msg_size,
+        isomend_fileio_status st = gz_refill(d);
+        if (st != ISOMEND_FILEIO_OK) return st;
+        uInt before = z->avail_out;
+        int zr = inflate(z, Z_NO_FLUSH);
+        uint64_t made = before - z->avail_out;
+        if (probe && made > 0) {
+            SET_MSG(d->msg, d->msg_size,
                     "%s: gzip data holds more than the %llu bytes the header describes",
-                    info->path, (unsigned long long)total_bytes);
-            st = ISOMEND_FILEIO_ERR_SIZE;
-            break;
+                    d->info->path, (unsigned long long)volume_bytes(d->info->dims, d->info->type));
+            return ISOMEND_FILEIO_ERR_SIZE;
         }
-        produced += made;
-        if (produced > skip && made > 0) {
-            uint64_t useful = produced - skip < made ? produced - skip : made;
-            if (report(c, useful)) {
-                SET_MSG(c->msg, c->msg_size, "%s: reading cancelled", info->path);
-                st = ISOMEND_FILEIO_ERR_CANCELLED;
-                break;
+        d->produced += made;
+        if (!probe) {
+            bytes -= made;
+            if (out) {
+                out += made;
+                if (made && report(d, made)) return cancelled(d);
             }
         }
         if (zr == Z_STREAM_END) {
             /* another gzip member may follow (concatenated gzip) */
-            if (z.avail_in == 0 && !input_eof) {
-                size_t got = fread(in, 1, IN_SIZE, fp);
-                if (got < IN_SIZE) input_eof = 1;
-                z.next_in = in;
-                z.avail_in = (uInt)got;
+            st = gz_refill(d);
+            if (st != ISOMEND_FILEIO_OK) return st;
+            if (z->avail_in == 0) {
+                d->ended = 1;
+                continue;
             }
-            if (z.avail_in == 0) {
-                if (produced < want_total) {
-                    SET_MSG(c->msg, c->msg_size,
-                            "%s: gzip data ends after %llu of %llu bytes (truncated?)", info->path,
-                            (unsigned long long)produced, (unsigned long long)total_bytes);
-                    st = ISOMEND_FILEIO_ERR_SIZE;
-                }
-                break;
-            }
-            if (inflateReset(&z) != Z_OK) {
-                st = ISOMEND_FILEIO_ERR_CORRUPT;
-                SET_MSG(c->msg, c->msg_size, "%s: corrupt gzip data", info->path);
-                break;
+            if (inflateReset(z) != Z_OK) {
+                SET_MSG(d->msg, d->msg_size, "%s: corrupt gzip data", d->info->path);
+                return ISOMEND_FILEIO_ERR_CORRUPT;
             }
             continue;
         }
         if (zr == Z_OK) continue;
-        if (zr == Z_BUF_ERROR && z.avail_in == 0 && input_eof) {
-            SET_MSG(c->msg, c->msg_size, "%s: gzip data ends after %llu of %llu bytes (truncated?)",
-                    info->path, (unsigned long long)produced, (unsigned long long)total_bytes);
-            st = ISOMEND_FILEIO_ERR_SIZE;
-            break;
-        }
+        if (zr == Z_BUF_ERROR && z->avail_in == 0 && d->input_eof) return gz_truncated(d);
         if (zr == Z_BUF_ERROR) continue;
         if (zr == Z_MEM_ERROR) {
-            SET_MSG(c->msg, c->msg_size, "%s: out of memory in the decompressor", info->path);
-            st = ISOMEND_FILEIO_ERR_OUT_OF_MEMORY;
-        } else {
-            SET_MSG(c->msg, c->msg_size, "%s: corrupt gzip data after %llu bytes: %s", info->path,
-                    (unsigned long long)produced, z.msg ? z.msg : "inflate failed");
-            st = ISOMEND_FILEIO_ERR_CORRUPT;
+            SET_MSG(d->msg, d->msg_size, "%s: out of memory in the decompressor", d->info->path);
+            return ISOMEND_FILEIO_ERR_OUT_OF_MEMORY;
         }
-        break;
+        SET_MSG(d->msg, d->msg_size, "%s: corrupt gzip data after %llu bytes: %s", d->info->path,
+                (unsigned long long)d->produced, z->msg ? z->msg : "inflate failed");
+        return ISOMEND_FILEIO_ERR_CORRUPT;
     }
-    inflateEnd(&z);
-    free(in);
-    free(scratch);
+}
+
+/* The data bytes [at, at + bytes) into `out`; gzip can only go forward. */
+static isomend_fileio_status decode(decoder *d, uint64_t at, unsigned char *out, uint64_t bytes)
+{
+    if (!d->gzip) return raw_read(d, at, out, bytes);
+    if (at < d->produced) { /* never asked for by the callers in this file */
+        SET_MSG(d->msg, d->msg_size, "%s: gzip data cannot be read backwards", d->info->path);
+        return ISOMEND_FILEIO_ERR_INVALID_ARGUMENT;
+    }
+    isomend_fileio_status st = gz_inflate(d, NULL, at - d->produced, 0);
+    if (st == ISOMEND_FILEIO_OK) st = gz_inflate(d, out, bytes, 0);
+    /* the last byte of the volume: the stream must end there */
+    if (st == ISOMEND_FILEIO_OK && d->produced == volume_bytes(d->info->dims, d->info->type))
+        st = gz_inflate(d, NULL, 0, 1);
     return st;
+}
+
+static uint64_t slice_bytes_of(const isomend_fileio_info *info)
+{
+    return (uint64_t)info->dims[0] * (uint64_t)info->dims[1] * isomend_type_size(info->type);
 }
 
 isomend_fileio_status isomend_fileio_read(const isomend_fileio_info *info, int64_t first_slice,
@@ -768,30 +812,154 @@ isomend_fileio_status isomend_fileio_read(const isomend_fileio_info *info, int64
                 (long long)(info->dims[2] - 1));
         return ISOMEND_FILEIO_ERR_INVALID_ARGUMENT;
     }
-    uint64_t slice_bytes = (uint64_t)info->dims[0] * (uint64_t)info->dims[1] * tsize;
+    uint64_t slice_bytes = slice_bytes_of(info);
     uint64_t bytes = slice_bytes * (uint64_t)slice_count;
     if (buffer_size < bytes) {
         SET_MSG(msg, msg_size, "%s: buffer of %zu bytes, %llu needed", info->path, buffer_size,
                 (unsigned long long)bytes);
         return ISOMEND_FILEIO_ERR_INVALID_ARGUMENT;
     }
-    FILE *fp = fopen(info->data_path, "rb");
-    if (!fp) {
-        int err = errno;
-        SET_MSG(msg, msg_size, "%s: %s", info->data_path, strerror(err));
-        return err == ENOENT ? ISOMEND_FILEIO_ERR_NOT_FOUND : ISOMEND_FILEIO_ERR_UNREADABLE;
+    decoder d;
+    isomend_fileio_status st = decoder_open(&d, info, msg, msg_size);
+    if (st == ISOMEND_FILEIO_OK) {
+        d.progress = progress;
+        d.progress_user = progress_user;
+        d.total = bytes;
+        st = decode(&d, slice_bytes * (uint64_t)first_slice, buffer, bytes);
     }
-    read_ctx c = {info, progress, progress_user, 0, bytes, 0, msg, msg_size};
-    uint64_t skip = slice_bytes * (uint64_t)first_slice;
-    isomend_fileio_status st;
-    if (info->encoding == ISOMEND_FILEIO_ENC_GZIP)
-        st = read_gzip(&c, fp, skip, buffer, bytes, first_slice + slice_count == info->dims[2]);
-    else
-        st = read_raw(&c, fp, skip, buffer, bytes);
-    fclose(fp);
+    decoder_close(&d);
     if (st == ISOMEND_FILEIO_OK && tsize > 1 && info->big_endian != machine_is_big_endian())
         swap_bytes(buffer, (size_t)(bytes / tsize), tsize);
     return st;
+}
+
+/* ------------------------------------------------------------------ slice by slice */
+
+struct isomend_fileio_slices {
+    isomend_fileio_info info;
+    decoder d;
+    int64_t next;          /* the next slice delivered                           */
+    uint64_t slice_bytes;
+    int reverse[3];        /* the axes describe() presents reversed              */
+    unsigned char *row;    /* one row, for reversing y                           */
+};
+
+isomend_fileio_status isomend_fileio_slices_open(const isomend_fileio_info *info,
+                                                 isomend_fileio_slices **out, char *msg,
+                                                 size_t msg_size)
+{
+    if (!info || !out) {
+        SET_MSG(msg, msg_size, "isomend_fileio_slices_open: NULL argument");
+        return ISOMEND_FILEIO_ERR_INVALID_ARGUMENT;
+    }
+    *out = NULL;
+    if (volume_bytes(info->dims, info->type) == 0) {
+        SET_MSG(msg, msg_size, "%s: invalid volume description", info->path);
+        return ISOMEND_FILEIO_ERR_INVALID_ARGUMENT;
+    }
+    isomend_fileio_slices *s = calloc(1, sizeof *s);
+    if (!s) {
+        SET_MSG(msg, msg_size, "%s: out of memory", info->path);
+        return ISOMEND_FILEIO_ERR_OUT_OF_MEMORY;
+    }
+    s->info = *info;
+    s->slice_bytes = slice_bytes_of(info);
+    for (int a = 0; a < 3; a++)
+        s->reverse[a] = info->axis_negative[a] && !info->oblique && info->dims[a] > 1;
+    if (s->reverse[2] && info->encoding == ISOMEND_FILEIO_ENC_GZIP) {
+        SET_MSG(msg, msg_size,
+                "%s: gzip data whose 'space directions' reverse the z axis cannot be read slice "
+                "by slice (its last slice comes first and gzip only reads forwards): "
+                "re-encode it as raw, or give it the memory to be read whole",
+                info->path);
+        free(s);
+        return ISOMEND_FILEIO_ERR_UNSUPPORTED;
+    }
+    if (s->reverse[1] && !(s->row = malloc((size_t)(info->dims[0] * (int64_t)isomend_type_size(info->type))))) {
+        SET_MSG(msg, msg_size, "%s: out of memory", info->path);
+        free(s);
+        return ISOMEND_FILEIO_ERR_OUT_OF_MEMORY;
+    }
+    isomend_fileio_status st = decoder_open(&s->d, &s->info, msg, msg_size);
+    if (st != ISOMEND_FILEIO_OK) {
+        isomend_fileio_slices_close(s);
+        return st;
+    }
+    *out = s;
+    return ISOMEND_FILEIO_OK;
+}
+
+uint64_t isomend_fileio_slices_bytes(const isomend_fileio_slices *s)
+{
+    return s ? s->slice_bytes : 0;
+}
+
+static void reverse_items(unsigned char *p, size_t count, size_t size, unsigned char *tmp)
+{
+    for (size_t a = 0, b = count - 1; a < b; a++, b--) {
+        memcpy(tmp, p + a * size, size);
+        memcpy(p + a * size, p + b * size, size);
+        memcpy(p + b * size, tmp, size);
+    }
+}
+
+isomend_fileio_status isomend_fileio_slices_next(isomend_fileio_slices *s, void *buffer,
+                                                 size_t buffer_size, char *msg, size_t msg_size)
+{
+    if (!s || !buffer) {
+        SET_MSG(msg, msg_size, "isomend_fileio_slices_next: NULL argument");
+        return ISOMEND_FILEIO_ERR_INVALID_ARGUMENT;
+    }
+    const isomend_fileio_info *info = &s->info;
+    if (s->next >= info->dims[2]) {
+        SET_MSG(msg, msg_size, "%s: all %lld slices were read", info->path, (long long)info->dims[2]);
+        return ISOMEND_FILEIO_ERR_INVALID_ARGUMENT;
+    }
+    if (buffer_size < s->slice_bytes) {
+        SET_MSG(msg, msg_size, "%s: buffer of %zu bytes, a slice needs %llu", info->path,
+                buffer_size, (unsigned long long)s->slice_bytes);
+        return ISOMEND_FILEIO_ERR_INVALID_ARGUMENT;
+    }
+    int64_t stored = s->reverse[2] ? info->dims[2] - 1 - s->next : s->next;
+    s->d.msg = msg;
+    s->d.msg_size = msg_size;
+    isomend_fileio_status st = decode(&s->d, s->slice_bytes * (uint64_t)stored, buffer,
+                                      s->slice_bytes);
+    if (st != ISOMEND_FILEIO_OK) return st;
+    size_t tsize = isomend_type_size(info->type);
+    size_t nx = (size_t)info->dims[0], ny = (size_t)info->dims[1];
+    if (tsize > 1 && info->big_endian != machine_is_big_endian())
+        swap_bytes(buffer, nx * ny, tsize);
+    unsigned char *p = buffer, tmp[8];
+    if (s->reverse[0])
+        for (size_t j = 0; j < ny; j++) reverse_items(p + j * nx * tsize, nx, tsize, tmp);
+    if (s->reverse[1]) reverse_items(p, ny, nx * tsize, s->row);
+    s->next++;
+    return ISOMEND_FILEIO_OK;
+}
+
+isomend_fileio_status isomend_fileio_slices_seek(isomend_fileio_slices *s, int64_t slice,
+                                                 char *msg, size_t msg_size)
+{
+    if (!s || slice < 0 || slice > s->info.dims[2]) {
+        SET_MSG(msg, msg_size, "isomend_fileio_slices_seek: slice out of range");
+        return ISOMEND_FILEIO_ERR_INVALID_ARGUMENT;
+    }
+    if (s->d.gzip && slice < s->next) { /* gzip only goes forwards: from the start again */
+        decoder_close(&s->d);
+        isomend_fileio_status st = decoder_open(&s->d, &s->info, msg, msg_size);
+        if (st != ISOMEND_FILEIO_OK) return st;
+    }
+    s->next = slice;
+    return ISOMEND_FILEIO_OK;
+}
+
+void isomend_fileio_slices_close(isomend_fileio_slices *s)
+{
+    if (!s) return;
+    decoder_close(&s->d);
+    free(s->row);
+    free(s);
 }
 
 isomend_fileio_status isomend_fileio_load(const isomend_fileio_info *info, void **out_data,

@@ -140,6 +140,35 @@ isomend_fileio_status isomend_fileio_read(const isomend_fileio_info *info, int64
                                           char *msg, size_t msg_size);
 
 /*
+ * Slice by slice, for volumes larger than memory: the slices in the order
+ * and orientation isomend_fileio_describe() presents the volume (z = 0
+ * first; an axis with axis_negative reversed), each contiguous, x fastest,
+ * machine byte order, isomend_fileio_slices_bytes() bytes.  Memory: the
+ * caller's slice buffer plus ~330 KiB (the decompressor's), whatever nz.
+ * Raw data is read where it lies (a reversed z axis reads the file from its
+ * last slice back); gzip data is inflated forwards once, and a gzip volume
+ * with a reversed z axis is refused (ISOMEND_FILEIO_ERR_UNSUPPORTED) since
+ * its first slice is the stream's last.  The last slice checks that a gzip
+ * stream ends exactly there, as isomend_fileio_read() does.  `info` is
+ * copied.  One thread at a time per reader.
+ */
+typedef struct isomend_fileio_slices isomend_fileio_slices;
+
+isomend_fileio_status isomend_fileio_slices_open(const isomend_fileio_info *info,
+                                                 isomend_fileio_slices **out, char *msg,
+                                                 size_t msg_size);
+uint64_t isomend_fileio_slices_bytes(const isomend_fileio_slices *s);
+/* The next slice into `buffer` (at least isomend_fileio_slices_bytes() bytes). */
+isomend_fileio_status isomend_fileio_slices_next(isomend_fileio_slices *s, void *buffer,
+                                                 size_t buffer_size, char *msg, size_t msg_size);
+/* The next call delivers slice `slice` (0..dims[2]).  Raw data seeks;
+ * gzip data skips forwards by inflating (backwards: from the start again). */
+isomend_fileio_status isomend_fileio_slices_seek(isomend_fileio_slices *s, int64_t slice,
+                                                 char *msg, size_t msg_size);
+/* Accepts NULL. */
+void isomend_fileio_slices_close(isomend_fileio_slices *s);
+
+/*
  * Reads the whole volume into a new malloc'ed buffer (*out_data; release it
  * with free()).  On failure *out_data is NULL.
  */

@@ -6,6 +6,10 @@ the MRI sample is loaded and saved again as PLY (binary, int indices,
 "VCGLIB generated"), OBJ and STL; `isomend check` must find the same
 triangles, no hole, no edge used 3+ times, no misoriented edge.
 
+Blender's importers (3.4: PLY, OBJ, STL) read what isomend writes, here
+streamed (--max-memory: the fixed-length PLY header, faces appended from a
+scratch file): the vertex and triangle counts isomend reports.
+
 Blender (3.4, background): a UV sphere (quads and triangle fans) exported
 with every mesh exporter Blender has (PLY ascii and binary, STL ascii and
 binary, OBJ with normals); `isomend check` must find Blender's vertex and
@@ -105,6 +109,68 @@ def test_blender(exe, work):
             fail(f"blender {name}", f"not one closed sphere: {c}")
 
 
+IMPORT_SCRIPT = r"""
+import bpy, json, sys
+args = sys.argv[sys.argv.index("--") + 1:]
+out, files = args[0], args[1:]
+result = {}
+for path in files:
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    if path.endswith(".ply"):
+        bpy.ops.import_mesh.ply(filepath=path)
+    elif path.endswith(".obj"):
+        bpy.ops.wm.obj_import(filepath=path)
+    else:
+        bpy.ops.import_mesh.stl(filepath=path)
+    me = [o for o in bpy.context.scene.objects if o.type == "MESH"][0].data
+    result[path] = {"vertices": len(me.vertices),
+                    "triangles": sum(len(p.vertices) - 2 for p in me.polygons)}
+json.dump(result, open(out, "w"))
+"""
+
+
+def test_blender_imports(exe, work, samples):
+    src = os.path.join(samples, "anatomical.nrrd")
+    base = [src, "--iso", "7000.5", "--pad", "-q"]
+    p = subprocess.run([exe, "extract", *base, "-o", os.path.join(work, "probe.ply"), "--json", "-"],
+                       capture_output=True, text=True)
+    if p.returncode != 0:
+        fail("blender import input", p.stderr)
+        return
+    j = json.loads(p.stdout)
+    limit = str((j["memory_estimate"] + j["memory_streaming"]) // 2)
+    files = []
+    for name, extra in (("s.ply", []), ("s_nonormals.ply", ["--no-normals"]), ("s.obj", []),
+                        ("s.stl", [])):
+        path = os.path.join(work, name)
+        q = subprocess.run([exe, "extract", *base, *extra, "-o", path, "--max-memory", limit,
+                            "--json", "-"], capture_output=True, text=True)
+        if q.returncode != 0 or not json.loads(q.stdout)["streamed"]:
+            fail(f"blender import {name}", f"isomend extract: {q.stderr}")
+            continue
+        files.append(path)
+    script = os.path.join(work, "import.py")
+    with open(script, "w") as f:
+        f.write(IMPORT_SCRIPT)
+    res = os.path.join(work, "imported.json")
+    p = subprocess.run(["blender", "-b", "--factory-startup", "--python", script, "--", res, *files],
+                       capture_output=True, text=True, timeout=600)
+    if p.returncode != 0 or not os.path.exists(res):
+        fail("blender import", f"exit {p.returncode}: {p.stdout[-500:]} {p.stderr[-500:]}")
+        return
+    got = json.load(open(res))
+    for path in files:
+        g = got.get(path)
+        if not g or g["triangles"] != j["triangles"]:
+            fail(f"blender import {os.path.basename(path)}", f"{g} vs {j['triangles']} triangles")
+        elif not path.endswith(".stl") and g["vertices"] != j["vertices"]:
+            fail(f"blender import {os.path.basename(path)}", f"{g} vs {j['vertices']} vertices")
+        elif path.endswith(".stl") and not 0 < g["vertices"] <= j["vertices"]:
+            fail(f"blender import {os.path.basename(path)}", f"STL welded to {g['vertices']} vertices")
+        else:
+            print(f"ok   Blender imports isomend's streamed {os.path.basename(path)}: {g}")
+
+
 def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("--isomend", required=True)
@@ -121,6 +187,7 @@ def main():
         exe = os.path.abspath(a.isomend)
         test_meshlab(exe, a.work, os.path.abspath(a.samples))
         test_blender(exe, a.work)
+        test_blender_imports(exe, a.work, os.path.abspath(a.samples))
     if FAILURES:
         print(f"{len(FAILURES)} failure(s)", file=sys.stderr)
         return 1

@@ -34,4 +34,14 @@ static int tu_failures;
         return 0;                                                                        \
     } while (0)
 
+/* "dir/name" in one of four rotating buffers (up to four in use at once). */
+static inline const char *tu_path_in(const char *dir, const char *name)
+{
+    static char buf[4][600];
+    static int k;
+    k = (k + 1) % 4;
+    snprintf(buf[k], sizeof buf[k], "%s/%s", dir, name);
+    return buf[k];
+}
+
 #endif

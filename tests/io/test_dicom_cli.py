@@ -7,6 +7,8 @@ Usage: test_dicom_cli.py ISOMEND_CLI DICOM_DIR
   the reason, no output file (nor a temporary one) left behind;
 - every good series: `info --json` says kind "dicom" with the dimensions,
   type, spacing, origin and world transform that were meant;
+- the mesh streamed (--max-memory) equals the in-memory one byte for byte,
+  also mapped to patient space (oblique, feet first, mirrored);
 - the mesh from a DICOM series equals the mesh from the same volume given as
   raw with the same spacing and origin: byte for byte for an axial series and
   for --grid-axes; for a turned series, the raw mesh mapped by the series'
@@ -120,6 +122,18 @@ with tempfile.TemporaryDirectory() as tmp:
         check(r1.returncode == 0 and r2.returncode == 0, "%s: extract %s / raw %s" % (name, r1.stderr, r2.stderr))
         if r1.returncode or r2.returncode:
             continue
+        # streamed (--max-memory between the two estimates): slices through the importer,
+        # the mesh mapped to patient space batch by batch: the same bytes
+        base = ["extract", "--quiet", "--pad", "--iso", iso] + series_args(c) + axes + c["sources"]
+        p = run(base + ["-o", os.path.join(tmp, name + ".probe.ply"), "--json", "-"])
+        if p.returncode == 0:
+            e = json.loads(p.stdout)
+            smesh = os.path.join(tmp, name + ".streamed.ply")
+            r3 = run(base + ["-o", smesh, "--json", "-", "--max-memory",
+                             str((e["memory_estimate"] + e["memory_streaming"]) // 2)])
+            check(r3.returncode == 0 and json.loads(r3.stdout)["streamed"] and
+                  open(smesh, "rb").read() == open(dmesh, "rb").read(),
+                  "%s: the streamed DICOM mesh differs from the in-memory one: %s" % (name, r3.stderr))
         if identity:
             check(open(dmesh, "rb").read() == open(rmesh, "rb").read(),
                   "%s: the DICOM mesh differs from the raw volume's mesh" % name)

@@ -1,0 +1,198 @@
+#!/usr/bin/python3
+"""Streaming against in-memory, and a TIFF folder to a PLY file against VTK (issue 24).
+
+Runs, on one TIFF folder (generated: a CT-like phantom of 40 balls, u16, NX x NY x NZ):
+
+  1. isomend extract, in memory and streamed (--max-memory between the two estimates the
+     command reports), PLY out: wall time, slices/s and MB/s of input, peak resident memory
+     (the process's VmHWM, reported in --json), and the two files must be identical;
+  2. the VTK pipeline a user would write (vtkTIFFReader -> vtkFlyingEdges3D ->
+     vtkPLYWriter, python3-vtk9) in its own process: wall time and peak memory (ru_maxrss
+     of that process, from wait4);
+  3. isomend-mpi at N = 1, 2, 4 ranks (when built): wall time and the largest rank's peak,
+     and the file must equal isomend extract's.
+
+Each measurement is the median of --repeats runs, alternated between the tools, so that a
+busy machine slows all of them alike; ratios are what matter. Until the core streams
+(docs/streaming.md), the streamed figures are those of the placeholder (it reads the
+volume into memory, then writes the mesh as it goes): the script prints the engine each run
+reports, and the table says "placeholder" next to them.
+
+usage: stream_bench.py --isomend PATH [--isomend-mpi PATH] [--size NX,NY,NZ] [--repeats N]
+                       [--work DIR] [--out FILE.md] [--check]
+  --check   the smoke mode for ctest: tiny defaults, and a non-zero exit if a file differs
+"""
+import argparse
+import json
+import os
+import shutil
+import statistics
+import subprocess
+import sys
+import time
+
+import numpy as np
+
+VTK_SCRIPT = r"""
+import sys, vtk
+folder, nx, ny, nz, iso, out = sys.argv[1], *map(int, sys.argv[2:5]), float(sys.argv[5]), sys.argv[6]
+r = vtk.vtkTIFFReader()
+r.SetFilePrefix(folder + "/s")
+r.SetFilePattern("%s_%04d.tif")
+r.SetDataExtent(0, nx - 1, 0, ny - 1, 0, nz - 1)
+r.SetFileNameSliceOffset(0)
+r.SetOrientationType(0)  # rows as stored, as isomend reads them
+fe = vtk.vtkFlyingEdges3D()
+fe.SetInputConnection(r.GetOutputPort())
+fe.SetValue(0, iso)
+fe.ComputeNormalsOn()
+w = vtk.vtkPLYWriter()
+w.SetInputConnection(fe.GetOutputPort())
+w.SetFileName(out)
+w.SetFileTypeToBinary()
+if not w.Write():
+    sys.exit("vtkPLYWriter failed")
+print(fe.GetOutput().GetNumberOfPolys())
+"""
+
+
+def make_stack(folder, nx, ny, nz, seed=3):
+    """A CT-like phantom, u16, one TIFF per slice (s_0000.tif ...): 40 balls of 1000 over
+    a background of 0, plus a little noise (+-60), generated slice by slice."""
+    import tifffile
+    os.makedirs(folder, exist_ok=True)
+    rng = np.random.default_rng(seed)
+    scale = min(nx, ny, nz)
+    balls = [(rng.uniform(0, nx), rng.uniform(0, ny), rng.uniform(0, nz),
+              rng.uniform(0.04, 0.12) * scale) for _ in range(40)]
+    y, x = np.mgrid[0:ny, 0:nx].astype(np.float32)
+    for k in range(nz):
+        a = np.zeros((ny, nx), np.float32)
+        for bx, by, bz, r in balls:
+            dz = k - bz
+            if abs(dz) < r:
+                a[(x - bx) ** 2 + (y - by) ** 2 < r * r - dz * dz] = 1000
+        a += rng.uniform(-60, 60, size=a.shape).astype(np.float32) + 100
+        tifffile.imwrite(os.path.join(folder, "s_%04d.tif" % k), a.astype(np.uint16))
+
+
+def timed(cmd, env=None):
+    """(seconds, stdout, stderr, exit code); isomend reports its own peak in --json."""
+    t0 = time.perf_counter()
+    p = subprocess.run(cmd, capture_output=True, text=True, env=env)
+    return time.perf_counter() - t0, p.stdout, p.stderr, p.returncode
+
+
+def vtk_run(script, folder, nx, ny, nz, iso, out):
+    """The VTK pipeline in its own process: (seconds, peak RSS bytes from wait4, ...)."""
+    t0 = time.perf_counter()
+    p = subprocess.Popen(["/usr/bin/python3", script, folder, str(nx), str(ny), str(nz), str(iso), out],
+                         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    _, status, usage = os.wait4(p.pid, 0)
+    t = time.perf_counter() - t0
+    out_text = p.stdout.read()
+    err = p.stderr.read()
+    rc = os.waitstatus_to_exitcode(status)
+    return t, usage.ru_maxrss * 1024, out_text, err, rc
+
+
+def main():
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--isomend", required=True)
+    ap.add_argument("--isomend-mpi")
+    ap.add_argument("--mpirun", default=shutil.which("mpirun") or "mpirun")
+    ap.add_argument("--size", default=None, help="NX,NY,NZ (default 512,512,256; --check 64,48,40)")
+    ap.add_argument("--repeats", type=int, default=3)
+    ap.add_argument("--work", default="/tmp/isomend_stream_bench")
+    ap.add_argument("--out")
+    ap.add_argument("--check", action="store_true")
+    a = ap.parse_args()
+    nx, ny, nz = map(int, (a.size or ("64,48,40" if a.check else "512,512,256")).split(","))
+    if a.check:
+        a.repeats = 1
+    shutil.rmtree(a.work, ignore_errors=True)
+    folder = os.path.join(a.work, "stack")
+    make_stack(folder, nx, ny, nz)
+    mb = nx * ny * nz * 2 / 1e6
+    iso = 600.5
+    exe = os.path.abspath(a.isomend)
+    base = [exe, "extract", folder, "--iso", str(iso), "-q", "--json", "-"]
+    # the limit between the two estimates: in-memory would not fit, streaming does
+    probe = subprocess.run(base + ["-o", os.path.join(a.work, "probe.ply")], capture_output=True, text=True)
+    if probe.returncode:
+        sys.exit("isomend extract failed: " + probe.stderr)
+    j = json.loads(probe.stdout)
+    limit = str((j["memory_estimate"] + j["memory_streaming"]) // 2)
+    runs = {"in memory": [], "streamed": [], "vtk": []}
+    mpi_ns = [1, 2, 4] if a.isomend_mpi else []
+    for n in mpi_ns:
+        runs[f"mpi {n}"] = []
+    script = os.path.join(a.work, "vtk_pipeline.py")
+    with open(script, "w") as f:
+        f.write(VTK_SCRIPT)
+    env = {k: v for k, v in os.environ.items() if k != "DISPLAY"}  # hwloc's GL plugin, see tests/mpi
+    env.update(OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1", HWLOC_COMPONENTS="-gl")
+    failures = []
+    engines = set()
+    ref = os.path.join(a.work, "in_memory.ply")
+    for _ in range(a.repeats):
+        for name in runs:
+            out = os.path.join(a.work, name.replace(" ", "_") + ".ply")
+            if name == "vtk":
+                t, peak, txt, err, rc = vtk_run(script, folder, nx, ny, nz, iso, out)
+                if rc:
+                    failures.append("vtk: " + err[-300:])
+                    continue
+                runs[name].append((t, peak, int(txt.split()[-1])))
+                continue
+            if name.startswith("mpi"):
+                n = int(name.split()[1])
+                cmd = [a.mpirun, "--oversubscribe", "-n", str(n), os.path.abspath(a.isomend_mpi), "extract",
+                       folder, "--iso", str(iso), "-q", "--json", "-", "-o", out]
+            else:
+                cmd = base + ["-o", out] + (["--max-memory", limit] if name == "streamed" else [])
+            t, txt, err, rc = timed(cmd, env=env)
+            if rc:
+                failures.append(f"{name}: {err[-300:]}")
+                continue
+            r = json.loads(txt)
+            if name == "streamed":
+                engines.add(r.get("stream_engine"))
+                if not r["streamed"]:
+                    failures.append("streamed: the run did not stream")
+            runs[name].append((t, r["peak_memory"], r["triangles"]))
+            if name != "in memory" and open(out, "rb").read() != open(ref, "rb").read():
+                failures.append(f"{name}: the file differs from the in-memory one")
+    rows = []
+    t_mem = statistics.median(x[0] for x in runs["in memory"]) if runs["in memory"] else float("nan")
+    for name, xs in runs.items():
+        if not xs:
+            continue
+        t = statistics.median(x[0] for x in xs)
+        peak = max(x[1] for x in xs)
+        label = name + (" (" + "/".join(sorted(map(str, engines))) + ")" if name == "streamed" else "")
+        rows.append(f"| {label} | {t:.2f} | {t / t_mem:.2f} | {nz / t:.0f} | {mb / t:.1f} | "
+                    f"{peak / 2 ** 20:.0f} | {xs[0][2]} |")
+    text = (f"Stack {nx}x{ny}x{nz} u16 ({mb:.1f} MB, {nz} TIFF files), iso {iso}, "
+            f"{a.repeats} run(s), median wall time; peak = VmHWM (isomend's --json, largest rank) "
+            f"or ru_maxrss (VTK's process)\n\n"
+            "| run | s | / in memory | slices/s | MB/s in | peak MiB | triangles |\n"
+            "|---|---|---|---|---|---|---|\n" + "\n".join(rows) + "\n")
+    if "placeholder" in engines:
+        text += ("\nThe streamed figures are the placeholder's (docs/streaming.md): the volume is "
+                 "read into memory, only the output streams.\n")
+    print(text)
+    if a.out:
+        with open(a.out, "w") as f:
+            f.write(text)
+    for fl in failures:
+        print("FAIL " + fl, file=sys.stderr)
+    if a.check:
+        if failures:
+            return 1
+        print("stream bench: ok")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

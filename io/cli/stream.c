@@ -1,0 +1,330 @@
+/*
+ * stream.c - extraction that does not hold the volume or the mesh: the
+ * memory rule of --max-memory, the mesh sink, and the streaming extraction
+ *
+ * The memory rule (README "Volumes larger than memory, and clusters";
+ * docs/streaming.md).  `isomend extract` holds, on the in-memory path,
+ *   volume   nx * ny * nz * sample size                       (the samples)
+ *   mesh     6.25 bytes per marched sample with normals, 4.75 without:
+ *            one triangle (12 bytes + 1 origin byte) for every 4 samples
+ *            and a vertex (24 or 12 bytes) for every 8, a surface as busy
+ *            as a 256^3 gyroid of period 85 samples or a smoothed CT
+ *   working  the sign cache (1 bit per sample), the id maps of two slices
+ *            (3 x 4 bytes per slice sample each) and 64 MiB (threads,
+ *            tables, the writer's buffers)
+ * and streams whenever their sum exceeds the limit: --max-memory SIZE, or
+ * MemAvailable without it.  A volume larger than memory is then streamed
+ * instead of refused.  The mesh is the same either way, byte for byte.
+ *
+ * Streaming holds a few slices (see cli_memory_plan()), and the writer
+ * (mesh_writer.h) holds no mesh: PLY/OBJ faces wait in a scratch file on
+ * the output's disk, and STL keeps the positions of two slices.
+ *
+ * cli_stream_extract() is, in this build, a PLACEHOLDER (issue 24, see
+ * CLI_STREAM_ENGINE): it reads the slices into one buffer and calls
+ * isomend_extract(), then feeds the sink in slice order.  So it needs the
+ * memory of the in-memory path, and no memory bound is claimed for it; the
+ * slices, the sink and the writers are the real ones, and the bytes written
+ * are the in-memory path's.  The core's streaming API (push one slice at a
+ * time, docs/streaming.md) replaces its body and nothing else.
+ */
+#define _POSIX_C_SOURCE 200809L
+
+#include "cli.h"
+
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "mesh_writer.h"
+
+#define MIB (1024.0 * 1024.0)
+
+/* ------------------------------------------------------------------ the memory rule */
+
+void cli_memory_plan_make(const isomend_volume *desc, unsigned flags, uint64_t max_memory,
+                          cli_memory_plan *p)
+{
+    memset(p, 0, sizeof *p);
+    const int pad = (flags & ISOMEND_FLAG_PAD) != 0;
+    const int normals = !(flags & ISOMEND_FLAG_NO_NORMALS);
+    const double ts = (double)isomend_type_size(desc->type);
+    double n[3], N[3];
+    for (int a = 0; a < 3; a++) {
+        n[a] = (double)desc->dims[a];
+        N[a] = n[a] + 2.0 * pad;
+    }
+    const double samples = N[0] * N[1] * N[2], plane = N[0] * N[1];
+    double volume = n[0] * n[1] * n[2] * ts;
+    double mesh = samples * (normals ? 6.25 : 4.75);
+    double working = samples / 8.0 + 24.0 * plane + 64.0 * MIB;
+    double in_memory = volume + mesh + working;
+    /* streaming (provisional until the core's isomend_stream_memory()): four
+     * planes of samples, the signs and id maps of two, two layers of mesh
+     * batches, and the same 64 MiB (the writer's buffers and STL window) */
+    double streaming = 4.0 * n[0] * n[1] * ts + plane * (2.0 + 24.0 + 2.0 * 6.25) + 64.0 * MIB;
+    const double cap = 1.8e19;
+    p->volume = volume < cap ? (uint64_t)volume : UINT64_MAX;
+    p->in_memory = in_memory < cap ? (uint64_t)in_memory : UINT64_MAX;
+    p->streaming = streaming < cap ? (uint64_t)streaming : UINT64_MAX;
+    p->limit_given = max_memory != 0;
+    p->limit = max_memory ? max_memory : cli_memory_available();
+    p->stream = p->limit != 0 && p->in_memory > p->limit;
+}
+
+uint64_t cli_peak_memory(void)
+{
+    return cli_proc_kib("/proc/self/status", "VmHWM:") * 1024u;
+}
+
+/* ------------------------------------------------------------------ a writer as sink */
+
+static int writer_failed(isomend_mesh_writer *w, isomend_fileio_status st)
+{
+    if (st == ISOMEND_FILEIO_OK) return 0;
+    cli_error("%s", isomend_mesh_writer_message(w));
+    return 1;
+}
+
+static int sink_vertices(void *user, uint64_t first, size_t count, const float *pos,
+                         const float *nrm, const uint64_t *keys)
+{
+    (void)keys;
+    isomend_mesh_writer *w = user;
+    if (first != isomend_mesh_writer_vertex_count(w)) {
+        cli_error("vertices from id %llu, %llu expected (internal error)",
+                  (unsigned long long)first,
+                  (unsigned long long)isomend_mesh_writer_vertex_count(w));
+        return 1;
+    }
+    return writer_failed(w, isomend_mesh_writer_vertices(w, count, pos, nrm));
+}
+
+static int sink_triangles(void *user, size_t count, const uint64_t *ids, const uint8_t *origins)
+{
+    (void)origins;
+    return writer_failed(user, isomend_mesh_writer_triangles(user, count, ids));
+}
+
+static int sink_retire(void *user, uint64_t floor)
+{
+    return writer_failed(user, isomend_mesh_writer_retire(user, floor));
+}
+
+void cli_sink_for_writer(cli_sink *sink, isomend_mesh_writer *w)
+{
+    sink->user = w;
+    sink->vertices = sink_vertices;
+    sink->triangles = sink_triangles;
+    sink->retire = sink_retire;
+}
+
+/* ------------------------------------------------------------------ a mapped sink */
+
+/*
+ * The affine map of isomend_mesh_copy_transformed() (libcore/src/transform.c),
+ * batch by batch, with the same expressions in the same order, so that a
+ * streamed DICOM mesh is the in-memory one byte for byte (cli_stream,
+ * io_dicom_cli): positions by M p + t in double, rounded once; normals by
+ * the cofactor matrix over det(M), renormalised; windings reversed when
+ * det(M) < 0.  (A batch form of that function in the core would replace
+ * this copy.)
+ */
+int cli_world_init(cli_world *w, const double affine[12], const cli_sink *next)
+{
+    memset(w, 0, sizeof *w);
+    for (int i = 0; i < 12; i++)
+        if (!isfinite(affine[i])) return 0;
+    memcpy(w->m, affine, sizeof w->m);
+    const double *m0 = w->m, *m1 = w->m + 4, *m2 = w->m + 8;
+    const double c[3][3] = {
+        {m1[1] * m2[2] - m1[2] * m2[1], m1[2] * m2[0] - m1[0] * m2[2], m1[0] * m2[1] - m1[1] * m2[0]},
+        {m2[1] * m0[2] - m2[2] * m0[1], m2[2] * m0[0] - m2[0] * m0[2], m2[0] * m0[1] - m2[1] * m0[0]},
+        {m0[1] * m1[2] - m0[2] * m1[1], m0[2] * m1[0] - m0[0] * m1[2], m0[0] * m1[1] - m0[1] * m1[0]}};
+    const double det = m0[0] * c[0][0] + m0[1] * c[0][1] + m0[2] * c[0][2];
+    if (!(fabs(det) > 0.0) || !isfinite(det)) return 0;
+    memcpy(w->c, c, sizeof w->c);
+    w->s = 1.0 / det;
+    w->mirror = det < 0.0;
+    w->next = *next;
+    return 1;
+}
+
+void cli_world_free(cli_world *w)
+{
+    if (!w) return;
+    free(w->buf);
+    w->buf = NULL;
+    w->cap = 0;
+}
+
+static float *world_room(cli_world *w, size_t floats)
+{
+    if (floats > w->cap) {
+        float *p = realloc(w->buf, floats * sizeof *p);
+        if (!p) return NULL;
+        w->buf = p;
+        w->cap = floats;
+    }
+    return w->buf;
+}
+
+void cli_world_map(const cli_world *w, float *pos, float *nrm, size_t count)
+{
+    const double *m0 = w->m, *m1 = w->m + 4, *m2 = w->m + 8;
+    for (size_t i = 0; i < count; i++) {
+        const double x = pos[3 * i], y = pos[3 * i + 1], z = pos[3 * i + 2];
+        pos[3 * i] = (float)(m0[0] * x + m0[1] * y + m0[2] * z + m0[3]);
+        pos[3 * i + 1] = (float)(m1[0] * x + m1[1] * y + m1[2] * z + m1[3]);
+        pos[3 * i + 2] = (float)(m2[0] * x + m2[1] * y + m2[2] * z + m2[3]);
+    }
+    for (size_t i = 0; nrm && i < count; i++) {
+        const double x = nrm[3 * i], y = nrm[3 * i + 1], z = nrm[3 * i + 2];
+        double n[3];
+        for (int r = 0; r < 3; r++)
+            n[r] = w->s * (w->c[r][0] * x + w->c[r][1] * y + w->c[r][2] * z);
+        const double len = sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
+        const double inv = len > 0.0 ? 1.0 / len : 0.0;
+        for (int r = 0; r < 3; r++) nrm[3 * i + r] = (float)(n[r] * inv);
+    }
+}
+
+static int world_vertices(void *user, uint64_t first, size_t count, const float *pos,
+                          const float *nrm, const uint64_t *keys)
+{
+    cli_world *w = user;
+    float *out = world_room(w, (nrm ? 6 : 3) * count);
+    if (!out && count) {
+        cli_error("out of memory placing the mesh in patient space");
+        return 1;
+    }
+    float *onrm = nrm ? out + 3 * count : NULL;
+    if (count) memcpy(out, pos, 3 * count * sizeof(float));
+    if (onrm && count) memcpy(onrm, nrm, 3 * count * sizeof(float));
+    cli_world_map(w, out, onrm, count);
+    return w->next.vertices(w->next.user, first, count, out, onrm, keys);
+}
+
+static int world_triangles(void *user, size_t count, const uint64_t *ids, const uint8_t *origins)
+{
+    cli_world *w = user;
+    if (!w->mirror) return w->next.triangles(w->next.user, count, ids, origins);
+    uint64_t *swapped = malloc(3 * count * sizeof *swapped + 1);
+    if (!swapped) {
+        cli_error("out of memory placing the mesh in patient space");
+        return 1;
+    }
+    for (size_t t = 0; t < count; t++) { /* a mirror: the winding reversed */
+        swapped[3 * t] = ids[3 * t];
+        swapped[3 * t + 1] = ids[3 * t + 2];
+        swapped[3 * t + 2] = ids[3 * t + 1];
+    }
+    int rc = w->next.triangles(w->next.user, count, swapped, origins);
+    free(swapped);
+    return rc;
+}
+
+static int world_retire(void *user, uint64_t floor)
+{
+    cli_world *w = user;
+    return w->next.retire(w->next.user, floor);
+}
+
+void cli_sink_for_world(cli_sink *sink, cli_world *w)
+{
+    sink->user = w;
+    sink->vertices = world_vertices;
+    sink->triangles = world_triangles;
+    sink->retire = world_retire;
+}
+
+/* ------------------------------------------------------------------ extraction */
+
+/* Hands an extracted mesh to a sink in batches, in the streaming order
+ * (every vertex a triangle uses comes first). */
+int cli_feed_mesh(const isomend_mesh *mesh, const cli_sink *sink)
+{
+    enum { BATCH = 1 << 16 };
+    const size_t nv = isomend_mesh_vertex_count(mesh), nt = isomend_mesh_triangle_count(mesh);
+    const float *pos = isomend_mesh_positions(mesh), *nrm = isomend_mesh_normals(mesh);
+    const uint32_t *tri = isomend_mesh_triangles(mesh);
+    const uint8_t *org = isomend_mesh_triangle_origins(mesh);
+    for (size_t v = 0; v < nv; v += BATCH) {
+        size_t n = nv - v < BATCH ? nv - v : BATCH;
+        if (sink->vertices(sink->user, v, n, pos + 3 * v, nrm ? nrm + 3 * v : NULL, NULL))
+            return CLI_EXIT_FAIL;
+    }
+    uint64_t *ids = malloc(3 * BATCH * sizeof *ids);
+    if (!ids && nt) {
+        cli_error("out of memory");
+        return CLI_EXIT_FAIL;
+    }
+    int rc = CLI_EXIT_OK;
+    for (size_t t = 0; t < nt && rc == CLI_EXIT_OK; t += BATCH) {
+        size_t n = nt - t < BATCH ? nt - t : BATCH;
+        for (size_t i = 0; i < 3 * n; i++) ids[i] = tri[3 * t + i];
+        if (sink->triangles(sink->user, n, ids, org ? org + t : NULL)) rc = CLI_EXIT_FAIL;
+    }
+    free(ids);
+    return rc;
+}
+
+int cli_stream_extract(cli_slices *s, const isomend_options *opts, const cli_sink *sink,
+                       isomend_stats *stats)
+{
+    /*
+     * PLACEHOLDER until the core streams (issue 24): the slices are read one
+     * by one into one buffer, extracted in memory, and the mesh is fed to the
+     * sink in slice order.  Replace from here to the end of the function with
+     *   isomend_stream_begin(&desc, opts, &sink, &st);
+     *   for each slice: cli_slices_next(s, slice); isomend_stream_push(st, slice);
+     *   isomend_stream_finish(st, stats);
+     */
+    const uint64_t bytes = s->slice_bytes * (uint64_t)s->desc.dims[2];
+    const uint64_t avail = cli_memory_available();
+    if ((avail && bytes > avail) || bytes > (uint64_t)SIZE_MAX) {
+        cli_error("%s: the volume needs %.1f MiB, more than the %.1f MiB of memory available; "
+                  "this build streams the output, but not yet the volume (the core's streaming "
+                  "extraction is pending)",
+                  s->label, (double)bytes / MIB, (double)avail / MIB);
+        return CLI_EXIT_FAIL;
+    }
+    char *data = malloc(bytes ? (size_t)bytes : 1);
+    if (!data) {
+        cli_error("%s: cannot allocate %.1f MiB for the volume", s->label, (double)bytes / MIB);
+        return CLI_EXIT_FAIL;
+    }
+    cli_slices_rewind(s);
+    for (int64_t k = 0; k < s->desc.dims[2]; k++) {
+        if (cli_interrupted) {
+            cli_error("%s: interrupted", s->label);
+            free(data);
+            return CLI_EXIT_INTERRUPTED;
+        }
+        int rc = cli_slices_next(s, data + s->slice_bytes * (uint64_t)k);
+        if (rc) {
+            free(data);
+            return rc;
+        }
+        cli_progress_update(s->progress, "read", (double)(k + 1) / (double)s->desc.dims[2]);
+    }
+    cli_progress_clear(s->progress);
+    isomend_volume vol = s->desc;
+    vol.data = data;
+    vol.strides[0] = vol.strides[1] = vol.strides[2] = 0;
+    isomend_mesh *mesh = NULL;
+    isomend_status st = isomend_extract(&vol, opts, &mesh, stats);
+    free(data);
+    cli_progress_clear(s->progress);
+    if (st == ISOMEND_ERR_CANCELLED) {
+        cli_error("%s: interrupted", s->label);
+        return CLI_EXIT_INTERRUPTED;
+    }
+    if (st != ISOMEND_OK) {
+        cli_error("%s: extraction failed: %s", s->label, isomend_status_string(st));
+        return CLI_EXIT_FAIL;
+    }
+    int rc = cli_feed_mesh(mesh, sink);
+    isomend_mesh_destroy(mesh);
+    return rc;
+}
