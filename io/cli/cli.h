@@ -338,9 +338,9 @@ void cli_world_free(cli_world *w); /* accepts NULL */
 /* Hands a whole mesh to a sink in the streaming order; exit code. */
 int cli_feed_mesh(const isomend_mesh *mesh, const cli_sink *sink);
 
-/* What implements cli_stream_extract() in this build: "placeholder" until
- * the core's streaming API replaces it (then "core"); --json reports it. */
-#define CLI_STREAM_ENGINE "placeholder"
+/* What implements cli_stream_extract(): the core's streaming API
+ * (isomend_stream_*); --json reports it. */
+#define CLI_STREAM_ENGINE "core"
 
 /*
  * Extracts the surface of the slices of `s` (from slice 0) and hands the

@@ -20,13 +20,11 @@
  * (mesh_writer.h) holds no mesh: PLY/OBJ faces wait in a scratch file on
  * the output's disk, and STL keeps the positions of two slices.
  *
- * cli_stream_extract() is, in this build, a PLACEHOLDER (issue 24, see
- * CLI_STREAM_ENGINE): it reads the slices into one buffer and calls
- * isomend_extract(), then feeds the sink in slice order.  So it needs the
- * memory of the in-memory path, and no memory bound is claimed for it; the
- * slices, the sink and the writers are the real ones, and the bytes written
- * are the in-memory path's.  The core's streaming API (push one slice at a
- * time, docs/streaming.md) replaces its body and nothing else.
+ * cli_stream_extract() is the core's streaming extraction
+ * (isomend_stream_begin/push/finish): one slice read at a time into one
+ * buffer and pushed, the core keeping a few planes (isomend_stream_memory())
+ * and handing the mesh to the sink as the slices complete it, in
+ * isomend_extract()'s order and bytes.
  */
 #define _POSIX_C_SOURCE 200809L
 
@@ -272,59 +270,44 @@ int cli_feed_mesh(const isomend_mesh *mesh, const cli_sink *sink)
 int cli_stream_extract(cli_slices *s, const isomend_options *opts, const cli_sink *sink,
                        isomend_stats *stats)
 {
-    /*
-     * PLACEHOLDER until the core streams (issue 24): the slices are read one
-     * by one into one buffer, extracted in memory, and the mesh is fed to the
-     * sink in slice order.  Replace from here to the end of the function with
-     *   isomend_stream_begin(&desc, opts, &sink, &st);
-     *   for each slice: cli_slices_next(s, slice); isomend_stream_push(st, slice);
-     *   isomend_stream_finish(st, stats);
-     */
-    const uint64_t bytes = s->slice_bytes * (uint64_t)s->desc.dims[2];
-    const uint64_t avail = cli_memory_available();
-    if ((avail && bytes > avail) || bytes > (uint64_t)SIZE_MAX) {
-        cli_error("%s: the volume needs %.1f MiB, more than the %.1f MiB of memory available; "
-                  "this build streams the output, but not yet the volume (the core's streaming "
-                  "extraction is pending)",
-                  s->label, (double)bytes / MIB, (double)avail / MIB);
+    /* The core's stream (isomend_stream_*): one slice in this buffer at a
+     * time, the mesh handed to the sink as the slices complete it. */
+    isomend_mesh_sink core = {sink->user, sink->vertices, sink->triangles, sink->retire, NULL};
+    char *slice = malloc(s->slice_bytes ? (size_t)s->slice_bytes : 1);
+    if (!slice) {
+        cli_error("%s: cannot allocate %.1f MiB for a slice", s->label,
+                  (double)s->slice_bytes / MIB);
         return CLI_EXIT_FAIL;
     }
-    char *data = malloc(bytes ? (size_t)bytes : 1);
-    if (!data) {
-        cli_error("%s: cannot allocate %.1f MiB for the volume", s->label, (double)bytes / MIB);
-        return CLI_EXIT_FAIL;
-    }
-    cli_slices_rewind(s);
-    for (int64_t k = 0; k < s->desc.dims[2]; k++) {
+    isomend_stream *st = NULL;
+    isomend_status status = isomend_stream_begin(&s->desc, opts, &core, &st);
+    int rc = CLI_EXIT_OK;
+    if (status == ISOMEND_OK)
+        cli_slices_rewind(s);
+    for (int64_t k = 0; status == ISOMEND_OK && k < s->desc.dims[2]; k++) {
         if (cli_interrupted) {
             cli_error("%s: interrupted", s->label);
-            free(data);
-            return CLI_EXIT_INTERRUPTED;
+            rc = CLI_EXIT_INTERRUPTED;
+            break;
         }
-        int rc = cli_slices_next(s, data + s->slice_bytes * (uint64_t)k);
-        if (rc) {
-            free(data);
-            return rc;
-        }
-        cli_progress_update(s->progress, "read", (double)(k + 1) / (double)s->desc.dims[2]);
+        rc = cli_slices_next(s, slice);
+        if (rc)
+            break;
+        status = isomend_stream_push(st, slice);
+        cli_progress_update(s->progress, "extract", (double)(k + 1) / (double)s->desc.dims[2]);
     }
+    if (!rc && status == ISOMEND_OK)
+        status = isomend_stream_finish(st, stats);
+    isomend_stream_destroy(st);
+    free(slice);
     cli_progress_clear(s->progress);
-    isomend_volume vol = s->desc;
-    vol.data = data;
-    vol.strides[0] = vol.strides[1] = vol.strides[2] = 0;
-    isomend_mesh *mesh = NULL;
-    isomend_status st = isomend_extract(&vol, opts, &mesh, stats);
-    free(data);
-    cli_progress_clear(s->progress);
-    if (st == ISOMEND_ERR_CANCELLED) {
-        cli_error("%s: interrupted", s->label);
-        return CLI_EXIT_INTERRUPTED;
-    }
-    if (st != ISOMEND_OK) {
-        cli_error("%s: extraction failed: %s", s->label, isomend_status_string(st));
+    if (rc)
+        return rc;
+    if (status == ISOMEND_ERR_SINK) /* the sink printed its message */
+        return CLI_EXIT_FAIL;
+    if (status != ISOMEND_OK) {
+        cli_error("%s: extraction failed: %s", s->label, isomend_status_string(status));
         return CLI_EXIT_FAIL;
     }
-    int rc = cli_feed_mesh(mesh, sink);
-    isomend_mesh_destroy(mesh);
-    return rc;
+    return CLI_EXIT_OK;
 }

@@ -48,8 +48,8 @@ static const char *const usage =
     "The options and SOURCE kinds of 'isomend extract' (see isomend extract --help).\n"
     "Each of the N ranks reads its own slab of slices and writes its part of MESH\n"
     "(.ply, .obj or .stl) with MPI-IO; the file is the one 'isomend extract' writes.\n"
-    "More than one rank: methods mc, durst, dmc and tetra (the others need the\n"
-    "core's piece API, pending).  The continuity check is not run: use isomend check.\n";
+    "Every method splits between ranks.  The continuity check is not run: use\n"
+    "isomend check.\n";
 
 static MPI_Comm comm = MPI_COMM_WORLD;
 static int rank, ranks;
@@ -230,11 +230,6 @@ static int run(int argc, char **argv)
     } else if (!rc && a.json && strcmp(a.json, a.output) == 0) {
         cli_error("--json %s: same file as -o", a.json);
         rc = CLI_EXIT_USAGE;
-    } else if (!rc && ranks > 1 && !slab_method_splits(a.method)) {
-        cli_error("--method %s: cube-private vertices cannot be split between %d ranks until the "
-                  "core's piece API exists; use mc, durst, dmc or tetra, or -n 1",
-                  isomend_method_name(a.method), ranks);
-        rc = CLI_EXIT_USAGE;
     }
     if ((rc = agree(rc)) != 0) return rc;
     const int quiet = (a.seen & OPT_QUIET) != 0;
@@ -281,7 +276,7 @@ static int run(int argc, char **argv)
         if (plan.stream) {
             char need[32], lim[32];
             cli_error("--max-memory %s: this rank's slab of %lld slices needs about %s in "
-                      "memory; streaming a slab needs the core's piece API (pending): use more ranks",
+                      "memory (a rank holds its slab's mesh): use more ranks",
                       cli_bytes_text(plan.limit, lim, sizeof lim), (long long)(end - first),
                       cli_bytes_text(plan.in_memory, need, sizeof need));
             rc = CLI_EXIT_USAGE;
@@ -454,7 +449,7 @@ static int run(int argc, char **argv)
             fprintf(jf, "{\"command\": \"extract\", \"program\": \"isomend-mpi\", \"version\": "
                         "\"%s\", \"ranks\": %d, ", isomend_version(), ranks);
             cli_json_run(jf, sl.label, sl.kind, a.output, v, &opts, iso_suggested);
-            fprintf(jf, ", \"slab_engine\": \"placeholder\", \"peak_memory\": %" PRIu64, peak_max);
+            fprintf(jf, ", \"slab_engine\": \"core\", \"peak_memory\": %" PRIu64, peak_max);
             stats.vertices = totals[0];
             stats.triangles = totals[1];
             cli_json_stats(jf, &stats);

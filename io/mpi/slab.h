@@ -50,9 +50,6 @@ typedef struct slab_piece {
 /* Marched slices [*first, *end) of `rank` among `ranks` for a grid of nz_marched. */
 void slab_split(int64_t nz_marched, int ranks, int rank, int64_t *first, int64_t *end);
 
-/* 1 if a method can be split into slabs by this build (1 rank: every method). */
-int slab_method_splits(isomend_method method);
-
 /*
  * Extracts the owned part of the marched slices [first, end) of the source
  * (reading only them and their halo).  Exit code; the message goes through

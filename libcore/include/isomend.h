@@ -108,7 +108,10 @@ typedef enum isomend_status {
     ISOMEND_ERR_TOO_LARGE = 6,        /* more than 2^32-1 vertices            */
     ISOMEND_ERR_CANCELLED = 7,        /* the progress callback asked to stop  */
     ISOMEND_ERR_THREAD = 8,           /* a worker thread could not start      */
-    ISOMEND_ERR_UNSUPPORTED = 9       /* method/option combination not built  */
+    ISOMEND_ERR_UNSUPPORTED = 9,      /* method/option combination not built  */
+    ISOMEND_ERR_SINK = 10,            /* a stream's sink returned non-zero    */
+    ISOMEND_ERR_SLICE_COUNT = 11      /* a stream got more or fewer slices    */
+                                      /* than its volume has                  */
 } isomend_status;
 
 /* A static, human-readable description of a status ("out of memory"). */
@@ -327,6 +330,172 @@ ISOMEND_API isomend_status isomend_mesh_copy_transformed(const isomend_mesh *mes
                                                          const double affine[12],
                                                          float *positions, float *normals,
                                                          uint32_t *triangles, uint8_t *origins);
+
+/* ------------------------------------------------------------- streaming */
+
+/*
+ * Streaming extraction: slices pushed one at a time, in z order, and the
+ * mesh handed to a sink as it is made.  The stream holds a few slices of
+ * samples, signs and vertex ids, and one slice's vertices and one layer's
+ * triangles (isomend_stream_memory()), whatever the number of slices.  The
+ * mesh is isomend_extract()'s on the same volume and options, byte for byte,
+ * vertex order included: the same positions, normals, triangles (as 64-bit
+ * ids), origins and statistics (docs/streaming.md, section "The core").
+ *
+ * The order.  Slice k (of the marched grid: the volume plus the padding
+ * layer with ISOMEND_FLAG_PAD) owns the vertices on the grid edges whose
+ * lower end is in it (and tetra's face diagonals whose lowest corner is);
+ * layer k is the cubes between slices k and k + 1.  The sink receives
+ * slice 0's vertices, then for k = 0, 1, ...: layer k's cube-private
+ * vertices (mc33, and facial, gradient, asymptotic where needed) and slice
+ * k + 1's vertices (one call), layer k's triangles, and retire(first id of
+ * slice k + 1).  isomend_extract() numbers its vertices in that order:
+ * slice 0, layer 0's private vertices, slice 1, layer 1's, ...
+ */
+
+/* A vertex with no key (cube-private), in the keys of a piece's vertices. */
+#define ISOMEND_KEY_NONE UINT64_MAX
+/* A piece's triangle refers to the next piece's vertex f as
+ * ISOMEND_FOREIGN | f (isomend_piece_begin). */
+#define ISOMEND_FOREIGN ((uint64_t)1 << 63)
+
+/*
+ * Where a stream puts the mesh.  Every callback returns 0 to go on; any
+ * other value stops the extraction: the push (or finish) that called it
+ * returns ISOMEND_ERR_SINK, and no callback is called again.  Callbacks are
+ * called from the thread that calls push or finish; the arrays they get are
+ * valid only during the call.
+ *   vertices   `count` vertices with ids first_id .. first_id + count - 1
+ *              (first_id: the number delivered before), 3 floats each;
+ *              normals NULL with ISOMEND_FLAG_NO_NORMALS; keys NULL except
+ *              for pieces (one per vertex: the global grid edge or face,
+ *              isomend_piece_begin, ISOMEND_KEY_NONE for cube-private ones).
+ *   triangles  `count` triangles, 3 vertex ids each, all delivered before;
+ *              origins (one isomend_origin each) NULL with
+ *              ISOMEND_FLAG_NO_ORIGINS.
+ *   retire     no triangle delivered later uses an id below `floor`.
+ *   foreign    pieces only (may be NULL for streams): the keys and positions
+ *              (3 floats each, as the next piece computes them) of foreign
+ *              vertices first .. first + count - 1, before any triangle that
+ *              refers to them.
+ */
+typedef struct isomend_mesh_sink {
+    void *user;
+    int (*vertices)(void *user, uint64_t first_id, size_t count, const float *positions,
+                    const float *normals, const uint64_t *keys);
+    int (*triangles)(void *user, size_t count, const uint64_t *ids, const uint8_t *origins);
+    int (*retire)(void *user, uint64_t floor);
+    int (*foreign)(void *user, size_t first, size_t count, const uint64_t *keys,
+                   const float *positions);
+} isomend_mesh_sink;
+
+/* A streaming extraction (one thread; not to be shared between threads). */
+typedef struct isomend_stream isomend_stream;
+
+/*
+ * Begins a stream of the volume `desc` (its type, dims, spacing and origin;
+ * data and strides are ignored) with `opts` (NULL: the defaults; threads,
+ * progress and ISOMEND_FLAG_SMALL_PAGES are ignored: the stream runs on the
+ * calling thread, and the caller checks for cancellation between pushes).
+ * The sink is copied; vertices, triangles and retire must not be NULL.
+ * The same checks and statuses as isomend_extract(), except that a stream
+ * has no limit of 2^32 vertices (ids are 64-bit): ISOMEND_ERR_TOO_LARGE
+ * only when two consecutive slices (and a layer's private vertices) have
+ * 2^32 vertices or more.  On failure *out is NULL.
+ */
+ISOMEND_API isomend_status isomend_stream_begin(const isomend_volume *desc,
+                                                const isomend_options *opts,
+                                                const isomend_mesh_sink *sink,
+                                                isomend_stream **out);
+
+/*
+ * Pushes the next volume slice, z = 0, 1, ... dims[2] - 1: dims[0] * dims[1]
+ * samples of the stream's type, x fastest, rows of dims[0], machine byte
+ * order.  The stream copies what it keeps; the caller may reuse `slice` at
+ * once.  Delivers to the sink what the slice completes.  After a failure
+ * (a status other than ISOMEND_OK, the sink's included) every later push
+ * and finish return that status and call nothing.  More than dims[2] slices:
+ * ISOMEND_ERR_SLICE_COUNT.
+ */
+ISOMEND_API isomend_status isomend_stream_push(isomend_stream *s, const void *slice);
+
+/*
+ * Delivers the rest of the mesh once all dims[2] slices are pushed (fewer:
+ * ISOMEND_ERR_SLICE_COUNT) and fills `stats` (may be NULL) as
+ * isomend_extract() does.  The stream must still be destroyed.
+ */
+ISOMEND_API isomend_status isomend_stream_finish(isomend_stream *s, isomend_stats *stats);
+
+/* Frees the stream, at any time (a stream not finished delivers nothing
+ * more).  Accepts NULL. */
+ISOMEND_API void isomend_stream_destroy(isomend_stream *s);
+
+/*
+ * An upper bound, in bytes, of the memory a stream of `desc` with `opts`
+ * holds (isomend_stream_begin()'s arguments; 0 for invalid ones): the slices
+ * of samples, signs and vertex ids it keeps and, at their largest possible
+ * sizes, one slice's vertices and one layer's triangles.  It depends on
+ * dims[0], dims[1], the type and the options, not on dims[2].  The largest
+ * sizes are reserved as address space and only the part a mesh uses is
+ * touched, so the resident memory is usually well below it
+ * (docs/streaming.md has the formula and figures).
+ */
+ISOMEND_API uint64_t isomend_stream_memory(const isomend_volume *desc,
+                                           const isomend_options *opts);
+
+/*
+ * Pieces: a stream restricted to a slab of the marched grid, for extracting
+ * one volume in several processes (isomend-mpi) whose meshes are stitched by
+ * keys into isomend_extract()'s mesh.
+ *
+ * Ownership: the piece that owns marched slice k owns slice k's vertices
+ * and layer k's triangles and cube-private vertices, so a piece [a, b)
+ * delivers exactly the run of isomend_extract()'s vertex ids from slice a's
+ * first to slice b's first, and its triangles in order.  The mending and
+ * Durst quadrilaterals on the plane z = b belong to the piece below (its
+ * layer b - 1 judges that face), the plane's vertices to the piece above.
+ *
+ * A piece numbers its vertices from 0 (local ids) and gives every vertex on
+ * a grid edge or face diagonal its key in the global marched grid:
+ *     key = ((k * N1 + j) * N0 + i) * 8 + kind
+ * (i, j, k) the edge's lower end or the face's lowest corner, kind 0/1/2 an
+ * x/y/z edge, 3/4/5 tetra's diagonal of an x/y/z face; ISOMEND_KEY_NONE
+ * for cube-private vertices.  Its last layer's triangles refer to the next
+ * piece's vertices of slice b (x and y edges and z-face diagonals in it) as
+ * ISOMEND_FOREIGN | f, f indexing the keys (and positions, for writers such
+ * as STL's that need them) delivered through sink.foreign (required unless
+ * b == N2) before those triangles.
+ */
+typedef struct isomend_piece {
+    int64_t owned_first, owned_end; /* marched slices [owned_first, owned_end), */
+} isomend_piece;                    /* 0 <= first < end <= N2 (dims[2] + 2 pad) */
+
+/*
+ * The volume slices a piece reads, [*first, *end): marched slices
+ * owned_first - 1 .. owned_end + 1 (the gradients' neighbours, the z edges
+ * into slice owned_end, the +z neighbours of the last layer's cubes),
+ * clamped to the volume.  ISOMEND_ERR_INVALID_ARGUMENT for a piece outside
+ * the grid, else isomend_stream_begin()'s checks.
+ */
+ISOMEND_API isomend_status isomend_piece_halo(const isomend_volume *desc,
+                                              const isomend_options *opts,
+                                              const isomend_piece *piece, int64_t *first,
+                                              int64_t *end);
+
+/*
+ * Begins a piece: a stream (isomend_stream_push/finish/destroy) to which
+ * exactly the volume slices of isomend_piece_halo() are pushed, in order,
+ * starting with *first.  Vertices come with keys (above).  The statistics
+ * at finish are the piece's: its layers' cubes, cases, faces and triangles,
+ * the NaN samples of its slices, its own vertices; summed over the pieces
+ * of a grid they are isomend_extract()'s.  The memory is
+ * isomend_stream_memory() plus 24 bytes per vertex of a slice's bound.
+ */
+ISOMEND_API isomend_status isomend_piece_begin(const isomend_volume *desc,
+                                               const isomend_options *opts,
+                                               const isomend_piece *piece,
+                                               const isomend_mesh_sink *sink,
+                                               isomend_stream **out);
 
 /* ---------------------------------------------------------- continuity check */
 

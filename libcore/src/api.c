@@ -23,6 +23,8 @@ const char *isomend_status_string(isomend_status status)
     case ISOMEND_ERR_CANCELLED: return "cancelled";
     case ISOMEND_ERR_THREAD: return "could not start a worker thread";
     case ISOMEND_ERR_UNSUPPORTED: return "method not available in this build";
+    case ISOMEND_ERR_SINK: return "the mesh sink stopped the extraction";
+    case ISOMEND_ERR_SLICE_COUNT: return "wrong number of slices for the volume's dimensions";
     }
     return "unknown status";
 }

@@ -30,7 +30,8 @@
  * Methods of methods.h (facial, gradient, asymptotic, tetra, mc33) replace
  * the table by a per-cube hook (march_general.c) and always take the two
  * passes: face-diagonal vertices (tetra) are numbered with their slice,
- * cube-private vertices after all the slices' vertices.
+ * layer k's cube-private vertices after slice k's vertices (before slice
+ * k + 1's: where a stream delivers them, stream.c).
  *
  * Padding and NaN.  With ISOMEND_FLAG_PAD the marched grid is the volume
  * plus one layer of samples on every side; padding samples, like NaN
@@ -112,7 +113,7 @@ static int default_threads(void)
 
 static isomend_status validate(const isomend_volume *vol, const isomend_options *o)
 {
-    if (!vol || !vol->data || isomend_type_size(vol->type) == 0)
+    if (!vol || isomend_type_size(vol->type) == 0)
         return ISOMEND_ERR_INVALID_ARGUMENT;
     if ((unsigned)o->method >= ISOMEND_METHOD_COUNT || (o->flags & ~ISOMEND_FLAGS_ALL))
         return ISOMEND_ERR_INVALID_ARGUMENT;
@@ -132,6 +133,30 @@ static isomend_status validate(const isomend_volume *vol, const isomend_options 
     return ISOMEND_OK;
 }
 
+/* The context of an extraction of `vol` with options `o`: the checks, the
+ * grid, the kernels and the options (vol->data may be NULL: a stream sets
+ * c->g.data to its window). */
+isomend_status ctx_setup(ctx *c, const isomend_volume *vol, const isomend_options *o)
+{
+    isomend_status status = validate(vol, o);
+    if (status != ISOMEND_OK)
+        return status;
+    grid *g = &c->g;
+    grid_init(g, vol, o);
+    c->kernels = kernels_select();
+    c->method = o->method;
+    c->general = methods_handles(o->method);
+    c->tetra = o->method == ISOMEND_METHOD_TETRA;
+    c->id_planes = c->tetra ? 6 : 3;
+    c->flip = (o->flags & ISOMEND_FLAG_FLIP) != 0;
+    c->want_normals = !(o->flags & ISOMEND_FLAG_NO_NORMALS);
+    c->want_origins = !(o->flags & ISOMEND_FLAG_NO_ORIGINS);
+    c->small_pages = (o->flags & ISOMEND_FLAG_SMALL_PAGES) != 0;
+    c->progress = o->progress;
+    c->progress_user = o->progress_user;
+    return ISOMEND_OK;
+}
+
 /* ---------------------------------------------------------- the workers */
 
 /* The next part of a worker's block: `size` bytes at *at, which moves on to
@@ -145,7 +170,7 @@ static char *carve(char *block, size_t *at, size_t size)
 
 /* The worker's arrays, in one block (scratch_alloc); with block NULL, only
  * their total size. */
-static size_t worker_layout(worker *w, const ctx *c, char *block)
+size_t worker_layout(worker *w, const ctx *c, char *block)
 {
     const int64_t N0 = c->g.N[0], N1 = c->g.N[1];
     size_t at = 0;
@@ -163,7 +188,7 @@ static size_t worker_layout(worker *w, const ctx *c, char *block)
     return at;
 }
 
-static int worker_init(worker *w, ctx *c)
+int worker_init(worker *w, ctx *c)
 {
     memset(w, 0, sizeof(*w));
     w->c = c;
@@ -178,8 +203,8 @@ static int worker_init(worker *w, ctx *c)
 }
 
 /* The workers' statistics and the mesh's counts, into *stats. */
-static void gather_stats(const ctx *c, const worker *ws, int nw, uint64_t nv, uint64_t nt,
-                         isomend_stats *stats)
+void gather_stats(const ctx *c, const worker *ws, int nw, uint64_t nv, uint64_t nt,
+                  isomend_stats *stats)
 {
     const grid *g = &c->g;
     memset(stats, 0, sizeof(*stats));
@@ -212,28 +237,19 @@ static isomend_status extract(const isomend_volume *vol, const isomend_options *
     isomend_options defaults;
     isomend_options_init(&defaults);
     const isomend_options *o = opts ? opts : &defaults;
-    isomend_status status = validate(vol, o);
-    if (status != ISOMEND_OK)
-        return status;
-
+    if (!vol || !vol->data)
+        return ISOMEND_ERR_INVALID_ARGUMENT;
     ctx *c = calloc(1, sizeof(*c));
     if (!c)
         return ISOMEND_ERR_OUT_OF_MEMORY;
+    isomend_status status = ctx_setup(c, vol, o);
+    if (status != ISOMEND_OK) {
+        free(c);
+        return status;
+    }
     c->recycled = *recycled; /* this call's now: used or destroyed */
     *recycled = NULL;
     grid *g = &c->g;
-    grid_init(g, vol, o);
-    c->kernels = kernels_select();
-    c->method = o->method;
-    c->general = methods_handles(o->method);
-    c->tetra = o->method == ISOMEND_METHOD_TETRA;
-    c->id_planes = c->tetra ? 6 : 3;
-    c->flip = (o->flags & ISOMEND_FLAG_FLIP) != 0;
-    c->want_normals = !(o->flags & ISOMEND_FLAG_NO_NORMALS);
-    c->want_origins = !(o->flags & ISOMEND_FLAG_NO_ORIGINS);
-    c->small_pages = (o->flags & ISOMEND_FLAG_SMALL_PAGES) != 0;
-    c->progress = o->progress;
-    c->progress_user = o->progress_user;
 
     const int64_t N0 = g->N[0], N1 = g->N[1], N2 = g->N[2];
     const int64_t layers = N2 - 1;

@@ -59,6 +59,8 @@ typedef struct grid {
     int64_t n[3];  /* the volume's dimensions                      */
     int64_t st[3]; /* byte strides                                  */
     int64_t pad;   /* 0 or 1                                        */
+    int64_t z0;    /* the volume slice `data` points at: 0, or in a
+                    * stream the first slice of its window (stream.c) */
     int64_t N[3];  /* marched grid: n + 2 pad                      */
     double iso;
     double h[3];   /* spacing                                       */
@@ -95,7 +97,8 @@ static inline double fetch(const grid *g, int64_t i, int64_t j, int64_t k)
     if ((uint64_t)i >= (uint64_t)g->n[0] || (uint64_t)j >= (uint64_t)g->n[1] ||
         (uint64_t)k >= (uint64_t)g->n[2])
         return NAN;
-    return sample_as_double(g->type, g->data + i * g->st[0] + j * g->st[1] + k * g->st[2]);
+    return sample_as_double(g->type,
+                            g->data + i * g->st[0] + j * g->st[1] + (k - g->z0) * g->st[2]);
 }
 
 /*
@@ -182,6 +185,13 @@ typedef struct ctx {
     float *pos, *nrm;
     uint32_t *tri;
     uint8_t *org;
+    /* Vertex id at pos[0] and nrm[0]: 0, or in a stream the first id of the
+     * slice (or of the layer's cube-private vertices) being computed, whose
+     * vertices are staged from pos[0] on (vertex_at). */
+    uint64_t vertex_base;
+    /* The first cube-private vertex of the layer marched when layer_private
+     * is NULL (a stream). */
+    uint64_t private_first;
     atomic_llong next_chunk;
     atomic_llong done_chunks;
     atomic_int cancel;
@@ -240,6 +250,14 @@ typedef struct extract_kernels {
     uint64_t (*march_layer)(worker *w, int64_t k, pass_kind pass, uint64_t first);
 } extract_kernels;
 
+/* Where vertex `id` lives in ctx.pos and ctx.nrm (floats): ids are kept
+ * modulo 2^32 in the id maps, and a stream stages a slice's vertices from
+ * its first id, ctx.vertex_base, on. */
+static inline size_t vertex_at(uint64_t base, uint64_t id)
+{
+    return 3 * (size_t)(uint32_t)(id - base);
+}
+
 /* ------------------------------------------------ shared between files */
 
 /* sign_cache.c */
@@ -261,6 +279,14 @@ unsigned method_cube(worker *w, int64_t i, int64_t j, int64_t k, unsigned cfg, p
                      uint32_t *out, uint8_t *org);
 uint64_t scan_diagonals(const ctx *c, const uint8_t *s, const uint8_t *t, int64_t j, int64_t m,
                         uint32_t *ids, uint64_t id, int write);
+
+/* extract.c: the context of an extraction (checks, grid, kernels, options;
+ * vol->data may be NULL), the workers' arrays, the statistics. */
+isomend_status ctx_setup(ctx *c, const isomend_volume *vol, const isomend_options *o);
+size_t worker_layout(worker *w, const ctx *c, char *block);
+int worker_init(worker *w, ctx *c);
+void gather_stats(const ctx *c, const worker *ws, int nw, uint64_t nv, uint64_t nt,
+                  isomend_stats *stats);
 
 /* passes.c */
 isomend_status run_two_passes(ctx *c, worker *ws, int nw, isomend_mesh **out, uint64_t *nv,

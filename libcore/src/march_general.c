@@ -4,8 +4,8 @@
  *
  * The table methods' loops (march_template.h, scan_template.h) call these
  * for every busy cube and, with tetra, every row.  Cube-private vertices
- * (methods.h slots 18..30) are numbered after all the slices' vertices,
- * layer by layer; face-diagonal vertices with their slice, after its edges'
+ * (methods.h slots 18..30) of layer k are numbered after slice k's
+ * vertices, before slice k + 1's; face-diagonal vertices with their slice, after its edges'
  * in row order.
  */
 #include "extract_internal.h"
@@ -79,8 +79,8 @@ uint64_t scan_diagonals(const ctx *c, const uint8_t *s, const uint8_t *t, int64_
             if (ids) {
                 const int64_t *lo = sample_before(p, q) ? p : q, *hi = lo == p ? q : p;
                 if (write)
-                    make_vertex_between(g, c->flip, lo, hi, c->pos + 3 * id,
-                                        c->nrm ? c->nrm + 3 * id : NULL);
+                    make_vertex_between(g, c->flip, lo, hi, c->pos + vertex_at(c->vertex_base, id),
+                                        c->nrm ? c->nrm + vertex_at(c->vertex_base, id) : NULL);
                 ids[(3 + kind) * plane + j * N0 + i] = (uint32_t)id;
             }
             id++;
@@ -166,7 +166,8 @@ unsigned method_cube(worker *w, int64_t i, int64_t j, int64_t k, unsigned cfg, p
                 continue;
             const uint64_t id = w->private_next++;
             ids[METHODS_SLOT_CENTRE + b] = (uint32_t)id;
-            float *pos = c->pos + 3 * id, *nrm = c->nrm ? c->nrm + 3 * id : NULL;
+            const size_t vi = vertex_at(c->vertex_base, id);
+            float *pos = c->pos + vi, *nrm = c->nrm ? c->nrm + vi : NULL;
             double nn[3];
             for (int a = 0; a < 3; a++) {
                 if (b == 0) {

@@ -82,7 +82,7 @@ static ALWAYS_INLINE uint64_t march_layer_as(worker *w, int64_t k, const pass_ki
         memset(cfg_count, 0, sizeof cfg_count);
     w->private_count = 0;
     if (write && general)
-        w->private_next = c->slice_first[N2] + c->layer_private[k];
+        w->private_next = c->layer_private ? c->layer_private[k] : c->private_first;
 
     for (int64_t j = 0; j + 1 < N1; j++) {
         const uint8_t v = r0[j].first;

@@ -143,19 +143,22 @@ isomend_status run_two_passes(ctx *c, worker *ws, int nw, isomend_mesh **out, ui
     if (status != ISOMEND_OK)
         return status;
 
-    /* Prefix sums: first vertex of each slice, first triangle of each layer. */
+    /* Prefix sums: first vertex of each slice, first triangle of each layer.
+     * Layer k's cube-private vertices (methods.h) follow slice k's, so that
+     * slices and layers [a, b) own one run of ids: a stream delivers them
+     * there, a piece of the grid owns them with its layers (stream.c). */
     uint64_t v = 0, t = 0;
     for (int64_t k = 0; k < N2; k++) {
         uint64_t n = c->slice_first[k];
         c->slice_first[k] = v;
         v += n;
+        if (k < layers) {
+            n = c->layer_private[k];
+            c->layer_private[k] = v;
+            v += n;
+        }
     }
-    c->slice_first[N2] = v; /* cube-private vertices follow the slices' */
-    for (int64_t k = 0; k < layers; k++) {
-        uint64_t n = c->layer_private[k];
-        c->layer_private[k] = v - c->slice_first[N2];
-        v += n;
-    }
+    c->slice_first[N2] = v;
     for (int64_t k = 0; k < layers; k++) {
         uint64_t n = c->layer_first[k];
         c->layer_first[k] = t;

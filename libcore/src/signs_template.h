@@ -83,7 +83,7 @@ static void classify_row(const grid *g, int64_t j, int64_t k, uint8_t *s, row_sp
     }
     uint8_t *o = s + p;
     const int64_t n = g->n[0], st = g->st[0];
-    const char *row = g->data + rj * g->st[1] + rk * g->st[2];
+    const char *row = g->data + rj * g->st[1] + (rk - g->z0) * g->st[2];
     uint64_t nn = 0;
     if (g->constant >= 0) {
         memset(o, g->constant, (size_t)n);

@@ -30,6 +30,7 @@
 typedef struct vertex_setup {
     const grid *g;
     float *P, *NR; /* positions, normals (NULL without) */
+    uint64_t base; /* the id at P[0] (ctx.vertex_base) */
     int flip;
     int64_t sx, sy, sz, sa; /* strides along x, y, z and along the edges' axis */
     int64_t pad, m;
@@ -49,6 +50,7 @@ static ALWAYS_INLINE void vertex_setup_init(vertex_setup *s, const ctx *c, int64
     s->g = g;
     s->P = c->pos;
     s->NR = c->nrm;
+    s->base = c->vertex_base;
     s->flip = c->flip;
     s->sx = g->st[0];
     s->sy = g->st[1];
@@ -62,7 +64,7 @@ static ALWAYS_INLINE void vertex_setup_init(vertex_setup *s, const ctx *c, int64
     s->y_lo = g->inner_lo[1];
     s->y_hi = g->inner_hi[1] - (axis == 1);
     /* integer arithmetic: with padding, slice m - pad may be -1 */
-    s->slice = (const char *)((uintptr_t)g->data + (uintptr_t)((m - g->pad) * s->sz));
+    s->slice = (const char *)((uintptr_t)g->data + (uintptr_t)((m - g->pad - g->z0) * s->sz));
     s->iso = g->iso;
     s->ox = g->o[0];
     s->hx = g->h[0];
@@ -134,13 +136,14 @@ static inline void store_xyz4(float *out, __m128 x, __m128 y, __m128 z)
 /* Four (x, y, z) float lanes to the triples of vertices v[0..3].id in out.
  * Each lane is stored on its own: the ids of a list are not consecutive, and
  * a 16-byte store could reach another thread's vertex. */
-static inline void store_items4(float *out, const vertex_item *v, __m128 x, __m128 y, __m128 z)
+static inline void store_items4(float *out, uint64_t base, const vertex_item *v, __m128 x,
+                                __m128 y, __m128 z)
 {
     __m128 w = _mm_setzero_ps();
     _MM_TRANSPOSE4_PS(x, y, z, w); /* rows: (x_l, y_l, z_l, 0) */
     const __m128 row[4] = {x, y, z, w};
     for (int l = 0; l < 4; l++) {
-        float *o = out + 3 * (uint64_t)v[l].id;
+        float *o = out + vertex_at(base, v[l].id);
         _mm_storel_pi((__m64 *)(void *)o, row[l]);
         _mm_store_ss(o + 2, _mm_movehl_ps(row[l], row[l]));
     }

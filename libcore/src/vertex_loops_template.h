@@ -24,7 +24,8 @@ static inline double VOXEL_NAME(load)(const char *p)
 static ALWAYS_INLINE void VOXEL_NAME(vertex_one)(const vertex_setup *s, const int axis, int64_t x,
                                                  int64_t j, uint64_t id)
 {
-    float *pos = s->P + 3 * id, *nrm = s->NR ? s->NR + 3 * id : NULL;
+    const size_t at = vertex_at(s->base, id);
+    float *pos = s->P + at, *nrm = s->NR ? s->NR + at : NULL;
     if (s->slice_inner && j >= s->y_lo && j <= s->y_hi && x >= s->x_lo && x <= s->x_hi) {
         const int64_t sx = s->sx, sy = s->sy, sz = s->sz;
         const char *p = s->slice + (x - s->pad) * sx + (j - s->pad) * sy, *q = p + s->sa;
@@ -230,8 +231,8 @@ static ALWAYS_INLINE uint64_t VOXEL_NAME(row_vertices4_on)(const ctx *c, const u
             if (row_inner && x4[0] >= s.x_lo && x4[3] <= s.x_hi) {
                 vertex4_lanes v;
                 if (VOXEL_NAME(vertex4)(&s, axis, x4, js, &v)) {
-                    store_xyz4(s.P + 3 * id, v.px, v.py, v.pz);
-                    store_xyz4(s.NR + 3 * id, v.nx, v.ny, v.nz);
+                    store_xyz4(s.P + vertex_at(s.base, id), v.px, v.py, v.pz);
+                    store_xyz4(s.NR + vertex_at(s.base, id), v.nx, v.ny, v.nz);
                     done = 1;
                 }
             }
@@ -283,8 +284,8 @@ static ALWAYS_INLINE void VOXEL_NAME(list_vertices4_on)(const ctx *c, const vert
                 inner &= xs[l] >= s.x_lo && xs[l] <= s.x_hi && js[l] >= s.y_lo && js[l] <= s.y_hi;
             vertex4_lanes lanes;
             if (inner && VOXEL_NAME(vertex4)(&s, axis, xs, js, &lanes)) {
-                store_items4(s.P, v, lanes.px, lanes.py, lanes.pz);
-                store_items4(s.NR, v, lanes.nx, lanes.ny, lanes.nz);
+                store_items4(s.P, s.base, v, lanes.px, lanes.py, lanes.pz);
+                store_items4(s.NR, s.base, v, lanes.nx, lanes.ny, lanes.nz);
                 ok = 1;
             }
         }

@@ -75,7 +75,7 @@ static int fast_gradients(const grid *g, int64_t i, int64_t j, int64_t k, int a,
         k + (a == 2) > g->inner_hi[2])
         return 0;
     const char *p =
-        g->data + (i - g->pad) * g->st[0] + (j - g->pad) * g->st[1] + (k - g->pad) * g->st[2];
+        g->data + (i - g->pad) * g->st[0] + (j - g->pad) * g->st[1] + (k - g->pad - g->z0) * g->st[2];
     switch (g->type) {
     case ISOMEND_U8: gradients_as(g, ISOMEND_U8, p, a, f, gr); break;
     case ISOMEND_I8: gradients_as(g, ISOMEND_I8, p, a, f, gr); break;

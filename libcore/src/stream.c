@@ -1,0 +1,564 @@
+/*
+ * stream.c - streaming extraction: slices pushed one at a time, the mesh
+ * handed to a sink as it is made (isomend_stream_*, isomend.h).
+ *
+ * A stream is the one pass (one_pass.c) driven by the arrival of slices: it
+ * calls the same kernels on the same units, scan_slice for slice m and
+ * march_layer for layer m - 1, as soon as the samples they read are there,
+ * and numbers the vertices from the running count, so the ids, the order
+ * and the bytes are isomend_extract()'s.  What it keeps:
+ *
+ *   the window   WINDOW planes of samples, contiguous: the grid's data
+ *                points at its first plane, volume slice g.z0.  Scanning
+ *                slice m reads samples m - 1 .. m + 2 (normals: central
+ *                differences at both ends of the z edges), marching layer
+ *                m - 1 reads m - 2 .. m + 1 (the general methods' corners,
+ *                gradient's ring, the private vertices' edge points), so
+ *                slice m is scanned once slice m + 2 has arrived and the
+ *                window needs KEEP + 1 = 5 planes; when it is full the last
+ *                KEEP planes move to its start (one plane moved per push on
+ *                average with WINDOW = 8).
+ *   the worker   as an extraction's (extract.c): the sign ring (SIGN_RING
+ *                slices), the id maps of two slices, the row buffers.
+ *   staging      one slice's vertices (positions, normals) and one layer's
+ *                triangles (ids, origins), as address-space reservations of
+ *                their largest possible size (mesh_memory.c): only what the
+ *                largest slice and layer use is ever touched.  The kernels
+ *                write vertex `id` at vertex_at(ctx.vertex_base, id), the
+ *                slice's first id being vertex_base, and keep ids modulo
+ *                2^32 in the id maps: a triangle of layer k has ids in
+ *                [first of slice k, that + 2^32), which makes them 64-bit
+ *                again (to_global).
+ *
+ * The table methods sweep (PASS_SWEEP: count and write at once); the
+ * general methods (methods.h) march each layer twice, counting its
+ * cube-private vertices first, as the two passes do, so that they can be
+ * numbered after slice m's vertices, where isomend_extract() puts them.
+ */
+#include "extract_internal.h"
+#include "isomend.h"
+#include "tables.h"
+#include "methods.h"
+
+#include <stdlib.h>
+
+enum {
+    KEEP = 4,              /* planes kept when the window moves: slices m - 2 .. m + 1 */
+    WINDOW = 2 * KEEP,     /* planes of samples in the window                          */
+    TRIANGLE_BATCH = 8192, /* triangles converted to 64-bit ids per sink call          */
+};
+
+/* A reservation, or when refused a heap block (mapped 0). */
+typedef struct staging {
+    void *p;
+    size_t mapped;
+} staging;
+
+struct isomend_stream {
+    ctx c;
+    worker w;
+    isomend_mesh_sink sink;
+    isomend_status failed; /* the first failure, returned from then on */
+    int finished;
+    size_t plane_bytes;    /* a volume slice's samples */
+    char *window;
+    int64_t pushed;        /* volume slices pushed */
+    int64_t next_scan;     /* the next slice (marched grid) to scan */
+    /* A piece (isomend_piece_begin): marched slices and layers [own_first,
+     * own_end) owned, volume slices [push_first, push_end) pushed; a stream
+     * owns all: 0, N2, 0, n2. */
+    int64_t own_first, own_end, push_first, push_end;
+    int piece;
+    uint64_t *keys;  /* a piece's keys of the vertices staged */
+    uint32_t *fmap;  /* slice own_end's ids to foreign indices, UINT32_MAX none */
+    float *fpos;     /* the foreign vertices' positions */
+    uint64_t nforeign;
+    uint64_t first_id;     /* the first vertex id: 0 (tests: stream_set_first_id) */
+    uint64_t next_id;      /* the next vertex id */
+    uint64_t slice_first[2]; /* first ids of the slices last scanned, ring m % 2 */
+    uint64_t triangles;
+    uint64_t max_slice_vertices, max_layer_vertices, max_layer_triangles;
+    staging pos, nrm, tri, org;
+    uint64_t *ids; /* [3 * TRIANGLE_BATCH] */
+};
+
+/* Internal (tests): the first vertex id of a stream not yet pushed to. */
+void stream_set_first_id(isomend_stream *s, uint64_t first);
+
+static int staging_alloc(staging *st, size_t size)
+{
+    st->p = reserve_output(size, SIZE_MAX);
+    st->mapped = st->p ? huge_round(size) : 0;
+    if (!st->p)
+        st->p = calloc(1, size ? size : 1);
+    return st->p != NULL;
+}
+
+static void staging_free(staging *st)
+{
+    if (st->p)
+        release_output(st->p, st->mapped);
+    st->p = NULL;
+}
+
+/* The largest possible counts: a slice's vertices (an edge or diagonal per
+ * id-map plane and sample), a layer's cube-private vertices (one for each
+ * private slot of a cube) and triangles (the table's and two for each of a
+ * cube's +x, +y, +z faces; the general methods' per cube). */
+static void stream_bounds(const ctx *c, uint64_t *slice_vertices, uint64_t *layer_vertices,
+                          uint64_t *layer_triangles)
+{
+    const uint64_t N0 = (uint64_t)c->g.N[0], N1 = (uint64_t)c->g.N[1];
+    const uint64_t cubes = (N0 - 1) * (N1 - 1);
+    *slice_vertices = (uint64_t)c->id_planes * N0 * N1;
+    *layer_vertices = c->general ? (uint64_t)(METHODS_SLOT_COUNT - METHODS_SLOT_CENTRE) * cubes : 0;
+    *layer_triangles = (c->general ? (uint64_t)METHODS_MAX_TRI : (uint64_t)MC_MAX_TRI + 6) * cubes;
+}
+
+/* The staging sizes in bytes: positions, normals, triangles, origins. */
+static void stream_sizes(const ctx *c, uint64_t size[4])
+{
+    uint64_t sv, lv, lt;
+    stream_bounds(c, &sv, &lv, &lt);
+    const uint64_t v = sv + lv; /* layer m - 1's private vertices, then slice m's */
+    size[0] = 3 * sizeof(float) * v;
+    size[1] = c->want_normals ? size[0] : 0;
+    size[2] = 3 * sizeof(uint32_t) * lt;
+    size[3] = c->want_origins ? lt : 0;
+}
+
+static isomend_status stream_init(isomend_stream *s, const isomend_volume *desc,
+                                  const isomend_options *opts, const isomend_mesh_sink *sink)
+{
+    isomend_options defaults;
+    isomend_options_init(&defaults);
+    const isomend_options *o = opts ? opts : &defaults;
+    if (!desc || !sink || !sink->vertices || !sink->triangles || !sink->retire)
+        return ISOMEND_ERR_INVALID_ARGUMENT;
+    isomend_volume v = *desc;
+    memset(v.strides, 0, sizeof v.strides); /* the window is contiguous */
+    ctx *c = &s->c;
+    isomend_status status = ctx_setup(c, &v, o);
+    if (status != ISOMEND_OK)
+        return status;
+    s->sink = *sink;
+    const grid *g = &c->g;
+    if ((uint64_t)g->N[0] * (uint64_t)g->N[1] > (uint64_t)SIZE_MAX / 64)
+        return ISOMEND_ERR_OUT_OF_MEMORY;
+    s->plane_bytes = (size_t)g->n[0] * (size_t)g->n[1] * isomend_type_size(g->type);
+    s->window = malloc(WINDOW * s->plane_bytes);
+    s->ids = malloc(3 * sizeof(uint64_t) * TRIANGLE_BATCH);
+    if (!s->window || !s->ids || !worker_init(&s->w, c))
+        return ISOMEND_ERR_OUT_OF_MEMORY;
+    s->w.is_main = 1;
+    c->g.data = s->window;
+    c->g.z0 = 0;
+    s->own_first = 0;
+    s->own_end = g->N[2];
+    s->push_first = 0;
+    s->push_end = g->n[2];
+    c->pass = PASS_SWEEP; /* signs are classified (and NaNs counted), never cached */
+    c->layer_private = NULL;
+    stream_bounds(c, &s->max_slice_vertices, &s->max_layer_vertices, &s->max_layer_triangles);
+    uint64_t size[4];
+    stream_sizes(c, size);
+    staging *st[4] = {&s->pos, &s->nrm, &s->tri, &s->org};
+    for (int q = 0; q < 4; q++)
+        if (size[q] && !staging_alloc(st[q], (size_t)size[q]))
+            return ISOMEND_ERR_OUT_OF_MEMORY;
+    c->pos = s->pos.p;
+    c->nrm = s->nrm.p;
+    c->tri = s->tri.p;
+    c->org = s->org.p; /* zero bytes: ISOMEND_ORIGIN_TABLE, as the one pass's */
+    return ISOMEND_OK;
+}
+
+isomend_status isomend_stream_begin(const isomend_volume *desc, const isomend_options *opts,
+                                    const isomend_mesh_sink *sink, isomend_stream **out)
+{
+    if (!out)
+        return ISOMEND_ERR_INVALID_ARGUMENT;
+    *out = NULL;
+    isomend_stream *s = calloc(1, sizeof(*s));
+    if (!s)
+        return ISOMEND_ERR_OUT_OF_MEMORY;
+    const isomend_status status = stream_init(s, desc, opts, sink);
+    if (status != ISOMEND_OK) {
+        isomend_stream_destroy(s);
+        return status;
+    }
+    *out = s;
+    return ISOMEND_OK;
+}
+
+void isomend_stream_destroy(isomend_stream *s)
+{
+    if (!s)
+        return;
+    free(s->window);
+    free(s->ids);
+    free(s->keys);
+    free(s->fmap);
+    free(s->fpos);
+    free(s->w.block);
+    staging_free(&s->pos);
+    staging_free(&s->nrm);
+    staging_free(&s->tri);
+    staging_free(&s->org);
+    free(s);
+}
+
+void stream_set_first_id(isomend_stream *s, uint64_t first)
+{
+    if (s && s->pushed == s->push_first)
+        s->first_id = s->next_id = first;
+}
+
+/* A sink's answer as a status (and the stream's failure). */
+static isomend_status sink_status(isomend_stream *s, int rc)
+{
+    return rc ? (s->failed = ISOMEND_ERR_SINK) : ISOMEND_OK;
+}
+
+/* Hands the n staged vertices (ids from s->next_id) to the sink. */
+static isomend_status deliver_vertices(isomend_stream *s, uint64_t n)
+{
+    if (!n)
+        return ISOMEND_OK;
+    const ctx *c = &s->c;
+    const isomend_status status =
+        sink_status(s, s->sink.vertices(s->sink.user, s->next_id, (size_t)n, c->pos,
+                                        c->want_normals ? c->nrm : NULL,
+                                        s->piece ? s->keys : NULL));
+    s->next_id += n;
+    return status;
+}
+
+/* Layer k's n staged triangles, their ids made 64-bit from `base` (the
+ * first id of slice k: every id of the layer is in [base, base + 2^32));
+ * ids from `foreign` on (a piece's last layer) are the next piece's. */
+static isomend_status deliver_triangles(isomend_stream *s, uint64_t n, uint64_t base,
+                                        uint64_t foreign)
+{
+    const ctx *c = &s->c;
+    const uint32_t low = (uint32_t)base;
+    for (uint64_t done = 0; done < n;) {
+        const uint64_t b = n - done < TRIANGLE_BATCH ? n - done : TRIANGLE_BATCH;
+        const uint32_t *t = c->tri + 3 * done;
+        for (uint64_t q = 0; q < 3 * b; q++) {
+            const uint64_t id = base + (uint32_t)(t[q] - low);
+            s->ids[q] = id < foreign ? id : ISOMEND_FOREIGN | s->fmap[id - foreign];
+        }
+        const int rc = s->sink.triangles(s->sink.user, (size_t)b, s->ids,
+                                         c->org ? c->org + done : NULL);
+        if (rc)
+            return sink_status(s, rc);
+        done += b;
+    }
+    if (c->org) /* the next layer's table triangles are zero bytes again */
+        memset(c->org, 0, (size_t)n);
+    s->triangles += n;
+    return ISOMEND_OK;
+}
+
+/* The key of the vertex on grid edge (or face diagonal) `kind` at (i, j, m). */
+static uint64_t edge_key(const grid *g, int64_t i, int64_t j, int64_t m, int kind)
+{
+    return (((uint64_t)m * (uint64_t)g->N[1] + (uint64_t)j) * (uint64_t)g->N[0] + (uint64_t)i) *
+               8u +
+           (uint64_t)kind;
+}
+
+/* Whether tetra's diagonal of face `kind` (x, y, z face: 0, 1, 2) at
+ * (i, j, m) is cut: its ends are the face's even corners (scan_diagonals). */
+static int diagonal_cut(const uint8_t *a, const uint8_t *b, const uint8_t *d, const uint8_t *e,
+                        int64_t i, int even, int kind)
+{
+    switch (kind) {
+    case 0: return even ? a[i] != e[i] : b[i] != d[i];
+    case 1: return even ? a[i] != d[i + 1] : a[i + 1] != d[i];
+    default: return even ? a[i] != b[i + 1] : a[i + 1] != b[i];
+    }
+}
+
+/*
+ * A piece's keys of slice m's nv vertices (ids from first) into
+ * s->keys[np ..], np = first - s->next_id (the private vertices before
+ * them).  For the next piece's slice (`last`), the foreign table instead:
+ * the in-plane vertices (x, y edges, z-face diagonals), in id order,
+ * delivered through sink.foreign, and s->fmap from ids to their indices.
+ */
+static isomend_status slice_keys(isomend_stream *s, int64_t m, uint64_t first, uint64_t nv,
+                                 int last)
+{
+    const ctx *c = &s->c;
+    const grid *g = &c->g;
+    worker *w = &s->w;
+    const int64_t N0 = g->N[0], N1 = g->N[1], N2 = g->N[2], plane = N0 * N1;
+    const row_span *spans;
+    const uint8_t *t = m + 1 < N2 ? c->kernels->signs(w, m + 1, &spans) : NULL;
+    const uint8_t *sg = c->kernels->signs(w, m, &spans);
+    const uint32_t *map = w->edge_ids[m % 2];
+    uint64_t *keys = s->keys + (first - s->next_id);
+    const uint32_t low = (uint32_t)first;
+    for (int64_t j = 0; j < N1; j++) {
+        const uint8_t *a = sg + j * N0, *b = j + 1 < N1 ? a + N0 : NULL;
+        const uint8_t *d = t ? t + j * N0 : NULL, *e = t && b ? d + N0 : NULL;
+        for (int64_t i = 0; i < N0; i++) {
+            const int64_t at = j * N0 + i;
+            int cut[6] = {i + 1 < N0 && a[i] != a[i + 1], b && a[i] != b[i], d && a[i] != d[i],
+                          0, 0, 0};
+            if (c->tetra) {
+                const int even = ((i + j + m) & 1) == 0;
+                cut[3] = e && diagonal_cut(a, b, d, e, i, even, 0);
+                cut[4] = d && i + 1 < N0 && diagonal_cut(a, b, d, e, i, even, 1);
+                cut[5] = b && i + 1 < N0 && diagonal_cut(a, b, d, e, i, even, 2);
+            }
+            for (int kind = 0; kind < 6; kind++) {
+                if (!cut[kind])
+                    continue;
+                const uint64_t r = (uint32_t)(map[kind * plane + at] - low);
+                if (r >= nv)
+                    return s->failed = ISOMEND_ERR_INVALID_ARGUMENT; /* not reached */
+                keys[r] = edge_key(g, i, j, m, kind);
+            }
+        }
+    }
+    if (!last)
+        return ISOMEND_OK;
+    /* In id order, the in-plane vertices: kinds 0, 1 and 5 (z-face diagonal). */
+    uint64_t nf = 0;
+    for (uint64_t r = 0; r < nv; r++) {
+        const unsigned kind = (unsigned)(keys[r] & 7u);
+        s->fmap[r] = UINT32_MAX;
+        if (kind == 0 || kind == 1 || kind == 5) {
+            s->fmap[r] = (uint32_t)nf;
+            keys[nf++] = keys[r];
+        }
+    }
+    s->nforeign = nf;
+    if (!nf)
+        return ISOMEND_OK;
+    /* Their positions by the general vertex path (the same as the vertex
+     * loops', vertices.c), which reads slices m - 1 .. m + 1 only. */
+    for (uint64_t f = 0; f < nf; f++) {
+        const unsigned kind = (unsigned)(keys[f] & 7u);
+        const uint64_t lin = keys[f] >> 3;
+        const int64_t i = (int64_t)(lin % (uint64_t)N0);
+        const int64_t j = (int64_t)(lin / (uint64_t)N0 % (uint64_t)N1);
+        float *p = s->fpos + 3 * f;
+        if (kind < 3) {
+            make_vertex(g, c->flip, i, j, m, (int)kind, p, NULL);
+        } else { /* the z face's diagonal between its even corners, lower sample first */
+            const int even = ((i + j + m) & 1) == 0;
+            const int64_t lo[3] = {even ? i : i + 1, j, m}, hi[3] = {even ? i + 1 : i, j + 1, m};
+            make_vertex_between(g, c->flip, lo, hi, p, NULL);
+        }
+    }
+    return sink_status(s, s->sink.foreign(s->sink.user, 0, (size_t)nf, keys, s->fpos));
+}
+
+/*
+ * Scans slice m (numbering from the running count) and marches layer m - 1,
+ * delivering layer m - 1's cube-private vertices (general methods: counted
+ * first, from the signs alone, so that slice m is numbered after them), slice
+ * m's vertices, then layer m - 1's triangles.
+ */
+static isomend_status step(isomend_stream *s, int64_t m)
+{
+    ctx *c = &s->c;
+    worker *w = &s->w;
+    const extract_kernels *kr = c->kernels;
+    const int64_t k = m - 1;
+    const int layer = m > s->own_first; /* layer m - 1 is this piece's */
+    const int last = m == s->own_end;   /* a piece's next slice: ids only */
+    uint64_t np = 0, nt = 0;
+    if (layer && c->general) {
+        nt = kr->march_layer(w, k, PASS_COUNT, 0);
+        np = w->private_count;
+    }
+    c->vertex_base = c->private_first = s->next_id;
+    const uint64_t first = s->next_id + np;
+    const uint64_t nv = kr->scan_slice(w, m, PASS_SWEEP, first, !last);
+    if (!last)
+        w->stats.nan_samples += w->slice_nans[m % SIGN_RING];
+    const uint64_t below = layer ? s->slice_first[(m - 1) % 2] : first;
+    s->slice_first[m % 2] = first;
+    if (first + nv - below > UINT32_MAX)
+        return s->failed = ISOMEND_ERR_TOO_LARGE; /* the id maps' 32 bits */
+    if (layer && c->general) /* the private vertices and the triangles */
+        (void)kr->march_layer(w, k, PASS_FILL, 0);
+    isomend_status status = ISOMEND_OK;
+    if (s->piece) {
+        for (uint64_t q = 0; q < np; q++)
+            s->keys[q] = ISOMEND_KEY_NONE;
+        status = slice_keys(s, m, first, nv, last);
+    }
+    if (status == ISOMEND_OK)
+        status = deliver_vertices(s, last ? np : np + nv);
+    if (status != ISOMEND_OK || !layer)
+        return status;
+    if (!c->general)
+        nt = kr->march_layer(w, k, PASS_SWEEP, 0);
+    status = deliver_triangles(s, nt, below, last ? first : UINT64_MAX);
+    if (status == ISOMEND_OK)
+        status = sink_status(s, s->sink.retire(s->sink.user, last ? s->next_id : first));
+    return status;
+}
+
+/* Scans and marches what the samples of marched slices up to `avail` allow. */
+static isomend_status advance(isomend_stream *s, int64_t avail)
+{
+    const int64_t N2 = s->c.g.N[2];
+    const int64_t end = s->own_end < N2 ? s->own_end + 1 : N2; /* and a piece's next slice */
+    while (s->next_scan < end) {
+        const int64_t m = s->next_scan;
+        int64_t need = m + (m == s->own_end ? 1 : 2); /* the next slice: signs of m + 1 */
+        if (need > N2 - 1)
+            need = N2 - 1;
+        if (need > avail)
+            break;
+        const isomend_status status = step(s, m);
+        if (status != ISOMEND_OK)
+            return status;
+        s->next_scan++;
+    }
+    return ISOMEND_OK;
+}
+
+isomend_status isomend_stream_push(isomend_stream *s, const void *slice)
+{
+    if (!s || !slice)
+        return ISOMEND_ERR_INVALID_ARGUMENT;
+    if (s->failed != ISOMEND_OK)
+        return s->failed;
+    grid *g = &s->c.g;
+    const int64_t z = s->pushed;
+    if (z >= s->push_end || s->finished)
+        return s->failed = ISOMEND_ERR_SLICE_COUNT;
+    if (z - g->z0 >= WINDOW) { /* keep the planes still needed, from the lowest */
+        int64_t lo = s->next_scan - 2 - g->pad; /* layer next_scan - 1 reads next_scan - 2 */
+        if (lo < g->z0)
+            lo = g->z0;
+        memmove(s->window, s->window + (size_t)(lo - g->z0) * s->plane_bytes,
+                (size_t)(z - lo) * s->plane_bytes);
+        g->z0 = lo;
+    }
+    memcpy(s->window + (size_t)(z - g->z0) * s->plane_bytes, slice, s->plane_bytes);
+    s->pushed = z + 1;
+    return advance(s, z + g->pad);
+}
+
+isomend_status isomend_stream_finish(isomend_stream *s, isomend_stats *stats)
+{
+    if (!s)
+        return ISOMEND_ERR_INVALID_ARGUMENT;
+    if (s->failed != ISOMEND_OK)
+        return s->failed;
+    const grid *g = &s->c.g;
+    if (s->pushed != s->push_end)
+        return s->failed = ISOMEND_ERR_SLICE_COUNT;
+    const isomend_status status = advance(s, g->N[2] - 1);
+    if (status != ISOMEND_OK)
+        return status;
+    s->finished = 1;
+    if (stats) {
+        gather_stats(&s->c, &s->w, 1, s->next_id - s->first_id, s->triangles, stats);
+        const int64_t layers = (s->own_end < g->N[2] ? s->own_end : g->N[2] - 1) - s->own_first;
+        stats->cubes = (uint64_t)(g->N[0] - 1) * (uint64_t)(g->N[1] - 1) * (uint64_t)layers;
+    }
+    return ISOMEND_OK;
+}
+
+/* ------------------------------------------------------------------ pieces */
+
+/* The volume slices [*first, *end) a piece reads: marched slices
+ * owned_first - 1 .. owned_end + 1, clamped to the volume. */
+static isomend_status piece_range(const grid *g, const isomend_piece *piece, int64_t *first,
+                                  int64_t *end)
+{
+    if (!piece || piece->owned_first < 0 || piece->owned_first >= piece->owned_end ||
+        piece->owned_end > g->N[2])
+        return ISOMEND_ERR_INVALID_ARGUMENT;
+    int64_t lo = piece->owned_first - 1 - g->pad, hi = piece->owned_end + 2 - g->pad;
+    *first = lo < 0 ? 0 : lo;
+    *end = hi > g->n[2] ? g->n[2] : hi;
+    return ISOMEND_OK;
+}
+
+isomend_status isomend_piece_halo(const isomend_volume *desc, const isomend_options *opts,
+                                  const isomend_piece *piece, int64_t *first, int64_t *end)
+{
+    isomend_options defaults;
+    isomend_options_init(&defaults);
+    if (!desc || !first || !end)
+        return ISOMEND_ERR_INVALID_ARGUMENT;
+    isomend_volume v = *desc;
+    memset(v.strides, 0, sizeof v.strides);
+    ctx c;
+    memset(&c, 0, sizeof c);
+    const isomend_status status = ctx_setup(&c, &v, opts ? opts : &defaults);
+    if (status != ISOMEND_OK)
+        return status;
+    return piece_range(&c.g, piece, first, end);
+}
+
+isomend_status isomend_piece_begin(const isomend_volume *desc, const isomend_options *opts,
+                                   const isomend_piece *piece, const isomend_mesh_sink *sink,
+                                   isomend_stream **out)
+{
+    if (!out)
+        return ISOMEND_ERR_INVALID_ARGUMENT;
+    *out = NULL;
+    isomend_stream *s = calloc(1, sizeof(*s));
+    if (!s)
+        return ISOMEND_ERR_OUT_OF_MEMORY;
+    isomend_status status = stream_init(s, desc, opts, sink);
+    const grid *g = &s->c.g;
+    if (status == ISOMEND_OK)
+        status = piece_range(g, piece, &s->push_first, &s->push_end);
+    if (status == ISOMEND_OK && piece->owned_end < g->N[2] && !sink->foreign)
+        status = ISOMEND_ERR_INVALID_ARGUMENT;
+    if (status == ISOMEND_OK) {
+        s->piece = 1;
+        s->own_first = s->next_scan = piece->owned_first;
+        s->own_end = piece->owned_end;
+        s->pushed = s->c.g.z0 = s->push_first;
+        const uint64_t cap = s->max_slice_vertices + s->max_layer_vertices;
+        s->keys = malloc(sizeof(uint64_t) * (size_t)cap);
+        s->fmap = malloc(sizeof(uint32_t) * (size_t)s->max_slice_vertices);
+        s->fpos = malloc(3 * sizeof(float) * (size_t)s->max_slice_vertices);
+        if (!s->keys || !s->fmap || !s->fpos)
+            status = ISOMEND_ERR_OUT_OF_MEMORY;
+    }
+    if (status != ISOMEND_OK) {
+        isomend_stream_destroy(s);
+        return status;
+    }
+    *out = s;
+    return ISOMEND_OK;
+}
+
+uint64_t isomend_stream_memory(const isomend_volume *desc, const isomend_options *opts)
+{
+    isomend_options defaults;
+    isomend_options_init(&defaults);
+    const isomend_options *o = opts ? opts : &defaults;
+    if (!desc)
+        return 0;
+    isomend_volume v = *desc;
+    memset(v.strides, 0, sizeof v.strides);
+    ctx c;
+    memset(&c, 0, sizeof c);
+    if (ctx_setup(&c, &v, o) != ISOMEND_OK)
+        return 0;
+    worker w;
+    uint64_t size[4];
+    stream_sizes(&c, size);
+    const uint64_t plane = (uint64_t)c.g.n[0] * (uint64_t)c.g.n[1] * isomend_type_size(c.g.type);
+    uint64_t total = sizeof(isomend_stream) + WINDOW * plane + worker_layout(&w, &c, NULL) +
+                     3 * sizeof(uint64_t) * TRIANGLE_BATCH;
+    for (int q = 0; q < 4; q++)
+        total += huge_round((size_t)size[q]);
+    return total;
+}

@@ -1,0 +1,845 @@
+/*
+ * test_stream.c - the streaming extraction (isomend_stream_*) against
+ * isomend_extract() on the same volume: positions, normals, triangles,
+ * origins and statistics identical byte for byte, vertex order included, for
+ * every method, voxel type and flag, on sphere, gyroid, noise and random
+ * volumes of random sizes; the sink's order contract (consecutive ids,
+ * triangles of delivered vertices, retire floors kept); ids past 2^32; the
+ * memory bound independent of nz; bad input and a sink that stops.
+ *
+ *   test_stream          the comparisons and bad input (core_stream)
+ *   test_stream --tall   a 64 x 64 x (2^19 + 2) volume, 2^31 + 8192 samples,
+ *                        streamed in O(one slice) (core_stream_tall)
+ */
+#include "isomend.h"
+#include "testutil.h"
+
+#include <math.h>
+#include <stdint.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+/* stream.c, internal: the first vertex id of a stream not yet pushed to. */
+void stream_set_first_id(isomend_stream *s, uint64_t first);
+
+static uint64_t rng_state = 0x2545F4914F6CDD1Dull;
+
+static uint32_t rng(void)
+{
+    rng_state ^= rng_state << 13;
+    rng_state ^= rng_state >> 7;
+    rng_state ^= rng_state << 17;
+    return (uint32_t)(rng_state >> 11);
+}
+
+/* ------------------------------------------------------------------ a sink that keeps all */
+
+typedef struct collect {
+    float *pos, *nrm;
+    uint64_t *keys;
+    size_t nv, vcap;
+    uint64_t *tri;
+    uint8_t *org;
+    size_t nt, tcap;
+    uint64_t floor;
+    int saw_normals, saw_origins, saw_keys;
+    int order_errors;
+    long calls, stop_at; /* stop (return 1) at call stop_at; 0: never */
+    long calls_after_stop;
+    uint64_t id_offset;
+    uint64_t *fkeys; /* a piece's foreign keys and positions */
+    float *fpos;
+    size_t nf;
+} collect;
+
+static int count_call(collect *c)
+{
+    if (c->stop_at && c->calls >= c->stop_at) {
+        c->calls_after_stop++;
+        return 1;
+    }
+    return ++c->calls == c->stop_at;
+}
+
+static int on_vertices(void *user, uint64_t first, size_t count, const float *pos,
+                       const float *nrm, const uint64_t *keys)
+{
+    collect *c = user;
+    if (count_call(c))
+        return 1;
+    if (first != c->id_offset + c->nv || count == 0)
+        c->order_errors++;
+    if (c->nv + count > c->vcap) {
+        c->vcap = 2 * (c->nv + count);
+        c->pos = realloc(c->pos, 3 * sizeof(float) * c->vcap);
+        c->nrm = realloc(c->nrm, 3 * sizeof(float) * c->vcap);
+        c->keys = realloc(c->keys, sizeof(uint64_t) * c->vcap);
+        if (!c->pos || !c->nrm || !c->keys)
+            abort();
+    }
+    memcpy(c->pos + 3 * c->nv, pos, 3 * sizeof(float) * count);
+    if (nrm) {
+        c->saw_normals = 1;
+        memcpy(c->nrm + 3 * c->nv, nrm, 3 * sizeof(float) * count);
+    }
+    if (keys) {
+        c->saw_keys = 1;
+        memcpy(c->keys + c->nv, keys, sizeof(uint64_t) * count);
+    }
+    c->nv += count;
+    return 0;
+}
+
+static int on_triangles(void *user, size_t count, const uint64_t *ids, const uint8_t *org)
+{
+    collect *c = user;
+    if (count_call(c))
+        return 1;
+    if (c->nt + count > c->tcap) {
+        c->tcap = 2 * (c->nt + count);
+        c->tri = realloc(c->tri, 3 * sizeof(uint64_t) * c->tcap);
+        c->org = realloc(c->org, c->tcap);
+        if (!c->tri || !c->org)
+            abort();
+    }
+    for (size_t q = 0; q < 3 * count; q++)
+        if ((ids[q] & ISOMEND_FOREIGN) ? (ids[q] & ~ISOMEND_FOREIGN) >= c->nf
+                                       : ids[q] < c->floor || ids[q] >= c->id_offset + c->nv)
+            c->order_errors++;
+    memcpy(c->tri + 3 * c->nt, ids, 3 * sizeof(uint64_t) * count);
+    if (org) {
+        c->saw_origins = 1;
+        memcpy(c->org + c->nt, org, count);
+    }
+    c->nt += count;
+    return 0;
+}
+
+static int on_retire(void *user, uint64_t floor)
+{
+    collect *c = user;
+    if (count_call(c))
+        return 1;
+    if (floor < c->floor || floor > c->id_offset + c->nv)
+        c->order_errors++;
+    c->floor = floor;
+    return 0;
+}
+
+static int on_foreign(void *user, size_t first, size_t count, const uint64_t *keys,
+                      const float *pos)
+{
+    collect *c = user;
+    if (count_call(c))
+        return 1;
+    if (first != c->nf) /* appended (triangles check f < nf: before them) */
+        c->order_errors++;
+    c->fkeys = realloc(c->fkeys, sizeof(uint64_t) * (c->nf + count));
+    c->fpos = realloc(c->fpos, 3 * sizeof(float) * (c->nf + count));
+    if (!c->fkeys || !c->fpos)
+        abort();
+    memcpy(c->fkeys + c->nf, keys, sizeof(uint64_t) * count);
+    memcpy(c->fpos + 3 * c->nf, pos, 3 * sizeof(float) * count);
+    c->nf += count;
+    return 0;
+}
+
+static isomend_mesh_sink sink_of(collect *c)
+{
+    isomend_mesh_sink s = {c, on_vertices, on_triangles, on_retire, on_foreign};
+    return s;
+}
+
+static void collect_free(collect *c)
+{
+    free(c->pos);
+    free(c->nrm);
+    free(c->keys);
+    free(c->tri);
+    free(c->org);
+    free(c->fkeys);
+    free(c->fpos);
+    memset(c, 0, sizeof *c);
+}
+
+/* ------------------------------------------------------------------ volumes */
+
+enum { SPHERE, GYROID, NOISE, RANDOM_VALUES, SHAPES };
+static const char *shape_names[SHAPES] = {"sphere", "gyroid", "noise", "random"};
+
+/* A field of shape `shape` on n[0] x n[1] x n[2] samples, values in about
+ * [0, 1], iso 0.5 (NaNs in float types when `nans`). */
+static double *make_field(int shape, const int64_t n[3], int nans)
+{
+    const size_t count = (size_t)(n[0] * n[1] * n[2]);
+    double *f = malloc(sizeof(double) * count);
+    if (!f)
+        abort();
+    for (int64_t k = 0; k < n[2]; k++)
+        for (int64_t j = 0; j < n[1]; j++)
+            for (int64_t i = 0; i < n[0]; i++) {
+                const double x = (double)i / (double)n[0], y = (double)j / (double)n[1],
+                             z = (double)k / (double)n[2];
+                double v = 0.0;
+                switch (shape) {
+                case SPHERE:
+                    v = 1.0 - 2.0 * sqrt((x - 0.5) * (x - 0.5) + (y - 0.45) * (y - 0.45) +
+                                         (z - 0.55) * (z - 0.55));
+                    break;
+                case GYROID: {
+                    const double s = 2 * 3.14159265358979 * 1.7;
+                    v = 0.5 + 0.3 * (sin(s * x) * cos(s * y) + sin(s * y) * cos(s * z) +
+                                     sin(s * z) * cos(s * x));
+                    break;
+                }
+                case NOISE: v = (double)(rng() % 1000) / 999.0; break;
+                default: v = (double)(rng() % 3) * 0.25 + 0.25; break; /* ties at 0.5 */
+                }
+                f[(k * n[1] + j) * n[0] + i] = v;
+            }
+    if (nans)
+        for (size_t q = 0; q < count / 23 + 1; q++)
+            f[rng() % count] = NAN;
+    return f;
+}
+
+/* The field as samples of `type` (integers scaled to their range), iso for it. */
+static void *to_type(const double *f, size_t count, isomend_type type, double *iso)
+{
+    void *out = malloc(count * isomend_type_size(type) + 1);
+    if (!out)
+        abort();
+    static const double lo[] = {0, -128, 0, -32768, -2147483648.0};
+    static const double hi[] = {255, 127, 65535, 32767, 2147483647.0};
+    *iso = 0.5;
+    if (type <= ISOMEND_I32)
+        *iso = lo[type] + 0.5 * (hi[type] - lo[type]);
+    for (size_t q = 0; q < count; q++) {
+        const double v = f[q];
+        double s = type <= ISOMEND_I32 ? (isnan(v) ? 0.0 : lo[type] + v * (hi[type] - lo[type]))
+                                       : v;
+        if (type <= ISOMEND_I32)
+            s = floor(s + 0.5);
+        switch (type) {
+        case ISOMEND_U8: ((uint8_t *)out)[q] = (uint8_t)s; break;
+        case ISOMEND_I8: ((int8_t *)out)[q] = (int8_t)s; break;
+        case ISOMEND_U16: ((uint16_t *)out)[q] = (uint16_t)s; break;
+        case ISOMEND_I16: ((int16_t *)out)[q] = (int16_t)s; break;
+        case ISOMEND_I32: ((int32_t *)out)[q] = (int32_t)s; break;
+        case ISOMEND_F32: ((float *)out)[q] = (float)s; break;
+        case ISOMEND_F64: ((double *)out)[q] = s; break;
+        }
+    }
+    return out;
+}
+
+/* A volume of `shape` and `type` on n samples (NaNs in float types except
+ * the sphere) into *vol; returns its samples (free them) and *iso. */
+static void *make_volume(int shape, isomend_type type, const int64_t n[3], isomend_volume *vol,
+                         double *iso)
+{
+    const int nans = (type == ISOMEND_F32 || type == ISOMEND_F64) && shape != SPHERE;
+    double *f = make_field(shape, n, nans);
+    void *data = to_type(f, (size_t)(n[0] * n[1] * n[2]), type, iso);
+    free(f);
+    isomend_volume_init(vol, data, type, n[0], n[1], n[2]);
+    return data;
+}
+
+/* ------------------------------------------------------------------ stream == extract */
+
+static int compared;
+
+/* Streams vol with opts (ids from id_offset) and compares with the
+ * in-memory extraction. */
+static void compare(const isomend_volume *vol, const isomend_options *opts, uint64_t id_offset,
+                    const char *what)
+{
+    isomend_mesh *mesh = NULL;
+    isomend_stats es, ss;
+    memset(&es, 0, sizeof es);
+    memset(&ss, 0xAB, sizeof ss);
+    isomend_status st = isomend_extract(vol, opts, &mesh, &es);
+    CHECK_EQ_INT(st, ISOMEND_OK);
+    if (st != ISOMEND_OK)
+        return;
+    collect c;
+    memset(&c, 0, sizeof c);
+    c.id_offset = id_offset;
+    c.floor = id_offset;
+    isomend_mesh_sink sink = sink_of(&c);
+    isomend_stream *s = NULL;
+    st = isomend_stream_begin(vol, opts, &sink, &s);
+    CHECK_EQ_INT(st, ISOMEND_OK);
+    if (id_offset)
+        stream_set_first_id(s, id_offset);
+    const size_t size = isomend_type_size(vol->type);
+    const size_t plane = (size_t)(vol->dims[0] * vol->dims[1]) * size;
+    char *buf = malloc(plane);
+    for (int64_t z = 0; z < vol->dims[2] && st == ISOMEND_OK; z++) {
+        memcpy(buf, (const char *)vol->data + (size_t)z * plane, plane);
+        st = isomend_stream_push(s, buf);
+        memset(buf, 0x5A, plane); /* the stream must have copied it */
+        CHECK_EQ_INT(st, ISOMEND_OK);
+    }
+    free(buf);
+    if (st == ISOMEND_OK) {
+        st = isomend_stream_finish(s, &ss);
+        CHECK_EQ_INT(st, ISOMEND_OK);
+    }
+    isomend_stream_destroy(s);
+    const size_t nv = isomend_mesh_vertex_count(mesh), nt = isomend_mesh_triangle_count(mesh);
+    int ok = st == ISOMEND_OK && c.nv == nv && c.nt == nt && c.order_errors == 0 &&
+             memcmp(&es, &ss, sizeof es) == 0 &&
+             (nv == 0 || memcmp(c.pos, isomend_mesh_positions(mesh), 12 * nv) == 0) &&
+             !c.saw_keys;
+    const float *mn = isomend_mesh_normals(mesh);
+    if (ok && mn && nv)
+        ok = c.saw_normals && memcmp(c.nrm, mn, 12 * nv) == 0;
+    if (ok && !mn)
+        ok = !c.saw_normals;
+    const uint8_t *mo = isomend_mesh_triangle_origins(mesh);
+    if (ok && mo && nt)
+        ok = c.saw_origins && memcmp(c.org, mo, nt) == 0;
+    if (ok && !mo)
+        ok = !c.saw_origins;
+    const uint32_t *mt = isomend_mesh_triangles(mesh);
+    for (size_t q = 0; ok && q < 3 * nt; q++)
+        ok = c.tri[q] == id_offset + mt[q];
+    if (!ok)
+        fprintf(stderr, "stream != extract: %s (vertices %zu/%zu, triangles %zu/%zu, order errors %d)\n",
+                what, c.nv, nv, c.nt, nt, c.order_errors);
+    CHECK(ok);
+    compared++;
+    collect_free(&c);
+    isomend_mesh_destroy(mesh);
+}
+
+static void test_all_methods_types(void)
+{
+    static const unsigned flag_sets[] = {0,
+                                         ISOMEND_FLAG_PAD,
+                                         ISOMEND_FLAG_NO_NORMALS | ISOMEND_FLAG_NO_ORIGINS,
+                                         ISOMEND_FLAG_FLIP | ISOMEND_FLAG_PAD,
+                                         ISOMEND_FLAG_NO_NORMALS | ISOMEND_FLAG_PAD};
+    for (int shape = 0; shape < SHAPES; shape++)
+        for (int t = 0; t < ISOMEND_TYPE_COUNT; t++) {
+            const isomend_type type = (isomend_type)t;
+            int64_t n[3];
+            for (int a = 0; a < 3; a++)
+                n[a] = 2 + (int64_t)(rng() % 17);
+            if (shape == SPHERE && t == 0) { /* the one pass's size, for the table methods */
+                n[0] = n[1] = 140;
+                n[2] = 110;
+            }
+            double iso;
+            isomend_volume vol;
+            void *data = make_volume(shape, type, n, &vol, &iso);
+            vol.spacing[0] = 0.5;
+            vol.spacing[2] = 1.25;
+            vol.origin[1] = -3.0;
+            for (int m = 0; m < ISOMEND_METHOD_COUNT; m++) {
+                if (!isomend_method_available((isomend_method)m))
+                    continue;
+                for (size_t fl = 0; fl < sizeof flag_sets / sizeof flag_sets[0]; fl++) {
+                    if (n[0] == 140 && m >= ISOMEND_METHOD_FACIAL && fl > 1)
+                        continue; /* the large case: the general methods twice only */
+                    isomend_options o;
+                    isomend_options_init(&o);
+                    o.iso = iso;
+                    o.method = (isomend_method)m;
+                    o.flags = flag_sets[fl];
+                    o.threads = 1 + (int)(rng() % 3);
+                    char what[160];
+                    snprintf(what, sizeof what, "%s %s %lldx%lldx%lld %s flags %u threads %d",
+                             shape_names[shape], isomend_type_name(type), (long long)n[0],
+                             (long long)n[1], (long long)n[2],
+                             isomend_method_name((isomend_method)m), o.flags, o.threads);
+                    compare(&vol, &o, 0, what);
+                }
+            }
+            free(data);
+        }
+}
+
+/* Ids past 2^32: the stream starts numbering just below it (ids are kept
+ * modulo 2^32 in the id maps and made 64-bit again per layer). */
+static void test_ids_past_2_32(void)
+{
+    const int64_t n[3] = {30, 27, 40};
+    for (int m = 0; m < ISOMEND_METHOD_COUNT; m++) {
+        double *f = make_field(GYROID, n, 0);
+        double iso;
+        void *data = to_type(f, (size_t)(n[0] * n[1] * n[2]), ISOMEND_F32, &iso);
+        free(f);
+        isomend_volume vol;
+        isomend_volume_init(&vol, data, ISOMEND_F32, n[0], n[1], n[2]);
+        isomend_options o;
+        isomend_options_init(&o);
+        o.iso = iso;
+        o.method = (isomend_method)m;
+        o.flags = ISOMEND_FLAG_PAD;
+        compare(&vol, &o, ((uint64_t)1 << 32) - 3001, "ids past 2^32");
+        free(data);
+    }
+}
+
+/* ------------------------------------------------------------------ pieces */
+
+typedef struct keyed {
+    uint64_t key, id;
+} keyed;
+
+static int keyed_cmp(const void *a, const void *b)
+{
+    const uint64_t x = ((const keyed *)a)->key, y = ((const keyed *)b)->key;
+    return x < y ? -1 : x > y;
+}
+
+/* Whether key's edge (kinds 0..2) holds position p (the other two
+ * coordinates are the grid's). */
+static int key_on_edge(const isomend_volume *vol, unsigned flags, uint64_t key, const float *p)
+{
+    const int64_t pad = (flags & ISOMEND_FLAG_PAD) ? 1 : 0;
+    const uint64_t N0 = (uint64_t)(vol->dims[0] + 2 * pad), N1 = (uint64_t)(vol->dims[1] + 2 * pad);
+    const unsigned kind = (unsigned)(key & 7);
+    const uint64_t lin = key >> 3;
+    const int64_t idx[3] = {(int64_t)(lin % N0), (int64_t)(lin / N0 % N1), (int64_t)(lin / N0 / N1)};
+    if (kind > 5)
+        return 0;
+    for (int a = 0; a < 3; a++) {
+        const double lo = vol->origin[a] + (double)(idx[a] - pad) * vol->spacing[a];
+        if (kind <= 2 && a != (int)kind && p[a] != (float)lo)
+            return 0;
+        if (p[a] < (float)lo - 1e-3f * (float)vol->spacing[a] ||
+            p[a] > (float)(lo + vol->spacing[a]) + 1e-3f * (float)vol->spacing[a])
+            return 0;
+    }
+    return 1;
+}
+
+static int pieces_compared;
+
+/* Extracts vol as np pieces at random boundaries, stitches them by keys and
+ * compares with the in-memory mesh. */
+static void compare_pieces(const isomend_volume *vol, const isomend_options *o, int npieces,
+                           const char *what)
+{
+    isomend_mesh *mesh = NULL;
+    isomend_stats es, sum;
+    CHECK_EQ_INT(isomend_extract(vol, o, &mesh, &es), ISOMEND_OK);
+    const int64_t N2 = vol->dims[2] + ((o->flags & ISOMEND_FLAG_PAD) ? 2 : 0);
+    if (npieces > N2)
+        npieces = (int)N2;
+    int64_t cut[8];
+    cut[0] = 0;
+    cut[npieces] = N2;
+    for (int p = 1; p < npieces; p++) { /* distinct, increasing */
+        const int64_t lo = cut[p - 1] + 1, hi = N2 - (npieces - p);
+        cut[p] = lo + (int64_t)(rng() % (uint64_t)(hi - lo + 1));
+    }
+    collect c[8];
+    memset(c, 0, sizeof c);
+    memset(&sum, 0, sizeof sum);
+    const size_t plane = (size_t)(vol->dims[0] * vol->dims[1]) * isomend_type_size(vol->type);
+    int ok = 1;
+    for (int p = 0; p < npieces && ok; p++) {
+        isomend_piece piece = {cut[p], cut[p + 1]};
+        int64_t first, end;
+        CHECK_EQ_INT(isomend_piece_halo(vol, o, &piece, &first, &end), ISOMEND_OK);
+        isomend_mesh_sink sink = sink_of(&c[p]);
+        isomend_stream *s = NULL;
+        ok = isomend_piece_begin(vol, o, &piece, &sink, &s) == ISOMEND_OK;
+        for (int64_t z = first; z < end && ok; z++)
+            ok = isomend_stream_push(s, (const char *)vol->data + (size_t)z * plane) == ISOMEND_OK;
+        isomend_stats ps;
+        ok = ok && isomend_stream_finish(s, &ps) == ISOMEND_OK && c[p].order_errors == 0 &&
+             c[p].saw_keys == (c[p].nv > 0);
+        isomend_stream_destroy(s);
+        uint64_t *a = (uint64_t *)(void *)&sum, *b = (uint64_t *)(void *)&ps;
+        for (size_t q = 0; q < sizeof sum / sizeof(uint64_t); q++)
+            a[q] += b[q];
+    }
+    /* Stitch: global ids by prefix sums, foreign keys through the next piece's. */
+    size_t nv = 0, nt = 0;
+    for (int p = 0; p < npieces; p++) {
+        nv += c[p].nv;
+        nt += c[p].nt;
+    }
+    ok = ok && nv == isomend_mesh_vertex_count(mesh) && nt == isomend_mesh_triangle_count(mesh) &&
+         memcmp(&sum, &es, sizeof es) == 0;
+    const float *mp = isomend_mesh_positions(mesh), *mn = isomend_mesh_normals(mesh);
+    const uint32_t *mt = isomend_mesh_triangles(mesh);
+    const uint8_t *mo = isomend_mesh_triangle_origins(mesh);
+    size_t vbase = 0, tbase = 0;
+    for (int p = 0; p < npieces && ok; p++) {
+        const collect *q = &c[p];
+        ok = (!q->nv || memcmp(q->pos, mp + 3 * vbase, 12 * q->nv) == 0) &&
+             (!mn || !q->nv || memcmp(q->nrm, mn + 3 * vbase, 12 * q->nv) == 0) &&
+             (!mo || !q->nt || memcmp(q->org, mo + tbase, q->nt) == 0);
+        for (size_t v = 0; ok && v < q->nv; v++)
+            ok = q->keys[v] == ISOMEND_KEY_NONE || key_on_edge(vol, o->flags, q->keys[v], q->pos + 3 * v);
+        keyed *next = NULL;
+        size_t nnext = 0;
+        if (p + 1 < npieces) {
+            next = malloc(sizeof(keyed) * (c[p + 1].nv + 1));
+            for (size_t v = 0; v < c[p + 1].nv; v++)
+                if (c[p + 1].keys[v] != ISOMEND_KEY_NONE) {
+                    next[nnext].key = c[p + 1].keys[v];
+                    next[nnext++].id = vbase + q->nv + v;
+                }
+            qsort(next, nnext, sizeof(keyed), keyed_cmp);
+        }
+        for (size_t t = 0; ok && t < 3 * q->nt; t++) {
+            uint64_t id = q->tri[t];
+            if (id & ISOMEND_FOREIGN) {
+                keyed k = {q->fkeys[id & ~ISOMEND_FOREIGN], 0};
+                const keyed *hit = next ? bsearch(&k, next, nnext, sizeof(keyed), keyed_cmp) : NULL;
+                ok = hit != NULL;
+                id = hit ? hit->id : 0;
+                /* the foreign position is the next piece's vertex's */
+                ok = ok && memcmp(q->fpos + 3 * (q->tri[t] & ~ISOMEND_FOREIGN), mp + 3 * id,
+                                  12) == 0;
+            } else {
+                id += vbase;
+            }
+            ok = ok && id == mt[3 * tbase + t];
+        }
+        free(next);
+        vbase += q->nv;
+        tbase += q->nt;
+    }
+    if (!ok)
+        fprintf(stderr, "pieces != extract: %s, %d pieces\n", what, npieces);
+    CHECK(ok);
+    pieces_compared++;
+    for (int p = 0; p < npieces; p++)
+        collect_free(&c[p]);
+    isomend_mesh_destroy(mesh);
+}
+
+static void test_pieces(void)
+{
+    static const unsigned flag_sets[] = {0, ISOMEND_FLAG_PAD,
+                                         ISOMEND_FLAG_NO_NORMALS | ISOMEND_FLAG_FLIP,
+                                         ISOMEND_FLAG_PAD | ISOMEND_FLAG_NO_ORIGINS};
+    for (int shape = 0; shape < SHAPES; shape++)
+        for (int t = 0; t < ISOMEND_TYPE_COUNT; t++) {
+            const isomend_type type = (isomend_type)t;
+            int64_t n[3];
+            for (int a = 0; a < 3; a++)
+                n[a] = 2 + (int64_t)(rng() % 15);
+            double iso;
+            isomend_volume vol;
+            void *data = make_volume(shape, type, n, &vol, &iso);
+            vol.spacing[1] = 0.75;
+            vol.origin[2] = 2.0;
+            for (int m = 0; m < ISOMEND_METHOD_COUNT; m++)
+                for (size_t fl = 0; fl < sizeof flag_sets / sizeof flag_sets[0]; fl++) {
+                    isomend_options o;
+                    isomend_options_init(&o);
+                    o.iso = iso;
+                    o.method = (isomend_method)m;
+                    o.flags = flag_sets[fl];
+                    char what[160];
+                    snprintf(what, sizeof what, "%s %s %lldx%lldx%lld %s flags %u",
+                             shape_names[shape], isomend_type_name(type), (long long)n[0],
+                             (long long)n[1], (long long)n[2],
+                             isomend_method_name((isomend_method)m), o.flags);
+                    compare_pieces(&vol, &o, 1 + (int)(rng() % 5), what);
+                }
+            free(data);
+        }
+}
+
+/* ------------------------------------------------------------------ memory, bad input */
+
+static void test_memory_bound(void)
+{
+    isomend_volume d;
+    isomend_volume_init(&d, NULL, ISOMEND_U16, 2048, 2048, 10);
+    isomend_options o;
+    isomend_options_init(&o);
+    const uint64_t small = isomend_stream_memory(&d, &o);
+    d.dims[2] = (int64_t)1 << 31;
+    const uint64_t tall = isomend_stream_memory(&d, &o);
+    CHECK(small > 0);
+    CHECK_EQ_INT(small, tall);
+    /* at least the window's 8 planes and two slices of id maps */
+    CHECK(small >= 8ull * 2048 * 2048 * 2 + 2ull * 12 * 2048 * 2048);
+    printf("isomend_stream_memory, 2048 x 2048 u16, DMC: %.1f MiB", (double)small / 1048576.0);
+    o.flags = ISOMEND_FLAG_NO_NORMALS | ISOMEND_FLAG_NO_ORIGINS;
+    printf("; without normals and origins: %.1f MiB\n",
+           (double)isomend_stream_memory(&d, &o) / 1048576.0);
+    d.dims[0] = 1; /* refused like isomend_extract() */
+    CHECK_EQ_INT(isomend_stream_memory(&d, &o), 0);
+    CHECK_EQ_INT(isomend_stream_memory(NULL, &o), 0);
+}
+
+static void test_bad_input(void)
+{
+    const int64_t n[3] = {9, 8, 7};
+    double *f = make_field(SPHERE, n, 0);
+    double iso;
+    uint8_t *data = to_type(f, 9 * 8 * 7, ISOMEND_U8, &iso);
+    free(f);
+    isomend_volume vol;
+    isomend_volume_init(&vol, data, ISOMEND_U8, n[0], n[1], n[2]);
+    isomend_options o;
+    isomend_options_init(&o);
+    o.iso = iso;
+    collect c;
+    memset(&c, 0, sizeof c);
+    isomend_mesh_sink sink = sink_of(&c);
+    isomend_stream *s = (isomend_stream *)&c; /* must be set to NULL on failure */
+
+    CHECK_EQ_INT(isomend_stream_begin(NULL, &o, &sink, &s), ISOMEND_ERR_INVALID_ARGUMENT);
+    CHECK(s == NULL);
+    CHECK_EQ_INT(isomend_stream_begin(&vol, &o, NULL, &s), ISOMEND_ERR_INVALID_ARGUMENT);
+    CHECK_EQ_INT(isomend_stream_begin(&vol, &o, &sink, NULL), ISOMEND_ERR_INVALID_ARGUMENT);
+    isomend_mesh_sink partial = sink;
+    partial.retire = NULL;
+    CHECK_EQ_INT(isomend_stream_begin(&vol, &o, &partial, &s), ISOMEND_ERR_INVALID_ARGUMENT);
+    isomend_volume bad = vol;
+    bad.dims[1] = 1;
+    CHECK_EQ_INT(isomend_stream_begin(&bad, &o, &sink, &s), ISOMEND_ERR_BAD_DIMENSIONS);
+    bad = vol;
+    bad.spacing[2] = 0.0;
+    CHECK_EQ_INT(isomend_stream_begin(&bad, &o, &sink, &s), ISOMEND_ERR_BAD_SPACING);
+    bad = vol;
+    bad.type = (isomend_type)99;
+    CHECK_EQ_INT(isomend_stream_begin(&bad, &o, &sink, &s), ISOMEND_ERR_INVALID_ARGUMENT);
+    isomend_options bo = o;
+    bo.iso = NAN;
+    CHECK_EQ_INT(isomend_stream_begin(&vol, &bo, &sink, &s), ISOMEND_ERR_BAD_ISO);
+    bo = o;
+    bo.method = (isomend_method)42;
+    CHECK_EQ_INT(isomend_stream_begin(&vol, &bo, &sink, &s), ISOMEND_ERR_INVALID_ARGUMENT);
+    CHECK(s == NULL);
+    CHECK_EQ_INT(isomend_stream_push(NULL, data), ISOMEND_ERR_INVALID_ARGUMENT);
+    CHECK_EQ_INT(isomend_stream_finish(NULL, NULL), ISOMEND_ERR_INVALID_ARGUMENT);
+    isomend_stream_destroy(NULL);
+
+    /* Too few slices at finish, then every call says so. */
+    CHECK_EQ_INT(isomend_stream_begin(&vol, &o, &sink, &s), ISOMEND_OK);
+    CHECK_EQ_INT(isomend_stream_push(s, NULL), ISOMEND_ERR_INVALID_ARGUMENT);
+    for (int z = 0; z < 6; z++)
+        CHECK_EQ_INT(isomend_stream_push(s, data + z * 72), ISOMEND_OK);
+    CHECK_EQ_INT(isomend_stream_finish(s, NULL), ISOMEND_ERR_SLICE_COUNT);
+    CHECK_EQ_INT(isomend_stream_push(s, data + 6 * 72), ISOMEND_ERR_SLICE_COUNT);
+    isomend_stream_destroy(s);
+    collect_free(&c);
+    sink = sink_of(&c);
+
+    /* Too many slices. */
+    CHECK_EQ_INT(isomend_stream_begin(&vol, &o, &sink, &s), ISOMEND_OK);
+    for (int z = 0; z < 7; z++)
+        CHECK_EQ_INT(isomend_stream_push(s, data + z * 72), ISOMEND_OK);
+    CHECK_EQ_INT(isomend_stream_push(s, data), ISOMEND_ERR_SLICE_COUNT);
+    CHECK_EQ_INT(isomend_stream_finish(s, NULL), ISOMEND_ERR_SLICE_COUNT);
+    isomend_stream_destroy(s);
+    collect_free(&c);
+
+    /* Destroyed unfinished: nothing more delivered, nothing leaked (ASan). */
+    sink = sink_of(&c);
+    CHECK_EQ_INT(isomend_stream_begin(&vol, &o, &sink, &s), ISOMEND_OK);
+    CHECK_EQ_INT(isomend_stream_push(s, data), ISOMEND_OK);
+    isomend_stream_destroy(s);
+    collect_free(&c);
+
+    /* Pieces: outside the grid, no foreign callback, the wrong slices. */
+    isomend_piece piece = {0, 3};
+    int64_t first = -1, end = -1;
+    CHECK_EQ_INT(isomend_piece_halo(&vol, &o, &piece, &first, &end), ISOMEND_OK);
+    CHECK(first == 0 && end == 5); /* marched slices -1 .. 4 */
+    piece.owned_first = 3;
+    piece.owned_end = 7;
+    CHECK_EQ_INT(isomend_piece_halo(&vol, &o, &piece, &first, &end), ISOMEND_OK);
+    CHECK(first == 2 && end == 7);
+    const isomend_piece bad_pieces[] = {{-1, 2}, {3, 3}, {4, 2}, {0, 8}};
+    for (int q = 0; q < 4; q++) {
+        CHECK_EQ_INT(isomend_piece_halo(&vol, &o, &bad_pieces[q], &first, &end),
+                     ISOMEND_ERR_INVALID_ARGUMENT);
+        CHECK_EQ_INT(isomend_piece_begin(&vol, &o, &bad_pieces[q], &sink, &s),
+                     ISOMEND_ERR_INVALID_ARGUMENT);
+    }
+    CHECK_EQ_INT(isomend_piece_halo(&vol, &o, NULL, &first, &end), ISOMEND_ERR_INVALID_ARGUMENT);
+    piece.owned_first = 0;
+    piece.owned_end = 3;
+    partial = sink;
+    partial.foreign = NULL;
+    CHECK_EQ_INT(isomend_piece_begin(&vol, &o, &piece, &partial, &s), ISOMEND_ERR_INVALID_ARGUMENT);
+    piece.owned_end = 7; /* the last piece needs no foreign keys */
+    CHECK_EQ_INT(isomend_piece_begin(&vol, &o, &piece, &partial, &s), ISOMEND_OK);
+    isomend_stream_destroy(s);
+    piece.owned_first = 3;
+    sink = sink_of(&c);
+    CHECK_EQ_INT(isomend_piece_begin(&vol, &o, &piece, &sink, &s), ISOMEND_OK);
+    for (int z = 2; z < 7; z++)
+        CHECK_EQ_INT(isomend_stream_push(s, data + z * 72), ISOMEND_OK);
+    CHECK_EQ_INT(isomend_stream_push(s, data), ISOMEND_ERR_SLICE_COUNT);
+    isomend_stream_destroy(s);
+    collect_free(&c);
+
+    /* A sink that stops at its first, second, ... call: ISOMEND_ERR_SINK from
+     * that push or finish on, and no callback after it. */
+    long total_calls = 0;
+    for (long stop = 1;; stop++) {
+        memset(&c, 0, sizeof c);
+        c.stop_at = stop;
+        sink = sink_of(&c);
+        CHECK_EQ_INT(isomend_stream_begin(&vol, &o, &sink, &s), ISOMEND_OK);
+        isomend_status st = ISOMEND_OK;
+        for (int z = 0; z < 7 && st == ISOMEND_OK; z++)
+            st = isomend_stream_push(s, data + z * 72);
+        if (st == ISOMEND_OK)
+            st = isomend_stream_finish(s, NULL);
+        if (c.calls < stop) { /* fewer calls than stop: the whole mesh went through */
+            CHECK_EQ_INT(st, ISOMEND_OK);
+            total_calls = c.calls;
+            isomend_stream_destroy(s);
+            collect_free(&c);
+            break;
+        }
+        CHECK_EQ_INT(st, ISOMEND_ERR_SINK);
+        CHECK_EQ_INT(isomend_stream_push(s, data), ISOMEND_ERR_SINK);
+        CHECK_EQ_INT(isomend_stream_finish(s, NULL), ISOMEND_ERR_SINK);
+        CHECK_EQ_INT(c.calls_after_stop, 0);
+        isomend_stream_destroy(s);
+        collect_free(&c);
+    }
+    CHECK(total_calls > 10);
+    free(data);
+}
+
+/* ------------------------------------------------------------------ the tall volume */
+
+/*
+ * 64 x 64 x (2^19 + 2) u8 samples, 2^31 + 8192: a tube along z whose radius
+ * alternates between two values slice by slice, so that every pair of
+ * slices (after the first) adds the same vertices, triangles and cubes per
+ * case.  The stream's counts and statistics must equal the extrapolation of
+ * two short in-memory extractions (8 and 10 slices), its last vertices lie
+ * at the top, and its ids and triangles follow the sink's order.
+ */
+typedef struct tall_sink {
+    uint64_t nv, nt, floor;
+    float zmax;
+    int errors;
+} tall_sink;
+
+static int tall_vertices(void *user, uint64_t first, size_t count, const float *pos,
+                         const float *nrm, const uint64_t *keys)
+{
+    tall_sink *t = user;
+    (void)nrm;
+    if (first != t->nv || keys)
+        t->errors++;
+    for (size_t q = 0; q < count; q++)
+        if (pos[3 * q + 2] > t->zmax)
+            t->zmax = pos[3 * q + 2];
+    t->nv += count;
+    return 0;
+}
+
+static int tall_triangles(void *user, size_t count, const uint64_t *ids, const uint8_t *org)
+{
+    tall_sink *t = user;
+    (void)org;
+    for (size_t q = 0; q < 3 * count; q++)
+        if (ids[q] < t->floor || ids[q] >= t->nv)
+            t->errors++;
+    t->nt += count;
+    return 0;
+}
+
+static int tall_retire(void *user, uint64_t floor)
+{
+    tall_sink *t = user;
+    if (floor < t->floor)
+        t->errors++;
+    t->floor = floor;
+    return 0;
+}
+
+static void tall_slice(uint8_t *s, int64_t k)
+{
+    const double r = (k % 2) ? 20.3 : 17.6;
+    for (int j = 0; j < 64; j++)
+        for (int i = 0; i < 64; i++) {
+            const double d = sqrt((i - 31.5) * (i - 31.5) + (j - 30.25) * (j - 30.25));
+            s[j * 64 + i] = (uint8_t)(d < r ? 200 - 3 * d : 10 + d);
+        }
+}
+
+static void short_stats(int64_t nz, const isomend_options *o, isomend_stats *st)
+{
+    uint8_t *v = malloc((size_t)(64 * 64 * nz));
+    for (int64_t k = 0; k < nz; k++)
+        tall_slice(v + k * 4096, k);
+    isomend_volume vol;
+    isomend_volume_init(&vol, v, ISOMEND_U8, 64, 64, nz);
+    isomend_mesh *m = NULL;
+    CHECK_EQ_INT(isomend_extract(&vol, o, &m, st), ISOMEND_OK);
+    isomend_mesh_destroy(m);
+    free(v);
+}
+
+static void test_tall(void)
+{
+    const int64_t nz = ((int64_t)1 << 19) + 2;
+    isomend_options o;
+    isomend_options_init(&o);
+    o.iso = 100.0;
+    o.flags = ISOMEND_FLAG_PAD;
+    isomend_stats a, b, expect, got;
+    short_stats(8, &o, &a);
+    short_stats(10, &o, &b);
+    const uint64_t periods = (uint64_t)(nz - 8) / 2;
+    uint64_t *pa = (uint64_t *)(void *)&a, *pb = (uint64_t *)(void *)&b,
+             *pe = (uint64_t *)(void *)&expect;
+    for (size_t q = 0; q < sizeof a / sizeof(uint64_t); q++)
+        pe[q] = pa[q] + periods * (pb[q] - pa[q]);
+    CHECK(expect.cubes > ((uint64_t)1 << 31));
+
+    tall_sink t;
+    memset(&t, 0, sizeof t);
+    isomend_mesh_sink sink = {&t, tall_vertices, tall_triangles, tall_retire, NULL};
+    isomend_volume d;
+    isomend_volume_init(&d, NULL, ISOMEND_U8, 64, 64, nz);
+    isomend_stream *s = NULL;
+    CHECK_EQ_INT(isomend_stream_begin(&d, &o, &sink, &s), ISOMEND_OK);
+    uint8_t slice[2][4096];
+    tall_slice(slice[0], 0);
+    tall_slice(slice[1], 1);
+    isomend_status st = ISOMEND_OK;
+    for (int64_t k = 0; k < nz && st == ISOMEND_OK; k++)
+        st = isomend_stream_push(s, slice[k % 2]);
+    CHECK_EQ_INT(st, ISOMEND_OK);
+    CHECK_EQ_INT(isomend_stream_finish(s, &got), ISOMEND_OK);
+    isomend_stream_destroy(s);
+    CHECK_EQ_INT(t.errors, 0);
+    CHECK(memcmp(&got, &expect, sizeof got) == 0);
+    CHECK_EQ_INT(got.vertices, t.nv);
+    CHECK_EQ_INT(got.triangles, t.nt);
+    CHECK(t.zmax >= (float)(nz - 1) && t.zmax <= (float)nz); /* the padding's cap at the top */
+    printf("tall: %lld slices, %llu cubes, %llu vertices, %llu triangles\n", (long long)nz,
+           (unsigned long long)got.cubes, (unsigned long long)t.nv, (unsigned long long)t.nt);
+}
+
+int main(int argc, char **argv)
+{
+    if (argc > 1 && strcmp(argv[1], "--tall") == 0) {
+        test_tall();
+        TEST_EXIT();
+    }
+    test_memory_bound();
+    test_bad_input();
+    test_ids_past_2_32();
+    test_all_methods_types();
+    printf("%d streams identical to isomend_extract()\n", compared);
+    test_pieces();
+    printf("%d extractions in pieces stitched to isomend_extract()'s mesh\n", pieces_compared);
+    TEST_EXIT();
+}
