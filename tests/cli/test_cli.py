@@ -510,11 +510,13 @@ def test_interrupt(r):
     nothing and exit 130; several delays make sure the second case happens."""
     import signal
     import time
-    n = 256
+    # 384^3 (54 MiB): the core streams a 256^3 extraction in tens of milliseconds on a
+    # quiet machine, which ended before the first signal
+    n = 384
     with open(r.path("ramp.u8"), "wb") as f:
-        f.write(bytes(range(256)) * (n * n))
+        f.write(bytes(i * 255 // (n - 1) for i in range(n)) * (n * n))   # a ramp along x
     seen = set()
-    for delay in (0.02, 0.05, 0.1, 0.15, 0.2, 0.3, 0.45):
+    for delay in (0.005, 0.01, 0.02, 0.05, 0.1, 0.2, 0.3, 0.45):
         out = r.path("int.ply")
         if os.path.exists(out):
             os.unlink(out)
