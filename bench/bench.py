@@ -1281,11 +1281,12 @@ def render(info, results, thread_counts):
             goal_size = v[1] in (256, 512)
 
             def ratio(a, b, key, mark):
-                if not (a and b):
+                # a call too short for the clock's tick (user time 0 on tiny volumes) has no ratio
+                if not (a and b) or not a[key] > 0:
                     return "—"
                 x = b[key] / a[key]
                 return "%.2f%s" % (x, (" ✔" if x >= 2 else " ✘") if mark and goal_size else "")
-            fl = i["median"] / i["floor"]
+            fl = i["median"] / i["floor"] if i["floor"] > 0 else float("inf")
             fmark = (" ✔" if fl <= 4 else " ✘") if v[0] == "sphere" and goal_size else ""
             w("| %s | %d | %s | %s | %s | %s | %s | %s / %s | %s / %s | %s | %.1f%s | %s / %s | "
               "%s | %s / %s | %s |" % (
