@@ -16,8 +16,8 @@ Ctrl-C while streaming leave no output, temporary or scratch file.
 
 Memory: `isomend info` streams a volume larger than --max-memory for real
 (it holds no mesh): its peak memory must stay far below the volume's size.
-The extraction's own streaming is the core's (pending): no bound is claimed
-for the placeholder here.
+The extraction's peak under --max-memory is cli_stream_memory's
+(test_stream_memory.py).
 
 usage: test_stream.py --isomend PATH --samples DIR --work DIR
 """

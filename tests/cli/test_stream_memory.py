@@ -23,6 +23,10 @@ the mesh but not the continuity check's tables, the check is skipped (JSON
 `check_skipped: "memory"`, the summary says so), the mesh is the same, and
 the peak stays within SIZE plus the overhead.
 
+And 64-bit indices end to end: a thin, tall raw volume of 2^31 + 8192 samples
+(a sparse file) with a surface at both ends, streamed and in memory, gives the
+same file, and the top surface's vertices are in it.
+
 Not for the sanitizers (their shadow memory counts as resident).
 
 usage: test_stream_memory.py --isomend PATH --peak-rss PATH --work DIR
@@ -206,6 +210,59 @@ def check_in_memory_limit(exe, work, src):
         print(f"ok   {label}")
 
 
+def check_tall(exe, work):
+    """64 x 64 x (2^19 + 2) u8: 2^31 + 8192 samples, a surface at both ends; streamed
+    (--max-memory 64M) and in memory write the same bytes, the top's vertices are there."""
+    nx = ny = 64
+    nz = (1 << 19) + 2
+    path = os.path.join(work, "tall.raw")
+    plane = nx * ny
+    y, x = np.mgrid[0:ny, 0:nx]
+    blob = np.zeros((8, ny, nx), np.uint8)
+    for k in range(8):
+        blob[k] = np.where((x - 30) ** 2 + (y - 33) ** 2 + (k - 3.5) ** 2 * 9 < 400, 200, 0)
+    with open(path, "wb") as f:  # sparse: zeros cost no disk
+        f.truncate(nz * plane)
+        f.seek(2 * plane)
+        f.write(blob.tobytes())
+        f.seek((nz - 9) * plane)
+        f.write(blob.tobytes())
+    src = [path, "--raw", f"{nx},{ny},{nz}:u8"]
+    results = {}
+    # the in-memory run touches 2 GiB; its estimate (15 GiB, a mesh of 6.25 bytes a sample)
+    # must not exceed the limit, so it is given rather than left to MemAvailable
+    for name, extra in (("streamed", ["--max-memory", "64M"]), ("in memory", ["--max-memory", "32G"])):
+        args = [exe, "extract", *src, "--iso", "100", "-o", f"tall_{name[:2]}.ply", "-q",
+                "--json", "j.json", *extra]
+        rc, _, err, peak = run_measured(args, work)
+        if rc:
+            fail(f"tall {name}", err.strip())
+            return
+        with open(os.path.join(work, "j.json")) as f:
+            results[name] = (json.load(f), peak)
+    js, peak = results["streamed"]
+    jm, peak_mem = results["in memory"]
+    label = (f"tall 64 x 64 x {nz} u8 ({nx * ny * nz} samples > 2^31): {js['triangles']} "
+             f"triangles, streamed peak {peak / MIB:.1f} MiB, in memory {peak_mem / MIB:.1f} MiB")
+    if not js["streamed"] or jm["streamed"]:
+        fail(label, f"streamed {js['streamed']} / {jm['streamed']}")
+    if not same_file(os.path.join(work, "tall_st.ply"), os.path.join(work, "tall_in.ply")):
+        fail(label, "the streamed mesh differs from the in-memory one")
+    if jm["check"] is None or not (jm["check"]["continuous"] and jm["check"]["components"] == 2):
+        fail(label, f"in-memory check: {jm['check']}")
+    # the top blob's vertices sit above z = 2^19 (positions are float32: exact at this size)
+    with open(os.path.join(work, "tall_st.ply"), "rb") as f:
+        data = f.read()
+    end = data.index(b"end_header\n") + len(b"end_header\n")
+    verts = np.frombuffer(data, dtype="<f4", count=js["vertices"] * 6, offset=end).reshape(-1, 6)
+    if not (verts[:, 2].max() > nz - 10 and verts[:, 2].min() < 12):
+        fail(label, f"z range {verts[:, 2].min()} .. {verts[:, 2].max()}")
+    for f in ("tall.raw", "tall_st.ply", "tall_in.ply"):
+        os.unlink(os.path.join(work, f))
+    if not any(x.startswith(label) for x in FAILURES):
+        print(f"ok   {label}")
+
+
 def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("--isomend", required=True)
@@ -225,6 +282,7 @@ def main():
     if not with_tiff:
         print("skip tiff: the importer is not built")
     check_in_memory_limit(exe, a.work, sources["raw"])
+    check_tall(exe, a.work)
     shutil.rmtree(a.work, ignore_errors=True)
     if FAILURES:
         print(f"{len(FAILURES)} failure(s)")
