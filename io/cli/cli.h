@@ -218,6 +218,11 @@ int cli_source_open(const char *const *paths, int n, const cli_source_opts *o, c
 /* Loads an opened source whole into `src` (s is closed in every case). */
 int cli_source_load(cli_slices *s, cli_source *src);
 void cli_source_close(cli_source *src);
+
+/* Frees the samples of a raw, NRRD or built-in source once they are used
+ * (vol.data becomes NULL; the description stays).  An importer's volume
+ * stays until cli_source_close(). */
+void cli_source_drop_samples(cli_source *src);
 /* Value range, 16-bin histogram, Otsu suggestion (the importer's rule). */
 int cli_source_summary(cli_source *src, cli_summary *sum);
 
@@ -292,15 +297,21 @@ typedef struct cli_memory_plan {
     int limit_given;      /* --max-memory was given                                      */
     uint64_t volume;      /* bytes of the samples                                        */
     uint64_t in_memory;   /* volume + mesh + working set of the in-memory path           */
-    uint64_t streaming;   /* what streaming holds (provisional, see stream.c)            */
+    uint64_t streaming;   /* the most streaming holds (the rule at the top of stream.c)  */
     int stream;           /* in_memory > limit                                           */
 } cli_memory_plan;
 
-void cli_memory_plan_make(const isomend_volume *desc, unsigned flags, uint64_t max_memory,
-                          cli_memory_plan *p);
+/* The writer's stdio buffers, MiB (mesh_writer.c: the file and two scratch files). */
+#define CLI_WRITER_BUFFERS 3
+
+void cli_memory_plan_make(const isomend_volume *desc, const isomend_options *opts,
+                          isomend_mesh_format format, uint64_t max_memory, cli_memory_plan *p);
 
 /* The process's peak resident memory (VmHWM), bytes; 0 if unknown. */
 uint64_t cli_peak_memory(void);
+
+/* The process's resident memory now (VmRSS), bytes; 0 if unknown. */
+uint64_t cli_resident_memory(void);
 
 /*
  * Where a streaming extraction puts the mesh (the sink of docs/streaming.md,

@@ -258,7 +258,7 @@ static int cmd_extract(int argc, char **argv)
     cli_extract_options(&a, &bar, &opts);
     const int small_pages = a.pages == CLI_PAGES_SMALL;
     cli_memory_plan plan;
-    cli_memory_plan_make(&sl.desc, opts.flags, a.max_memory, &plan);
+    cli_memory_plan_make(&sl.desc, &opts, fmt, a.max_memory, &plan);
     rc = plan_fits(&plan, &sl);
     if (rc) {
         cli_json_abort(&jo);
@@ -321,6 +321,8 @@ static int cmd_extract(int argc, char **argv)
     isomend_mesh *mesh = NULL;
     isomend_stats stats;
     isomend_check_report check;
+    int checked = 0;
+    uint64_t check_skipped = 0; /* the check's need, when it did not fit the limit */
     cli_timings tm = {0, 0, 0};
     if (plan.stream) {
         isomend_mesh_writer *w;
@@ -385,7 +387,13 @@ static int cmd_extract(int argc, char **argv)
             rc = CLI_EXIT_INTERRUPTED;
             goto fail_mesh;
         }
-        st = isomend_mesh_check(mesh, &check);
+        /* the samples are no longer needed; the check runs if it fits the limit */
+        cli_source_drop_samples(&src);
+        const uint64_t check_need = isomend_check_memory(isomend_mesh_vertex_count(mesh),
+                                                         isomend_mesh_triangle_count(mesh));
+        checked = !plan.limit || cli_resident_memory() + check_need <= plan.limit;
+        if (!checked) check_skipped = check_need;
+        st = checked ? isomend_mesh_check(mesh, &check) : ISOMEND_OK;
         if (st != ISOMEND_OK) {
             cli_error("%s: continuity check failed: %s", a.output, isomend_status_string(st));
             rc = CLI_EXIT_FAIL;
@@ -439,8 +447,17 @@ static int cmd_extract(int argc, char **argv)
     }
     if (a.seen & OPT_STATS) cli_print_table2(text, &stats, a.method);
     if (!quiet) {
-        if (mesh)
+        char need[32], limit[32];
+        if (checked)
             cli_print_check(text, a.output, &check);
+        else if (check_skipped)
+            fprintf(text, "%s: %" PRIu64 " vertices, %" PRIu64 " triangles; the continuity check "
+                          "was not run: it needs about %s more, beyond %s of %s (run 'isomend "
+                          "check %s')\n",
+                    a.output, stats.vertices, stats.triangles,
+                    cli_bytes_text(check_skipped, need, sizeof need),
+                    plan.limit_given ? "--max-memory" : "the memory available",
+                    cli_bytes_text(plan.limit, limit, sizeof limit), a.output);
         else
             fprintf(text, "%s: %" PRIu64 " vertices, %" PRIu64 " triangles; the continuity check "
                           "is not run on a streamed mesh (run 'isomend check %s')\n",
@@ -469,10 +486,12 @@ static int cmd_extract(int argc, char **argv)
         json_plan(jf, &plan);
         cli_json_stats(jf, &stats);
         fprintf(jf, ", \"check\": ");
-        if (mesh)
+        if (checked)
             cli_json_check(jf, &check);
         else
             fprintf(jf, "null");
+        fprintf(jf, ", \"check_skipped\": %s",
+                checked ? "null" : check_skipped ? "\"memory\"" : "\"streamed\"");
         fprintf(jf, ", \"timings_ms\": {\"read\": %.3f, \"extract\": %.3f, \"write\": %.3f}}\n",
                 tm.read_ms, tm.extract_ms, tm.write_ms);
         rc = cli_json_finish(&jo);

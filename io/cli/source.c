@@ -526,6 +526,14 @@ int cli_source_open(const char *const *paths, int n, const cli_source_opts *o, c
     return cli_source_load(&s, src);
 }
 
+void cli_source_drop_samples(cli_source *src)
+{
+    if (!src || !src->owned) return; /* an importer's volume stays with its handle */
+    free(src->owned);
+    src->owned = NULL;
+    src->vol.data = NULL;
+}
+
 void cli_source_close(cli_source *src)
 {
     if (!src) return;

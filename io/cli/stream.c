@@ -16,9 +16,19 @@
  * MemAvailable without it.  A volume larger than memory is then streamed
  * instead of refused.  The mesh is the same either way, byte for byte.
  *
- * Streaming holds a few slices (see cli_memory_plan()), and the writer
- * (mesh_writer.h) holds no mesh: PLY/OBJ faces wait in a scratch file on
- * the output's disk, and STL keeps the positions of two slices.
+ * Streaming holds at most (cli_memory_plan_make())
+ *   core     isomend_stream_memory(): the window of samples, signs and id
+ *            maps, and one slice's vertices and one layer's triangles at
+ *            their largest possible sizes (reserved; only what the mesh uses
+ *            is touched, typically a quarter of it)
+ *   source   one slice, twice (an image is decoded, then converted)
+ *   writer   CLI_WRITER_BUFFERS MiB of stdio buffers; PLY/OBJ faces wait in
+ *            a scratch file on the output's disk, and STL keeps the
+ *            positions of at most twice isomend_stream_vertex_bound()
+ * and a limit below that sum is refused.  So a streamed run's peak resident
+ * memory is within the limit plus what the program holds before it reads a
+ * sample (its code, libraries and their heaps; docs/streaming.md has the
+ * figures), whatever the number of slices.
  *
  * cli_stream_extract() is the core's streaming extraction
  * (isomend_stream_begin/push/finish): one slice read at a time into one
@@ -40,12 +50,12 @@
 
 /* ------------------------------------------------------------------ the memory rule */
 
-void cli_memory_plan_make(const isomend_volume *desc, unsigned flags, uint64_t max_memory,
-                          cli_memory_plan *p)
+void cli_memory_plan_make(const isomend_volume *desc, const isomend_options *opts,
+                          isomend_mesh_format format, uint64_t max_memory, cli_memory_plan *p)
 {
     memset(p, 0, sizeof *p);
-    const int pad = (flags & ISOMEND_FLAG_PAD) != 0;
-    const int normals = !(flags & ISOMEND_FLAG_NO_NORMALS);
+    const int pad = (opts->flags & ISOMEND_FLAG_PAD) != 0;
+    const int normals = !(opts->flags & ISOMEND_FLAG_NO_NORMALS);
     const double ts = (double)isomend_type_size(desc->type);
     double n[3], N[3];
     for (int a = 0; a < 3; a++) {
@@ -57,10 +67,16 @@ void cli_memory_plan_make(const isomend_volume *desc, unsigned flags, uint64_t m
     double mesh = samples * (normals ? 6.25 : 4.75);
     double working = samples / 8.0 + 24.0 * plane + 64.0 * MIB;
     double in_memory = volume + mesh + working;
-    /* streaming (provisional until the core's isomend_stream_memory()): four
-     * planes of samples, the signs and id maps of two, two layers of mesh
-     * batches, and the same 64 MiB (the writer's buffers and STL window) */
-    double streaming = 4.0 * n[0] * n[1] * ts + plane * (2.0 + 24.0 + 2.0 * 6.25) + 64.0 * MIB;
+    /* streaming: the core's bound, one slice read (twice: an image is
+     * decoded, then converted), the writer's stdio buffers and, for STL, the
+     * positions it keeps until retire() */
+    isomend_volume v = *desc;
+    v.data = NULL;
+    const double core = (double)isomend_stream_memory(&v, opts);
+    double streaming = core + 2.0 * n[0] * n[1] * ts + CLI_WRITER_BUFFERS * MIB;
+    if (format == ISOMEND_MESH_STL)
+        streaming += 2.0 * 12.0 * (double)isomend_stream_vertex_bound(&v, opts);
+    if (core == 0.0) streaming = 1.8e19; /* dims the core refuses: in memory, to say why */
     const double cap = 1.8e19;
     p->volume = volume < cap ? (uint64_t)volume : UINT64_MAX;
     p->in_memory = in_memory < cap ? (uint64_t)in_memory : UINT64_MAX;
@@ -73,6 +89,11 @@ void cli_memory_plan_make(const isomend_volume *desc, unsigned flags, uint64_t m
 uint64_t cli_peak_memory(void)
 {
     return cli_proc_kib("/proc/self/status", "VmHWM:") * 1024u;
+}
+
+uint64_t cli_resident_memory(void)
+{
+    return cli_proc_kib("/proc/self/status", "VmRSS:") * 1024u;
 }
 
 /* ------------------------------------------------------------------ a writer as sink */

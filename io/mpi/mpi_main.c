@@ -272,7 +272,7 @@ static int run(int argc, char **argv)
         isomend_volume slab = sl.desc;
         slab.dims[2] = end - first + 3;
         cli_memory_plan plan;
-        cli_memory_plan_make(&slab, opts.flags, a.max_memory, &plan);
+        cli_memory_plan_make(&slab, &opts, fmt, a.max_memory, &plan);
         if (plan.stream) {
             char need[32], lim[32];
             cli_error("--max-memory %s: this rank's slab of %lld slices needs about %s in "

@@ -444,6 +444,15 @@ ISOMEND_API uint64_t isomend_stream_memory(const isomend_volume *desc,
                                            const isomend_options *opts);
 
 /*
+ * The most vertices one push or finish of such a stream hands to the sink
+ * (a slice's, and the cube-private ones of the layer below it; 0 for invalid
+ * arguments).  A sink that keeps positions until retire() (an STL writer)
+ * keeps at most twice as many.
+ */
+ISOMEND_API uint64_t isomend_stream_vertex_bound(const isomend_volume *desc,
+                                                 const isomend_options *opts);
+
+/*
  * Pieces: a stream restricted to a slab of the marched grid, for extracting
  * one volume in several processes (isomend-mpi) whose meshes are stitched by
  * keys into isomend_extract()'s mesh.
@@ -529,6 +538,13 @@ typedef struct isomend_check_report {
 ISOMEND_API isomend_status isomend_check(const float *positions, size_t vertex_count,
                                          const uint32_t *triangles, size_t triangle_count,
                                          const double *box, isomend_check_report *report);
+
+/*
+ * The bytes isomend_check() allocates for a mesh of these counts (its edge
+ * tables, linear in the mesh), besides 28 bytes per triangle around the
+ * busiest vertex: for a caller deciding whether the check fits its memory.
+ */
+ISOMEND_API uint64_t isomend_check_memory(size_t vertex_count, size_t triangle_count);
 
 /* Runs isomend_check on an extracted mesh with its grid box. */
 ISOMEND_API isomend_status isomend_mesh_check(const isomend_mesh *mesh,

@@ -115,6 +115,13 @@ static uint64_t count_fans(const uint32_t *triangles, uint32_t v, const uint32_t
     return fans;
 }
 
+uint64_t isomend_check_memory(size_t vertex_count, size_t triangle_count)
+{
+    const uint64_t nv = vertex_count, nt = triangle_count;
+    /* row, vrow, fill, vfill; halves, vtris, tparent; vparent, mark */
+    return 4 * sizeof(size_t) * (nv + 1) + (3 * sizeof(half) + 3 * 4 + 4) * nt + 5 * nv;
+}
+
 isomend_status isomend_check(const float *positions, size_t vertex_count,
                              const uint32_t *triangles, size_t triangle_count, const double *box,
                              isomend_check_report *report)

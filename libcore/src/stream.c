@@ -470,6 +470,23 @@ isomend_status isomend_stream_finish(isomend_stream *s, isomend_stats *stats)
     return ISOMEND_OK;
 }
 
+uint64_t isomend_stream_vertex_bound(const isomend_volume *desc, const isomend_options *opts)
+{
+    isomend_options defaults;
+    isomend_options_init(&defaults);
+    if (!desc)
+        return 0;
+    isomend_volume v = *desc;
+    memset(v.strides, 0, sizeof v.strides);
+    ctx c;
+    memset(&c, 0, sizeof c);
+    if (ctx_setup(&c, &v, opts ? opts : &defaults) != ISOMEND_OK)
+        return 0;
+    uint64_t sv, lv, lt;
+    stream_bounds(&c, &sv, &lv, &lt);
+    return sv + lv;
+}
+
 /* ------------------------------------------------------------------ pieces */
 
 /* The volume slices [*first, *end) a piece reads: marched slices

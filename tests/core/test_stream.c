@@ -51,6 +51,8 @@ typedef struct collect {
     uint64_t *fkeys; /* a piece's foreign keys and positions */
     float *fpos;
     size_t nf;
+    uint64_t vertex_bound; /* isomend_stream_vertex_bound(); 0: not checked */
+    uint64_t bound_errors; /* calls past it, or kept (>= floor) past twice it */
 } collect;
 
 static int count_call(collect *c)
@@ -70,6 +72,9 @@ static int on_vertices(void *user, uint64_t first, size_t count, const float *po
         return 1;
     if (first != c->id_offset + c->nv || count == 0)
         c->order_errors++;
+    if (c->vertex_bound && (count > c->vertex_bound ||
+                            first + count - c->floor > 2 * c->vertex_bound))
+        c->bound_errors++;
     if (c->nv + count > c->vcap) {
         c->vcap = 2 * (c->nv + count);
         c->pos = realloc(c->pos, 3 * sizeof(float) * c->vcap);
@@ -268,6 +273,8 @@ static void compare(const isomend_volume *vol, const isomend_options *opts, uint
     memset(&c, 0, sizeof c);
     c.id_offset = id_offset;
     c.floor = id_offset;
+    c.vertex_bound = isomend_stream_vertex_bound(vol, opts);
+    CHECK(c.vertex_bound > 0);
     isomend_mesh_sink sink = sink_of(&c);
     isomend_stream *s = NULL;
     st = isomend_stream_begin(vol, opts, &sink, &s);
@@ -291,6 +298,7 @@ static void compare(const isomend_volume *vol, const isomend_options *opts, uint
     isomend_stream_destroy(s);
     const size_t nv = isomend_mesh_vertex_count(mesh), nt = isomend_mesh_triangle_count(mesh);
     int ok = st == ISOMEND_OK && c.nv == nv && c.nt == nt && c.order_errors == 0 &&
+             c.bound_errors == 0 &&
              memcmp(&es, &ss, sizeof es) == 0 &&
              (nv == 0 || memcmp(c.pos, isomend_mesh_positions(mesh), 12 * nv) == 0) &&
              !c.saw_keys;
@@ -572,9 +580,17 @@ static void test_memory_bound(void)
     o.flags = ISOMEND_FLAG_NO_NORMALS | ISOMEND_FLAG_NO_ORIGINS;
     printf("; without normals and origins: %.1f MiB\n",
            (double)isomend_stream_memory(&d, &o) / 1048576.0);
+    /* a vertex per x, y and z edge of a slice; tetra: and face diagonal, and its
+     * cube-private vertices */
+    CHECK_EQ_INT(isomend_stream_vertex_bound(&d, &o), 3ull * 2048 * 2048);
+    o.method = ISOMEND_METHOD_TETRA;
+    CHECK(isomend_stream_vertex_bound(&d, &o) > 6ull * 2048 * 2048);
+    o.method = ISOMEND_METHOD_DMC;
     d.dims[0] = 1; /* refused like isomend_extract() */
     CHECK_EQ_INT(isomend_stream_memory(&d, &o), 0);
     CHECK_EQ_INT(isomend_stream_memory(NULL, &o), 0);
+    CHECK_EQ_INT(isomend_stream_vertex_bound(&d, &o), 0);
+    CHECK_EQ_INT(isomend_stream_vertex_bound(NULL, &o), 0);
 }
 
 static void test_bad_input(void)

@@ -1,0 +1,237 @@
+#!/usr/bin/env python3
+"""`isomend extract --max-memory SIZE` meshes a stack several times SIZE within SIZE.
+
+A 512 x 512 x 256 u16 volume with a busy, smooth surface (19 M triangles),
+as raw samples and as a folder of 256 TIFF slices (when the importer is
+built), is extracted three ways:
+
+- in memory, without a limit: the peak resident memory measured here (the
+  child's ru_maxrss from os.wait4) must be at least 8 x SIZE;
+- with --max-memory SIZE, PLY and STL: the run streams, writes the in-memory
+  run's bytes, and its peak, measured the same way, is within SIZE plus the
+  program's fixed overhead, which is measured too: the peak of the same
+  program on the first two slices of the same source (its code, libraries
+  and their heaps; OpenImageIO's are about 130 MiB, raw reading's a few);
+  peaks are wait4's ru_maxrss, through tests/common/peak_rss.c;
+  and within the streaming bound it reports (`memory_streaming`) plus that
+  overhead;
+- streamed again on the first 64 slices: the peak does not depend on the
+  number of slices (within 4 MiB).
+
+And the in-memory path under a limit: with a SIZE that holds the volume and
+the mesh but not the continuity check's tables, the check is skipped (JSON
+`check_skipped: "memory"`, the summary says so), the mesh is the same, and
+the peak stays within SIZE plus the overhead.
+
+Not for the sanitizers (their shadow memory counts as resident).
+
+usage: test_stream_memory.py --isomend PATH --peak-rss PATH --work DIR
+"""
+import argparse
+import json
+import os
+import shutil
+import subprocess
+import sys
+
+import numpy as np
+
+FAILURES = []
+PEAK_RSS = None
+MIB = 1024 * 1024
+NX, NY, NZ = 512, 512, 256
+ISO = "1000"
+
+
+def fail(name, why):
+    FAILURES.append(f"{name}: {why}")
+    print(f"FAIL {name}: {why}", file=sys.stderr)
+
+
+def run_measured(args, cwd):
+    """Runs args; returns (exit code, stdout, stderr, peak resident bytes of the child).
+
+    Through peak_rss (tests/common/peak_rss.c), wait4's ru_maxrss of a child
+    forked by a small C program: Linux keeps the high-water mark across exec,
+    so a child forked by this Python process would report Python's own peak.
+    """
+    peak_file = os.path.join(cwd, "peak.txt")
+    p = subprocess.run([PEAK_RSS, peak_file, *args], cwd=cwd, capture_output=True, text=True,
+                       stdin=subprocess.DEVNULL, timeout=600)
+    with open(peak_file) as f:
+        peak = int(f.read())
+    return p.returncode, p.stdout, p.stderr, peak
+
+
+def field(k):
+    """Slice k of the volume: about 75 000 triangles a slice at iso 1000."""
+    x = np.arange(NX, dtype=np.float32)[None, :]
+    y = np.arange(NY, dtype=np.float32)[:, None]
+    s = 1000 + 800 * np.sin(x * 0.21 + k * 0.05) * np.cos(y * 0.15) + 600 * np.sin(k * 0.12 + y * 0.06)
+    return s.astype("<u2")
+
+
+def make_sources(work, with_tiff):
+    """raw volumes of NZ, 64 and 2 slices, and the same as TIFF folders."""
+    sources = {}
+    folders = {n: os.path.join(work, f"tif{n}") for n in (NZ, 64, 2)}
+    if with_tiff:
+        import tifffile
+        for d in folders.values():
+            os.makedirs(d)
+    with open(os.path.join(work, "v.raw"), "wb") as f:
+        for k in range(NZ):
+            a = field(k)
+            f.write(a.tobytes())
+            for n, d in folders.items():
+                if with_tiff and k < n:
+                    tifffile.imwrite(os.path.join(d, f"s_{k:04d}.tif"), a)
+    with open(os.path.join(work, "v.raw"), "rb") as f:
+        head = f.read(64 * NX * NY * 2)
+    with open(os.path.join(work, "v64.raw"), "wb") as g:
+        g.write(head)
+    with open(os.path.join(work, "v2.raw"), "wb") as g:
+        g.write(head[:2 * NX * NY * 2])
+    sources["raw"] = {n: [f"v{'' if n == NZ else n}.raw", "--raw", f"{NX},{NY},{n}:u16"]
+                      for n in (NZ, 64, 2)}
+    if with_tiff:
+        sources["tiff"] = {n: [folders[n]] for n in (NZ, 64, 2)}
+    return sources
+
+
+def extract(exe, work, src, out, extra=()):
+    args = [exe, "extract", *src, "--iso", ISO, "-o", out, "-q", "--json", "j.json", *extra]
+    rc, _, err, peak = run_measured(args, work)
+    js = None
+    if rc == 0:
+        with open(os.path.join(work, "j.json")) as f:
+            js = json.load(f)
+    return rc, err, peak, js
+
+
+def same_file(a, b):
+    if os.path.getsize(a) != os.path.getsize(b):
+        return False
+    with open(a, "rb") as f, open(b, "rb") as g:
+        while True:
+            x, y = f.read(1 << 22), g.read(1 << 22)
+            if x != y:
+                return False
+            if not x:
+                return True
+
+
+def check_kind(exe, work, kind, src, size):
+    name = f"{kind}"
+    # the program's fixed overhead: the same source kind, two slices
+    rc, err, overhead, _ = extract(exe, work, src[2], "tiny.ply", ["--max-memory", size])
+    if rc:
+        fail(f"{name} overhead", err.strip())
+        return
+    os.unlink(os.path.join(work, "tiny.ply"))
+    limit = int(size[:-1]) * MIB
+    for fmt in ("ply", "stl"):
+        whole, part = f"mem.{fmt}", f"streamed.{fmt}"
+        rc, err, peak_mem, jm = extract(exe, work, src[NZ], whole)
+        if rc:
+            fail(f"{name} {fmt} in memory", err.strip())
+            continue
+        rc, err, peak, js = extract(exe, work, src[NZ], part, ["--max-memory", size])
+        if rc:
+            fail(f"{name} {fmt} streamed", err.strip())
+            continue
+        label = (f"{name} {fmt}: {jm['triangles']} triangles, in memory {peak_mem / MIB:.1f} MiB "
+                 f"({peak_mem / limit:.1f}x --max-memory {size}), streamed {peak / MIB:.1f} MiB "
+                 f"(bound {js['memory_streaming'] / MIB:.1f} MiB + overhead {overhead / MIB:.1f} MiB)")
+        if jm["streamed"] or not js["streamed"]:
+            fail(label, f"streamed: {jm['streamed']} without the limit, {js['streamed']} with it")
+        if peak_mem < 8 * limit:
+            fail(label, "the in-memory run does not need 8x the limit: the test proves nothing")
+        if jm["memory_estimate"] < 4 * limit:
+            fail(label, f"in-memory estimate {jm['memory_estimate'] / MIB:.1f} MiB below 4x the limit")
+        if peak > limit + overhead:
+            fail(label, "streamed peak beyond --max-memory plus the fixed overhead")
+        if peak > js["memory_streaming"] + overhead:
+            fail(label, "streamed peak beyond the reported streaming bound plus the overhead")
+        if not same_file(os.path.join(work, whole), os.path.join(work, part)):
+            fail(label, "the streamed mesh differs from the in-memory one")
+        # peak independent of the number of slices
+        rc, err, peak64, _ = extract(exe, work, src[64], f"s64.{fmt}", ["--max-memory", size])
+        if rc:
+            fail(f"{name} {fmt} 64 slices", err.strip())
+        elif abs(peak - peak64) > 4 * MIB:
+            fail(label, f"peak {peak / MIB:.1f} MiB at {NZ} slices, {peak64 / MIB:.1f} MiB at 64")
+        else:
+            label += f"; 64 slices {peak64 / MIB:.1f} MiB"
+        for f in (whole, part, f"s64.{fmt}"):
+            if os.path.exists(os.path.join(work, f)):
+                os.unlink(os.path.join(work, f))
+        if not any(x.startswith(label) for x in FAILURES):
+            print(f"ok   {label}")
+
+
+def check_in_memory_limit(exe, work, src):
+    """A limit that holds the in-memory extraction but not the check: no check, within it."""
+    rc, err, peak_free, jm = extract(exe, work, src[NZ], "free.ply")
+    if rc:
+        fail("check skipped", err.strip())
+        return
+    rc, err, overhead, _ = extract(exe, work, src[2], "tiny.ply")
+    check_need = 52 * jm["triangles"] + 37 * jm["vertices"]
+    # the in-memory estimate fits, the check's tables do not
+    size_mib = int((jm["memory_estimate"] + 64 * MIB) / MIB)
+    size = f"{size_mib}M"
+    rc, err, peak, js = extract(exe, work, src[NZ], "limited.ply", ["--max-memory", size])
+    label = (f"in memory under --max-memory {size}: peak {peak / MIB:.1f} MiB "
+             f"(without a limit {peak_free / MIB:.1f} MiB; the check needs ~{check_need / MIB:.0f} MiB)")
+    if rc:
+        fail(label, err.strip())
+        return
+    if js["streamed"] or js["check"] is not None or js["check_skipped"] != "memory":
+        fail(label, f"streamed {js['streamed']}, check_skipped {js['check_skipped']}")
+    if jm["check"] is None or jm["check_skipped"] is not None:
+        fail(label, "the run without a limit was not checked")
+    if peak > size_mib * MIB + overhead:
+        fail(label, "peak beyond the limit plus the overhead")
+    if not same_file(os.path.join(work, "free.ply"), os.path.join(work, "limited.ply")):
+        fail(label, "the meshes differ")
+    rc, out, err, _ = run_measured([exe, "extract", *src[NZ], "--iso", ISO, "-o", "limited.ply",
+                                    "--max-memory", size], work)
+    if "continuity check was not run" not in out or "--max-memory" not in out:
+        fail(label, f"the summary does not say the check was skipped: {out!r}")
+    for f in ("free.ply", "limited.ply", "tiny.ply"):
+        if os.path.exists(os.path.join(work, f)):
+            os.unlink(os.path.join(work, f))
+    if not any(x.startswith(label) for x in FAILURES):
+        print(f"ok   {label}")
+
+
+def main():
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--isomend", required=True)
+    ap.add_argument("--work", required=True)
+    ap.add_argument("--peak-rss", required=True, help="tests/common/peak_rss.c, built")
+    a = ap.parse_args()
+    global PEAK_RSS
+    PEAK_RSS = os.path.abspath(a.peak_rss)
+    exe = os.path.abspath(a.isomend)
+    shutil.rmtree(a.work, ignore_errors=True)
+    os.makedirs(a.work)
+    version = subprocess.run([exe, "--version"], capture_output=True, text=True).stdout
+    with_tiff = "slice-stack importer: yes" in version
+    sources = make_sources(a.work, with_tiff)
+    for kind, src in sources.items():
+        check_kind(exe, a.work, kind, src, "96M")
+    if not with_tiff:
+        print("skip tiff: the importer is not built")
+    check_in_memory_limit(exe, a.work, sources["raw"])
+    shutil.rmtree(a.work, ignore_errors=True)
+    if FAILURES:
+        print(f"{len(FAILURES)} failure(s)")
+        return 1
+    print("ok")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
