@@ -22,6 +22,10 @@ import struct
 import subprocess
 import sys
 
+sys.dont_write_bytecode = True  # no __pycache__ in the source tree
+sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "common"))
+from clitest import read_ply_header  # noqa: E402
+
 FAILURES = []
 
 
@@ -86,19 +90,7 @@ def expect_ok(r, name, args):
 def read_ply(path):
     """Binary little-endian PLY as written by isomend -> (props, verts, faces)."""
     data = open(path, "rb").read()
-    end = data.index(b"end_header\n") + len(b"end_header\n")
-    header = data[:end].decode().splitlines()
-    assert header[1] == "format binary_little_endian 1.0", header[1]
-    nv = nf = 0
-    props = []
-    for line in header:
-        w = line.split()
-        if w[:2] == ["element", "vertex"]:
-            nv = int(w[2])
-        elif w[:2] == ["element", "face"]:
-            nf = int(w[2])
-        elif w[0] == "property" and w[1] == "float":
-            props.append(w[2])
+    end, nv, nf, props = read_ply_header(data)
     stride = 4 * len(props)
     verts = [struct.unpack_from("<" + "f" * len(props), data, end + i * stride) for i in range(nv)]
     off = end + nv * stride

@@ -15,7 +15,6 @@ Usage: test_cli_io.py ISOMEND_CLI STACKS_DIR [NRRD_TO_TIFF_SLICES_PY]
 """
 import json
 import os
-import struct
 import subprocess
 import sys
 import tempfile
@@ -23,18 +22,15 @@ from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
 
+sys.dont_write_bytecode = True  # no __pycache__ in the source tree
+sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "common"))
+from clitest import check, failures, read_ply_arrays, run as run_cli  # noqa: E402
+
 CLI, STACKS = sys.argv[1], os.path.abspath(sys.argv[2])
-failures = []
-
-
-def check(cond, what):
-    if not cond:
-        failures.append(what)
-        print("FAIL:", what, flush=True)
 
 
 def run(args):
-    return subprocess.run([CLI] + args, capture_output=True, text=True)
+    return run_cli(CLI, args)
 
 
 def stack_args(channel, first, count, step):
@@ -50,25 +46,6 @@ def stack_args(channel, first, count, step):
     if step != 1:
         a += ["--step", str(step)]
     return a
-
-
-def read_ply(path):
-    data = open(path, "rb").read()
-    end = data.index(b"end_header\n") + len(b"end_header\n")
-    header = data[:end].decode().splitlines()
-    nv = nf = 0
-    vprops = 0
-    for line in header:
-        w = line.split()
-        if w[:2] == ["element", "vertex"]:
-            nv = int(w[2])
-        elif w[:2] == ["element", "face"]:
-            nf = int(w[2])
-        elif w[:2] == ["property", "float"]:
-            vprops += 1
-    assert "format binary_little_endian 1.0" in header
-    verts = np.frombuffer(data, dtype="<f4", count=nv * vprops, offset=end).reshape(nv, vprops)
-    return verts[:, :3], nf
 
 
 INFO_ERRORS = {"missing_in_list", "unknown_file", "deflate_corrupt", "size_mismatch", "volume3d",
@@ -171,7 +148,7 @@ with tempfile.TemporaryDirectory() as tmp:
     out = os.path.join(tmp, "L.ply")
     r = run(["extract", os.path.join(STACKS, "L_phantom"), "-o", out, "--iso", "50", "--pad", "--quiet"])
     check(r.returncode == 0, "L extract: " + r.stderr)
-    v, nf = read_ply(out)
+    v, _ = read_ply_arrays(out)
     x, y, z = v[:, 0], v[:, 1], v[:, 2]
     foot = (y > 10.4) & (y < 12.6) & (x > 8.4)           # the foot: bottom right of the image
     mirrored = ((y < 10.4) & (y > 4.6) & (x > 4.6)) | (y < 1.4) | (x > 10.6) | (y > 13.6)

@@ -21,49 +21,26 @@ Usage: test_dicom_cli.py ISOMEND_CLI DICOM_DIR
 """
 import json
 import os
-import subprocess
 import sys
 import tempfile
 
 import numpy as np
 
+sys.dont_write_bytecode = True  # no __pycache__ in the source tree
+sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "common"))
+from clitest import check, failures, read_ply_arrays, run as run_cli  # noqa: E402
+
 CLI, DIR = sys.argv[1], os.path.abspath(sys.argv[2])
 CASES = json.load(open(os.path.join(DIR, "cases.json")))
-failures = []
 TYPES = {"u8": "u1", "i8": "i1", "u16": "<u2", "i16": "<i2", "i32": "<i4", "f32": "<f4", "f64": "<f8"}
 
 
-def check(cond, what):
-    if not cond:
-        failures.append(what)
-        print("FAIL:", what, flush=True)
-
-
 def run(args):
-    return subprocess.run([CLI] + args, capture_output=True, text=True)
+    return run_cli(CLI, args)
 
 
 def series_args(case):
     return ["--series", case["series"]] if case.get("series") else []
-
-
-def read_ply(path):
-    data = open(path, "rb").read()
-    end = data.index(b"end_header\n") + len(b"end_header\n")
-    header = data[:end].decode().splitlines()
-    nv = nf = vprops = 0
-    for line in header:
-        w = line.split()
-        if w[:2] == ["element", "vertex"]:
-            nv = int(w[2])
-        elif w[:2] == ["element", "face"]:
-            nf = int(w[2])
-        elif w[:2] == ["property", "float"]:
-            vprops += 1
-    verts = np.frombuffer(data, dtype="<f4", count=nv * vprops, offset=end).reshape(nv, vprops)
-    faces = np.frombuffer(data, dtype=np.dtype([("n", "u1"), ("v", "<u4", 3)]), count=nf,
-                          offset=end + nv * vprops * 4)
-    return verts, faces["v"]
 
 
 def signed_volume(p, t):
@@ -138,8 +115,8 @@ with tempfile.TemporaryDirectory() as tmp:
             check(open(dmesh, "rb").read() == open(rmesh, "rb").read(),
                   "%s: the DICOM mesh differs from the raw volume's mesh" % name)
         else:
-            dv, dt = read_ply(dmesh)
-            rv, rt = read_ply(rmesh)
+            dv, dt = read_ply_arrays(dmesh)
+            rv, rt = read_ply_arrays(rmesh)
             mapped = rv[:, :3].astype(float) @ A[:, :3].T + A[:, 3]
             normals = rv[:, 3:6].astype(float) @ A[:, :3].T
             check(dv.shape == rv.shape and np.array_equal(dt, rt), "%s: not the raw mesh's triangles" % name)
@@ -151,7 +128,7 @@ with tempfile.TemporaryDirectory() as tmp:
         rep = json.loads(rc.stdout)["check"] if rc.returncode == 0 else {}
         check(rc.returncode == 0 and rep.get("holes") == 0 and rep.get("border_edges") == 0 and rep.get("continuous"),
               "%s: the padded mesh is not closed: %s %s" % (name, rc.stdout, rc.stderr))
-        v, t = read_ply(dmesh)
+        v, t = read_ply_arrays(dmesh)
         check(signed_volume(v[:, :3], t) > 0, "%s: the surface faces inwards" % name)
 
     # ---- one command: a CT folder to a closed bone mesh in mm (default level) ----
@@ -163,7 +140,7 @@ with tempfile.TemporaryDirectory() as tmp:
     # the skull lies where the phantom has it, in mm: x within the position +- 40 * 0.7 mm
     ply = os.path.join(tmp, "bone.ply")
     run(["extract", os.path.join(DIR, "ct"), "--pad", "--quiet", "-o", ply])
-    v, _ = read_ply(ply)
+    v, _ = read_ply_arrays(ply)
     p0 = np.array(CASES["ct_folder"]["p0"])
     lo, hi = v[:, :3].min(0), v[:, :3].max(0)
     size = np.array([40 * 0.7, 36 * 0.8, 30 * 1.25])

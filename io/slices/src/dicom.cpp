@@ -30,20 +30,17 @@
 // duplicates closer than a hundredth of it.
 #include "dicom.hpp"
 #include "internal.hpp"
+#include "parallel_slices.hpp"
 
 #include <algorithm>
-#include <atomic>
 #include <charconv>
-#include <chrono>
 #include <cmath>
-#include <condition_variable>
 #include <cstdio>
 #include <cstring>
 #include <map>
 #include <memory>
 #include <set>
 #include <mutex>
-#include <thread>
 
 #include <dirent.h>
 #include <sys/stat.h>
@@ -282,90 +279,13 @@ void read_header(Header &h) {
     }
 }
 
-// Runs fn(k), k in [0, n), on up to `threads` workers while the calling
-// thread calls progress(fraction) every 50 ms (true: cancel).  The error of
-// the lowest k is rethrown after every worker has stopped.
+// The worker pool of both DICOM passes (headers, images), one task per file:
+// progress is reported at once, and any failure ranks as the file it came from.
 void parallel_for(int64_t n, int threads, const std::function<void(int64_t)> &fn,
                   const std::function<bool(double)> &progress, const char *what) {
-    if (threads <= 0) {
-        unsigned hc = std::thread::hardware_concurrency();
-        threads = hc ? (int)std::min(hc, 8u) : 2;
-    }
-    threads = (int)std::max<int64_t>(1, std::min<int64_t>(threads, n));
-    std::atomic<int64_t> next{0}, done{0};
-    std::atomic<bool> stop{false};
-    std::mutex mu;
-    std::condition_variable cv;
-    int64_t error_index = -1;
-    isomend_io_status error_status = ISOMEND_IO_OK;
-    std::string error_message;
-    auto fail = [&](int64_t k, isomend_io_status st, const std::string &m) {
-        std::lock_guard<std::mutex> lock(mu);
-        if (error_index < 0 || k < error_index) {
-            error_index = k;
-            error_status = st;
-            error_message = m;
-        }
-        stop.store(true);
-    };
-    auto worker = [&] {
-        for (;;) {
-            if (stop.load()) break;
-            int64_t k = next.fetch_add(1);
-            if (k >= n) break;
-            try {
-                fn(k);
-            } catch (const IoError &e) {
-                fail(k, e.status, e.what());
-            } catch (const std::bad_alloc &) {
-                fail(k, ISOMEND_IO_ERR_OUT_OF_MEMORY, std::string("out of memory while ") + what);
-            } catch (const std::exception &e) {
-                fail(k, ISOMEND_IO_ERR_INTERNAL, std::string("internal error while ") + what + ": " + e.what());
-            }
-            done.fetch_add(1);
-            cv.notify_one();
-        }
-        cv.notify_one();
-    };
-    std::vector<std::thread> pool;
-    try {
-        for (int t = 0; t < threads; t++) pool.emplace_back(worker);
-    } catch (const std::system_error &) {
-        stop.store(true);
-        for (auto &th : pool) th.join();
-        throw IoError(ISOMEND_IO_ERR_INTERNAL, std::string("cannot start threads for ") + what);
-    }
-    bool cancelled = false;
-    auto last = std::chrono::steady_clock::now() - std::chrono::seconds(1);
-    {
-        std::unique_lock<std::mutex> lock(mu);
-        while (done.load() < n && !stop.load()) {
-            auto now = std::chrono::steady_clock::now();
-            if (progress && now - last >= std::chrono::milliseconds(50)) {
-                last = now;
-                double f = (double)done.load() / (double)n;
-                lock.unlock();
-                bool c = false;
-                try {
-                    c = progress(f);
-                } catch (...) {
-                    stop.store(true);
-                    for (auto &th : pool) th.join();
-                    throw;
-                }
-                lock.lock();
-                if (c) {
-                    cancelled = true;
-                    stop.store(true);
-                }
-            }
-            cv.wait_for(lock, std::chrono::milliseconds(50));
-        }
-    }
-    for (auto &th : pool) th.join();
-    if (error_index >= 0) throw IoError(error_status, error_message);
-    if (cancelled || (progress && progress(1.0)))
-        throw IoError(ISOMEND_IO_ERR_CANCELLED, std::string("cancelled while ") + what);
+    SlicePool pool{what, std::string("cannot start threads for ") + what, true, true};
+    read_slices_parallel(
+        n, threads, [&](int64_t k, std::vector<char> &) { fn(k); }, progress, pool);
 }
 
 // ---------------------------------------------------------------- type

@@ -14,11 +14,11 @@
 // interface), so this file converts nothing but uint32 (to double, exact)
 // and RGB to luminance when asked.
 #include "image.hpp"
+#include "parallel_slices.hpp"
 
 #include <algorithm>
 #include <chrono>
 #include <cmath>
-#include <condition_variable>
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
@@ -442,101 +442,21 @@ void read_parallel(const std::vector<Slice> &slices, const StackInfo &info, int 
                    const std::function<void *(int64_t)> &target,
                    const std::function<void(int64_t, const void *)> &sink,
                    const std::function<bool(double)> &progress) {
-    const int64_t n = (int64_t)slices.size();
-    if (threads <= 0) {
-        unsigned hc = std::thread::hardware_concurrency();
-        threads = hc ? (int)std::min(hc, 8u) : 2;
-    }
-    threads = (int)std::min<int64_t>(threads, std::max<int64_t>(n, 1));
-
-    std::atomic<int64_t> next{0};
-    std::atomic<int64_t> done{0};
-    std::atomic<bool> stop{false};
-    std::mutex mu;
-    std::condition_variable cv;
-    int64_t error_index = -1;
-    isomend_io_status error_status = ISOMEND_IO_OK;
-    std::string error_message;
-
-    auto worker = [&]() {
-        std::vector<char> buf;
-        try {
-            while (!stop.load()) {
-                int64_t k = next.fetch_add(1);
-                if (k >= n) break;
-                void *dst = target ? target(k) : nullptr;
-                if (!dst) {
-                    if (buf.empty()) buf.resize(info.slice_bytes());
-                    dst = buf.data();
-                }
-                try {
-                    read_slice(slices[(size_t)k], info, dst);
-                    if (sink) sink(k, dst);
-                } catch (const IoError &e) {
-                    std::lock_guard<std::mutex> lock(mu);
-                    if (error_index < 0 || k < error_index) {
-                        error_index = k;
-                        error_status = e.status;
-                        error_message = e.what();
-                    }
-                    stop.store(true);
-                }
-                done.fetch_add(1);
-                cv.notify_one();
+    // Progress first after 50 ms; an out-of-memory or internal error ranks
+    // after every slice's IoError (the message names a file when one failed).
+    SlicePool pool{"reading slices", "cannot start reader threads", false, false};
+    read_slices_parallel(
+        (int64_t)slices.size(), threads,
+        [&](int64_t k, std::vector<char> &scratch) {
+            void *dst = target ? target(k) : nullptr;
+            if (!dst) {
+                if (scratch.empty()) scratch.resize(info.slice_bytes());
+                dst = scratch.data();
             }
-        } catch (const std::bad_alloc &) {
-            std::lock_guard<std::mutex> lock(mu);
-            if (error_index < 0) {
-                error_index = n;
-                error_status = ISOMEND_IO_ERR_OUT_OF_MEMORY;
-                error_message = "out of memory while reading slices";
-            }
-            stop.store(true);
-        } catch (const std::exception &e) {
-            std::lock_guard<std::mutex> lock(mu);
-            if (error_index < 0) {
-                error_index = n;
-                error_status = ISOMEND_IO_ERR_INTERNAL;
-                error_message = std::string("internal error while reading slices: ") + e.what();
-            }
-            stop.store(true);
-        }
-        cv.notify_one();
-    };
-
-    std::vector<std::thread> pool;
-    bool cancelled = false;
-    try {
-        for (int t = 0; t < threads; t++) pool.emplace_back(worker);
-    } catch (const std::system_error &) {
-        stop.store(true);
-        for (auto &th : pool) th.join();
-        throw IoError(ISOMEND_IO_ERR_INTERNAL, "cannot start reader threads");
-    }
-    auto last = std::chrono::steady_clock::now();
-    {
-        std::unique_lock<std::mutex> lock(mu);
-        while (done.load() < n && !stop.load()) {
-            cv.wait_for(lock, std::chrono::milliseconds(50));
-            auto now = std::chrono::steady_clock::now();
-            if (progress && now - last >= std::chrono::milliseconds(50)) {
-                last = now;
-                double f = (double)done.load() / (double)n;
-                lock.unlock();
-                bool cancel = progress(f); // calling thread, lock not held
-                lock.lock();
-                if (cancel) {
-                    cancelled = true;
-                    stop.store(true);
-                }
-            }
-        }
-    }
-    for (auto &th : pool) th.join();
-    if (error_index >= 0) throw IoError(error_status, error_message);
-    if (cancelled) throw IoError(ISOMEND_IO_ERR_CANCELLED, "cancelled while reading slices");
-    if (progress && progress(1.0))
-        throw IoError(ISOMEND_IO_ERR_CANCELLED, "cancelled while reading slices");
+            read_slice(slices[(size_t)k], info, dst);
+            if (sink) sink(k, dst);
+        },
+        progress, pool);
 }
 
 } // namespace isomend_io
