@@ -470,17 +470,24 @@ isomend_status isomend_stream_finish(isomend_stream *s, isomend_stats *stats)
     return ISOMEND_OK;
 }
 
-uint64_t isomend_stream_vertex_bound(const isomend_volume *desc, const isomend_options *opts)
+/* The context of a stream of `desc` with `opts` (NULL: the defaults), for
+ * the bounds and the halo: ISOMEND_OK or why a stream would be refused. */
+static isomend_status bound_setup(ctx *c, const isomend_volume *desc, const isomend_options *opts)
 {
     isomend_options defaults;
     isomend_options_init(&defaults);
     if (!desc)
-        return 0;
+        return ISOMEND_ERR_INVALID_ARGUMENT;
     isomend_volume v = *desc;
     memset(v.strides, 0, sizeof v.strides);
+    memset(c, 0, sizeof *c);
+    return ctx_setup(c, &v, opts ? opts : &defaults);
+}
+
+uint64_t isomend_stream_vertex_bound(const isomend_volume *desc, const isomend_options *opts)
+{
     ctx c;
-    memset(&c, 0, sizeof c);
-    if (ctx_setup(&c, &v, opts ? opts : &defaults) != ISOMEND_OK)
+    if (bound_setup(&c, desc, opts) != ISOMEND_OK)
         return 0;
     uint64_t sv, lv, lt;
     stream_bounds(&c, &sv, &lv, &lt);
@@ -506,15 +513,10 @@ static isomend_status piece_range(const grid *g, const isomend_piece *piece, int
 isomend_status isomend_piece_halo(const isomend_volume *desc, const isomend_options *opts,
                                   const isomend_piece *piece, int64_t *first, int64_t *end)
 {
-    isomend_options defaults;
-    isomend_options_init(&defaults);
-    if (!desc || !first || !end)
+    if (!first || !end)
         return ISOMEND_ERR_INVALID_ARGUMENT;
-    isomend_volume v = *desc;
-    memset(v.strides, 0, sizeof v.strides);
     ctx c;
-    memset(&c, 0, sizeof c);
-    const isomend_status status = ctx_setup(&c, &v, opts ? opts : &defaults);
+    const isomend_status status = bound_setup(&c, desc, opts);
     if (status != ISOMEND_OK)
         return status;
     return piece_range(&c.g, piece, first, end);
@@ -558,16 +560,8 @@ isomend_status isomend_piece_begin(const isomend_volume *desc, const isomend_opt
 
 uint64_t isomend_stream_memory(const isomend_volume *desc, const isomend_options *opts)
 {
-    isomend_options defaults;
-    isomend_options_init(&defaults);
-    const isomend_options *o = opts ? opts : &defaults;
-    if (!desc)
-        return 0;
-    isomend_volume v = *desc;
-    memset(v.strides, 0, sizeof v.strides);
     ctx c;
-    memset(&c, 0, sizeof c);
-    if (ctx_setup(&c, &v, o) != ISOMEND_OK)
+    if (bound_setup(&c, desc, opts) != ISOMEND_OK)
         return 0;
     worker w;
     uint64_t size[4];

@@ -34,6 +34,10 @@ import time
 
 import numpy as np
 
+sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "common"))
+sys.dont_write_bytecode = True  # no __pycache__ in the source tree
+import clitest  # noqa: E402
+
 FAILURES = []
 MEMORY_BOUNDS = True
 
@@ -339,11 +343,7 @@ def main():
     args, limit = test_errors(exe, a.work)
     test_interrupt(exe, a.work, args, limit)
     test_info_memory(exe, a.work)
-    if FAILURES:
-        print(f"{len(FAILURES)} failure(s)")
-        return 1
-    print("ok")
-    return 0
+    return clitest.summary(FAILURES)
 
 
 if __name__ == "__main__":

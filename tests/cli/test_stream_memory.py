@@ -40,6 +40,10 @@ import sys
 
 import numpy as np
 
+sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "common"))
+sys.dont_write_bytecode = True  # no __pycache__ in the source tree
+import clitest  # noqa: E402
+
 FAILURES = []
 PEAK_RSS = None
 MIB = 1024 * 1024
@@ -284,11 +288,7 @@ def main():
     check_in_memory_limit(exe, a.work, sources["raw"])
     check_tall(exe, a.work)
     shutil.rmtree(a.work, ignore_errors=True)
-    if FAILURES:
-        print(f"{len(FAILURES)} failure(s)")
-        return 1
-    print("ok")
-    return 0
+    return clitest.summary(FAILURES)
 
 
 if __name__ == "__main__":

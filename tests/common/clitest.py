@@ -1,7 +1,7 @@
 """What the Python tests that drive the `isomend` command line share.
 
-Used by tests/io/test_cli_io.py, tests/io/test_dicom_cli.py and
-tests/cli/test_cli.py, which import it with their own folder's ../common on
+Used by tests/io/test_cli_io.py, tests/io/test_dicom_cli.py,
+tests/cli/test_cli.py, test_stream.py and test_stream_memory.py, which import it with their own folder's ../common on
 sys.path.  Standard library only (test_cli.py runs in the sanitizer build
 too); read_ply_arrays imports numpy when it is called.
 """
@@ -54,3 +54,12 @@ def read_ply_arrays(path):
     faces = np.frombuffer(data, dtype=np.dtype([("n", "u1"), ("v", "<u4", 3)]), count=nf,
                           offset=end + nv * len(props) * 4)
     return verts, faces["v"]
+
+
+def summary(failures):
+    """The last line of a test: the number of failures, or ok; the exit code."""
+    if failures:
+        print(f"{len(failures)} failure(s)")
+        return 1
+    print("ok")
+    return 0
