@@ -57,26 +57,11 @@ def fail(name, why):
 
 
 def run_measured(args, cwd):
-    """Runs args; returns (exit code, stdout, stderr, peak resident bytes of the child).
-
-    Through peak_rss (tests/common/peak_rss.c), wait4's ru_maxrss of a child
-    forked by a small C program: Linux keeps the high-water mark across exec,
-    so a child forked by this Python process would report Python's own peak.
-    """
-    peak_file = os.path.join(cwd, "peak.txt")
-    p = subprocess.run([PEAK_RSS, peak_file, *args], cwd=cwd, capture_output=True, text=True,
-                       stdin=subprocess.DEVNULL, timeout=600)
-    with open(peak_file) as f:
-        peak = int(f.read())
-    return p.returncode, p.stdout, p.stderr, peak
+    return clitest.run_measured(PEAK_RSS, args, cwd)
 
 
 def field(k):
-    """Slice k of the volume: about 75 000 triangles a slice at iso 1000."""
-    x = np.arange(NX, dtype=np.float32)[None, :]
-    y = np.arange(NY, dtype=np.float32)[:, None]
-    s = 1000 + 800 * np.sin(x * 0.21 + k * 0.05) * np.cos(y * 0.15) + 600 * np.sin(k * 0.12 + y * 0.06)
-    return s.astype("<u2")
+    return clitest.busy_slice(k, NX, NY)
 
 
 def make_sources(work, with_tiff):
@@ -117,16 +102,7 @@ def extract(exe, work, src, out, extra=()):
     return rc, err, peak, js
 
 
-def same_file(a, b):
-    if os.path.getsize(a) != os.path.getsize(b):
-        return False
-    with open(a, "rb") as f, open(b, "rb") as g:
-        while True:
-            x, y = f.read(1 << 22), g.read(1 << 22)
-            if x != y:
-                return False
-            if not x:
-                return True
+same_file = clitest.same_file
 
 
 def check_kind(exe, work, kind, src, size):

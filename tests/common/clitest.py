@@ -1,10 +1,13 @@
 """What the Python tests that drive the `isomend` command line share.
 
 Used by tests/io/test_cli_io.py, tests/io/test_dicom_cli.py,
-tests/cli/test_cli.py, test_stream.py and test_stream_memory.py, which import it with their own folder's ../common on
-sys.path.  Standard library only (test_cli.py runs in the sanitizer build
-too); read_ply_arrays imports numpy when it is called.
+tests/cli/test_cli.py, test_stream.py, test_stream_memory.py and
+tests/mpi/test_mpi_memory.py, which import it with their own folder's
+../common on sys.path.  Standard library only (test_cli.py runs in the
+sanitizer build too); read_ply_arrays and busy_slice import numpy when they
+are called.
 """
+import os
 import subprocess
 
 failures = []
@@ -54,6 +57,44 @@ def read_ply_arrays(path):
     faces = np.frombuffer(data, dtype=np.dtype([("n", "u1"), ("v", "<u4", 3)]), count=nf,
                           offset=end + nv * len(props) * 4)
     return verts, faces["v"]
+
+
+def run_measured(peak_rss, args, cwd, env=None, timeout=600):
+    """Runs args; returns (exit code, stdout, stderr, peak resident bytes).
+
+    Through peak_rss (tests/common/peak_rss.c), wait4's ru_maxrss of a child
+    forked by a small C program: Linux keeps the high-water mark across exec,
+    so a child forked by this Python process would report Python's own peak.
+    For mpirun, the peak is the largest of mpirun's and the ranks' it waited for.
+    """
+    peak_file = os.path.join(cwd, "peak.txt")
+    p = subprocess.run([peak_rss, peak_file, *args], cwd=cwd, capture_output=True, text=True,
+                       stdin=subprocess.DEVNULL, timeout=timeout, env=env)
+    with open(peak_file) as f:
+        peak = int(f.read())
+    return p.returncode, p.stdout, p.stderr, peak
+
+
+def same_file(a, b):
+    """Whether two (large) files hold the same bytes."""
+    if os.path.getsize(a) != os.path.getsize(b):
+        return False
+    with open(a, "rb") as f, open(b, "rb") as g:
+        while True:
+            x, y = f.read(1 << 22), g.read(1 << 22)
+            if x != y:
+                return False
+            if not x:
+                return True
+
+
+def busy_slice(k, nx=512, ny=512):
+    """Slice k of a smooth, busy u16 field: about 75 000 triangles a 512^2 slice at iso 1000."""
+    import numpy as np
+    x = np.arange(nx, dtype=np.float32)[None, :]
+    y = np.arange(ny, dtype=np.float32)[:, None]
+    s = 1000 + 800 * np.sin(x * 0.21 + k * 0.05) * np.cos(y * 0.15) + 600 * np.sin(k * 0.12 + y * 0.06)
+    return s.astype("<u2")
 
 
 def summary(failures):
