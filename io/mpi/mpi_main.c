@@ -8,14 +8,19 @@
  *      and opens SOURCE (raw, NRRD or an image stack: headers only);
  *   2. the marched slices are cut into N slabs (slab.h); without --iso the
  *      suggested level is computed from every rank's slab, the sums reduced;
- *   3. each rank reads its slab and a halo and extracts its part (slab.c);
+ *   3. each rank streams its slab: its slices and a halo are read one at a
+ *      time and pushed to the core's piece (slab.c), whose vertices are
+ *      encoded into scratch files beside MESH as they come and whose
+ *      triangles wait there as local ids (STL facets are encoded at once);
+ *      a rank holds a few slices, never its mesh (slab_memory());
  *   4. MPI_Exscan of the vertex counts gives each rank its first global id;
  *      each rank sends the (key, id) pairs of its first plane to the rank
- *      below, which maps the keys its last layer refers to;
- *   5. rank 0 creates a temporary file beside MESH; the ranks encode their
- *      parts and write them at offsets from prefix sums with
- *      MPI_File_write_at_all (mpi_writer.h); rank 0 renames the file once
- *      every rank has succeeded.
+ *      below, which maps the keys its last layer refers to, and encodes its
+ *      triangles with global ids (mpi_writer_faces);
+ *   5. rank 0 creates a temporary file beside MESH; the ranks write their
+ *      parts at offsets from prefix sums with MPI_File_write_at_all
+ *      (mpi_writer.h); rank 0 renames the file once every rank has
+ *      succeeded.
  *
  * Failures: every step ends with agree(): an MPI_Allreduce finds the lowest
  * rank that failed, its message is broadcast and printed once by rank 0
@@ -268,17 +273,15 @@ static int run(int argc, char **argv)
     const int64_t NZ = sl.desc.dims[2] + 2 * pad;
     int64_t first, end;
     slab_split(NZ, ranks, rank, &first, &end);
-    if (a.max_memory) { /* per rank: the slab is held in memory (the placeholder) */
-        isomend_volume slab = sl.desc;
-        slab.dims[2] = end - first + 3;
-        cli_memory_plan plan;
-        cli_memory_plan_make(&slab, &opts, fmt, a.max_memory, &plan);
-        if (plan.stream) {
-            char need[32], lim[32];
-            cli_error("--max-memory %s: this rank's slab of %lld slices needs about %s in "
-                      "memory (a rank holds its slab's mesh): use more ranks",
-                      cli_bytes_text(plan.limit, lim, sizeof lim), (long long)(end - first),
-                      cli_bytes_text(plan.in_memory, need, sizeof need));
+    if (a.max_memory) { /* per rank: a slab streams, so the bound is one of a few slices */
+        const uint64_t need = slab_memory(&sl, &opts, fmt);
+        if (need && need > a.max_memory) {
+            char have[32], lim[32];
+            cli_error("--max-memory %s: a rank needs up to %s for slices of %lld x %lld %s "
+                      "(the stream's bound, a slice read twice, the writer's buffers)",
+                      cli_bytes_text(a.max_memory, lim, sizeof lim),
+                      cli_bytes_text(need, have, sizeof have), (long long)sl.desc.dims[0],
+                      (long long)sl.desc.dims[1], isomend_type_name(sl.desc.type));
             rc = CLI_EXIT_USAGE;
         }
     }
@@ -306,29 +309,30 @@ static int run(int argc, char **argv)
     }
     opts.iso = a.iso;
 
+    /* the mesh goes to this rank's scratch files beside MESH as the slab streams */
     double t0 = MPI_Wtime();
     slab_piece piece;
     memset(&piece, 0, sizeof piece);
     uint64_t *foreign_ids = NULL;
-    rc = slab_extract(&sl, &opts, first, end, &piece);
-    double extract_s = MPI_Wtime() - t0;
-    if (!rc && sl.has_world) { /* a DICOM series in patient space, as isomend extract maps it */
-        cli_world world;
+    mpi_writer w;
+    memset(&w, 0, sizeof w);
+    w.format = fmt;
+    w.normals = !(opts.flags & ISOMEND_FLAG_NO_NORMALS);
+    w.final_path = a.output;
+    cli_world world;
+    const cli_world *mapping = NULL;
+    if (sl.has_world) { /* a DICOM series in patient space, as isomend extract maps it */
         cli_sink none;
         memset(&none, 0, sizeof none);
         if (!cli_world_init(&world, sl.world, &none)) {
             cli_error("%s: the series' patient transform is not invertible", sl.label);
             rc = CLI_EXIT_FAIL;
-        } else {
-            cli_world_map(&world, piece.pos, piece.nrm, piece.nv);
-            cli_world_map(&world, piece.foreign_pos, NULL, piece.nforeign);
-            for (size_t t = 0; world.mirror && t < piece.nt; t++) {
-                uint64_t keep = piece.tri[3 * t + 1];
-                piece.tri[3 * t + 1] = piece.tri[3 * t + 2];
-                piece.tri[3 * t + 2] = keep;
-            }
         }
+        mapping = &world;
     }
+    if (!rc) rc = mpi_writer_open(&w);
+    if (!rc) rc = slab_extract(&sl, &opts, mapping, first, end, &w, &piece);
+    double extract_s = MPI_Wtime() - t0;
     if ((rc = agree(rc)) != 0) goto fail_piece;
 
     /* global ids: prefix sum of the vertex counts */
@@ -351,6 +355,7 @@ static int run(int argc, char **argv)
     }
     if ((rc = agree(rc)) != 0) goto fail_piece;
     rc = exchange_plane(&piece, NZ, first_id, foreign_ids);
+    if (!rc) rc = mpi_writer_faces(&w, first_id, foreign_ids); /* PLY/OBJ: the global ids */
     if ((rc = agree(rc)) != 0) goto fail_piece;
 
     /* the temporary file, named by rank 0, opened by all */
@@ -378,16 +383,6 @@ static int run(int argc, char **argv)
         rc = CLI_EXIT_FAIL;
     }
     if ((rc = agree(rc)) != 0) goto fail_file;
-    mpi_writer w;
-    memset(&w, 0, sizeof w);
-    w.format = fmt;
-    w.normals = normals;
-    w.final_path = a.output;
-    rc = mpi_writer_encode(&w, &piece, first_id, foreign_ids);
-    if ((rc = agree(rc)) != 0) {
-        MPI_File_close(&fh);
-        goto fail_file;
-    }
     rc = mpi_writer_write(&w, comm, fh, header, header_size, 0);
     mpi_writer_close(&w);
     if (MPI_File_close(&fh) != MPI_SUCCESS && !rc) {
@@ -469,6 +464,7 @@ static int run(int argc, char **argv)
 fail_file:
     if (rank == 0 && tmp[0]) unlink(tmp);
 fail_piece:
+    mpi_writer_close(&w);
     free(foreign_ids);
     slab_piece_free(&piece);
 fail:

@@ -13,74 +13,212 @@
 #include "cli.h"
 
 #define ROUND_BYTES (4u << 20)
+#define SECTION_BUFFER (256u << 10)
+#define FACE_BATCH 65536u
+
+/* ------------------------------------------------------------------ scratch sections */
+
+static int section_open(mpi_writer *w, mpi_section *s)
+{
+    char msg[ISOMEND_FILEIO_MSG_SIZE];
+    s->used = 0;
+    s->size = 0;
+    s->buf = malloc(SECTION_BUFFER);
+    if (!s->buf) {
+        cli_error("%s: out of memory", w->final_path);
+        return CLI_EXIT_FAIL;
+    }
+    if (isomend_spool_open(w->final_path, &s->fp, msg, sizeof msg) != ISOMEND_FILEIO_OK) {
+        cli_error("%s", msg);
+        return CLI_EXIT_FAIL;
+    }
+    return CLI_EXIT_OK;
+}
+
+static void section_close(mpi_section *s)
+{
+    if (s->fp) fclose(s->fp);
+    free(s->buf);
+    s->fp = NULL;
+    s->buf = NULL;
+}
+
+static int section_flush(const mpi_writer *w, mpi_section *s)
+{
+    if (s->used && fwrite(s->buf, 1, s->used, s->fp) != s->used) {
+        cli_error("%s: cannot write a scratch file: %s", w->final_path, strerror(errno));
+        return CLI_EXIT_FAIL;
+    }
+    s->used = 0;
+    return CLI_EXIT_OK;
+}
+
+static int put(const mpi_writer *w, mpi_section *s, const void *rec, size_t len)
+{
+    if (s->used + len > SECTION_BUFFER && section_flush(w, s)) return CLI_EXIT_FAIL;
+    memcpy(s->buf + s->used, rec, len);
+    s->used += len;
+    s->size += len;
+    return CLI_EXIT_OK;
+}
+
+/* Flushed and rewound, for reading back. */
+static int section_rewind(const mpi_writer *w, mpi_section *s)
+{
+    if (section_flush(w, s) || fflush(s->fp) != 0 || fseeko(s->fp, 0, SEEK_SET) != 0) {
+        cli_error("%s: cannot write a scratch file: %s", w->final_path, strerror(errno));
+        return CLI_EXIT_FAIL;
+    }
+    return CLI_EXIT_OK;
+}
 
 void mpi_writer_close(mpi_writer *w)
 {
-    for (int s = 0; s < 3; s++) {
-        if (w->section[s]) fclose(w->section[s]);
-        w->section[s] = NULL;
-    }
+    for (int s = 0; s < 3; s++) section_close(&w->section[s]);
+    section_close(&w->spool);
+    free(w->window);
+    free(w->foreign);
+    w->window = w->foreign = NULL;
+    w->window_cap = w->foreign_cap = 0;
 }
 
-static int put(mpi_writer *w, int s, const unsigned char *rec, size_t len)
+int mpi_writer_open(mpi_writer *w)
 {
-    if (!len) return 0;
-    if (fwrite(rec, 1, len, w->section[s]) != len) {
-        cli_error("%s: cannot write a scratch file: %s", w->final_path, strerror(errno));
-        return -1;
-    }
-    w->size[s] += len;
-    return 0;
+    int rc = CLI_EXIT_OK;
+    for (int s = 0; s < 3 && !rc; s++) rc = section_open(w, &w->section[s]);
+    if (!rc && w->format != ISOMEND_MESH_STL) rc = section_open(w, &w->spool);
+    if (rc) mpi_writer_close(w);
+    return rc;
 }
 
-int mpi_writer_encode(mpi_writer *w, const slab_piece *p, uint64_t first_id,
-                      const uint64_t *foreign_ids)
+/* ------------------------------------------------------------------ while streaming */
+
+/* Room for `n` positions (3 floats) in *array of capacity *cap. */
+static int room(float **array, size_t *cap, size_t n)
 {
-    char msg[ISOMEND_FILEIO_MSG_SIZE];
-    for (int s = 0; s < 3; s++) {
-        w->size[s] = 0;
-        if (isomend_spool_open(w->final_path, &w->section[s], msg, sizeof msg) !=
-            ISOMEND_FILEIO_OK) {
-            cli_error("%s", msg);
-            mpi_writer_close(w);
-            return CLI_EXIT_FAIL;
-        }
-    }
+    if (n <= *cap) return 1;
+    size_t c = *cap ? 2 * *cap : 4096;
+    while (c < n) c *= 2;
+    float *q = realloc(*array, 3 * sizeof(float) * c);
+    if (!q) return 0;
+    *array = q;
+    *cap = c;
+    return 1;
+}
+
+int mpi_writer_vertices(mpi_writer *w, size_t count, const float *pos, const float *nrm)
+{
     unsigned char rec[ISOMEND_MESH_RECORD_MAX];
-    const float *nrm = w->normals ? p->nrm : NULL;
-    for (size_t v = 0; v < p->nv; v++) {
+    for (size_t v = 0; v < count; v++) {
         const float *n = nrm ? nrm + 3 * v : NULL;
-        if (put(w, 0, rec, isomend_mesh_encode_vertex(w->format, p->pos + 3 * v, n, rec)) ||
-            put(w, 1, rec, isomend_mesh_encode_normal(w->format, n, rec))) {
-            mpi_writer_close(w);
+        if (put(w, &w->section[0], rec, isomend_mesh_encode_vertex(w->format, pos + 3 * v, n, rec)) ||
+            put(w, &w->section[1], rec, isomend_mesh_encode_normal(w->format, n, rec)))
+            return CLI_EXIT_FAIL;
+    }
+    if (w->format == ISOMEND_MESH_STL) {
+        const size_t kept = (size_t)(w->nv - w->window_first);
+        if (!room(&w->window, &w->window_cap, kept + count)) {
+            cli_error("%s: out of memory", w->final_path);
             return CLI_EXIT_FAIL;
         }
+        memcpy(w->window + 3 * kept, pos, 3 * sizeof(float) * count);
     }
-    for (size_t t = 0; t < p->nt; t++) {
-        uint64_t ids[3];
+    w->nv += count;
+    return CLI_EXIT_OK;
+}
+
+int mpi_writer_foreign(mpi_writer *w, size_t first, size_t count, const float *pos)
+{
+    if (w->format != ISOMEND_MESH_STL) return CLI_EXIT_OK;
+    if (first != w->nforeign || !room(&w->foreign, &w->foreign_cap, first + count)) {
+        cli_error("%s: out of memory", w->final_path);
+        return CLI_EXIT_FAIL;
+    }
+    memcpy(w->foreign + 3 * first, pos, 3 * sizeof(float) * count);
+    w->nforeign += count;
+    return CLI_EXIT_OK;
+}
+
+int mpi_writer_triangles(mpi_writer *w, size_t count, const uint64_t *ids)
+{
+    w->nt += count;
+    if (w->format != ISOMEND_MESH_STL) /* the global ids are not known yet */
+        return put(w, &w->spool, ids, 3 * sizeof *ids * count);
+    unsigned char rec[ISOMEND_MESH_RECORD_MAX];
+    for (size_t t = 0; t < count; t++) {
         const float *corner[3];
         for (int c = 0; c < 3; c++) {
-            uint64_t id = p->tri[3 * t + (size_t)c];
-            if (id & SLAB_FOREIGN) {
-                size_t f = (size_t)(id & ~SLAB_FOREIGN);
-                ids[c] = foreign_ids[f];
-                corner[c] = p->foreign_pos + 3 * f;
+            const uint64_t id = ids[3 * t + (size_t)c];
+            if (id & MPI_WRITER_FOREIGN) {
+                const uint64_t f = id & ~MPI_WRITER_FOREIGN;
+                if (f >= w->nforeign) goto bad;
+                corner[c] = w->foreign + 3 * f;
             } else {
-                ids[c] = first_id + id;
-                corner[c] = p->pos + 3 * id;
+                if (id < w->window_first || id >= w->nv) goto bad;
+                corner[c] = w->window + 3 * (id - w->window_first);
             }
         }
-        if (put(w, 2, rec, isomend_mesh_encode_face(w->format, w->normals, ids, corner, rec))) {
-            mpi_writer_close(w);
+        if (put(w, &w->section[2], rec,
+                isomend_mesh_encode_face(w->format, w->normals, ids + 3 * t, corner, rec)))
+            return CLI_EXIT_FAIL;
+    }
+    return CLI_EXIT_OK;
+bad:
+    cli_error("%s: a triangle refers to a vertex this rank no longer holds (internal error)",
+              w->final_path);
+    return CLI_EXIT_FAIL;
+}
+
+int mpi_writer_retire(mpi_writer *w, uint64_t floor)
+{
+    if (w->format != ISOMEND_MESH_STL || floor <= w->window_first) return CLI_EXIT_OK;
+    if (floor > w->nv) floor = w->nv;
+    const size_t drop = (size_t)(floor - w->window_first), kept = (size_t)(w->nv - floor);
+    memmove(w->window, w->window + 3 * drop, 3 * sizeof(float) * kept);
+    w->window_first = floor;
+    return CLI_EXIT_OK;
+}
+
+/* ------------------------------------------------------------------ after the exchange */
+
+int mpi_writer_faces(mpi_writer *w, uint64_t first_id, const uint64_t *foreign_ids)
+{
+    if (w->format != ISOMEND_MESH_STL) {
+        if (section_rewind(w, &w->spool)) return CLI_EXIT_FAIL;
+        uint64_t *batch = malloc(3 * sizeof *batch * FACE_BATCH);
+        if (!batch) {
+            cli_error("%s: out of memory", w->final_path);
             return CLI_EXIT_FAIL;
         }
+        unsigned char rec[ISOMEND_MESH_RECORD_MAX];
+        int rc = CLI_EXIT_OK;
+        for (uint64_t done = 0; done < w->nt && !rc;) {
+            const size_t n = w->nt - done < FACE_BATCH ? (size_t)(w->nt - done) : FACE_BATCH;
+            if (fread(batch, 3 * sizeof *batch, n, w->spool.fp) != n) {
+                cli_error("%s: cannot read back a scratch file: %s", w->final_path,
+                          strerror(errno));
+                rc = CLI_EXIT_FAIL;
+                break;
+            }
+            for (size_t q = 0; q < 3 * n; q++)
+                batch[q] = (batch[q] & MPI_WRITER_FOREIGN)
+                               ? foreign_ids[batch[q] & ~MPI_WRITER_FOREIGN]
+                               : first_id + batch[q];
+            for (size_t t = 0; t < n && !rc; t++)
+                rc = put(w, &w->section[2], rec,
+                         isomend_mesh_encode_face(w->format, w->normals, batch + 3 * t, NULL, rec));
+            done += n;
+        }
+        free(batch);
+        section_close(&w->spool);
+        if (rc) return rc;
     }
     for (int s = 0; s < 3; s++)
-        if (fflush(w->section[s]) != 0 || fseeko(w->section[s], 0, SEEK_SET) != 0) {
-            cli_error("%s: cannot write a scratch file: %s", w->final_path, strerror(errno));
-            mpi_writer_close(w);
-            return CLI_EXIT_FAIL;
-        }
+        if (section_rewind(w, &w->section[s])) return CLI_EXIT_FAIL;
+    free(w->window);
+    free(w->foreign);
+    w->window = w->foreign = NULL;
+    w->window_cap = w->foreign_cap = 0;
     return CLI_EXIT_OK;
 }
 
@@ -90,7 +228,7 @@ int mpi_writer_write(mpi_writer *w, MPI_Comm comm, MPI_File fh, const unsigned c
     int rank;
     MPI_Comm_rank(comm, &rank);
     uint64_t size[3], before[3] = {0, 0, 0}, total[3];
-    for (int s = 0; s < 3; s++) size[s] = failed ? 0 : w->size[s];
+    for (int s = 0; s < 3; s++) size[s] = failed ? 0 : w->section[s].size;
     MPI_Exscan(size, before, 3, MPI_UINT64_T, MPI_SUM, comm);
     if (rank == 0) before[0] = before[1] = before[2] = 0; /* Exscan leaves rank 0's undefined */
     MPI_Allreduce(size, total, 3, MPI_UINT64_T, MPI_SUM, comm);
@@ -118,7 +256,7 @@ int mpi_writer_write(mpi_writer *w, MPI_Comm comm, MPI_File fh, const unsigned c
             if (sec < 3) {
                 uint64_t left = size[sec] - done[sec];
                 size_t n = left < ROUND_BYTES ? (size_t)left : ROUND_BYTES;
-                if (fread(buf, 1, n, w->section[sec]) != n) {
+                if (fread(buf, 1, n, w->section[sec].fp) != n) {
                     cli_error("%s: cannot read back a scratch file: %s", w->final_path,
                               strerror(errno));
                     rc = CLI_EXIT_FAIL;

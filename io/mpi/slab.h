@@ -11,11 +11,15 @@
  * rank above.  Concatenating the ranks' vertices and triangles in rank order
  * gives exactly `isomend extract`'s arrays.
  *
- * A piece holds the owned vertices (local ids 0..nv-1, each with its global
- * key) and the owned triangles; a triangle corner on the next slab's first
- * plane is SLAB_FOREIGN | f, f indexing `foreign_keys` (and `foreign_pos`,
- * for STL).  `shared` lists the owned vertices of the slab's first plane
- * that the rank below refers to: (key, local id), sorted by key.
+ * A slab streams: its slices are read one at a time and pushed to the
+ * core's piece (isomend_piece_begin), whose vertices and triangles go
+ * straight to the rank's mpi_writer (local vertex ids 0..nv-1; a corner on
+ * the next slab's first plane is MPI_WRITER_FOREIGN | f).  What the rank
+ * keeps for the stitching is one plane's worth: `foreign_keys`, the keys of
+ * those next-slab vertices, and `shared`, the owned vertices of the slab's
+ * first plane that the rank below refers to, as (key, local id) pairs
+ * sorted by key.  So a rank's memory does not depend on its slab's length
+ * (slab_memory()).
  *
  * Keys: key = ((k * N1 + j) * N0 + i) * 8 + kind in the global marched grid,
  * (i, j, k) the lower end of the edge (the lowest corner of a face), kind
@@ -28,20 +32,13 @@
 #include <stdint.h>
 
 #include "cli.h"
-
-#define SLAB_FOREIGN (UINT64_C(1) << 63)
+#include "mpi_writer.h"
 
 typedef struct slab_piece {
     int64_t first, end;         /* owned marched slices [first, end)                 */
-    size_t nv;
-    float *pos, *nrm;           /* 3 floats per owned vertex; nrm NULL without normals */
-    uint64_t *keys;             /* NULL when one rank owns everything                 */
-    size_t nt;
-    uint64_t *tri;              /* 3 ids per owned triangle                           */
-    uint8_t *org;               /* one isomend_origin per triangle                    */
+    uint64_t nv, nt;            /* owned vertices and triangles                       */
     size_t nforeign;
-    uint64_t *foreign_keys;
-    float *foreign_pos;
+    uint64_t *foreign_keys;     /* the next slab's vertices the last layer uses       */
     size_t nshared;
     uint64_t *shared;           /* pairs (key, local id), sorted by key               */
     isomend_stats stats;        /* of the owned slices and layers                     */
@@ -51,12 +48,22 @@ typedef struct slab_piece {
 void slab_split(int64_t nz_marched, int ranks, int rank, int64_t *first, int64_t *end);
 
 /*
- * Extracts the owned part of the marched slices [first, end) of the source
- * (reading only them and their halo).  Exit code; the message goes through
- * cli_error().  On failure the piece is empty.
+ * The most memory a rank's extraction holds for the volume `s` (its slices
+ * of slice_bytes), whatever its slab: the core piece's bound, a slice read
+ * twice, the writer's buffers, and the plane tables above (each at most a
+ * slice's vertex bound long), with the STL positions and the patient-space
+ * map's batch where they apply.  0 for volumes the core refuses.
  */
-int slab_extract(cli_slices *s, const isomend_options *opts, int64_t first, int64_t end,
-                 slab_piece *p);
+uint64_t slab_memory(const cli_slices *s, const isomend_options *opts, isomend_mesh_format format);
+
+/*
+ * Streams the marched slices [first, end) of the source (reading only them
+ * and their halo) into `w` (open), mapped by `world` into patient space
+ * when it is not NULL.  Exit code; the message goes through cli_error().
+ * On failure the piece is empty.
+ */
+int slab_extract(cli_slices *s, const isomend_options *opts, const cli_world *world,
+                 int64_t first, int64_t end, mpi_writer *w, slab_piece *p);
 
 void slab_piece_free(slab_piece *p);
 
