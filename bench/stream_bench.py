@@ -9,16 +9,17 @@ Runs, on one TIFF folder (generated: a CT-like phantom of 40 balls, u16, NX x NY
   2. the VTK pipeline a user would write (vtkTIFFReader -> vtkFlyingEdges3D ->
      vtkPLYWriter, python3-vtk9) in its own process: wall time and peak memory (ru_maxrss
      of that process, from wait4);
-  3. isomend-mpi at N = 1, 2, 4 ranks (when built): wall time and the largest rank's peak,
-     and the file must equal isomend extract's.
+  3. isomend-mpi at N = 1, 2, 4 ranks (when built), each rank under --max-memory
+     --mpi-max-memory (default 192M, below the stack's size at 512 x 512 x 1024): wall time
+     and the largest rank's peak, and the file must equal isomend extract's.
 
 Each measurement is the median of --repeats runs, alternated between the tools, so that a
 busy machine slows all of them alike; ratios are what matter. The stream runs on one
 thread, so "in memory, 1 thread" is its like-for-like peer. --field busy replaces the
 phantom by a smooth surface with a triangle every 3.5 samples.
 
-usage: stream_bench.py --isomend PATH [--isomend-mpi PATH] [--size NX,NY,NZ] [--repeats N]
-                       [--work DIR] [--out FILE.md] [--check]
+usage: stream_bench.py --isomend PATH [--isomend-mpi PATH [--mpi-max-memory SIZE]]
+                       [--size NX,NY,NZ] [--repeats N] [--work DIR] [--out FILE.md] [--check]
   --check   the smoke mode for ctest: tiny defaults, and a non-zero exit if a file differs
 """
 import argparse
@@ -112,6 +113,7 @@ def main():
     ap.add_argument("--isomend", required=True)
     ap.add_argument("--isomend-mpi")
     ap.add_argument("--mpirun", default=shutil.which("mpirun") or "mpirun")
+    ap.add_argument("--mpi-max-memory", default="192M", help="each rank's --max-memory")
     ap.add_argument("--size", default=None, help="NX,NY,NZ (default 512,512,256; --check 64,48,40)")
     ap.add_argument("--repeats", type=int, default=3)
     ap.add_argument("--work", default="/tmp/isomend_stream_bench")
@@ -168,6 +170,8 @@ def main():
                 n = int(name.split()[1])
                 cmd = [a.mpirun, "--oversubscribe", "-n", str(n), os.path.abspath(a.isomend_mpi), "extract",
                        folder, "--iso", str(iso), "-q", "--json", "-", "-o", out]
+                if not a.check:  # the smoke mode's tiny stack needs less than a rank's bound
+                    cmd += ["--max-memory", a.mpi_max_memory]
             else:
                 cmd = base + ["-o", out] + (["--max-memory", limit] if name == "streamed" else [])
                 if name == "in memory, 1 thread":
@@ -199,7 +203,9 @@ def main():
                     f"{mb / t:.1f} | {peak / 2 ** 20:.0f} | {xs[0][2]} |")
     text = (f"Stack {nx}x{ny}x{nz} u16 ({mb:.1f} MB, {nz} TIFF files), iso {iso}, "
             f"{a.repeats} run(s), median wall time; peak = VmHWM (isomend's --json, largest rank) "
-            f"or ru_maxrss (VTK's process)\n\n"
+            f"or ru_maxrss (VTK's process); streamed under --max-memory {int(limit) / 2 ** 20:.0f} MiB"
+            + (f", each MPI rank under --max-memory {a.mpi_max_memory}" if mpi_ns and not a.check else "")
+            + "\n\n"
             "| run | s | / in memory | read+extract+write s | slices/s | MB/s in | peak MiB | triangles |\n"
             "|---|---|---|---|---|---|---|---|\n" + "\n".join(rows) + "\n"
             "\nread+extract+write: isomend's own timings (--json), without the process start, "
