@@ -2,7 +2,7 @@
 
 Used by tests/io/test_cli_io.py, tests/io/test_dicom_cli.py,
 tests/cli/test_cli.py, test_stream.py, test_stream_memory.py and
-tests/mpi/test_mpi_memory.py, which import it with their own folder's
+tests/mpi/test_mpi.py and test_mpi_memory.py, which import it with their own folder's
 ../common on sys.path.  Standard library only (test_cli.py runs in the
 sanitizer build too); read_ply_arrays and busy_slice import numpy when they
 are called.
@@ -95,6 +95,17 @@ def busy_slice(k, nx=512, ny=512):
     y = np.arange(ny, dtype=np.float32)[:, None]
     s = 1000 + 800 * np.sin(x * 0.21 + k * 0.05) * np.cos(y * 0.15) + 600 * np.sin(k * 0.12 + y * 0.06)
     return s.astype("<u2")
+
+
+def mpi_env():
+    """The environment for mpirun in the tests: no $DISPLAY (hwloc's GL plugin,
+    loaded by Open MPI, talks to it: an Xvfb of another test that goes away
+    mid-run kills the rank with "XIO: fatal IO error"), root allowed,
+    oversubscription (2 cores, up to 5 ranks)."""
+    env = {k: v for k, v in os.environ.items() if k != "DISPLAY"}
+    env.update(OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1",
+               OMPI_MCA_rmaps_base_oversubscribe="1", HWLOC_COMPONENTS="-gl")
+    return env
 
 
 def summary(failures):

@@ -29,12 +29,12 @@ import sys
 import numpy as np
 import tifffile
 
+sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "common"))
+sys.dont_write_bytecode = True  # no __pycache__ in the source tree
+import clitest  # noqa: E402
+
 FAILURES = []
-# hwloc's GL plugin (loaded by Open MPI) talks to $DISPLAY: an X server of another test
-# (Xvfb for MeshLab/Blender) that goes away mid-run kills the rank ("XIO: fatal IO error")
-ENV = {k: v for k, v in os.environ.items() if k != "DISPLAY"}
-ENV.update(OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1",
-           OMPI_MCA_rmaps_base_oversubscribe="1", HWLOC_COMPONENTS="-gl")
+ENV = clitest.mpi_env()
 STATS = ("vertices", "triangles", "triangles_by_origin", "cubes", "case_histogram",
          "ambiguous_faces", "inverted_combinations", "nan_samples", "iso", "iso_suggested")
 

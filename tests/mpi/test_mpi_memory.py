@@ -37,10 +37,7 @@ MIB = 1024 * 1024
 NX, NY, NZ = 512, 512, 256
 ISO = "1000"
 SIZE = "192M"
-# as tests/mpi/test_mpi.py: no $DISPLAY for hwloc's GL plugin, root allowed, oversubscription
-ENV = {k: v for k, v in os.environ.items() if k != "DISPLAY"}
-ENV.update(OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1",
-           OMPI_MCA_rmaps_base_oversubscribe="1", HWLOC_COMPONENTS="-gl")
+ENV = clitest.mpi_env()
 
 
 def fail(name, why):
