@@ -179,7 +179,7 @@ int slab_extract(cli_slices *src, const isomend_options *opts, const cli_world *
         return CLI_EXIT_OK;
     const isomend_volume *d = &src->desc;
     const int pad = (opts->flags & ISOMEND_FLAG_PAD) != 0;
-    const isomend_piece piece = {first, end};
+    const isomend_piece piece = {.owned_first = first, .owned_end = end};
     int64_t a = 0, b = 0;
     isomend_status st = isomend_piece_halo(d, opts, &piece, &a, &b);
     slab_sink fill;

@@ -477,7 +477,29 @@ ISOMEND_API uint64_t isomend_stream_vertex_bound(const isomend_volume *desc,
  */
 typedef struct isomend_piece {
     int64_t owned_first, owned_end; /* marched slices [owned_first, owned_end), */
-} isomend_piece;                    /* 0 <= first < end <= N2 (dims[2] + 2 pad) */
+                                    /* 0 <= first < end <= N2 (dims[2] + 2 pad) */
+    int64_t columns[2], rows[2];    /* a box: marched columns [columns[0],
+                                     * columns[1]) and rows [rows[0], rows[1]);
+                                     * {0, 0} (zeros): all of them */
+} isomend_piece;
+
+/*
+ * Box pieces.  A piece whose columns or rows are not all of the grid's owns
+ * the marched samples of its box [columns) x [rows) x [owned_first,
+ * owned_end), and with them, as above, the vertices whose edge's lower end
+ * (or diagonal's lowest corner) is one of them and the cubes whose lowest
+ * corner is, with their triangles, cube-private vertices and the mending and
+ * Durst quadrilaterals of their +x, +y and +z faces.  Boxes that partition
+ * the grid's samples partition isomend_extract()'s mesh.  A box delivers its
+ * vertices in isomend_extract()'s order restricted to the box, numbered from
+ * 0, and refers to every vertex it uses but does not own (on its +x, +y or
+ * +z side) as ISOMEND_FOREIGN | f, f numbering them in the order of first
+ * use; sink.foreign (required unless the box reaches the grid's end on
+ * all three axes) is called before the triangles that use them, with
+ * first = the number of foreign vertices delivered before.  It reads the
+ * same whole volume slices as a slab (isomend_piece_halo()): the box divides
+ * the marching, the vertices and the output, not the reading.
+ */
 
 /*
  * The volume slices a piece reads, [*first, *end): marched slices
@@ -498,7 +520,9 @@ ISOMEND_API isomend_status isomend_piece_halo(const isomend_volume *desc,
  * at finish are the piece's: its layers' cubes, cases, faces and triangles,
  * the NaN samples of its slices, its own vertices; summed over the pieces
  * of a grid they are isomend_extract()'s.  The memory is
- * isomend_stream_memory() plus 24 bytes per vertex of a slice's bound.
+ * isomend_stream_memory() plus 24 bytes per vertex of a slice's bound (a
+ * box: 80 bytes, and 480 KiB).  ISOMEND_ERR_INVALID_ARGUMENT for columns or rows outside
+ * the grid or empty (but {0, 0}).
  */
 ISOMEND_API isomend_status isomend_piece_begin(const isomend_volume *desc,
                                                const isomend_options *opts,

@@ -62,6 +62,9 @@ typedef struct grid {
     int64_t z0;    /* the volume slice `data` points at: 0, or in a
                     * stream the first slice of its window (stream.c) */
     int64_t N[3];  /* marched grid: n + 2 pad                      */
+    int64_t off[2]; /* the larger grid's marched column and row of this
+                     * grid's column and row 0: 0, or for a box piece the
+                     * crop's (stream.c); positions use them, nothing else */
     double iso;
     double h[3];   /* spacing                                       */
     double inv2h[3]; /* 1 / (2 spacing), for central differences    */
@@ -177,6 +180,9 @@ typedef struct ctx {
     int general;           /* a method of methods.h: per-cube hook        */
     int tetra;             /* ... with face-diagonal vertices             */
     int id_planes;         /* id-map planes per slice: 3, or 6 for tetra  */
+    /* The cubes march_layer marches: columns [cube_lo[0], cube_hi[0]) and rows
+     * [cube_lo[1], cube_hi[1]), all (0, N - 1) but for a box piece. */
+    int64_t cube_lo[2], cube_hi[2];
     /* The sign cache (sign_cache.c): the counting pass's signs, 1 bit a
      * sample, and the row spans; NULL when it would take too much memory. */
     uint64_t *cache_bits;

@@ -84,7 +84,9 @@ static ALWAYS_INLINE uint64_t march_layer_as(worker *w, int64_t k, const pass_ki
     if (write && general)
         w->private_next = c->layer_private ? c->layer_private[k] : c->private_first;
 
-    for (int64_t j = 0; j + 1 < N1; j++) {
+    /* the cubes marched: all, or a box piece's (stream.c) */
+    const int64_t col_lo = c->cube_lo[0], col_hi = c->cube_hi[0] - 1;
+    for (int64_t j = c->cube_lo[1]; j < c->cube_hi[1]; j++) {
         const uint8_t v = r0[j].first;
         if (uniform_as(&r0[j], N0, v) && uniform_as(&r0[j + 1], N0, v) &&
             uniform_as(&r1[j], N0, v) && uniform_as(&r1[j + 1], N0, v))
@@ -112,7 +114,8 @@ static ALWAYS_INLINE uint64_t march_layer_as(worker *w, int64_t k, const pass_ki
             ep[11] = ids0 + 2 * plane + o + N0 + 1;
         }
         for (int sp = 0; sp < nspans; sp++) {
-            const int64_t i0 = span[2 * sp], i1 = span[2 * sp + 1];
+            const int64_t i0 = span[2 * sp] > col_lo ? span[2 * sp] : col_lo;
+            const int64_t i1 = span[2 * sp + 1] < col_hi ? span[2 * sp + 1] : col_hi;
             if (i0 > i1)
                 continue;
             /* A narrow span (the rim of a blob) builds its configurations 16 at a
@@ -225,7 +228,9 @@ static ALWAYS_INLINE uint64_t march_layer_as(worker *w, int64_t k, const pass_ki
             st->case_histogram[mc_case_of[q]] += cfg_count[q];
             table_tri += cfg_count[q] * mc_tri_count[q];
         }
-        st->case_histogram[0] += (uint64_t)(N0 - 1) * (uint64_t)(N1 - 1) - busy;
+        st->case_histogram[0] += (uint64_t)(c->cube_hi[0] - c->cube_lo[0]) *
+                                     (uint64_t)(c->cube_hi[1] - c->cube_lo[1]) -
+                                 busy;
         st->triangles_by_origin[ISOMEND_ORIGIN_TABLE] += general ? general_tri : table_tri;
         if (!general && !write)
             ntri += table_tri;

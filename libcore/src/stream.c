@@ -73,6 +73,19 @@ struct isomend_stream {
     uint32_t *fmap;  /* slice own_end's ids to foreign indices, UINT32_MAX none */
     float *fpos;     /* the foreign vertices' positions */
     uint64_t nforeign;
+    /* A box piece (columns or rows restricted): owned marched columns
+     * [bx[0], bx[1]) and rows [by[0], by[1]).  A step's staged vertices
+     * (ring m % 2, from staged id remap_first) map to local ids, FOREIGN | f,
+     * CANDIDATE | c (not owned, in the box's frame: key and position kept in
+     * ckeys, cpos until a triangle uses it) or DROPPED. */
+    int box;
+    int64_t bx[2], by[2];
+    uint64_t *remap[2], remap_first[2], remap_count[2];
+    uint64_t *ckeys[2];
+    float *cpos[2];
+    uint64_t delivered;  /* a box's local ids delivered */
+    uint64_t *bkeys;     /* the foreign vertices of a triangle batch */
+    float *bpos;
     uint64_t first_id;     /* the first vertex id: 0 (tests: stream_set_first_id) */
     uint64_t next_id;      /* the next vertex id */
     uint64_t slice_first[2]; /* first ids of the slices last scanned, ring m % 2 */
@@ -200,6 +213,13 @@ void isomend_stream_destroy(isomend_stream *s)
     free(s->keys);
     free(s->fmap);
     free(s->fpos);
+    for (int p = 0; p < 2; p++) {
+        free(s->remap[p]);
+        free(s->ckeys[p]);
+        free(s->cpos[p]);
+    }
+    free(s->bkeys);
+    free(s->bpos);
     free(s->w.block);
     staging_free(&s->pos);
     staging_free(&s->nrm);
@@ -281,6 +301,27 @@ static int diagonal_cut(const uint8_t *a, const uint8_t *b, const uint8_t *d, co
     }
 }
 
+/* The position of slice m's in-plane vertex `key` (an x or y edge, a z
+ * face's diagonal) by the general vertex path (the same as the vertex
+ * loops', vertices.c), which reads slices m - 1 .. m + 1 only: a piece's
+ * next slice, whose vertices are not computed. */
+static void plane_position(const isomend_stream *s, uint64_t key, int64_t m, float p[3])
+{
+    const ctx *c = &s->c;
+    const grid *g = &c->g;
+    const unsigned kind = (unsigned)(key & 7u);
+    const uint64_t lin = key >> 3;
+    const int64_t i = (int64_t)(lin % (uint64_t)g->N[0]);
+    const int64_t j = (int64_t)(lin / (uint64_t)g->N[0] % (uint64_t)g->N[1]);
+    if (kind < 3) {
+        make_vertex(g, c->flip, i, j, m, (int)kind, p, NULL);
+    } else { /* the z face's diagonal between its even corners, lower sample first */
+        const int even = ((i + j + m) & 1) == 0;
+        const int64_t lo[3] = {even ? i : i + 1, j, m}, hi[3] = {even ? i + 1 : i, j + 1, m};
+        make_vertex_between(g, c->flip, lo, hi, p, NULL);
+    }
+}
+
 /*
  * A piece's keys of slice m's nv vertices (ids from first) into
  * s->keys[np ..], np = first - s->next_id (the private vertices before
@@ -339,23 +380,135 @@ static isomend_status slice_keys(isomend_stream *s, int64_t m, uint64_t first, u
     s->nforeign = nf;
     if (!nf)
         return ISOMEND_OK;
-    /* Their positions by the general vertex path (the same as the vertex
-     * loops', vertices.c), which reads slices m - 1 .. m + 1 only. */
-    for (uint64_t f = 0; f < nf; f++) {
-        const unsigned kind = (unsigned)(keys[f] & 7u);
-        const uint64_t lin = keys[f] >> 3;
-        const int64_t i = (int64_t)(lin % (uint64_t)N0);
-        const int64_t j = (int64_t)(lin / (uint64_t)N0 % (uint64_t)N1);
-        float *p = s->fpos + 3 * f;
-        if (kind < 3) {
-            make_vertex(g, c->flip, i, j, m, (int)kind, p, NULL);
-        } else { /* the z face's diagonal between its even corners, lower sample first */
-            const int even = ((i + j + m) & 1) == 0;
-            const int64_t lo[3] = {even ? i : i + 1, j, m}, hi[3] = {even ? i + 1 : i, j + 1, m};
-            make_vertex_between(g, c->flip, lo, hi, p, NULL);
+    for (uint64_t f = 0; f < nf; f++)
+        plane_position(s, keys[f], m, s->fpos + 3 * f);
+    return sink_status(s, s->sink.foreign(s->sink.user, 0, (size_t)nf, keys, s->fpos));
+}
+
+/* ------------------------------------------------------------ box pieces */
+
+#define CANDIDATE ((uint64_t)1 << 62)
+#define DROPPED UINT64_MAX
+
+/* The NaN samples of the box's part of marched slice m (padding excluded). */
+static uint64_t box_nans(const isomend_stream *s, int64_t m)
+{
+    const grid *g = &s->c.g;
+    if ((g->type != ISOMEND_F32 && g->type != ISOMEND_F64) || m < g->pad || m >= g->n[2] + g->pad)
+        return 0;
+    const int64_t i0 = s->bx[0] > g->pad ? s->bx[0] : g->pad;
+    const int64_t i1 = s->bx[1] < g->n[0] + g->pad ? s->bx[1] : g->n[0] + g->pad;
+    const int64_t j0 = s->by[0] > g->pad ? s->by[0] : g->pad;
+    const int64_t j1 = s->by[1] < g->n[1] + g->pad ? s->by[1] : g->n[1] + g->pad;
+    uint64_t n = 0;
+    for (int64_t j = j0; j < j1; j++)
+        for (int64_t i = i0; i < i1; i++)
+            n += (uint64_t)isnan(fetch(g, i, j, m));
+    return n;
+}
+
+/*
+ * A box's step m: of the np + nv vertices staged (layer m - 1's private
+ * ones, slice m's, keyed in s->keys), delivers the owned ones, compacted,
+ * and keeps the candidates of the frame; *floor is the local id of the
+ * first owned vertex of slice m (all delivered for the next slice).
+ */
+static isomend_status box_vertices(isomend_stream *s, int64_t m, uint64_t np, uint64_t nv,
+                                   int last, uint64_t *floor)
+{
+    ctx *c = &s->c;
+    const grid *g = &c->g;
+    const int p = (int)(m % 2);
+    uint64_t *remap = s->remap[p], *ck = s->ckeys[p], *keys = s->keys;
+    float *cp = s->cpos[p], *pos = c->pos, *nrm = c->want_normals ? c->nrm : NULL;
+    const uint64_t N0 = (uint64_t)g->N[0], N1 = (uint64_t)g->N[1];
+    s->remap_first[p] = s->next_id;
+    s->remap_count[p] = np + nv;
+    uint64_t out = 0, nc = 0;
+    for (uint64_t r = 0; r < np + nv; r++) {
+        const uint64_t key = keys[r];
+        int own = key == ISOMEND_KEY_NONE, near = 0;
+        if (!own) {
+            const uint64_t lin = key >> 3;
+            const int64_t i = (int64_t)(lin % N0), j = (int64_t)(lin / N0 % N1);
+            const unsigned kind = (unsigned)(key & 7u);
+            near = i >= s->bx[0] && i <= s->bx[1] && j >= s->by[0] && j <= s->by[1];
+            own = near && !last && i < s->bx[1] && j < s->by[1];
+            /* the next slice's vertices a layer below uses: x, y edges, z-face diagonals */
+            near = near && (!last || kind == 0 || kind == 1 || kind == 5);
+        }
+        if (own) {
+            if (out != r) {
+                keys[out] = key;
+                memcpy(pos + 3 * out, pos + 3 * r, 3 * sizeof(float));
+                if (nrm)
+                    memcpy(nrm + 3 * out, nrm + 3 * r, 3 * sizeof(float));
+            }
+            remap[r] = s->delivered + out++;
+        } else if (near) {
+            ck[nc] = key;
+            if (last)
+                plane_position(s, key, m, cp + 3 * nc);
+            else
+                memcpy(cp + 3 * nc, pos + 3 * r, 3 * sizeof(float));
+            remap[r] = CANDIDATE | nc++;
+        } else {
+            remap[r] = DROPPED;
         }
     }
-    return sink_status(s, s->sink.foreign(s->sink.user, 0, (size_t)nf, keys, s->fpos));
+    *floor = s->delivered + (last ? out : np); /* the private vertices are all owned */
+    s->next_id += np + nv;
+    isomend_status status = ISOMEND_OK;
+    if (out)
+        status = sink_status(s, s->sink.vertices(s->sink.user, s->delivered, (size_t)out, pos,
+                                                 nrm, keys));
+    s->delivered += out;
+    return status;
+}
+
+/* A box's layer m - 1: its n staged triangles (ids from `base`, the first
+ * staged id of slice m - 1) in local ids and foreign indices, the foreign
+ * vertices each batch uses first delivered before it. */
+static isomend_status box_triangles(isomend_stream *s, uint64_t n, uint64_t base, int64_t m)
+{
+    const ctx *c = &s->c;
+    const uint32_t low = (uint32_t)base;
+    const int now = (int)(m % 2), before = 1 - now;
+    for (uint64_t done = 0; done < n;) {
+        const uint64_t b = n - done < TRIANGLE_BATCH ? n - done : TRIANGLE_BATCH;
+        const uint32_t *t = c->tri + 3 * done;
+        const uint64_t nf = s->nforeign;
+        for (uint64_t q = 0; q < 3 * b; q++) {
+            const uint64_t id = base + (uint32_t)(t[q] - low);
+            const int p = id >= s->remap_first[now] ? now : before;
+            const uint64_t r = id - s->remap_first[p];
+            if (id < s->remap_first[p] || r >= s->remap_count[p] || s->remap[p][r] == DROPPED)
+                return s->failed = ISOMEND_ERR_INVALID_ARGUMENT; /* not reached */
+            uint64_t *v = &s->remap[p][r];
+            if ((*v & (CANDIDATE | ISOMEND_FOREIGN)) == CANDIDATE) {
+                const uint64_t cand = *v & ~CANDIDATE, f = s->nforeign++;
+                s->bkeys[f - nf] = s->ckeys[p][cand];
+                memcpy(s->bpos + 3 * (f - nf), s->cpos[p] + 3 * cand, 3 * sizeof(float));
+                *v = ISOMEND_FOREIGN | f;
+            }
+            s->ids[q] = *v;
+        }
+        if (s->nforeign > nf) {
+            const int rc = s->sink.foreign(s->sink.user, (size_t)nf, (size_t)(s->nforeign - nf),
+                                           s->bkeys, s->bpos);
+            if (rc)
+                return sink_status(s, rc);
+        }
+        const int rc = s->sink.triangles(s->sink.user, (size_t)b, s->ids,
+                                         c->org ? c->org + done : NULL);
+        if (rc)
+            return sink_status(s, rc);
+        done += b;
+    }
+    if (c->org)
+        memset(c->org, 0, (size_t)n);
+    s->triangles += n;
+    return ISOMEND_OK;
 }
 
 /*
@@ -381,7 +534,7 @@ static isomend_status step(isomend_stream *s, int64_t m)
     const uint64_t first = s->next_id + np;
     const uint64_t nv = kr->scan_slice(w, m, PASS_SWEEP, first, !last);
     if (!last)
-        w->stats.nan_samples += w->slice_nans[m % SIGN_RING];
+        w->stats.nan_samples += s->box ? box_nans(s, m) : w->slice_nans[m % SIGN_RING];
     const uint64_t below = layer ? s->slice_first[(m - 1) % 2] : first;
     s->slice_first[m % 2] = first;
     if (first + nv - below > UINT32_MAX)
@@ -392,17 +545,24 @@ static isomend_status step(isomend_stream *s, int64_t m)
     if (s->piece) {
         for (uint64_t q = 0; q < np; q++)
             s->keys[q] = ISOMEND_KEY_NONE;
-        status = slice_keys(s, m, first, nv, last);
+        status = slice_keys(s, m, first, nv, last && !s->box);
     }
+    uint64_t floor = 0;
     if (status == ISOMEND_OK)
-        status = deliver_vertices(s, last ? np : np + nv);
+        status = s->box ? box_vertices(s, m, np, nv, last, &floor)
+                        : deliver_vertices(s, last ? np : np + nv);
     if (status != ISOMEND_OK || !layer)
         return status;
     if (!c->general)
         nt = kr->march_layer(w, k, PASS_SWEEP, 0);
-    status = deliver_triangles(s, nt, below, last ? first : UINT64_MAX);
+    if (s->box)
+        status = box_triangles(s, nt, below, m);
+    else
+        status = deliver_triangles(s, nt, below, last ? first : UINT64_MAX);
+    if (!s->box)
+        floor = last ? s->next_id : first;
     if (status == ISOMEND_OK)
-        status = sink_status(s, s->sink.retire(s->sink.user, last ? s->next_id : first));
+        status = sink_status(s, s->sink.retire(s->sink.user, floor));
     return status;
 }
 
@@ -463,9 +623,12 @@ isomend_status isomend_stream_finish(isomend_stream *s, isomend_stats *stats)
         return status;
     s->finished = 1;
     if (stats) {
-        gather_stats(&s->c, &s->w, 1, s->next_id - s->first_id, s->triangles, stats);
+        const ctx *c = &s->c;
+        gather_stats(c, &s->w, 1, s->box ? s->delivered : s->next_id - s->first_id,
+                     s->triangles, stats);
         const int64_t layers = (s->own_end < g->N[2] ? s->own_end : g->N[2] - 1) - s->own_first;
-        stats->cubes = (uint64_t)(g->N[0] - 1) * (uint64_t)(g->N[1] - 1) * (uint64_t)layers;
+        stats->cubes = (uint64_t)(c->cube_hi[0] - c->cube_lo[0]) *
+                       (uint64_t)(c->cube_hi[1] - c->cube_lo[1]) * (uint64_t)layers;
     }
     return ISOMEND_OK;
 }
@@ -504,6 +667,11 @@ static isomend_status piece_range(const grid *g, const isomend_piece *piece, int
     if (!piece || piece->owned_first < 0 || piece->owned_first >= piece->owned_end ||
         piece->owned_end > g->N[2])
         return ISOMEND_ERR_INVALID_ARGUMENT;
+    const int64_t *range[2] = {piece->columns, piece->rows};
+    for (int a = 0; a < 2; a++)
+        if (!(range[a][0] == 0 && range[a][1] == 0) &&
+            (range[a][0] < 0 || range[a][0] >= range[a][1] || range[a][1] > g->N[a]))
+            return ISOMEND_ERR_INVALID_ARGUMENT;
     int64_t lo = piece->owned_first - 1 - g->pad, hi = piece->owned_end + 2 - g->pad;
     *first = lo < 0 ? 0 : lo;
     *end = hi > g->n[2] ? g->n[2] : hi;
@@ -536,8 +704,25 @@ isomend_status isomend_piece_begin(const isomend_volume *desc, const isomend_opt
     const grid *g = &s->c.g;
     if (status == ISOMEND_OK)
         status = piece_range(g, piece, &s->push_first, &s->push_end);
-    if (status == ISOMEND_OK && piece->owned_end < g->N[2] && !sink->foreign)
-        status = ISOMEND_ERR_INVALID_ARGUMENT;
+    if (status == ISOMEND_OK) {
+        ctx *c = &s->c;
+        const int64_t *range[2] = {piece->columns, piece->rows};
+        int64_t *own[2] = {s->bx, s->by};
+        for (int a = 0; a < 2; a++) {
+            const int all = range[a][0] == 0 && (range[a][1] == 0 || range[a][1] == g->N[a]);
+            own[a][0] = all ? 0 : range[a][0];
+            own[a][1] = all ? g->N[a] : range[a][1];
+            s->box |= !all;
+            c->cube_lo[a] = own[a][0];
+            c->cube_hi[a] = own[a][1] < g->N[a] - 1 ? own[a][1] : g->N[a] - 1;
+            if (c->cube_hi[a] < c->cube_lo[a])
+                c->cube_hi[a] = c->cube_lo[a];
+        }
+        const int at_end = piece->owned_end == g->N[2] && s->bx[1] == g->N[0] &&
+                           s->by[1] == g->N[1];
+        if (!at_end && !sink->foreign)
+            status = ISOMEND_ERR_INVALID_ARGUMENT;
+    }
     if (status == ISOMEND_OK) {
         s->piece = 1;
         s->own_first = s->next_scan = piece->owned_first;
@@ -549,6 +734,19 @@ isomend_status isomend_piece_begin(const isomend_volume *desc, const isomend_opt
         s->fpos = malloc(3 * sizeof(float) * (size_t)s->max_slice_vertices);
         if (!s->keys || !s->fmap || !s->fpos)
             status = ISOMEND_ERR_OUT_OF_MEMORY;
+        for (int p = 0; p < 2 && s->box && status == ISOMEND_OK; p++) {
+            s->remap[p] = malloc(sizeof(uint64_t) * (size_t)cap);
+            s->ckeys[p] = malloc(sizeof(uint64_t) * (size_t)cap);
+            s->cpos[p] = malloc(3 * sizeof(float) * (size_t)cap);
+            if (!s->remap[p] || !s->ckeys[p] || !s->cpos[p])
+                status = ISOMEND_ERR_OUT_OF_MEMORY;
+        }
+        if (s->box && status == ISOMEND_OK) {
+            s->bkeys = malloc(3 * sizeof(uint64_t) * TRIANGLE_BATCH);
+            s->bpos = malloc(9 * sizeof(float) * TRIANGLE_BATCH);
+            if (!s->bkeys || !s->bpos)
+                status = ISOMEND_ERR_OUT_OF_MEMORY;
+        }
     }
     if (status != ISOMEND_OK) {
         isomend_stream_destroy(s);
