@@ -607,6 +607,23 @@ static int global_cmp(const void *a, const void *b)
 
 static int boxes_compared;
 
+/* The flag sets pieces are tried with. */
+static const unsigned piece_flags[] = {0, ISOMEND_FLAG_PAD,
+                                       ISOMEND_FLAG_NO_NORMALS | ISOMEND_FLAG_FLIP,
+                                       ISOMEND_FLAG_PAD | ISOMEND_FLAG_NO_ORIGINS};
+enum { PIECE_FLAG_SETS = sizeof piece_flags / sizeof piece_flags[0] };
+
+/* 1 to 4 boxes on each axis, at most one a marched sample. */
+static void random_boxes(const isomend_volume *vol, unsigned flags, int nb[3])
+{
+    const int64_t pad = (flags & ISOMEND_FLAG_PAD) ? 1 : 0;
+    for (int a = 0; a < 3; a++) {
+        nb[a] = 1 + (int)(rng() % 4);
+        if (nb[a] > vol->dims[a] + 2 * pad)
+            nb[a] = (int)(vol->dims[a] + 2 * pad);
+    }
+}
+
 /*
  * Extracts vol as boxes at random boundaries in x, y and z and compares them
  * with the whole grid as one piece (whose keys name every vertex of
@@ -758,52 +775,8 @@ static void compare_boxes(const isomend_volume *vol, const isomend_options *o, c
     isomend_mesh_destroy(mesh);
 }
 
-static void test_boxes(void)
-{
-    static const unsigned flag_sets[] = {0, ISOMEND_FLAG_PAD,
-                                         ISOMEND_FLAG_NO_NORMALS | ISOMEND_FLAG_FLIP,
-                                         ISOMEND_FLAG_PAD | ISOMEND_FLAG_NO_ORIGINS};
-    for (int shape = 0; shape < SHAPES; shape++)
-        for (int t = 0; t < ISOMEND_TYPE_COUNT; t++) {
-            const isomend_type type = (isomend_type)t;
-            int64_t n[3];
-            for (int a = 0; a < 3; a++)
-                n[a] = 3 + (int64_t)(rng() % 14);
-            double iso;
-            isomend_volume vol;
-            void *data = make_volume(shape, type, n, &vol, &iso);
-            vol.spacing[0] = 1.25;
-            vol.origin[1] = -3.0;
-            for (int m = 0; m < ISOMEND_METHOD_COUNT; m++)
-                for (size_t fl = 0; fl < sizeof flag_sets / sizeof flag_sets[0]; fl++) {
-                    isomend_options o;
-                    isomend_options_init(&o);
-                    o.iso = iso;
-                    o.method = (isomend_method)m;
-                    o.flags = flag_sets[fl];
-                    const int64_t pad = (o.flags & ISOMEND_FLAG_PAD) ? 1 : 0;
-                    int nb[3];
-                    for (int a = 0; a < 3; a++) {
-                        nb[a] = 1 + (int)(rng() % 4);
-                        if (nb[a] > n[a] + 2 * pad)
-                            nb[a] = (int)(n[a] + 2 * pad);
-                    }
-                    char what[160];
-                    snprintf(what, sizeof what, "%s %s %lldx%lldx%lld %s flags %u",
-                             shape_names[shape], isomend_type_name(type), (long long)n[0],
-                             (long long)n[1], (long long)n[2],
-                             isomend_method_name((isomend_method)m), o.flags);
-                    compare_boxes(&vol, &o, nb, what);
-                }
-            free(data);
-        }
-}
-
 static void test_pieces(void)
 {
-    static const unsigned flag_sets[] = {0, ISOMEND_FLAG_PAD,
-                                         ISOMEND_FLAG_NO_NORMALS | ISOMEND_FLAG_FLIP,
-                                         ISOMEND_FLAG_PAD | ISOMEND_FLAG_NO_ORIGINS};
     for (int shape = 0; shape < SHAPES; shape++)
         for (int t = 0; t < ISOMEND_TYPE_COUNT; t++) {
             const isomend_type type = (isomend_type)t;
@@ -816,18 +789,21 @@ static void test_pieces(void)
             vol.spacing[1] = 0.75;
             vol.origin[2] = 2.0;
             for (int m = 0; m < ISOMEND_METHOD_COUNT; m++)
-                for (size_t fl = 0; fl < sizeof flag_sets / sizeof flag_sets[0]; fl++) {
+                for (size_t fl = 0; fl < PIECE_FLAG_SETS; fl++) {
                     isomend_options o;
                     isomend_options_init(&o);
                     o.iso = iso;
                     o.method = (isomend_method)m;
-                    o.flags = flag_sets[fl];
+                    o.flags = piece_flags[fl];
                     char what[160];
                     snprintf(what, sizeof what, "%s %s %lldx%lldx%lld %s flags %u",
                              shape_names[shape], isomend_type_name(type), (long long)n[0],
                              (long long)n[1], (long long)n[2],
                              isomend_method_name((isomend_method)m), o.flags);
                     compare_pieces(&vol, &o, 1 + (int)(rng() % 5), what);
+                    int nb[3];
+                    random_boxes(&vol, o.flags, nb);
+                    compare_boxes(&vol, &o, nb, what);
                 }
             free(data);
         }
@@ -1155,9 +1131,6 @@ static void test_real_volume(const char *path)
     CHECK(info.type == ISOMEND_I16 && f32);
     for (size_t q = 0; q < count; q++)
         f32[q] = (float)((const int16_t *)data)[q];
-    static const unsigned flag_sets[] = {0, ISOMEND_FLAG_PAD,
-                                         ISOMEND_FLAG_NO_NORMALS | ISOMEND_FLAG_FLIP,
-                                         ISOMEND_FLAG_PAD | ISOMEND_FLAG_NO_ORIGINS};
     static const double levels[] = {3000.0, 7000.5, 9500.0};
     for (int as_f32 = 0; as_f32 < 2; as_f32++) {
         isomend_volume vol;
@@ -1170,19 +1143,19 @@ static void test_real_volume(const char *path)
         }
         for (size_t l = 0; l < sizeof levels / sizeof levels[0]; l++)
             for (int m = 0; m < ISOMEND_METHOD_COUNT; m++)
-                for (size_t fl = 0; fl < sizeof flag_sets / sizeof flag_sets[0]; fl++) {
+                for (size_t fl = 0; fl < PIECE_FLAG_SETS; fl++) {
                     isomend_options o;
                     isomend_options_init(&o);
                     o.iso = levels[l];
                     o.method = (isomend_method)m;
-                    o.flags = flag_sets[fl];
+                    o.flags = piece_flags[fl];
                     char what[200];
                     snprintf(what, sizeof what, "%s as %s, iso %g, %s, flags %u", path,
                              as_f32 ? "f32" : "i16", o.iso,
                              isomend_method_name((isomend_method)m), o.flags);
                     compare_pieces(&vol, &o, 2 + (int)(rng() % 4), what);
-                    const int nb[3] = {1 + (int)(rng() % 4), 1 + (int)(rng() % 4),
-                                       1 + (int)(rng() % 4)};
+                    int nb[3];
+                    random_boxes(&vol, o.flags, nb);
                     compare_boxes(&vol, &o, nb, what);
                 }
     }
@@ -1213,7 +1186,6 @@ int main(int argc, char **argv)
     printf("%d streams identical to isomend_extract()\n", compared);
     test_pieces();
     printf("%d extractions in pieces stitched to isomend_extract()'s mesh\n", pieces_compared);
-    test_boxes();
     printf("%d box pieces stitched to isomend_extract()'s mesh\n", boxes_compared);
     TEST_EXIT();
 }
