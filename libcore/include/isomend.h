@@ -496,9 +496,9 @@ typedef struct isomend_piece {
  * +z side) as ISOMEND_FOREIGN | f, f numbering them in the order of first
  * use; sink.foreign (required unless the box reaches the grid's end on
  * all three axes) is called before the triangles that use them, with
- * first = the number of foreign vertices delivered before.  It reads the
- * same whole volume slices as a slab (isomend_piece_halo()): the box divides
- * the marching, the vertices and the output, not the reading.
+ * first = the number of foreign vertices delivered before.  It is pushed
+ * the same whole volume slices as a slab (isomend_piece_halo()) and
+ * classifies them whole; numbering, vertices and marching are the box's.
  */
 
 /*

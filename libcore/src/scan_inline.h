@@ -194,6 +194,23 @@ static inline int pair_spans(const row_span *a, const row_span *b, int64_t N0, i
  * (x edges), as intervals like pair_spans: a simple row crosses exactly at
  * lo - 1 and hi.
  */
+/* The n spans [span[2q], span[2q + 1]] cut to [lo, hi], the empty ones
+ * dropped; returns how many are left. */
+static inline int clip_spans(int64_t *span, int n, int64_t lo, int64_t hi)
+{
+    int k = 0;
+    for (int q = 0; q < n; q++) {
+        const int64_t a = span[2 * q] > lo ? span[2 * q] : lo;
+        const int64_t b = span[2 * q + 1] < hi ? span[2 * q + 1] : hi;
+        if (a <= b) {
+            span[2 * k] = a;
+            span[2 * k + 1] = b;
+            k++;
+        }
+    }
+    return k;
+}
+
 static inline int row_spans(const row_span *a, int64_t N0, int64_t span[4])
 {
     if (a->lo >= N0)

@@ -342,10 +342,10 @@ static isomend_status slice_keys(isomend_stream *s, int64_t m, uint64_t first, u
     const uint32_t *map = w->edge_ids[m % 2];
     uint64_t *keys = s->keys + (first - s->next_id);
     const uint32_t low = (uint32_t)first;
-    for (int64_t j = 0; j < N1; j++) {
+    for (int64_t j = c->scan_lo[1]; j <= c->scan_hi[1]; j++) { /* what scan_slice numbered */
         const uint8_t *a = sg + j * N0, *b = j + 1 < N1 ? a + N0 : NULL;
         const uint8_t *d = t ? t + j * N0 : NULL, *e = t && b ? d + N0 : NULL;
-        for (int64_t i = 0; i < N0; i++) {
+        for (int64_t i = c->scan_lo[0]; i <= c->scan_hi[0]; i++) {
             const int64_t at = j * N0 + i;
             int cut[6] = {i + 1 < N0 && a[i] != a[i + 1], b && a[i] != b[i], d && a[i] != d[i],
                           0, 0, 0};
@@ -713,10 +713,12 @@ isomend_status isomend_piece_begin(const isomend_volume *desc, const isomend_opt
             own[a][0] = all ? 0 : range[a][0];
             own[a][1] = all ? g->N[a] : range[a][1];
             s->box |= !all;
-            c->cube_lo[a] = own[a][0];
-            c->cube_hi[a] = own[a][1] < g->N[a] - 1 ? own[a][1] : g->N[a] - 1;
+            c->cube_lo[a] = c->scan_lo[a] = own[a][0];
+            c->cube_hi[a] = c->scan_hi[a] = own[a][1] < g->N[a] - 1 ? own[a][1] : g->N[a] - 1;
             if (c->cube_hi[a] < c->cube_lo[a])
                 c->cube_hi[a] = c->cube_lo[a];
+            /* the scan: the cubes' corners (the +x/+y frame included) */
+            c->scan_clip |= !all;
         }
         const int at_end = piece->owned_end == g->N[2] && s->bx[1] == g->N[0] &&
                            s->by[1] == g->N[1];
