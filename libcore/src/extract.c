@@ -149,8 +149,8 @@ isomend_status ctx_setup(ctx *c, const isomend_volume *vol, const isomend_option
     c->tetra = o->method == ISOMEND_METHOD_TETRA;
     c->id_planes = c->tetra ? 6 : 3;
     for (int a = 0; a < 2; a++) {
-        c->cube_lo[a] = c->scan_lo[a] = 0;
-        c->cube_hi[a] = c->scan_hi[a] = g->N[a] - 1;
+        c->cube_lo[a] = 0;
+        c->cube_hi[a] = g->N[a] - 1;
     }
     c->flip = (o->flags & ISOMEND_FLAG_FLIP) != 0;
     c->want_normals = !(o->flags & ISOMEND_FLAG_NO_NORMALS);

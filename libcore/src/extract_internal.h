@@ -181,13 +181,10 @@ typedef struct ctx {
     int tetra;             /* ... with face-diagonal vertices             */
     int id_planes;         /* id-map planes per slice: 3, or 6 for tetra  */
     /* The cubes march_layer marches: columns [cube_lo[0], cube_hi[0]) and rows
-     * [cube_lo[1], cube_hi[1]), all (0, N - 1) but for a box piece; the
-     * samples scan_slice numbers the edges of: columns [scan_lo[0],
-     * scan_hi[0]] and rows [scan_lo[1], scan_hi[1]], all (0, N - 1) but for a
-     * box piece (its cubes' corners), scan_clip set then. */
+     * [cube_lo[1], cube_hi[1]), all (0, N - 1) but for a box piece.  Their
+     * corners, columns and rows [cube_lo, cube_hi], are the samples whose
+     * edges scan_slice numbers. */
     int64_t cube_lo[2], cube_hi[2];
-    int64_t scan_lo[2], scan_hi[2];
-    int scan_clip;
     /* The sign cache (sign_cache.c): the counting pass's signs, 1 bit a
      * sample, and the row spans; NULL when it would take too much memory. */
     uint64_t *cache_bits;

@@ -45,8 +45,8 @@ uint64_t scan_diagonals(const ctx *c, const uint8_t *s, const uint8_t *t, int64_
         if ((kind == 0 && !e) || (kind == 1 && !d) || (kind == 2 && !b))
             continue;
         const int64_t end = kind == 0 ? N0 - 1 : N0 - 2;
-        const int64_t last = end < c->scan_hi[0] ? end : c->scan_hi[0];
-        for (int64_t i = c->scan_lo[0]; i <= last; i++) {
+        const int64_t last = end < c->cube_hi[0] ? end : c->cube_hi[0];
+        for (int64_t i = c->cube_lo[0]; i <= last; i++) {
             const int even = ((i + j + m) & 1) == 0;
             int64_t p[3], q[3];
             uint8_t sp, sq;

@@ -136,8 +136,10 @@ static ALWAYS_INLINE uint64_t scan_slice_as(worker *w, int64_t m, const int numb
         mz = mx + 2 * N0 * N1;
     }
     uint64_t id = first, count = 0;
-    const int64_t col_lo = c->scan_lo[0], col_hi = c->scan_hi[0];
-    for (int64_t j = c->scan_lo[1]; j <= c->scan_hi[1]; j++) {
+    /* the corners of the cubes marched: all, or a box piece's (stream.c) */
+    const int64_t col_lo = c->cube_lo[0], col_hi = c->cube_hi[0];
+    const int clip = col_lo > 0 || col_hi < N0 - 1;
+    for (int64_t j = c->cube_lo[1]; j <= c->cube_hi[1]; j++) {
         if (c->tetra) { /* rare method: full rows, before the skip below */
             if (number)
                 id = scan_diagonals(c, s, t, j, m, mx, id, write);
@@ -153,7 +155,7 @@ static ALWAYS_INLINE uint64_t scan_slice_as(worker *w, int64_t m, const int numb
         int nx = row_spans(&ra[j], N0, xs);
         int ny = j + 1 < N1 ? pair_spans(&ra[j], &ra[j + 1], N0, ys) : 0;
         int nz = t ? pair_spans(&ra[j], &rn[j], N0, zs) : 0;
-        if (c->scan_clip) { /* a box piece: its columns only */
+        if (clip) {
             nx = clip_spans(xs, nx, col_lo, col_hi);
             ny = clip_spans(ys, ny, col_lo, col_hi);
             nz = clip_spans(zs, nz, col_lo, col_hi);

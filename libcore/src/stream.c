@@ -254,33 +254,6 @@ static isomend_status deliver_vertices(isomend_stream *s, uint64_t n)
     return status;
 }
 
-/* Layer k's n staged triangles, their ids made 64-bit from `base` (the
- * first id of slice k: every id of the layer is in [base, base + 2^32));
- * ids from `foreign` on (a piece's last layer) are the next piece's. */
-static isomend_status deliver_triangles(isomend_stream *s, uint64_t n, uint64_t base,
-                                        uint64_t foreign)
-{
-    const ctx *c = &s->c;
-    const uint32_t low = (uint32_t)base;
-    for (uint64_t done = 0; done < n;) {
-        const uint64_t b = n - done < TRIANGLE_BATCH ? n - done : TRIANGLE_BATCH;
-        const uint32_t *t = c->tri + 3 * done;
-        for (uint64_t q = 0; q < 3 * b; q++) {
-            const uint64_t id = base + (uint32_t)(t[q] - low);
-            s->ids[q] = id < foreign ? id : ISOMEND_FOREIGN | s->fmap[id - foreign];
-        }
-        const int rc = s->sink.triangles(s->sink.user, (size_t)b, s->ids,
-                                         c->org ? c->org + done : NULL);
-        if (rc)
-            return sink_status(s, rc);
-        done += b;
-    }
-    if (c->org) /* the next layer's table triangles are zero bytes again */
-        memset(c->org, 0, (size_t)n);
-    s->triangles += n;
-    return ISOMEND_OK;
-}
-
 /* The key of the vertex on grid edge (or face diagonal) `kind` at (i, j, m). */
 static uint64_t edge_key(const grid *g, int64_t i, int64_t j, int64_t m, int kind)
 {
@@ -342,10 +315,10 @@ static isomend_status slice_keys(isomend_stream *s, int64_t m, uint64_t first, u
     const uint32_t *map = w->edge_ids[m % 2];
     uint64_t *keys = s->keys + (first - s->next_id);
     const uint32_t low = (uint32_t)first;
-    for (int64_t j = c->scan_lo[1]; j <= c->scan_hi[1]; j++) { /* what scan_slice numbered */
+    for (int64_t j = c->cube_lo[1]; j <= c->cube_hi[1]; j++) { /* what scan_slice numbered */
         const uint8_t *a = sg + j * N0, *b = j + 1 < N1 ? a + N0 : NULL;
         const uint8_t *d = t ? t + j * N0 : NULL, *e = t && b ? d + N0 : NULL;
-        for (int64_t i = c->scan_lo[0]; i <= c->scan_hi[0]; i++) {
+        for (int64_t i = c->cube_lo[0]; i <= c->cube_hi[0]; i++) {
             const int64_t at = j * N0 + i;
             int cut[6] = {i + 1 < N0 && a[i] != a[i + 1], b && a[i] != b[i], d && a[i] != d[i],
                           0, 0, 0};
@@ -466,46 +439,59 @@ static isomend_status box_vertices(isomend_stream *s, int64_t m, uint64_t np, ui
     return status;
 }
 
-/* A box's layer m - 1: its n staged triangles (ids from `base`, the first
- * staged id of slice m - 1) in local ids and foreign indices, the foreign
- * vertices each batch uses first delivered before it. */
-static isomend_status box_triangles(isomend_stream *s, uint64_t n, uint64_t base, int64_t m)
+/* A box's id of staged vertex `id` (of slice m - 1, layer m - 1 or slice m:
+ * the two steps' rings): local, or foreign, a candidate becoming the next
+ * foreign vertex (queued in bkeys, bpos from *queued on) at its first use. */
+static int box_id(isomend_stream *s, uint64_t id, int64_t m, uint64_t *out, size_t *queued)
+{
+    const int now = (int)(m % 2), p = id >= s->remap_first[now] ? now : 1 - now;
+    const uint64_t r = id - s->remap_first[p];
+    if (id < s->remap_first[p] || r >= s->remap_count[p] || s->remap[p][r] == DROPPED)
+        return 0; /* not reached */
+    uint64_t *v = &s->remap[p][r];
+    if ((*v & (CANDIDATE | ISOMEND_FOREIGN)) == CANDIDATE) {
+        const uint64_t cand = *v & ~CANDIDATE;
+        s->bkeys[*queued] = s->ckeys[p][cand];
+        memcpy(s->bpos + 3 * *queued, s->cpos[p] + 3 * cand, 3 * sizeof(float));
+        *v = ISOMEND_FOREIGN | s->nforeign++;
+        ++*queued;
+    }
+    *out = *v;
+    return 1;
+}
+
+/* Layer m - 1's n staged triangles, their ids made 64-bit from `base` (the
+ * first id of slice m - 1: every id of the layer is in [base, base + 2^32));
+ * for a slab, ids from `foreign` on (its last layer) are the next piece's;
+ * for a box, ids go through box_id(), each batch's new foreign vertices
+ * delivered before it. */
+static isomend_status deliver_triangles(isomend_stream *s, uint64_t n, uint64_t base,
+                                        uint64_t foreign, int64_t m)
 {
     const ctx *c = &s->c;
     const uint32_t low = (uint32_t)base;
-    const int now = (int)(m % 2), before = 1 - now;
     for (uint64_t done = 0; done < n;) {
         const uint64_t b = n - done < TRIANGLE_BATCH ? n - done : TRIANGLE_BATCH;
         const uint32_t *t = c->tri + 3 * done;
         const uint64_t nf = s->nforeign;
+        size_t queued = 0;
         for (uint64_t q = 0; q < 3 * b; q++) {
             const uint64_t id = base + (uint32_t)(t[q] - low);
-            const int p = id >= s->remap_first[now] ? now : before;
-            const uint64_t r = id - s->remap_first[p];
-            if (id < s->remap_first[p] || r >= s->remap_count[p] || s->remap[p][r] == DROPPED)
-                return s->failed = ISOMEND_ERR_INVALID_ARGUMENT; /* not reached */
-            uint64_t *v = &s->remap[p][r];
-            if ((*v & (CANDIDATE | ISOMEND_FOREIGN)) == CANDIDATE) {
-                const uint64_t cand = *v & ~CANDIDATE, f = s->nforeign++;
-                s->bkeys[f - nf] = s->ckeys[p][cand];
-                memcpy(s->bpos + 3 * (f - nf), s->cpos[p] + 3 * cand, 3 * sizeof(float));
-                *v = ISOMEND_FOREIGN | f;
+            if (s->box) {
+                if (!box_id(s, id, m, &s->ids[q], &queued))
+                    return s->failed = ISOMEND_ERR_INVALID_ARGUMENT;
+            } else {
+                s->ids[q] = id < foreign ? id : ISOMEND_FOREIGN | s->fmap[id - foreign];
             }
-            s->ids[q] = *v;
         }
-        if (s->nforeign > nf) {
-            const int rc = s->sink.foreign(s->sink.user, (size_t)nf, (size_t)(s->nforeign - nf),
-                                           s->bkeys, s->bpos);
-            if (rc)
-                return sink_status(s, rc);
-        }
-        const int rc = s->sink.triangles(s->sink.user, (size_t)b, s->ids,
-                                         c->org ? c->org + done : NULL);
+        int rc = queued ? s->sink.foreign(s->sink.user, (size_t)nf, queued, s->bkeys, s->bpos) : 0;
+        if (!rc)
+            rc = s->sink.triangles(s->sink.user, (size_t)b, s->ids, c->org ? c->org + done : NULL);
         if (rc)
             return sink_status(s, rc);
         done += b;
     }
-    if (c->org)
+    if (c->org) /* the next layer's table triangles are zero bytes again */
         memset(c->org, 0, (size_t)n);
     s->triangles += n;
     return ISOMEND_OK;
@@ -555,10 +541,7 @@ static isomend_status step(isomend_stream *s, int64_t m)
         return status;
     if (!c->general)
         nt = kr->march_layer(w, k, PASS_SWEEP, 0);
-    if (s->box)
-        status = box_triangles(s, nt, below, m);
-    else
-        status = deliver_triangles(s, nt, below, last ? first : UINT64_MAX);
+    status = deliver_triangles(s, nt, below, last ? first : UINT64_MAX, m);
     if (!s->box)
         floor = last ? s->next_id : first;
     if (status == ISOMEND_OK)
@@ -713,12 +696,8 @@ isomend_status isomend_piece_begin(const isomend_volume *desc, const isomend_opt
             own[a][0] = all ? 0 : range[a][0];
             own[a][1] = all ? g->N[a] : range[a][1];
             s->box |= !all;
-            c->cube_lo[a] = c->scan_lo[a] = own[a][0];
-            c->cube_hi[a] = c->scan_hi[a] = own[a][1] < g->N[a] - 1 ? own[a][1] : g->N[a] - 1;
-            if (c->cube_hi[a] < c->cube_lo[a])
-                c->cube_hi[a] = c->cube_lo[a];
-            /* the scan: the cubes' corners (the +x/+y frame included) */
-            c->scan_clip |= !all;
+            c->cube_lo[a] = own[a][0]; /* (the +x/+y frame is their corners') */
+            c->cube_hi[a] = own[a][1] < g->N[a] - 1 ? own[a][1] : g->N[a] - 1;
         }
         const int at_end = piece->owned_end == g->N[2] && s->bx[1] == g->N[0] &&
                            s->by[1] == g->N[1];

@@ -775,6 +775,28 @@ static void compare_boxes(const isomend_volume *vol, const isomend_options *o, c
     isomend_mesh_destroy(mesh);
 }
 
+/* For every method and flag set of pieces: vol at iso in lo .. lo + span - 1
+ * random slabs (compare_pieces) and in random boxes (compare_boxes). */
+static void compare_every_split(const isomend_volume *vol, double iso, int lo, int span,
+                                const char *name)
+{
+    for (int m = 0; m < ISOMEND_METHOD_COUNT; m++)
+        for (size_t fl = 0; fl < PIECE_FLAG_SETS; fl++) {
+            isomend_options o;
+            isomend_options_init(&o);
+            o.iso = iso;
+            o.method = (isomend_method)m;
+            o.flags = piece_flags[fl];
+            char what[240];
+            snprintf(what, sizeof what, "%s, %s, flags %u", name,
+                     isomend_method_name((isomend_method)m), o.flags);
+            compare_pieces(vol, &o, lo + (int)(rng() % (uint32_t)span), what);
+            int nb[3];
+            random_boxes(vol, o.flags, nb);
+            compare_boxes(vol, &o, nb, what);
+        }
+}
+
 static void test_pieces(void)
 {
     for (int shape = 0; shape < SHAPES; shape++)
@@ -788,23 +810,10 @@ static void test_pieces(void)
             void *data = make_volume(shape, type, n, &vol, &iso);
             vol.spacing[1] = 0.75;
             vol.origin[2] = 2.0;
-            for (int m = 0; m < ISOMEND_METHOD_COUNT; m++)
-                for (size_t fl = 0; fl < PIECE_FLAG_SETS; fl++) {
-                    isomend_options o;
-                    isomend_options_init(&o);
-                    o.iso = iso;
-                    o.method = (isomend_method)m;
-                    o.flags = piece_flags[fl];
-                    char what[160];
-                    snprintf(what, sizeof what, "%s %s %lldx%lldx%lld %s flags %u",
-                             shape_names[shape], isomend_type_name(type), (long long)n[0],
-                             (long long)n[1], (long long)n[2],
-                             isomend_method_name((isomend_method)m), o.flags);
-                    compare_pieces(&vol, &o, 1 + (int)(rng() % 5), what);
-                    int nb[3];
-                    random_boxes(&vol, o.flags, nb);
-                    compare_boxes(&vol, &o, nb, what);
-                }
+            char what[120];
+            snprintf(what, sizeof what, "%s %s %lldx%lldx%lld", shape_names[shape],
+                     isomend_type_name(type), (long long)n[0], (long long)n[1], (long long)n[2]);
+            compare_every_split(&vol, iso, 1, 5, what);
             free(data);
         }
 }
@@ -1141,23 +1150,12 @@ static void test_real_volume(const char *path)
             vol.spacing[a] = info.spacing[a];
             vol.origin[a] = info.origin[a];
         }
-        for (size_t l = 0; l < sizeof levels / sizeof levels[0]; l++)
-            for (int m = 0; m < ISOMEND_METHOD_COUNT; m++)
-                for (size_t fl = 0; fl < PIECE_FLAG_SETS; fl++) {
-                    isomend_options o;
-                    isomend_options_init(&o);
-                    o.iso = levels[l];
-                    o.method = (isomend_method)m;
-                    o.flags = piece_flags[fl];
-                    char what[200];
-                    snprintf(what, sizeof what, "%s as %s, iso %g, %s, flags %u", path,
-                             as_f32 ? "f32" : "i16", o.iso,
-                             isomend_method_name((isomend_method)m), o.flags);
-                    compare_pieces(&vol, &o, 2 + (int)(rng() % 4), what);
-                    int nb[3];
-                    random_boxes(&vol, o.flags, nb);
-                    compare_boxes(&vol, &o, nb, what);
-                }
+        for (size_t l = 0; l < sizeof levels / sizeof levels[0]; l++) {
+            char what[160];
+            snprintf(what, sizeof what, "%s as %s, iso %g", path, as_f32 ? "f32" : "i16",
+                     levels[l]);
+            compare_every_split(&vol, levels[l], 2, 4, what);
+        }
     }
     free(f32);
     free(data);
