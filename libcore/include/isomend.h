@@ -157,9 +157,41 @@ typedef struct isomend_volume {
     int64_t strides[3];
     double spacing[3]; /* world distance between samples, > 0 */
     double origin[3];  /* world position of sample (0, 0, 0)  */
+    /* NULL (a uniform grid), or 3 * dims[2] doubles: the world position of
+     * sample (0, 0, k) of each slice k, see "Slices where they are" below */
+    const double *slice_origins;
 } isomend_volume;
 
-/* Fills a contiguous x-fastest volume description with spacing 1, origin 0. */
+/*
+ * Slices where they are (rectilinear and sheared grids, thesis chapter 2.1).
+ * With slice_origins NULL, sample (i, j, k) lies at origin + (i, j, k) *
+ * spacing.  Otherwise slice k is the plane z = slice_origins[3k + 2], and its
+ * sample (i, j) lies at
+ *     (slice_origins[3k] + i * spacing[0], slice_origins[3k + 1] + j * spacing[1],
+ *      slice_origins[3k + 2]):
+ * the slices' gaps may differ (uneven spacing, a missing slice), and each
+ * slice may be shifted in x and y (positions rounded by a scanner, the shear
+ * of a gantry tilt).  The z values must increase strictly with k
+ * (ISOMEND_ERR_BAD_SPACING otherwise, or for a value that is not finite);
+ * origin and spacing[2] are then not used.  Such a grid is marched exactly
+ * as a uniform one: the same triangles, the same vertices in the same order,
+ * only placed differently.  A vertex between samples at world positions p0
+ * and p1 lies at  (1 - t) p0 + t p1  (t as below, computed in double and
+ * rounded once), so it stays between its two samples' true positions.
+ * Normals are the gradients by central differences over each sample's true
+ * neighbours: along x and y as usual, and along the slices the difference
+ * f(k+1) - f(k-1) over the vector between those two samples' positions
+ * (one-sided at the border, NaN and padding), the gradient being the vector
+ * that gives those three directional differences.  With ISOMEND_FLAG_PAD
+ * the padding slices lie one gap beyond the first and the last.  The
+ * continuity check of such a mesh (isomend_mesh_check) finds the border in
+ * the grid's own, sheared, faces.  Vertices take the general path of the
+ * kernels (docs/core-internals.md has the cost); a table that is exactly
+ * uniform is better given as origin and spacing.
+ */
+
+/* Fills a contiguous x-fastest volume description with spacing 1, origin 0
+ * and no slice origins. */
 ISOMEND_API void isomend_volume_init(isomend_volume *vol, const void *data, isomend_type type,
                                      int64_t nx, int64_t ny, int64_t nz);
 

@@ -188,6 +188,17 @@ typedef struct isomend_io_options {
     /* may be NULL */
     isomend_io_progress_fn progress;
     void *progress_user;
+    /* slice positions: the z of each slice (slice_position_count = the
+     * number of slices, strictly increasing, finite), for a stack or a
+     * raw/NRRD volume whose slices are not evenly spaced (microscopy with
+     * variable steps, re-sliced data): slice k is meshed at z =
+     * slice_positions[k] (the z spacing and origin are then not used).
+     * Positions evenly spaced within 1e-6 of their mean gap are taken as
+     * that spacing and origin (a uniform grid).  NULL / 0: evenly spaced.
+     * Refused for a DICOM series, whose positions are its own.  Copied by
+     * isomend_io_open(). */
+    const double *slice_positions;
+    size_t slice_position_count;
 } isomend_io_options;
 
 /* Fills the defaults described above. */
@@ -276,6 +287,40 @@ ISOMEND_IO_API const char *isomend_io_format(const isomend_io_source *src);
  * NULL if k is out of range.  Owned by the handle. */
 ISOMEND_IO_API const char *isomend_io_slice_path(const isomend_io_source *src, int64_t k);
 
+/*
+ * The slices' geometry.  Every source has one; a DICOM series' comes from
+ * its Image Position (Patient) values, others' from options.slice_positions
+ * (or the spacing).  A series whose slices are not evenly spaced on one line
+ * along the slice normal (uniform 0) is meshed at its slices' true
+ * positions: isomend_io_slice_origins() is not NULL, and isomend_io_load()
+ * sets isomend_volume.slice_origins to it.
+ */
+typedef struct isomend_io_geometry {
+    size_t size;            /* set by the caller: sizeof(isomend_io_geometry)  */
+    int uniform;            /* evenly spaced on one line (no slice origins)     */
+    double gap_median;      /* gaps between neighbouring slices along z (the    */
+    double gap_min;         /* slice normal), in the volume's units (mm for     */
+    double gap_max;         /* DICOM)                                           */
+    double tilt_degrees;    /* angle between z and the line from the first      */
+                            /* slice's origin to the last's (gantry tilt)        */
+    double max_offset;      /* largest distance of a slice's origin from where  */
+                            /* an evenly spaced grid would put it               */
+    int64_t long_gaps;      /* gaps over 1.5x the median (missing slices?)      */
+    int64_t uneven_gaps;    /* gaps that differ from the median by more than 1% */
+    const char *warning;    /* "" or one line for the user (uneven gaps, a long */
+                            /* gap), without the source's name; owned by the    */
+                            /* handle                                           */
+} isomend_io_geometry;
+
+/* Fills `out` (its first out->size bytes at most) after a successful open. */
+ISOMEND_IO_API isomend_io_status isomend_io_geometry_info(const isomend_io_source *src,
+                                                          isomend_io_geometry *out);
+
+/* The slices' origins in the frame of the volume isomend_io_load()
+ * describes (isomend_volume.slice_origins: 3 doubles a slice), or NULL for a
+ * uniform grid or before open.  Owned by the handle. */
+ISOMEND_IO_API const double *isomend_io_slice_origins(const isomend_io_source *src);
+
 /* ---- reading ---- */
 
 /*
@@ -301,7 +346,8 @@ ISOMEND_IO_API isomend_io_status isomend_io_read_slice(isomend_io_source *src, i
  * that isomend_io_volume_bytes() fits options.memory_limit / the available
  * memory: ISOMEND_IO_ERR_TOO_LARGE with the size in the message otherwise)
  * and describes it in `vol` (data, type, dims, contiguous strides, spacing,
- * origin).  Loading twice reuses the buffer.  `vol->data` stays valid until
+ * origin, and slice_origins: isomend_io_slice_origins()).  Loading twice
+ * reuses the buffer.  `vol->data` stays valid until
  * the handle is destroyed.  `seconds` (may be NULL) receives the read time.
  */
 ISOMEND_IO_API isomend_io_status isomend_io_load(isomend_io_source *src, isomend_volume *vol,
