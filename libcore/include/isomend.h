@@ -425,8 +425,8 @@ typedef struct isomend_mesh_sink {
 typedef struct isomend_stream isomend_stream;
 
 /*
- * Begins a stream of the volume `desc` (its type, dims, spacing and origin;
- * data and strides are ignored) with `opts` (NULL: the defaults; threads,
+ * Begins a stream of the volume `desc` (its type, dims, spacing, origin and
+ * slice origins, which the stream copies; data and strides are ignored) with `opts` (NULL: the defaults; threads,
  * progress and ISOMEND_FLAG_SMALL_PAGES are ignored: the stream runs on the
  * calling thread, and the caller checks for cancellation between pushes).
  * The sink is copied; vertices, triangles and retire must not be NULL.

@@ -123,6 +123,7 @@ void isomend_mesh_destroy(isomend_mesh *mesh)
     release_output(mesh->nrm, mesh->mapped[1]);
     release_output(mesh->tri, mesh->mapped[2]);
     release_output(mesh->org, mesh->mapped[3]);
+    free(mesh->slice_store);
     free(mesh);
 }
 
@@ -165,5 +166,7 @@ isomend_status isomend_mesh_check(const isomend_mesh *mesh, isomend_check_report
 {
     if (!mesh)
         return ISOMEND_ERR_INVALID_ARGUMENT;
+    if (mesh->slices.so)
+        return sheared_check(mesh, report);
     return isomend_check(mesh->pos, mesh->nv, mesh->tri, mesh->nt, mesh->box, report);
 }

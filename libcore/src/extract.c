@@ -94,6 +94,10 @@ static void grid_init(grid *g, const isomend_volume *vol, const isomend_options 
         g->inner_hi[a] = g->pad + vol->dims[a] - 2;
         g->o[a] = vol->origin[a] - (double)g->pad * vol->spacing[a];
     }
+    g->slices.so = vol->slice_origins;
+    g->slices.n = vol->dims[2];
+    g->slices.pad = g->pad;
+    g->slices.gap = vol->spacing[2];
     if (vol->strides[0] == 0 && vol->strides[1] == 0 && vol->strides[2] == 0) {
         g->st[0] = (int64_t)size;
         g->st[1] = g->st[0] * g->n[0];
@@ -130,7 +134,7 @@ static isomend_status validate(const isomend_volume *vol, const isomend_options 
     }
     if (!isfinite(o->iso))
         return ISOMEND_ERR_BAD_ISO;
-    return ISOMEND_OK;
+    return slice_origins_validate(vol);
 }
 
 /* The context of an extraction of `vol` with options `o`: the checks, the
@@ -301,6 +305,11 @@ static isomend_status extract(const isomend_volume *vol, const isomend_options *
         mesh->box[a] = g->o[a];
         mesh->box[3 + a] = g->o[a] + (double)(g->N[a] - 1) * g->h[a];
     }
+    if (g->slices.so)
+        sheared_box(g, mesh->box);
+    status = mesh_keep_slices(mesh, g);
+    if (status != ISOMEND_OK)
+        goto done;
     if (c->progress)
         (void)c->progress(c->progress_user, 1.0);
     if (stats)

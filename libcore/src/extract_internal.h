@@ -39,6 +39,17 @@
 #include <stdint.h>
 #include <string.h>
 
+/* ------------------------------------------------------- slice origins */
+
+/* The slices' own origins (isomend_volume.slice_origins, slice_geometry.c):
+ * so NULL for a uniform grid. */
+typedef struct slice_table {
+    const double *so; /* 3 doubles a volume slice, or NULL                 */
+    int64_t n;        /* the volume's slices                               */
+    int64_t pad;      /* 0 or 1: marched slice m is volume slice m - pad  */
+    double gap;       /* the padding's gap when the volume has one slice   */
+} slice_table;
+
 /* ------------------------------------------------------------- the mesh */
 
 struct isomend_mesh {
@@ -49,6 +60,10 @@ struct isomend_mesh {
     uint8_t *org;
     double box[6];
     size_t mapped[4]; /* bytes mapped for pos, nrm, tri, org; 0: malloc'ed */
+    slice_table slices; /* the grid's, for the check; so: slice_store  */
+    double *slice_store;
+    double h[2];        /* in-plane spacing and marched grid, likewise     */
+    int64_t N[3];
 };
 
 /* ------------------------------------------------------------ the grid */
@@ -70,6 +85,8 @@ typedef struct grid {
     double inv2h[3]; /* 1 / (2 spacing), for central differences    */
     int64_t inner_lo[3], inner_hi[3]; /* marched samples with all 6 neighbours in the volume */
     double o[3];   /* world position of marched sample (0, 0, 0)   */
+    slice_table slices; /* slices where they are (so NULL: uniform); the
+                         * kernels then send every vertex to make_vertex */
     int constant;  /* integer types: -1 none, 0 all out, 1 all in */
     int64_t ithr;  /* integer types: inside iff v >= ithr           */
     float fthr;    /* f32: the smallest float >= iso               */
@@ -280,6 +297,18 @@ void make_vertex(const grid *g, int flip, int64_t i, int64_t j, int64_t k, int a
                  float *nrm);
 void make_vertex_between(const grid *g, int flip, const int64_t p0[3], const int64_t p1[3],
                          float *pos, float *nrm);
+
+/* slice_geometry.c: slices where they are.  The table's checks; marched
+ * slice m's origin (padding one gap beyond the ends); the vertex between
+ * marched samples p0 and p1 and its normal from the true positions; the
+ * grid's world box; the mesh's copy of the table and its check. */
+isomend_status slice_origins_validate(const isomend_volume *vol);
+void slice_origin(const slice_table *t, int64_t m, double o[3]);
+void sheared_vertex(const grid *g, int flip, const int64_t p0[3], const int64_t p1[3], float *pos,
+                    float *nrm);
+void sheared_box(const grid *g, double box[6]);
+isomend_status mesh_keep_slices(isomend_mesh *mesh, const grid *g);
+isomend_status sheared_check(const isomend_mesh *mesh, isomend_check_report *report);
 
 /* march_general.c */
 unsigned method_cube(worker *w, int64_t i, int64_t j, int64_t k, unsigned cfg, pass_kind pass,

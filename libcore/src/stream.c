@@ -62,6 +62,7 @@ struct isomend_stream {
     int finished;
     size_t plane_bytes;    /* a volume slice's samples */
     char *window;
+    double *slice_origins; /* the stream's copy of the volume's, or NULL */
     int64_t pushed;        /* volume slices pushed */
     int64_t next_scan;     /* the next slice (marched grid) to scan */
     /* A piece (isomend_piece_begin): marched slices and layers [own_first,
@@ -155,6 +156,13 @@ static isomend_status stream_init(isomend_stream *s, const isomend_volume *desc,
     if (status != ISOMEND_OK)
         return status;
     s->sink = *sink;
+    if (c->g.slices.so) { /* the caller's table need not outlive the call */
+        const size_t size = 3 * sizeof(double) * (size_t)c->g.slices.n;
+        if (!(s->slice_origins = malloc(size)))
+            return ISOMEND_ERR_OUT_OF_MEMORY;
+        memcpy(s->slice_origins, c->g.slices.so, size);
+        c->g.slices.so = s->slice_origins;
+    }
     const grid *g = &c->g;
     if ((uint64_t)g->N[0] * (uint64_t)g->N[1] > (uint64_t)SIZE_MAX / 64)
         return ISOMEND_ERR_OUT_OF_MEMORY;
@@ -209,6 +217,7 @@ void isomend_stream_destroy(isomend_stream *s)
     if (!s)
         return;
     free(s->window);
+    free(s->slice_origins);
     free(s->ids);
     free(s->keys);
     free(s->fmap);

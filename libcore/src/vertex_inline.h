@@ -58,7 +58,8 @@ static ALWAYS_INLINE void vertex_setup_init(vertex_setup *s, const ctx *c, int64
     s->sa = g->st[axis];
     s->pad = g->pad;
     s->m = m;
-    s->slice_inner = m >= g->inner_lo[2] && m + (axis == 2) <= g->inner_hi[2];
+    /* slices where they are: every vertex takes make_vertex */
+    s->slice_inner = !g->slices.so && m >= g->inner_lo[2] && m + (axis == 2) <= g->inner_hi[2];
     s->x_lo = g->inner_lo[0];
     s->x_hi = g->inner_hi[0] - (axis == 0);
     s->y_lo = g->inner_lo[1];

@@ -93,6 +93,10 @@ void make_vertex(const grid *g, int flip, int64_t i, int64_t j, int64_t k, int a
 {
     int64_t p0[3] = {i, j, k}, p1[3] = {i, j, k};
     p1[a]++;
+    if (g->slices.so) {
+        sheared_vertex(g, flip, p0, p1, pos, nrm);
+        return;
+    }
     double f[2] = {0.0, 0.0}, gr[2][3];
     int have_gradients = 0;
     if (nrm && fast_gradients(g, i, j, k, a, f, gr)) {
@@ -146,6 +150,10 @@ void make_vertex(const grid *g, int flip, int64_t i, int64_t j, int64_t k, int a
 void make_vertex_between(const grid *g, int flip, const int64_t p0[3], const int64_t p1[3],
                          float *pos, float *nrm)
 {
+    if (g->slices.so) {
+        sheared_vertex(g, flip, p0, p1, pos, nrm);
+        return;
+    }
     const double f0 = fetch(g, p0[0], p0[1], p0[2]), f1 = fetch(g, p1[0], p1[1], p1[2]);
     const int valid = !isnan(f0) && !isnan(f1);
     const double t = valid ? (g->iso - f0) / (f1 - f0) : 0.5;
