@@ -606,6 +606,101 @@ ISOMEND_API uint64_t isomend_check_memory(size_t vertex_count, size_t triangle_c
 ISOMEND_API isomend_status isomend_mesh_check(const isomend_mesh *mesh,
                                               isomend_check_report *report);
 
+/* --------------------------------------------------------- post-processing */
+
+/*
+ * Steps on an extracted mesh that keep its promise: a closed, oriented
+ * 2-manifold stays one, with the same components (but those clean-up drops
+ * on purpose), orientation and Euler characteristic; vertices on once-used
+ * edges (the volume's border of an unpadded surface, the holes of MC), on
+ * edges used more than twice or twice the same way, and where a vertex's
+ * triangles form several fans are locked: never moved, never removed.  Each
+ * step makes a new mesh (the input is unchanged; destroy both) on one
+ * thread: the result does not depend on isomend_options.threads.  The new
+ * mesh keeps the input's grid box and frame (isomend_mesh_check works as on
+ * the input) and has no triangle origins; its normals, if the input had
+ * any, are the triangles' area-weighted normals (decimation, smoothing) or
+ * the input's (clean-up).
+ */
+
+/* Decimation targets: the larger triangle count of ratio * triangles and
+ * target_triangles is kept; max_error (world units, 0: none) bounds every
+ * collapse's error.  At least one of the three must be set. */
+typedef struct isomend_decimate_options {
+    double ratio;              /* fraction of the triangles to keep, [0, 1]; 0: unused */
+    uint64_t target_triangles; /* triangles to keep; 0: unused                      */
+    double max_error;          /* >= 0, world units; 0: no limit                    */
+} isomend_decimate_options;
+
+/* All zero: no target (set at least one). */
+ISOMEND_API void isomend_decimate_options_init(isomend_decimate_options *opts);
+
+typedef struct isomend_decimate_report {
+    uint64_t triangles_before, triangles_after;
+    uint64_t vertices_before, vertices_after;
+    uint64_t target_triangles; /* what the options asked (0: none, max_error only) */
+    int reached;               /* 1: the target was reached; 0: stopped short,    */
+                               /* every further collapse would break the surface */
+                               /* or exceed max_error                            */
+    double max_error;          /* the largest collapse error made: no vertex of   */
+                               /* the result lies farther than this from a plane */
+                               /* of the input triangles it replaces             */
+    uint64_t collapses;
+    uint64_t locked_vertices;  /* border and non-manifold: kept as they are      */
+    uint64_t refused_topology; /* collapses refused by the link condition        */
+    uint64_t refused_geometry; /* ... by a flipped or degenerate triangle        */
+} isomend_decimate_report;
+
+/*
+ * Quadric-error edge collapse (Garland & Heckbert 1997) that refuses every
+ * collapse breaking the surface: the link condition, flipped or degenerate
+ * triangles, locked vertices (above), and with max_error the collapses
+ * costlier than it.  A collapsed edge's vertex goes where it minimises the
+ * sum of squared distances to the planes of the input triangles it stands
+ * for.  When the target cannot be reached the mesh is decimated as far as
+ * it can and report->reached is 0.  ISOMEND_ERR_INVALID_ARGUMENT for no
+ * target or a ratio outside [0, 1].  report may be NULL.
+ */
+ISOMEND_API isomend_status isomend_mesh_decimate(const isomend_mesh *mesh,
+                                                 const isomend_decimate_options *opts,
+                                                 isomend_mesh **out,
+                                                 isomend_decimate_report *report);
+
+typedef struct isomend_smooth_report {
+    uint64_t moved_vertices;  /* vertices free to move (not locked)              */
+    double volume_before;     /* enclosed volume (closed surfaces; signed, as   */
+    double volume_after;      /* the normals point outwards from lower values)  */
+    double max_displacement;  /* the largest distance a vertex moved             */
+} isomend_smooth_report;
+
+/*
+ * Taubin's lambda|mu smoothing (1995), lambda 0.5 and mu -0.53 (pass band
+ * 0.1), `iterations` pairs of steps with the umbrella operator: it removes
+ * the voxel staircase without the shrinking of plain Laplacian smoothing;
+ * then each component's volume is restored by moving its free vertices
+ * along their normals by one offset (the volume change over its area), so
+ * the enclosed volume is kept.  Only vertices move, locked ones never: the
+ * triangles are the input's.  iterations 0 copies the mesh.
+ * ISOMEND_ERR_INVALID_ARGUMENT for iterations < 0 or > 10000.
+ */
+ISOMEND_API isomend_status isomend_mesh_smooth(const isomend_mesh *mesh, int iterations,
+                                               isomend_mesh **out, isomend_smooth_report *report);
+
+typedef struct isomend_clean_report {
+    uint64_t components_before, components_after; /* through shared vertices */
+    uint64_t triangles_removed, vertices_removed;
+} isomend_clean_report;
+
+/*
+ * Drops the connected components (triangles joined through shared vertices)
+ * of fewer than min_triangles triangles, then keeps the keep_largest largest
+ * of the rest (0: all; ties: the one whose first triangle comes first).
+ * Vertices and triangles keep their order, normals and origins.
+ */
+ISOMEND_API isomend_status isomend_mesh_clean(const isomend_mesh *mesh, uint64_t min_triangles,
+                                              uint64_t keep_largest, isomend_mesh **out,
+                                              isomend_clean_report *report);
+
 /* ------------------------------------------------------------ case tables */
 
 /*

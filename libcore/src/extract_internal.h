@@ -310,6 +310,18 @@ void sheared_box(const grid *g, double box[6]);
 isomend_status mesh_keep_slices(isomend_mesh *mesh, const grid *g);
 isomend_status sheared_check(const isomend_mesh *mesh, isomend_check_report *report);
 
+/* mesh_build.c: a post-processed mesh's frame (box, slice table) copied from
+ * the mesh it comes from; vertex normals from the triangles. */
+isomend_status mesh_copy_frame(isomend_mesh *dst, const isomend_mesh *src);
+void mesh_area_normals(isomend_mesh *m, const float *keep);
+int mesh_free_vertices(const isomend_mesh *m, uint8_t *free_flag, uint32_t **first,
+                       uint32_t **corners);
+
+/* components.c: each vertex's component (triangles joined through shared
+ * vertices), numbered in vertex order; returns their count (isolated
+ * vertices count as components of their own). */
+int64_t mesh_components(const isomend_mesh *m, uint32_t *label);
+
 /* march_general.c */
 unsigned method_cube(worker *w, int64_t i, int64_t j, int64_t k, unsigned cfg, pass_kind pass,
                      const uint32_t *const ep[12], const uint32_t *ids0, const uint32_t *ids1,

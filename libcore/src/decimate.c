@@ -1,0 +1,542 @@
+/*
+ * decimate.c - quadric-error edge collapse (Garland & Heckbert 1997) that
+ * never opens a hole: isomend_mesh_decimate().
+ *
+ * Every collapse of an edge (a, b) into one vertex at the point that
+ * minimises the sum of the two quadrics is refused unless it keeps the
+ * surface what it was:
+ *   - the link condition (Dey, Edelsbrunner, Guha & Nekhayev 1999): the
+ *     vertices adjacent to both a and b are exactly the two opposite the
+ *     edge, and no triangle joins those two with a and with b (a
+ *     tetrahedron).  On a closed 2-manifold such a collapse is a
+ *     homeomorphism: components, orientation and genus stay, and no
+ *     component collapses away (a tetrahedron is the smallest left);
+ *   - no triangle around a or b flips (its normal turns by 90 degrees or
+ *     more) or becomes degenerate (zero area);
+ *   - vertices on once-used edges (the volume's border of an unpadded
+ *     surface, or holes of the methods that leave them), on edges used more
+ *     than twice or twice the same way, on repeated-index triangles and
+ *     where the triangles around a vertex form several fans are locked:
+ *     never moved, never removed, so the border stays where it is;
+ *   - with a maximum error, the collapse's quadric error (the sum of squared
+ *     distances to the planes of the input triangles it stands for) is at
+ *     most its square.
+ * Collapses are taken cheapest first from one heap, ties broken by the
+ * vertices' numbers, on one thread: the result does not depend on the
+ * thread count.  A collapse changes the costs of the edges around its
+ * vertex, which are pushed again; entries of vertices changed since are
+ * recognised by stamps and dropped.  When the heap runs dry short of the
+ * target, every edge is pushed again once more (refusals may have been
+ * lifted by collapses around them); a round without a collapse ends it.
+ *
+ * Layout: a corner table (corner c = 3t + k of triangle t) with, per
+ * vertex, a singly linked list of its corners; a collapse moves b's corners
+ * into a's list, and the corners of dead triangles are unlinked as lists
+ * are walked.
+ */
+#include "extract_internal.h"
+
+#include <stdlib.h>
+
+#define NONE UINT32_MAX
+
+enum { V_LOCKED = 1, V_DEAD = 2 };
+
+typedef struct item {
+    double cost;
+    uint32_t a, b;   /* a < b */
+    uint32_t sa, sb; /* the vertices' stamps when pushed */
+} item;
+
+typedef struct dec {
+    size_t nv, nt, alive;
+    double *p;       /* 3 a vertex */
+    double *q;       /* 10 a vertex: the quadric's upper triangle */
+    uint32_t *tv;    /* 3 a triangle: the corners' vertices */
+    uint8_t *tdead;
+    uint32_t *head;  /* a vertex's first corner */
+    uint32_t *next;  /* the next corner of the same vertex */
+    uint8_t *vf;     /* V_LOCKED, V_DEAD */
+    uint32_t *stamp;
+    uint32_t *mark;  /* scratch marks, generation `gen` */
+    uint32_t gen;
+    item *heap;
+    size_t nheap, cap;
+    double max_cost;
+    isomend_decimate_report *rep;
+} dec;
+
+/* ---------------------------------------------------------------- the heap */
+
+static int item_less(const item *x, const item *y)
+{
+    if (x->cost != y->cost)
+        return x->cost < y->cost;
+    if (x->a != y->a)
+        return x->a < y->a;
+    return x->b < y->b;
+}
+
+static int heap_push(dec *d, item it)
+{
+    if (d->nheap == d->cap) {
+        size_t cap = d->cap ? 2 * d->cap : 1024;
+        item *h = realloc(d->heap, cap * sizeof(item));
+        if (!h)
+            return 0;
+        d->heap = h;
+        d->cap = cap;
+    }
+    size_t i = d->nheap++;
+    while (i > 0) {
+        size_t up = (i - 1) / 2;
+        if (!item_less(&it, &d->heap[up]))
+            break;
+        d->heap[i] = d->heap[up];
+        i = up;
+    }
+    d->heap[i] = it;
+    return 1;
+}
+
+static item heap_pop(dec *d)
+{
+    item top = d->heap[0], last = d->heap[--d->nheap];
+    size_t i = 0, n = d->nheap;
+    for (;;) {
+        size_t c = 2 * i + 1;
+        if (c >= n)
+            break;
+        if (c + 1 < n && item_less(&d->heap[c + 1], &d->heap[c]))
+            c++;
+        if (!item_less(&d->heap[c], &last))
+            break;
+        d->heap[i] = d->heap[c];
+        i = c;
+    }
+    if (n)
+        d->heap[i] = last;
+    return top;
+}
+
+/* ------------------------------------------------------------- quadrics */
+
+static void quadric_add_plane(double *q, const double n[3], double dd)
+{
+    q[0] += n[0] * n[0];
+    q[1] += n[0] * n[1];
+    q[2] += n[0] * n[2];
+    q[3] += n[0] * dd;
+    q[4] += n[1] * n[1];
+    q[5] += n[1] * n[2];
+    q[6] += n[1] * dd;
+    q[7] += n[2] * n[2];
+    q[8] += n[2] * dd;
+    q[9] += dd * dd;
+}
+
+static double quadric_eval(const double *q, const double v[3])
+{
+    const double x = v[0], y = v[1], z = v[2];
+    return q[0] * x * x + 2 * q[1] * x * y + 2 * q[2] * x * z + 2 * q[3] * x + q[4] * y * y +
+           2 * q[5] * y * z + 2 * q[6] * y + q[7] * z * z + 2 * q[8] * z + q[9];
+}
+
+/* The collapse of (a, b): the point minimising qa + qb (or the best of a, b
+ * and the midpoint where that is ill-posed or far off the edge); its cost. */
+static double collapse_point(const dec *d, uint32_t a, uint32_t b, double v[3])
+{
+    double q[10];
+    for (int i = 0; i < 10; i++)
+        q[i] = d->q[10 * a + i] + d->q[10 * b + i];
+    const double *pa = d->p + 3 * a, *pb = d->p + 3 * b;
+    double len2 = 0;
+    for (int c = 0; c < 3; c++)
+        len2 += (pb[c] - pa[c]) * (pb[c] - pa[c]);
+    /* A v = -r, A = [q0 q1 q2; q1 q4 q5; q2 q5 q7], r = (q3, q6, q8) */
+    const double A00 = q[0], A01 = q[1], A02 = q[2], A11 = q[4], A12 = q[5], A22 = q[7];
+    const double c00 = A11 * A22 - A12 * A12, c01 = A02 * A12 - A01 * A22,
+                 c02 = A01 * A12 - A02 * A11;
+    const double det = A00 * c00 + A01 * c01 + A02 * c02;
+    const double tr = A00 + A11 + A22;
+    if (fabs(det) > 1e-9 * tr * tr * tr && tr > 0) {
+        const double c11 = A00 * A22 - A02 * A02, c12 = A01 * A02 - A00 * A12,
+                     c22 = A00 * A11 - A01 * A01;
+        const double r0 = -q[3], r1 = -q[6], r2 = -q[8];
+        v[0] = (c00 * r0 + c01 * r1 + c02 * r2) / det;
+        v[1] = (c01 * r0 + c11 * r1 + c12 * r2) / det;
+        v[2] = (c02 * r0 + c12 * r1 + c22 * r2) / det;
+        double off = 0;
+        for (int c = 0; c < 3; c++) {
+            const double m = 0.5 * (pa[c] + pb[c]);
+            off += (v[c] - m) * (v[c] - m);
+        }
+        if (off <= len2 && isfinite(v[0] + v[1] + v[2])) {
+            const double e = quadric_eval(q, v);
+            return e > 0 ? e : 0;
+        }
+    }
+    double best = INFINITY;
+    for (int k = 0; k < 3; k++) {
+        double w[3];
+        for (int c = 0; c < 3; c++)
+            w[c] = k == 0 ? pa[c] : k == 1 ? pb[c] : 0.5 * (pa[c] + pb[c]);
+        const double e = quadric_eval(q, w);
+        if (e < best) {
+            best = e;
+            memcpy(v, w, sizeof w);
+        }
+    }
+    return best > 0 ? best : 0;
+}
+
+/* --------------------------------------------------------- adjacency */
+
+/* Unlinks the corners of dead triangles from v's list. */
+static void prune(dec *d, uint32_t v)
+{
+    uint32_t *link = &d->head[v];
+    while (*link != NONE) {
+        const uint32_t c = *link;
+        if (d->tdead[c / 3])
+            *link = d->next[c];
+        else
+            link = &d->next[c];
+    }
+}
+
+static inline uint32_t corner_next(const dec *d, uint32_t c) { return d->tv[c - c % 3 + (c % 3 + 1) % 3]; }
+static inline uint32_t corner_prev(const dec *d, uint32_t c) { return d->tv[c - c % 3 + (c % 3 + 2) % 3]; }
+
+/* --------------------------------------------------------- one collapse */
+
+static int push_edge(dec *d, uint32_t a, uint32_t b)
+{
+    if (a > b) {
+        const uint32_t t = a;
+        a = b;
+        b = t;
+    }
+    if ((d->vf[a] | d->vf[b]) & (V_LOCKED | V_DEAD))
+        return 1;
+    double v[3];
+    const double cost = collapse_point(d, a, b, v);
+    if (cost > d->max_cost)
+        return 1;
+    item it = {cost, a, b, d->stamp[a], d->stamp[b]};
+    return heap_push(d, it);
+}
+
+/* n = (p1 - p0) x (p2 - p0) of triangle t with vertex `moved` at v (if not NONE). */
+static void tri_normal(const dec *d, uint32_t t, uint32_t moved_a, uint32_t moved_b,
+                       const double *v, double n[3])
+{
+    const double *p[3];
+    for (int k = 0; k < 3; k++) {
+        const uint32_t x = d->tv[3 * t + (uint32_t)k];
+        p[k] = (x == moved_a || x == moved_b) && v ? v : d->p + 3 * x;
+    }
+    const double e1[3] = {p[1][0] - p[0][0], p[1][1] - p[0][1], p[1][2] - p[0][2]};
+    const double e2[3] = {p[2][0] - p[0][0], p[2][1] - p[0][1], p[2][2] - p[0][2]};
+    n[0] = e1[1] * e2[2] - e1[2] * e2[1];
+    n[1] = e1[2] * e2[0] - e1[0] * e2[2];
+    n[2] = e1[0] * e2[1] - e1[1] * e2[0];
+}
+
+/* Whether (a, b) may collapse to v (the checks at the top of this file). */
+static int collapse_allowed(dec *d, uint32_t a, uint32_t b, const double v[3])
+{
+    prune(d, a);
+    prune(d, b);
+    /* link condition: the neighbours common to a and b */
+    if (++d->gen == 0) {
+        memset(d->mark, 0, d->nv * sizeof(uint32_t));
+        d->gen = 1;
+    }
+    const uint32_t g = d->gen;
+    uint32_t opp[2], nopp = 0;
+    for (uint32_t c = d->head[a]; c != NONE; c = d->next[c]) {
+        const uint32_t w = corner_next(d, c), u = corner_prev(d, c);
+        d->mark[w] = d->mark[u] = g;
+        if (w == b)
+            opp[nopp < 2 ? nopp : 1] = u, nopp++;
+    }
+    if (nopp != 1)
+        goto topology;
+    for (uint32_t c = d->head[b]; c != NONE; c = d->next[c])
+        if (corner_next(d, c) == a)
+            opp[1] = corner_prev(d, c), nopp++;
+    if (nopp != 2 || opp[0] == opp[1])
+        goto topology;
+    int common = 0;
+    for (uint32_t c = d->head[b]; c != NONE; c = d->next[c]) {
+        const uint32_t w = corner_next(d, c); /* each neighbour once as `next` */
+        if (w != a && d->mark[w] == g)
+            common++;
+    }
+    if (common != 2)
+        goto topology;
+    /* no triangle (a, c, d) and (b, c, d) both: a tetrahedron */
+    int tet = 0;
+    for (int s = 0; s < 2; s++)
+        for (uint32_t c = d->head[s ? b : a]; c != NONE; c = d->next[c]) {
+            const uint32_t w = corner_next(d, c), u = corner_prev(d, c);
+            if ((w == opp[0] && u == opp[1]) || (w == opp[1] && u == opp[0])) {
+                tet++;
+                break;
+            }
+        }
+    if (tet == 2)
+        goto topology;
+    /* no flipped or degenerate triangle */
+    for (int s = 0; s < 2; s++)
+        for (uint32_t c = d->head[s ? b : a]; c != NONE; c = d->next[c]) {
+            const uint32_t t = c / 3;
+            const uint32_t w = corner_next(d, c), u = corner_prev(d, c);
+            if (w == (s ? a : b) || u == (s ? a : b))
+                continue; /* dies with the edge */
+            double n0[3], n1[3];
+            tri_normal(d, t, NONE, NONE, NULL, n0);
+            tri_normal(d, t, a, b, v, n1);
+            const double l1 = n1[0] * n1[0] + n1[1] * n1[1] + n1[2] * n1[2];
+            const double dot = n0[0] * n1[0] + n0[1] * n1[1] + n0[2] * n1[2];
+            const double l0 = n0[0] * n0[0] + n0[1] * n0[1] + n0[2] * n0[2];
+            if (!(l1 > 0) || (l0 > 0 && !(dot > 0))) {
+                d->rep->refused_geometry++;
+                return 0;
+            }
+        }
+    return 1;
+topology:
+    d->rep->refused_topology++;
+    return 0;
+}
+
+/* Collapses (a, b) into a at v; pushes the edges around a again. */
+static int collapse(dec *d, uint32_t a, uint32_t b, const double v[3])
+{
+    for (uint32_t c = d->head[b]; c != NONE;) {
+        const uint32_t t = c / 3, nextc = d->next[c];
+        if (!d->tdead[t]) {
+            if (corner_next(d, c) == a || corner_prev(d, c) == a) {
+                d->tdead[t] = 1;
+                d->alive--;
+            } else {
+                d->tv[c] = a;
+            }
+        }
+        /* into a's list */
+        d->next[c] = d->head[a];
+        d->head[a] = c;
+        c = nextc;
+    }
+    d->head[b] = NONE;
+    d->vf[b] |= V_DEAD;
+    for (int i = 0; i < 10; i++)
+        d->q[10 * a + i] += d->q[10 * b + i];
+    memcpy(d->p + 3 * a, v, 3 * sizeof(double));
+    d->stamp[a]++;
+    prune(d, a);
+    for (uint32_t c = d->head[a]; c != NONE; c = d->next[c])
+        if (!push_edge(d, a, corner_next(d, c)))
+            return 0;
+    return 1;
+}
+
+/* Pushes every edge of the live mesh (each once, from its a < b direction). */
+static int push_all(dec *d)
+{
+    for (size_t t = 0; t < d->nt; t++) {
+        if (d->tdead[t])
+            continue;
+        for (int k = 0; k < 3; k++) {
+            const uint32_t a = d->tv[3 * t + (size_t)k], b = d->tv[3 * t + (size_t)(k + 1) % 3];
+            if (a < b && !push_edge(d, a, b))
+                return 0;
+        }
+    }
+    return 1;
+}
+
+/* ---------------------------------------------------------- the output */
+
+static isomend_status build_output(const dec *d, const isomend_mesh *in, isomend_mesh **out)
+{
+    uint32_t *remap = malloc((d->nv ? d->nv : 1) * sizeof(uint32_t));
+    isomend_mesh *m = calloc(1, sizeof(*m));
+    if (!remap || !m) {
+        free(remap);
+        free(m);
+        return ISOMEND_ERR_OUT_OF_MEMORY;
+    }
+    for (size_t v = 0; v < d->nv; v++)
+        remap[v] = NONE;
+    size_t nv = 0, nt = 0;
+    for (size_t t = 0; t < d->nt; t++)
+        if (!d->tdead[t]) {
+            nt++;
+            for (int k = 0; k < 3; k++) {
+                const uint32_t x = d->tv[3 * t + (size_t)k];
+                if (remap[x] == NONE)
+                    remap[x] = 0; /* used; numbered below in the input's order */
+            }
+        }
+    for (size_t v = 0; v < d->nv; v++)
+        if (remap[v] != NONE)
+            remap[v] = (uint32_t)nv++;
+    m->nv = nv;
+    m->nt = nt;
+    m->pos = malloc(12 * (nv ? nv : 1));
+    m->tri = malloc(12 * (nt ? nt : 1));
+    m->nrm = in->nrm ? calloc(3 * (nv ? nv : 1), sizeof(float)) : NULL;
+    if (!m->pos || !m->tri || (in->nrm && !m->nrm)) {
+        free(remap);
+        isomend_mesh_destroy(m);
+        return ISOMEND_ERR_OUT_OF_MEMORY;
+    }
+    for (size_t v = 0; v < d->nv; v++)
+        if (remap[v] != NONE)
+            for (int c = 0; c < 3; c++)
+                m->pos[3 * (size_t)remap[v] + (size_t)c] = (float)d->p[3 * v + (size_t)c];
+    size_t o = 0;
+    for (size_t t = 0; t < d->nt; t++)
+        if (!d->tdead[t])
+            for (int k = 0; k < 3; k++)
+                m->tri[o++] = remap[d->tv[3 * t + (size_t)k]];
+    free(remap);
+    if (m->nrm)
+        mesh_area_normals(m, NULL);
+    if (mesh_copy_frame(m, in) != ISOMEND_OK) {
+        isomend_mesh_destroy(m);
+        return ISOMEND_ERR_OUT_OF_MEMORY;
+    }
+    *out = m;
+    return ISOMEND_OK;
+}
+
+/* --------------------------------------------------------------- the API */
+
+void isomend_decimate_options_init(isomend_decimate_options *o)
+{
+    if (o)
+        memset(o, 0, sizeof *o);
+}
+
+isomend_status isomend_mesh_decimate(const isomend_mesh *mesh, const isomend_decimate_options *o,
+                                     isomend_mesh **out, isomend_decimate_report *report)
+{
+    if (!out)
+        return ISOMEND_ERR_INVALID_ARGUMENT;
+    *out = NULL;
+    if (!mesh || !o || !(o->ratio >= 0.0 && o->ratio <= 1.0) || !(o->max_error >= 0.0) ||
+        !isfinite(o->max_error) || (o->ratio == 0.0 && o->target_triangles == 0 && o->max_error == 0.0))
+        return ISOMEND_ERR_INVALID_ARGUMENT;
+    isomend_decimate_report rep;
+    memset(&rep, 0, sizeof rep);
+    dec d;
+    memset(&d, 0, sizeof d);
+    d.rep = &rep;
+    d.nv = mesh->nv;
+    d.nt = mesh->nt;
+    d.alive = mesh->nt;
+    d.max_cost = o->max_error > 0 ? o->max_error * o->max_error : INFINITY;
+    if (d.nt > (size_t)UINT32_MAX / 3 || d.nv >= (size_t)UINT32_MAX)
+        return ISOMEND_ERR_TOO_LARGE;
+    uint64_t target = 0;
+    if (o->ratio > 0)
+        target = (uint64_t)ceil(o->ratio * (double)d.nt);
+    if (o->target_triangles > target)
+        target = o->target_triangles;
+    rep.triangles_before = d.nt;
+    rep.vertices_before = d.nv;
+    rep.target_triangles = target;
+
+    const size_t nv = d.nv ? d.nv : 1, nc = 3 * (d.nt ? d.nt : 1);
+    d.p = malloc(3 * sizeof(double) * nv);
+    d.q = calloc(10 * nv, sizeof(double));
+    d.tv = malloc(nc * sizeof(uint32_t));
+    d.tdead = calloc(d.nt ? d.nt : 1, 1);
+    d.head = malloc(nv * sizeof(uint32_t));
+    d.next = malloc(nc * sizeof(uint32_t));
+    d.vf = calloc(nv, 1);
+    d.stamp = calloc(nv, sizeof(uint32_t));
+    d.mark = calloc(nv, sizeof(uint32_t));
+    isomend_status status = ISOMEND_ERR_OUT_OF_MEMORY;
+    if (!d.p || !d.q || !d.tv || !d.tdead || !d.head || !d.next || !d.vf || !d.stamp || !d.mark)
+        goto done;
+    for (size_t i = 0; i < 3 * d.nv; i++)
+        d.p[i] = mesh->pos[i];
+    memcpy(d.tv, mesh->tri, 3 * d.nt * sizeof(uint32_t));
+    for (size_t v = 0; v < d.nv; v++)
+        d.head[v] = NONE;
+    for (size_t c = 3 * d.nt; c-- > 0;) {
+        const uint32_t v = d.tv[c];
+        d.next[c] = d.head[v];
+        d.head[v] = (uint32_t)c;
+    }
+    if (!mesh_free_vertices(mesh, d.vf, NULL, NULL))
+        goto done;
+    for (size_t v = 0; v < d.nv; v++) {
+        d.vf[v] = d.vf[v] ? 0 : V_LOCKED; /* unused vertices are locked too */
+        rep.locked_vertices += d.vf[v] && d.head[v] != NONE;
+    }
+    for (size_t t = 0; t < d.nt; t++) {
+        double n[3];
+        tri_normal(&d, (uint32_t)t, NONE, NONE, NULL, n);
+        const double len = sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
+        if (!(len > 0) || !isfinite(len))
+            continue;
+        for (int c = 0; c < 3; c++)
+            n[c] /= len;
+        const double *p0 = d.p + 3 * (size_t)d.tv[3 * t];
+        const double dd = -(n[0] * p0[0] + n[1] * p0[1] + n[2] * p0[2]);
+        for (int k = 0; k < 3; k++)
+            quadric_add_plane(d.q + 10 * (size_t)d.tv[3 * t + (size_t)k], n, dd);
+    }
+    if (!push_all(&d))
+        goto done;
+    for (int round = 0; d.alive > target; round++) {
+        uint64_t made = 0;
+        while (d.nheap && d.alive > target) {
+            const item it = heap_pop(&d);
+            if ((d.vf[it.a] | d.vf[it.b]) & V_DEAD || d.stamp[it.a] != it.sa ||
+                d.stamp[it.b] != it.sb)
+                continue;
+            double v[3];
+            (void)collapse_point(&d, it.a, it.b, v);
+            if (!collapse_allowed(&d, it.a, it.b, v))
+                continue;
+            if (!collapse(&d, it.a, it.b, v))
+                goto done;
+            made++;
+            if (sqrt(it.cost) > rep.max_error)
+                rep.max_error = sqrt(it.cost);
+        }
+        rep.collapses += made;
+        if (d.alive <= target || made == 0 || round == 8)
+            break;
+        d.nheap = 0;
+        if (!push_all(&d))
+            goto done;
+    }
+    rep.reached = d.alive <= target;
+    status = build_output(&d, mesh, out);
+    if (status == ISOMEND_OK) {
+        rep.triangles_after = (*out)->nt;
+        rep.vertices_after = (*out)->nv;
+    }
+done:
+    free(d.p);
+    free(d.q);
+    free(d.tv);
+    free(d.tdead);
+    free(d.head);
+    free(d.next);
+    free(d.vf);
+    free(d.stamp);
+    free(d.mark);
+    free(d.heap);
+    if (report)
+        *report = rep;
+    return status;
+}

@@ -1,0 +1,142 @@
+/*
+ * mesh_build.c - what the post-processing steps (decimate.c, smooth.c,
+ * components.c) share to make a new mesh from an old one: the frame it was
+ * extracted in (the grid box and, for a grid with slice origins, the table
+ * the check needs) and normals from the triangles.
+ */
+#include "extract_internal.h"
+
+#include <stdlib.h>
+
+isomend_status mesh_copy_frame(isomend_mesh *dst, const isomend_mesh *src)
+{
+    memcpy(dst->box, src->box, sizeof dst->box);
+    dst->h[0] = src->h[0];
+    dst->h[1] = src->h[1];
+    memcpy(dst->N, src->N, sizeof dst->N);
+    dst->slices = src->slices;
+    dst->slices.so = NULL;
+    if (!src->slices.so)
+        return ISOMEND_OK;
+    const size_t size = 3 * sizeof(double) * (size_t)src->slices.n;
+    if (!(dst->slice_store = malloc(size)))
+        return ISOMEND_ERR_OUT_OF_MEMORY;
+    memcpy(dst->slice_store, src->slices.so, size);
+    dst->slices.so = dst->slice_store;
+    return ISOMEND_OK;
+}
+
+/*
+ * Vertex normals as the area-weighted sums of the triangles' normals (the
+ * right-hand normal of the winding, which isomend's normals agree with, with
+ * or without ISOMEND_FLAG_FLIP), unit length; a vertex whose triangles have
+ * no area keeps the normal in `keep` (if not NULL) or (0, 0, 1).
+ */
+void mesh_area_normals(isomend_mesh *m, const float *keep)
+{
+    double *acc = calloc(3 * (m->nv ? m->nv : 1), sizeof(double));
+    float *n = m->nrm;
+    if (!acc) { /* no memory for the sums: one float pass instead */
+        memset(n, 0, 12 * m->nv);
+    }
+    for (size_t t = 0; t < m->nt; t++) {
+        const uint32_t *v = m->tri + 3 * t;
+        const float *p0 = m->pos + 3 * (size_t)v[0], *p1 = m->pos + 3 * (size_t)v[1],
+                    *p2 = m->pos + 3 * (size_t)v[2];
+        const double e1[3] = {(double)p1[0] - p0[0], (double)p1[1] - p0[1], (double)p1[2] - p0[2]};
+        const double e2[3] = {(double)p2[0] - p0[0], (double)p2[1] - p0[1], (double)p2[2] - p0[2]};
+        const double f[3] = {e1[1] * e2[2] - e1[2] * e2[1], e1[2] * e2[0] - e1[0] * e2[2],
+                             e1[0] * e2[1] - e1[1] * e2[0]};
+        for (int k = 0; k < 3; k++)
+            for (int c = 0; c < 3; c++) {
+                if (acc)
+                    acc[3 * (size_t)v[k] + (size_t)c] += f[c];
+                else
+                    n[3 * (size_t)v[k] + (size_t)c] += (float)f[c];
+            }
+    }
+    for (size_t v = 0; v < m->nv; v++) {
+        double x[3];
+        for (int c = 0; c < 3; c++)
+            x[c] = acc ? acc[3 * v + (size_t)c] : n[3 * v + (size_t)c];
+        const double len = sqrt(x[0] * x[0] + x[1] * x[1] + x[2] * x[2]);
+        for (int c = 0; c < 3; c++)
+            n[3 * v + (size_t)c] = len > 0 && isfinite(len) ? (float)(x[c] / len)
+                                   : keep              ? keep[3 * v + (size_t)c]
+                                                       : (c == 2 ? 1.0f : 0.0f);
+    }
+    free(acc);
+}
+
+/*
+ * The vertices free to move: those whose triangles form one closed fan with
+ * every edge used once each way.  Every other vertex of a triangle (on a
+ * once-used edge, an edge used three times or twice the same way, a
+ * repeated index, two fans) is locked (free[v] = 0).  The corners of each
+ * vertex are filed in a compressed row table: first[v] .. first[v + 1] - 1
+ * index `corners` (corner c = 3t + k), which the caller may keep (both
+ * NULL-able: then freed here).  Returns 0 without memory.
+ */
+int mesh_free_vertices(const isomend_mesh *m, uint8_t *free_flag, uint32_t **first_out,
+                       uint32_t **corners_out)
+{
+    const size_t nv = m->nv, nc = 3 * m->nt;
+    uint32_t *first = calloc(nv + 1, sizeof(uint32_t)), *corners = malloc((nc ? nc : 1) * 4);
+    if (!first || !corners) {
+        free(first);
+        free(corners);
+        return 0;
+    }
+    for (size_t c = 0; c < nc; c++)
+        first[m->tri[c] + 1]++;
+    for (size_t v = 0; v < nv; v++)
+        first[v + 1] += first[v];
+    for (size_t c = 0; c < nc; c++)
+        corners[first[m->tri[c]]++] = (uint32_t)c;
+    for (size_t v = nv; v > 0; v--)
+        first[v] = first[v - 1];
+    first[0] = 0;
+#define NEXT(c) m->tri[(c) - (c) % 3 + ((c) % 3 + 1) % 3]
+#define PREV(c) m->tri[(c) - (c) % 3 + ((c) % 3 + 2) % 3]
+    for (size_t v = 0; v < nv; v++) {
+        const uint32_t b = first[v], e = first[v + 1], n = e - b;
+        int ok = n >= 3;
+        for (uint32_t x = b; x < e && ok; x++) {
+            const uint32_t c = corners[x], w = NEXT(c), u = PREV(c);
+            if (w == v || u == v || w == u) {
+                ok = 0;
+                break;
+            }
+            int out = 0, in = 0;
+            for (uint32_t y = b; y < e; y++) {
+                out += NEXT(corners[y]) == w;
+                in += PREV(corners[y]) == w;
+            }
+            ok = out == 1 && in == 1;
+        }
+        if (ok) { /* one fan: around v through the edges */
+            uint32_t c = corners[b], steps = 0;
+            do {
+                const uint32_t w = PREV(c);
+                uint32_t y = b;
+                while (y < e && NEXT(corners[y]) != w)
+                    y++;
+                c = corners[y < e ? y : b];
+                steps++;
+            } while (c != corners[b] && steps <= n);
+            ok = steps == n;
+        }
+        free_flag[v] = (uint8_t)ok;
+    }
+#undef NEXT
+#undef PREV
+    if (first_out)
+        *first_out = first;
+    else
+        free(first);
+    if (corners_out)
+        *corners_out = corners;
+    else
+        free(corners);
+    return 1;
+}
