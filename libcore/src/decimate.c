@@ -42,6 +42,12 @@
 
 enum { V_LOCKED = 1, V_DEAD = 2 };
 
+/* A collapse may not make a triangle thinner than this shape measure
+ * (|n| / sum of squared edges: 0.289 equilateral, 0 degenerate) unless it was
+ * thin already (then not below half of what it was): no fans of slivers in
+ * flat regions, whose later collapses would all be refused as flips. */
+#define MIN_SHAPE 0.03
+
 typedef struct item {
     double cost;
     uint32_t a, b;   /* a < b */
@@ -176,17 +182,23 @@ static double collapse_point(const dec *d, uint32_t a, uint32_t b, double v[3])
             return e > 0 ? e : 0;
         }
     }
-    double best = INFINITY;
-    for (int k = 0; k < 3; k++) {
-        double w[3];
-        for (int c = 0; c < 3; c++)
-            w[c] = k == 0 ? pa[c] : k == 1 ? pb[c] : 0.5 * (pa[c] + pb[c]);
-        const double e = quadric_eval(q, w);
-        if (e < best) {
-            best = e;
-            memcpy(v, w, sizeof w);
-        }
+    /* On the edge: v = a + s (b - a) minimising the quadric, s in [0, 1];
+     * where the quadric is flat along the edge (a plane: every point costs
+     * the same) the midpoint, so that flat regions keep even triangles. */
+    const double e[3] = {pb[0] - pa[0], pb[1] - pa[1], pb[2] - pa[2]};
+    const double Ae[3] = {A00 * e[0] + A01 * e[1] + A02 * e[2], A01 * e[0] + A11 * e[1] + A12 * e[2],
+                          A02 * e[0] + A12 * e[1] + A22 * e[2]};
+    const double eAe = e[0] * Ae[0] + e[1] * Ae[1] + e[2] * Ae[2];
+    const double grad = Ae[0] * pa[0] + Ae[1] * pa[1] + Ae[2] * pa[2] + e[0] * q[3] + e[1] * q[6] +
+                        e[2] * q[8]; /* e . (A a + r) */
+    double s = 0.5;
+    if (eAe > 1e-12 * tr * len2) {
+        s = -grad / eAe;
+        s = s < 0 ? 0 : s > 1 ? 1 : s;
     }
+    for (int c = 0; c < 3; c++)
+        v[c] = pa[c] + s * e[c];
+    const double best = quadric_eval(q, v);
     return best > 0 ? best : 0;
 }
 
@@ -227,9 +239,10 @@ static int push_edge(dec *d, uint32_t a, uint32_t b)
     return heap_push(d, it);
 }
 
-/* n = (p1 - p0) x (p2 - p0) of triangle t with vertex `moved` at v (if not NONE). */
+/* n = (p1 - p0) x (p2 - p0) of triangle t with vertices moved_a and moved_b
+ * at v (if v is not NULL), and *edges the sum of its squared edge lengths. */
 static void tri_normal(const dec *d, uint32_t t, uint32_t moved_a, uint32_t moved_b,
-                       const double *v, double n[3])
+                       const double *v, double n[3], double *edges)
 {
     const double *p[3];
     for (int k = 0; k < 3; k++) {
@@ -241,6 +254,11 @@ static void tri_normal(const dec *d, uint32_t t, uint32_t moved_a, uint32_t move
     n[0] = e1[1] * e2[2] - e1[2] * e2[1];
     n[1] = e1[2] * e2[0] - e1[0] * e2[2];
     n[2] = e1[0] * e2[1] - e1[1] * e2[0];
+    if (edges) {
+        const double e3[3] = {p[2][0] - p[1][0], p[2][1] - p[1][1], p[2][2] - p[1][2]};
+        *edges = e1[0] * e1[0] + e1[1] * e1[1] + e1[2] * e1[2] + e2[0] * e2[0] + e2[1] * e2[1] +
+                 e2[2] * e2[2] + e3[0] * e3[0] + e3[1] * e3[1] + e3[2] * e3[2];
+    }
 }
 
 /* Whether (a, b) may collapse to v (the checks at the top of this file). */
@@ -295,13 +313,15 @@ static int collapse_allowed(dec *d, uint32_t a, uint32_t b, const double v[3])
             const uint32_t w = corner_next(d, c), u = corner_prev(d, c);
             if (w == (s ? a : b) || u == (s ? a : b))
                 continue; /* dies with the edge */
-            double n0[3], n1[3];
-            tri_normal(d, t, NONE, NONE, NULL, n0);
-            tri_normal(d, t, a, b, v, n1);
+            double n0[3], n1[3], e0, e1;
+            tri_normal(d, t, NONE, NONE, NULL, n0, &e0);
+            tri_normal(d, t, a, b, v, n1, &e1);
             const double l1 = n1[0] * n1[0] + n1[1] * n1[1] + n1[2] * n1[2];
             const double dot = n0[0] * n1[0] + n0[1] * n1[1] + n0[2] * n1[2];
             const double l0 = n0[0] * n0[0] + n0[1] * n0[1] + n0[2] * n0[2];
-            if (!(l1 > 0) || (l0 > 0 && !(dot > 0))) {
+            /* shape: 2 sqrt(3) |n| / (sum of squared edges), 1 equilateral */
+            const double q0 = e0 > 0 ? sqrt(l0) / e0 : 0, q1 = e1 > 0 ? sqrt(l1) / e1 : 0;
+            if (!(l1 > 0) || (l0 > 0 && !(dot > 0)) || (q1 < MIN_SHAPE && q1 < 0.5 * q0)) {
                 d->rep->refused_geometry++;
                 return 0;
             }
@@ -482,7 +502,7 @@ isomend_status isomend_mesh_decimate(const isomend_mesh *mesh, const isomend_dec
     }
     for (size_t t = 0; t < d.nt; t++) {
         double n[3];
-        tri_normal(&d, (uint32_t)t, NONE, NONE, NULL, n);
+        tri_normal(&d, (uint32_t)t, NONE, NONE, NULL, n, NULL);
         const double len = sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
         if (!(len > 0) || !isfinite(len))
             continue;
