@@ -29,6 +29,7 @@ static const struct {
     {"--help", OPT_HELP, 0},     {"-h", OPT_HELP, 0},         {"--pages", OPT_PAGES, 1},
     {"--max-memory", OPT_MAX_MEMORY, 1},
     {"--series", OPT_SERIES, 1}, {"--grid-axes", OPT_GRID_AXES, 0},
+    {"--slice-positions", OPT_SLICE_POSITIONS, 1},
 };
 
 static int parse_raw(const char *v, cli_source_opts *o)
@@ -251,6 +252,15 @@ int cli_parse_args(int argc, char **argv, int first, const char *command, unsign
             break;
         case OPT_GRID_AXES:
             a->src.grid_axes = 1;
+            break;
+        case OPT_SLICE_POSITIONS:
+            /* parsed when SOURCE is open: the count must match its slices */
+            if (!*value || strcmp(value, "@") == 0) {
+                cli_error("--slice-positions: empty (Z0,Z1,... with one z a slice, or @FILE with "
+                          "one z a line)");
+                return CLI_EXIT_USAGE;
+            }
+            a->src.slice_positions = value;
             break;
         case OPT_PAGES:
             if (strcmp(value, "huge") == 0)

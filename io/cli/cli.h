@@ -115,8 +115,47 @@ typedef struct cli_source_opts {
     const char *series;     /* --series UID|N, NULL = the only one */
     int grid_axes;          /* --grid-axes: the series' own frame, no rotation */
     int list_series;        /* `info`: several series and no choice lists them */
+    /* --slice-positions as given ("z0,z1,..." or "@FILE"), NULL = none; parsed
+     * by cli_slices_open() (the count is only known once SOURCE is open) */
+    const char *slice_positions;
     cli_progress *progress;
 } cli_source_opts;
+
+/*
+ * Where the slices lie (isomend_io_geometry's facts, for every source): a
+ * DICOM series' from the importer, a stack's with --slice-positions from the
+ * importer too, raw/NRRD/built-in volumes' from --slice-positions or the z
+ * spacing.  Gaps are along z, in the volume's units.  `warning` is "" or one
+ * line without the source's name: gaps that differ from the median by more
+ * than 1 %, or a gap over 1.5x the median (cli_geometry_of_positions()).
+ */
+typedef struct cli_geometry {
+    int uniform;             /* evenly spaced on one line: no slice origins     */
+    const char *from;        /* "spacing", "--slice-positions", "dicom"          */
+    double gap_median;       /* the upper middle gap; 0 for a single slice      */
+    double gap_min, gap_max; /* the smallest and the largest gap                */
+    double tilt_degrees;     /* the line through the slices' origins against z  */
+    double max_offset;       /* farthest slice origin from the even grid's      */
+    int64_t long_gaps;       /* gaps over 1.5x the median                       */
+    int64_t uneven_gaps;     /* gaps that differ from the median by over 1 %    */
+    char warning[512];
+} cli_geometry;
+
+/* The geometry of slices at z[0..n) (strictly increasing, x and y shared). */
+void cli_geometry_of_positions(const double *z, int64_t n, cli_geometry *g);
+
+/*
+ * --slice-positions VALUE -> a malloc'ed array of *count finite, strictly
+ * increasing z values: "z0,z1,..." or "@FILE" (one z a line, blank lines and
+ * '#' comments allowed).  Returns an exit code; the message names the option
+ * or the file (2 for a bad value, 1 for a file that cannot be read).
+ */
+int cli_parse_slice_positions(const char *value, double **out, int64_t *count);
+
+/* "isomend: warning: LABEL: TEXT" on stderr when g->warning is not empty. */
+void cli_print_geometry_warning(const char *label, const cli_geometry *g);
+/* `, "geometry": {...}, "warnings": [...]` (the JSON of info and extract). */
+void cli_json_geometry(FILE *fp, const cli_geometry *g);
 
 typedef struct cli_summary {
     double min, max;
@@ -147,6 +186,9 @@ typedef struct cli_slices {
     int grid_axes;           /* --grid-axes was given                          */
     int has_world;           /* the mesh maps to the world by `world`          */
     double world[12];        /* 3x4 row-major (isomend_io_world_transform)     */
+    cli_geometry geometry;   /* where the slices lie                           */
+    double *origins_owned;   /* desc.slice_origins when we built them (raw,    */
+                             /* NRRD, built-in with --slice-positions)         */
     char label[1024];        /* SOURCE as given (first path)                   */
     uint64_t slice_bytes;
     int64_t next;            /* the slice the next call delivers               */
@@ -174,6 +216,9 @@ void cli_slices_close(cli_slices *s);
 /* cli_source_summary's numbers, reading the slices (twice) instead of a
  * loaded volume; rewinds at the end. */
 int cli_slices_summary(cli_slices *s, cli_summary *sum);
+/* 1 and *level when the source suggests a fixed level rather than Otsu's
+ * (a CT series in HU: the bone level, as cli_source_suggested_level says). */
+int cli_slices_fixed_level(cli_slices *s, double *level);
 
 /*
  * The summary's two passes over planes, for callers that see the volume in
@@ -208,6 +253,8 @@ typedef struct cli_source {
     int grid_axes;           /* --grid-axes was given                          */
     int has_world;           /* the mesh maps to the world by `world`          */
     double world[12];        /* 3x4 row-major (isomend_io_world_transform)     */
+    cli_geometry geometry;   /* where the slices lie                           */
+    double *origins_owned;   /* vol.slice_origins when we built them           */
     double read_ms;
     char label[1024];        /* SOURCE as given (first path)                   */
 } cli_source;
@@ -261,7 +308,7 @@ enum {
     OPT_THREADS = 1u << 12, OPT_BOX = 1u << 13, OPT_FIRST = 1u << 14, OPT_COUNT = 1u << 15,
     OPT_STEP = 1u << 16, OPT_CHANNEL = 1u << 17, OPT_GZIP = 1u << 18, OPT_HELP = 1u << 19,
     OPT_PAGES = 1u << 20, OPT_MAX_MEMORY = 1u << 21, OPT_SERIES = 1u << 22,
-    OPT_GRID_AXES = 1u << 23
+    OPT_GRID_AXES = 1u << 23, OPT_SLICE_POSITIONS = 1u << 24
 };
 
 #define CLI_MAX_SOURCES 4096

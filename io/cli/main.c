@@ -90,6 +90,10 @@ static const char *const usage_extract =
     "  --max-memory SIZE        stream (slices in, mesh out as it is made) when the\n"
     "                           in-memory path would need more than SIZE (512M, 4G,\n"
     "                           1.5G, bytes); default: the memory available\n"
+    "  --slice-positions Z0,Z1,...|@FILE\n"
+    "                           the z of every slice (FILE: one a line, # comments),\n"
+    "                           strictly increasing, for slices not evenly spaced;\n"
+    "                           replaces the z spacing and origin (not for DICOM)\n"
 #ifdef ISOMEND_HAVE_IO
     "  --first N --count N --step N   printf-pattern slice range\n"
     "  --channel N|luma         channel of multi-channel images\n"
@@ -114,6 +118,7 @@ static const char *const usage_check =
 static const char *const usage_info =
     "usage: isomend info SOURCE [--raw NX,NY,NZ:TYPE[:le|be]] [--spacing DX,DY,DZ]\n"
     "                           [--origin X,Y,Z] [--json FILE|-] [--quiet] [--max-memory SIZE]\n"
+    "                           [--slice-positions Z0,Z1,...|@FILE]\n"
 #ifdef ISOMEND_HAVE_IO
     "                           [--first N] [--count N] [--step N] [--channel N|luma]\n"
     "                           [--series N|UID] [--grid-axes]\n"
@@ -124,6 +129,9 @@ static const char *const usage_info =
     "For DICOM also the series (all of them when a folder holds several and\n"
     "--series is not given), modality, values, orientation and, for CT in HU,\n"
     "the bone and skin levels and which one extract uses.\n"
+    "The slices' geometry: evenly spaced or not (gaps: median, smallest,\n"
+    "largest; gantry tilt; gaps over 1.5x the median); slices whose gaps differ\n"
+    "from the median by more than 1 % get one warning line on stderr.\n"
     "A volume larger than --max-memory (default: the memory available) is read\n"
     "slice by slice, twice, instead of loaded.\n";
 
@@ -144,6 +152,11 @@ static void print_source_line(FILE *fp, const cli_slices *s, const isomend_volum
     if (s->oblique)
         fprintf(fp, "  note: the NRRD 'space directions' are not axis aligned; isomend uses their "
                     "lengths as spacing (the mesh is not rotated)\n");
+    if (!s->geometry.uniform)
+        fprintf(fp, "  slices: not evenly spaced (%s): gaps %g .. %g, median %g%s; meshed at their "
+                    "positions\n",
+                s->geometry.from, s->geometry.gap_min, s->geometry.gap_max, s->geometry.gap_median,
+                s->geometry.tilt_degrees != 0 ? ", tilted" : "");
     if (s->dicom)
         fprintf(fp, "  axes: %s\n",
                 s->grid_axes ? "the series' own (--grid-axes): x rows, y columns, z slices, not rotated"
@@ -151,13 +164,34 @@ static void print_source_line(FILE *fp, const cli_slices *s, const isomend_volum
                                : "patient (LPS mm): x to the patient's left, y posterior, z head");
 }
 
+/* The slices' geometry, one line of `info`. */
+static void print_geometry(FILE *fp, const cli_geometry *g, int64_t nz)
+{
+    if (nz < 2) {
+        fprintf(fp, "  slices:      one\n");
+        return;
+    }
+    if (g->uniform)
+        fprintf(fp, "  slices:      evenly spaced (from: %s), gap %g\n", g->from, g->gap_median);
+    else
+        fprintf(fp, "  slices:      not evenly spaced (from: %s): gaps median %g, %g .. %g; %lld "
+                    "differ from the median by more than 1 %%, %lld longer than 1.5x it; farthest "
+                    "%g from an even grid; meshed at their positions\n",
+                g->from, g->gap_median, g->gap_min, g->gap_max, (long long)g->uneven_gaps,
+                (long long)g->long_gaps, g->max_offset);
+    if (g->tilt_degrees != 0)
+        fprintf(fp, "  tilt:        %.4g degrees (the slices' origins against the slice normal: "
+                    "gantry tilt, meshed sheared)\n", g->tilt_degrees);
+}
+
 /* ------------------------------------------------------------------ extract */
 
 /*
  * The start shared by `extract` and `info`: prepares the --json output, sets
  * up the progress bar (stderr a terminal and not --quiet) and opens SOURCE
- * (no sample read yet).  On failure nothing is left open and the exit code
- * is returned.
+ * (no sample read yet), then prints the slices' geometry warning if any
+ * (stderr, even with --quiet: it is about the result).  On failure nothing
+ * is left open and the exit code is returned.
  */
 static int open_source_for(cli_args *a, int quiet, cli_json_out *jo, cli_progress *bar,
                            cli_slices *s)
@@ -168,7 +202,10 @@ static int open_source_for(cli_args *a, int quiet, cli_json_out *jo, cli_progres
     cli_active_progress = bar;
     a->src.progress = bar;
     rc = cli_slices_open(a->positional, a->npositional, &a->src, s);
-    if (rc) cli_json_abort(jo);
+    if (rc)
+        cli_json_abort(jo);
+    else /* uneven gaps, a missing slice: said once, the mesh is still made */
+        cli_print_geometry_warning(s->label, &s->geometry);
     return rc;
 }
 
@@ -212,7 +249,8 @@ static int cmd_extract(int argc, char **argv)
     unsigned allowed = OPT_OUTPUT | OPT_ISO | OPT_METHOD | OPT_RAW | OPT_SPACING | OPT_ORIGIN |
                        OPT_PAD | OPT_NO_NORMALS | OPT_FLIP | OPT_STATS | OPT_JSON | OPT_QUIET |
                        OPT_THREADS | OPT_FIRST | OPT_COUNT | OPT_STEP | OPT_CHANNEL | OPT_HELP |
-                       OPT_PAGES | OPT_MAX_MEMORY | OPT_SERIES | OPT_GRID_AXES;
+                       OPT_PAGES | OPT_MAX_MEMORY | OPT_SERIES | OPT_GRID_AXES |
+                       OPT_SLICE_POSITIONS;
     int rc = cli_parse_args(argc, argv, 2, "extract", allowed, &a);
     if (rc) return rc;
     if (a.seen & OPT_HELP) {
@@ -274,6 +312,8 @@ static int cmd_extract(int argc, char **argv)
     cli_slices info = sl; /* what the report prints (the labels stay valid) */
     info.io = NULL;
     info.reader = NULL;
+    info.origins_owned = NULL;
+    info.desc.slice_origins = NULL;
     if (!plan.stream) {
         rc = cli_source_load(&sl, &src); /* closes sl */
         if (rc) {
@@ -470,6 +510,7 @@ static int cmd_extract(int argc, char **argv)
     if (jf) {
         fprintf(jf, "{\"command\": \"extract\", \"version\": \"%s\", ", isomend_version());
         cli_json_run(jf, info.label, info.kind, a.output, vol, &opts, iso_suggested);
+        cli_json_geometry(jf, &info.geometry);
         fprintf(jf, ", \"world_transform\": ");
         if (meta->has_world)
             cli_json_doubles(jf, meta->world, 12);
@@ -601,7 +642,7 @@ static int cmd_info(int argc, char **argv)
     cli_args a;
     unsigned allowed = OPT_RAW | OPT_SPACING | OPT_ORIGIN | OPT_JSON | OPT_QUIET | OPT_FIRST |
                        OPT_COUNT | OPT_STEP | OPT_CHANNEL | OPT_HELP | OPT_MAX_MEMORY |
-                       OPT_SERIES | OPT_GRID_AXES;
+                       OPT_SERIES | OPT_GRID_AXES | OPT_SLICE_POSITIONS;
     int rc = cli_parse_args(argc, argv, 2, "info", allowed, &a);
     if (rc) return rc;
     if (a.seen & OPT_HELP) {
@@ -683,6 +724,7 @@ static int cmd_info(int argc, char **argv)
                 v->spacing[1], v->spacing[2], src.spacing_from[0], src.spacing_from[1],
                 src.spacing_from[2]);
         fprintf(text, "  origin:      %g, %g, %g\n", v->origin[0], v->origin[1], v->origin[2]);
+        print_geometry(text, &src.geometry, v->dims[2]);
         cli_print_dicom(text, &src, &sum);
         if (sum.has_suggestion && strcmp(cli_source_suggested_level(&src), "bone") == 0)
             fprintf(text, "  suggested iso: %.9g (the bone level, HU)\n", sum.suggested_iso);
@@ -725,6 +767,20 @@ static int cmd_info(int argc, char **argv)
             cli_json_doubles(jf, src.world, 12);
         else
             fprintf(jf, "null");
+        cli_json_geometry(jf, &src.geometry);
+        /* where each slice's sample (0, 0) is meshed, in the volume's frame
+         * (before world_transform): null for an evenly spaced grid */
+        fprintf(jf, ", \"slice_origins\": ");
+        if (v->slice_origins) {
+            fputc('[', jf);
+            for (int64_t k = 0; k < v->dims[2]; k++) {
+                fputs(k ? ", " : "", jf);
+                cli_json_doubles(jf, v->slice_origins + 3 * k, 3);
+            }
+            fputc(']', jf);
+        } else {
+            fprintf(jf, "null");
+        }
         fprintf(jf, ", \"dicom\": ");
         cli_json_dicom(jf, &src, &sum);
         fprintf(jf, ", \"timings_ms\": {\"read\": %.3f}}\n", streamed ? sl.read_ms : src.read_ms);

@@ -173,3 +173,18 @@ void cli_json_stats(FILE *jf, const isomend_stats *st)
                 ", \"nan_samples\": %" PRIu64,
             st->ambiguous_faces, st->inverted_combinations, st->nan_samples);
 }
+
+void cli_json_geometry(FILE *fp, const cli_geometry *g)
+{
+    fprintf(fp, ", \"geometry\": {\"uniform\": %s, \"from\": ", g->uniform ? "true" : "false");
+    cli_json_string(fp, g->from ? g->from : "spacing");
+    fprintf(fp, ", \"gap_median\": %.17g, \"gap_min\": %.17g, \"gap_max\": %.17g, "
+                "\"tilt_degrees\": %.17g, \"max_offset\": %.17g, \"long_gaps\": %lld, "
+                "\"uneven_gaps\": %lld, \"warning\": ",
+            g->gap_median, g->gap_min, g->gap_max, g->tilt_degrees, g->max_offset,
+            (long long)g->long_gaps, (long long)g->uneven_gaps);
+    cli_json_string(fp, g->warning);
+    fprintf(fp, "}, \"warnings\": [");
+    if (g->warning[0]) cli_json_string(fp, g->warning);
+    fputc(']', fp);
+}

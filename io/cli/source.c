@@ -12,6 +12,15 @@
  * behaviour (and the sanitizer build, which has no importer) is the same
  * with and without the importer.
  *
+ * --slice-positions (slices not evenly spaced) is parsed when SOURCE opens:
+ * raw, NRRD and built-in volumes get their slice origins table here (the
+ * importer's rule: evenly spaced within 1e-6 of the mean gap is a uniform
+ * grid, no table), image stacks hand the positions to the importer.  The
+ * table lives in cli_slices.desc (so the streamed path and isomend-mpi's
+ * slabs mesh from it) and moves to cli_source.vol with the samples.  Every
+ * source gets a cli_geometry (the DICOM series' from the importer) and its
+ * one-line warning.
+ *
  * The suggested iso level follows the importer's documented rule (Otsu on a
  * 256-bin histogram of the finite samples; integer types moved to
  * floor(t) + 0.5 so that no sample equals the level); for importer sources
@@ -21,6 +30,7 @@
 
 #include "cli.h"
 
+#include <errno.h>
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
@@ -71,6 +81,8 @@ static struct io_api {
     isomend_io_status (*world_transform)(const isomend_io_source *, double *, int *);
     isomend_io_status (*level_value)(isomend_io_source *, int, double *);
     int (*suggested_level)(const isomend_io_source *);
+    isomend_io_status (*geometry_info)(const isomend_io_source *, isomend_io_geometry *);
+    const double *(*slice_origins)(const isomend_io_source *);
 } io_api;
 
 static int io_load_api(char *why, size_t why_size)
@@ -138,6 +150,8 @@ static int io_load_api(char *why, size_t why_size)
     IO_SYM(world_transform, "isomend_io_world_transform");
     IO_SYM(level_value, "isomend_io_level_value");
     IO_SYM(suggested_level, "isomend_io_suggested_level");
+    IO_SYM(geometry_info, "isomend_io_geometry_info");
+    IO_SYM(slice_origins, "isomend_io_slice_origins");
 #undef IO_SYM
     io_api.handle = h;
     return 1;
@@ -160,6 +174,258 @@ int cli_builtin_volume(const char *name, float out[64])
                 out[x + 4 * (y + 4 * z)] = (float)v;
             }
     return 1;
+}
+
+/* ------------------------------------------------------------------ slice positions */
+
+/*
+ * --slice-positions: the z of every slice, for volumes whose slices are not
+ * evenly spaced (microscopy with variable steps, re-sliced data).  Raw, NRRD
+ * and built-in volumes get their slice origins table here, (origin x, origin
+ * y, z_k) for slice k; image stacks hand the positions to the importer, which
+ * applies the same rule.  Positions evenly spaced within 1e-6 of their mean
+ * gap are a uniform grid: spacing = the mean gap, origin z = the first, no
+ * table, so that the mesh is the evenly spaced one byte for byte.
+ */
+
+static int compare_doubles(const void *a, const void *b)
+{
+    double x = *(const double *)a, y = *(const double *)b;
+    return x < y ? -1 : x > y;
+}
+
+void cli_geometry_of_positions(const double *z, int64_t n, cli_geometry *g)
+{
+    /* the importer's rule (io/slices/src/geometry.cpp, measure_slices): the
+     * median is the upper middle gap; uniform when no slice is farther than
+     * 1e-6 of the mean gap from the evenly spaced grid through the first and
+     * the last */
+    memset(g, 0, sizeof *g);
+    g->uniform = 1;
+    g->from = "spacing";
+    if (n < 2) return;
+    const int64_t ng = n - 1;
+    const double mean = (z[n - 1] - z[0]) / (double)ng;
+    double *gaps = malloc((size_t)ng * sizeof *gaps);
+    if (!gaps) { /* out of memory for a sorted copy: only the median is missed */
+        g->gap_median = mean;
+    } else {
+        for (int64_t k = 0; k < ng; k++) gaps[k] = z[k + 1] - z[k];
+        qsort(gaps, (size_t)ng, sizeof *gaps, compare_doubles);
+        g->gap_median = gaps[ng / 2];
+        free(gaps);
+    }
+    g->gap_min = INFINITY;
+    g->gap_max = -INFINITY;
+    int64_t longest = -1;
+    for (int64_t k = 0; k < ng; k++) {
+        const double gap = z[k + 1] - z[k];
+        if (gap < g->gap_min) g->gap_min = gap;
+        if (gap > g->gap_max) g->gap_max = gap;
+        if (fabs(gap - g->gap_median) > 0.01 * g->gap_median) g->uneven_gaps++;
+        if (gap > 1.5 * g->gap_median) {
+            g->long_gaps++;
+            if (longest < 0 || gap > z[longest + 1] - z[longest]) longest = k;
+        }
+    }
+    for (int64_t k = 0; k < n; k++) {
+        const double off = fabs(z[k] - (z[0] + (double)k * mean));
+        if (off > g->max_offset) g->max_offset = off;
+    }
+    g->uniform = g->max_offset <= 1e-6 * mean;
+    if (!g->uneven_gaps && !g->long_gaps) return;
+    int len = snprintf(g->warning, sizeof g->warning,
+                       "slice gaps vary from %.4g to %.4g (median %.4g): meshed at the slices' "
+                       "positions", g->gap_min, g->gap_max, g->gap_median);
+    if (longest >= 0 && len > 0 && (size_t)len < sizeof g->warning) {
+        const double ratio = g->gap_max / g->gap_median;
+        if (g->long_gaps == 1)
+            snprintf(g->warning + len, sizeof g->warning - (size_t)len,
+                     "; a gap of %.4g between slice %lld and %lld is %.4gx the median: a missing "
+                     "slice?", g->gap_max, (long long)longest, (long long)longest + 1, ratio);
+        else
+            snprintf(g->warning + len, sizeof g->warning - (size_t)len,
+                     "; %lld gaps over 1.5x the median, the longest %.4g between slice %lld and "
+                     "%lld (%.4gx): missing slices?", (long long)g->long_gaps, g->gap_max,
+                     (long long)longest, (long long)longest + 1, ratio);
+    }
+}
+
+/* A uniform grid's geometry: every gap the z spacing. */
+static void geometry_uniform(const isomend_volume *v, cli_geometry *g)
+{
+    memset(g, 0, sizeof *g);
+    g->uniform = 1;
+    g->from = "spacing";
+    if (v->dims[2] > 1) g->gap_median = g->gap_min = g->gap_max = v->spacing[2];
+}
+
+/* One value of --slice-positions, `where` naming it for the message. */
+static int position_value(char *text, const char *where, double *z)
+{
+    while (*text == ' ' || *text == '\t' || *text == '\r') text++;
+    size_t n = strlen(text);
+    while (n && (text[n - 1] == ' ' || text[n - 1] == '\t' || text[n - 1] == '\r'))
+        text[--n] = '\0';
+    char *end = NULL;
+    double v = strtod(text, &end);
+    if (!*text || end == text || *end) {
+        cli_error("--slice-positions: %s: '%s' is not a number", where, text);
+        return 0;
+    }
+    if (!isfinite(v)) {
+        cli_error("--slice-positions: %s: '%s' is not a finite number", where, text);
+        return 0;
+    }
+    *z = v;
+    return 1;
+}
+
+/* Appends z to *out (capacity *cap). */
+static int push_position(double **out, int64_t *count, int64_t *cap, double z)
+{
+    if (*count == *cap) {
+        int64_t c = *cap ? 2 * *cap : 256;
+        double *p = realloc(*out, (size_t)c * sizeof *p);
+        if (!p) {
+            cli_error("--slice-positions: out of memory");
+            return 0;
+        }
+        *out = p;
+        *cap = c;
+    }
+    (*out)[(*count)++] = z;
+    return 1;
+}
+
+int cli_parse_slice_positions(const char *value, double **out, int64_t *count)
+{
+    *out = NULL;
+    *count = 0;
+    int64_t cap = 0, *lines = NULL, lcap = 0, lcount = 0; /* a file's line of each value */
+    char where[1200];
+    int rc = CLI_EXIT_OK;
+    const char *file = value[0] == '@' ? value + 1 : NULL;
+    if (file) {
+        FILE *fp = fopen(file, "r");
+        if (!fp) {
+            cli_error("--slice-positions: cannot read %s: %s", file, strerror(errno));
+            return CLI_EXIT_FAIL;
+        }
+        char *line = NULL;
+        size_t size = 0;
+        int64_t number = 0;
+        while (rc == CLI_EXIT_OK && getline(&line, &size, fp) >= 0) {
+            number++;
+            line[strcspn(line, "#\n")] = '\0';
+            if (line[strspn(line, " \t\r")] == '\0') continue; /* blank or a comment */
+            double z;
+            snprintf(where, sizeof where, "%s:%lld", file, (long long)number);
+            if (!position_value(line, where, &z)) {
+                rc = CLI_EXIT_USAGE;
+            } else if (!push_position(out, count, &cap, z)) {
+                rc = CLI_EXIT_FAIL;
+            } else if (lcount == lcap) {
+                lcap = lcap ? 2 * lcap : 256;
+                int64_t *p = realloc(lines, (size_t)lcap * sizeof *p);
+                if (!p) {
+                    cli_error("--slice-positions: out of memory");
+                    rc = CLI_EXIT_FAIL;
+                } else {
+                    lines = p;
+                }
+            }
+            if (rc == CLI_EXIT_OK) lines[lcount++] = number;
+        }
+        if (rc == CLI_EXIT_OK && ferror(fp)) {
+            cli_error("--slice-positions: cannot read %s: %s", file, strerror(errno));
+            rc = CLI_EXIT_FAIL;
+        }
+        free(line);
+        fclose(fp);
+        if (rc == CLI_EXIT_OK && *count == 0) {
+            cli_error("--slice-positions: %s holds no positions (one z a line)", file);
+            rc = CLI_EXIT_USAGE;
+        }
+    } else {
+        char *copy = strdup(value);
+        if (!copy) {
+            cli_error("--slice-positions: out of memory");
+            return CLI_EXIT_FAIL;
+        }
+        char *item = copy;
+        for (int64_t k = 0; rc == CLI_EXIT_OK; k++) {
+            char *comma = strchr(item, ',');
+            if (comma) *comma = '\0';
+            double z;
+            snprintf(where, sizeof where, "value %lld", (long long)k + 1);
+            if (!position_value(item, where, &z))
+                rc = CLI_EXIT_USAGE;
+            else if (!push_position(out, count, &cap, z))
+                rc = CLI_EXIT_FAIL;
+            if (!comma) break;
+            item = comma + 1;
+        }
+        free(copy);
+    }
+    for (int64_t k = 1; rc == CLI_EXIT_OK && k < *count; k++) {
+        if ((*out)[k] > (*out)[k - 1]) continue;
+        if (file)
+            snprintf(where, sizeof where, "%s:%lld", file, (long long)lines[k]);
+        else
+            snprintf(where, sizeof where, "value %lld", (long long)k + 1);
+        cli_error("--slice-positions: %s: z %.17g of slice %lld is not above z %.17g of slice "
+                  "%lld (the positions must increase strictly, one a slice)",
+                  where, (*out)[k], (long long)k, (*out)[k - 1], (long long)k - 1);
+        rc = CLI_EXIT_USAGE;
+    }
+    free(lines);
+    if (rc) {
+        free(*out);
+        *out = NULL;
+        *count = 0;
+    }
+    return rc;
+}
+
+/* Raw, NRRD, built-in: the positions become the grid's (checked against its slices). */
+static int apply_positions(cli_slices *s, const double *z, int64_t n)
+{
+    if (n != s->desc.dims[2]) {
+        cli_error("--slice-positions: %lld position%s for the %lld slice%s of %s", (long long)n,
+                  n == 1 ? "" : "s", (long long)s->desc.dims[2], s->desc.dims[2] == 1 ? "" : "s",
+                  s->label);
+        return CLI_EXIT_USAGE;
+    }
+    cli_geometry_of_positions(z, n, &s->geometry);
+    s->geometry.from = "--slice-positions";
+    /* the first position and the mean gap: the grid itself when uniform, the
+     * figures reported otherwise (the core then reads only the table) */
+    s->desc.origin[2] = z[0];
+    if (n > 1) s->desc.spacing[2] = (z[n - 1] - z[0]) / (double)(n - 1);
+    s->spacing_from[2] = "positions";
+    if (s->geometry.uniform) return CLI_EXIT_OK;
+    double *t = malloc((size_t)n * 3 * sizeof *t);
+    if (!t) {
+        cli_error("%s: out of memory for %lld slice origins", s->label, (long long)n);
+        return CLI_EXIT_FAIL;
+    }
+    for (int64_t k = 0; k < n; k++) {
+        t[3 * k] = s->desc.origin[0];
+        t[3 * k + 1] = s->desc.origin[1];
+        t[3 * k + 2] = z[k];
+    }
+    s->origins_owned = t;
+    s->desc.slice_origins = t;
+    return CLI_EXIT_OK;
+}
+
+void cli_print_geometry_warning(const char *label, const cli_geometry *g)
+{
+    if (g->warning[0]) {
+        cli_progress_clear(cli_active_progress);
+        fprintf(stderr, "%s: warning: %s: %s\n", cli_program, label, g->warning);
+    }
 }
 
 static void apply_overrides(const cli_source_opts *o, isomend_volume *v, const char **from)
@@ -233,7 +499,8 @@ static int io_failed(isomend_io_source *io, isomend_io_status st, const char *la
 }
 
 /* Image stacks: the importer resolves the source and checks every header. */
-static int open_io(const char *const *paths, int n, const cli_source_opts *o, cli_slices *s)
+static int open_io(const char *const *paths, int n, const cli_source_opts *o,
+                   const double *positions, int64_t npositions, cli_slices *s)
 {
     isomend_io_source *io = NULL;
     char why[512];
@@ -257,6 +524,8 @@ static int open_io(const char *const *paths, int n, const cli_source_opts *o, cl
     if (o->have_origin)
         for (int a = 0; a < 3; a++) opts.origin[a] = o->origin[a];
     opts.threads = o->threads;
+    opts.slice_positions = positions; /* copied by open */
+    opts.slice_position_count = (size_t)npositions;
     opts.progress = io_progress; /* also how Ctrl-C cancels */
     opts.progress_user = o->progress;
     if (o->series) io_api.set_series(io, o->series);
@@ -281,7 +550,15 @@ static int open_io(const char *const *paths, int n, const cli_source_opts *o, cl
     if (st == ISOMEND_IO_OK) st = io_api.spacing(io, spacing, from);
     if (st == ISOMEND_IO_OK) st = io_api.origin(io, origin);
     if (st != ISOMEND_IO_OK) {
-        int rc = io_failed(io, st, paths[0]);
+        /* the importer names the parameter by its API name: say the option's */
+        const char *m = io_api.message(io), *api = "slice_positions: ";
+        int rc;
+        if (positions && m && strncmp(m, api, strlen(api)) == 0) {
+            cli_error("--slice-positions: %s", m + strlen(api));
+            rc = CLI_EXIT_USAGE;
+        } else {
+            rc = io_failed(io, st, paths[0]);
+        }
         io_api.destroy(io);
         return rc;
     }
@@ -300,22 +577,89 @@ static int open_io(const char *const *paths, int n, const cli_source_opts *o, cl
     s->grid_axes = o->grid_axes;
     int identity = 1;
     if (io_api.world_transform(io, s->world, &identity) == ISOMEND_IO_OK) s->has_world = !identity;
+    if (positions && s->dicom) { /* the importer refuses them; never mesh a series elsewhere */
+        cli_error("%s: --slice-positions does not apply to a DICOM series (its slices' positions "
+                  "are its own, from Image Position (Patient))", paths[0]);
+        return CLI_EXIT_USAGE; /* the caller closes s */
+    }
+    if (positions && dims[2] != npositions) { /* the importer checks it too */
+        cli_error("--slice-positions: %lld position%s for the %lld slice%s of %s",
+                  (long long)npositions, npositions == 1 ? "" : "s", (long long)dims[2],
+                  dims[2] == 1 ? "" : "s", paths[0]);
+        return CLI_EXIT_USAGE;
+    }
+    /* where the slices lie: the series' positions, the stack's --slice-positions */
+    isomend_io_geometry g;
+    memset(&g, 0, sizeof g);
+    g.size = sizeof g;
+    st = io_api.geometry_info(io, &g);
+    if (st != ISOMEND_IO_OK) return io_failed(io, st, paths[0]);
+    cli_geometry *cg = &s->geometry;
+    if (positions) { /* the same rule and words as a raw volume's (the importer's rule) */
+        cli_geometry_of_positions(positions, npositions, cg);
+        cg->from = "--slice-positions";
+        s->desc.slice_origins = io_api.slice_origins(io);
+        if (cg->uniform != (s->desc.slice_origins == NULL)) {
+            cli_error("%s: the importer and isomend disagree on whether the slice positions are "
+                      "evenly spaced (internal error)", paths[0]);
+            return CLI_EXIT_FAIL;
+        }
+        s->spacing_from[2] = "positions";
+        return CLI_EXIT_OK;
+    }
+    cg->uniform = g.uniform != 0;
+    cg->from = s->dicom ? "dicom" : "spacing";
+    cg->gap_median = g.gap_median;
+    cg->gap_min = g.gap_min;
+    cg->gap_max = g.gap_max;
+    cg->tilt_degrees = g.tilt_degrees;
+    cg->max_offset = g.max_offset;
+    cg->long_gaps = g.long_gaps;
+    cg->uneven_gaps = g.uneven_gaps;
+    snprintf(cg->warning, sizeof cg->warning, "%s", g.warning ? g.warning : "");
+    /* the streamed path and isomend-mpi mesh from this description (the
+     * table belongs to the handle; isomend_io_load() sets the same) */
+    s->desc.slice_origins = io_api.slice_origins(io);
     return CLI_EXIT_OK;
 }
 #endif
+
+static int opened(const char *const *paths, int n, const cli_source_opts *o,
+                  const double *positions, int64_t npositions, cli_slices *s);
 
 int cli_slices_open(const char *const *paths, int n, const cli_source_opts *o, cli_slices *s)
 {
     memset(s, 0, sizeof *s);
     snprintf(s->label, sizeof s->label, "%s", paths[0]);
     s->progress = o->progress;
-    int stack_opts = o->have_first || o->have_count || o->have_step || o->have_channel;
     if ((o->series || o->grid_axes) &&
         ((n == 1 && (o->have_raw || isomend_fileio_is_nrrd_path(paths[0]))) ||
          strncmp(paths[0], "builtin:", 8) == 0)) {
         cli_error("%s: --series and --grid-axes apply to DICOM series only", paths[0]);
         return CLI_EXIT_USAGE;
     }
+    double *positions = NULL;
+    int64_t npositions = 0;
+    if (o->slice_positions) {
+        int prc = cli_parse_slice_positions(o->slice_positions, &positions, &npositions);
+        if (prc) return prc;
+    }
+    int rc = opened(paths, n, o, positions, npositions, s);
+    free(positions);
+    if (rc) {
+        cli_slices_close(s);
+        return rc;
+    }
+    s->slice_bytes = (uint64_t)s->desc.dims[0] * (uint64_t)s->desc.dims[1] *
+                     isomend_type_size(s->desc.type);
+    return CLI_EXIT_OK;
+}
+
+/* cli_slices_open's dispatch; on failure the caller closes s. */
+static int opened(const char *const *paths, int n, const cli_source_opts *o,
+                  const double *positions, int64_t npositions, cli_slices *s)
+{
+    int stack_opts = o->have_first || o->have_count || o->have_step || o->have_channel;
     int rc;
     if (n == 1 && cli_builtin_volume(paths[0], s->builtin)) {
         if (o->have_raw || stack_opts) {
@@ -329,7 +673,8 @@ int cli_slices_open(const char *const *paths, int n, const cli_source_opts *o, c
         snprintf(s->format, sizeof s->format, "generated");
         for (int a = 0; a < 3; a++) s->spacing_from[a] = "default";
         apply_overrides(o, &s->desc, s->spacing_from);
-        rc = CLI_EXIT_OK;
+        geometry_uniform(&s->desc, &s->geometry);
+        rc = positions ? apply_positions(s, positions, npositions) : CLI_EXIT_OK;
     } else if (strncmp(paths[0], "builtin:", 8) == 0) {
         cli_error("%s: unknown built-in volume (builtin:f1 or builtin:f2)", paths[0]);
         return CLI_EXIT_USAGE;
@@ -339,17 +684,18 @@ int cli_slices_open(const char *const *paths, int n, const cli_source_opts *o, c
             return CLI_EXIT_USAGE;
         }
         rc = open_fileio(paths[0], o, s);
+        if (rc == CLI_EXIT_OK) geometry_uniform(&s->desc, &s->geometry);
+        if (rc == CLI_EXIT_OK && positions) rc = apply_positions(s, positions, npositions);
     } else {
 #ifdef ISOMEND_HAVE_IO
         if (o->have_raw) {
             cli_error("--raw describes one file, got %d sources", n);
             return CLI_EXIT_USAGE;
         }
-        rc = open_io(paths, n, o, s);
+        rc = open_io(paths, n, o, positions, npositions, s);
         if (rc == CLI_EXIT_OK && !s->dicom && (o->series || o->grid_axes)) {
             cli_error("%s: --series and --grid-axes apply to DICOM series only (this is a %s "
                       "source)", paths[0], s->kind);
-            cli_slices_close(s);
             return CLI_EXIT_USAGE;
         }
 #else
@@ -364,10 +710,7 @@ int cli_slices_open(const char *const *paths, int n, const cli_source_opts *o, c
         return CLI_EXIT_USAGE;
 #endif
     }
-    if (rc) return rc;
-    s->slice_bytes = (uint64_t)s->desc.dims[0] * (uint64_t)s->desc.dims[1] *
-                     isomend_type_size(s->desc.type);
-    return CLI_EXIT_OK;
+    return rc;
 }
 
 int cli_slices_next(cli_slices *s, void *buffer)
@@ -438,6 +781,7 @@ void cli_slices_close(cli_slices *s)
 {
     if (!s) return;
     isomend_fileio_slices_close(s->reader);
+    free(s->origins_owned);
 #ifdef ISOMEND_HAVE_IO
     if (s->io) io_api.destroy(s->io);
 #endif
@@ -457,6 +801,9 @@ int cli_source_load(cli_slices *s, cli_source *src)
     src->grid_axes = s->grid_axes;
     src->has_world = s->has_world;
     memcpy(src->world, s->world, sizeof src->world);
+    src->geometry = s->geometry;
+    src->origins_owned = s->origins_owned; /* the slice origins we built go along */
+    s->origins_owned = NULL;
     int rc = CLI_EXIT_OK;
     if (s->is_builtin) {
         src->owned = malloc(sizeof s->builtin);
@@ -496,6 +843,7 @@ int cli_source_load(cli_slices *s, cli_source *src)
                     src->vol.spacing[a] = s->desc.spacing[a];
                     src->vol.origin[a] = s->desc.origin[a];
                 }
+                src->vol.slice_origins = s->desc.slice_origins; /* --slice-positions */
             }
         }
     } else {
@@ -538,6 +886,7 @@ void cli_source_close(cli_source *src)
 {
     if (!src) return;
     free(src->owned);
+    free(src->origins_owned);
 #ifdef ISOMEND_HAVE_IO
     if (src->io) io_api.destroy(src->io);
 #endif
@@ -716,6 +1065,19 @@ int cli_slices_summary(cli_slices *s, cli_summary *sum)
     cli_slices_rewind(s);
     free(slice);
     return rc;
+}
+
+int cli_slices_fixed_level(cli_slices *s, double *level)
+{
+#ifdef ISOMEND_HAVE_IO
+    if (s->io && io_api.suggested_level((const isomend_io_source *)s->io) == ISOMEND_IO_LEVEL_BONE &&
+        io_api.level_value((isomend_io_source *)s->io, ISOMEND_IO_LEVEL_BONE, level) == ISOMEND_IO_OK)
+        return 1;
+#else
+    (void)s;
+    (void)level;
+#endif
+    return 0;
 }
 
 /* ------------------------------------------------------------------ DICOM */
@@ -931,6 +1293,7 @@ void cli_source_view(const cli_slices *s, cli_source *view)
     view->grid_axes = s->grid_axes;
     view->has_world = s->has_world;
     memcpy(view->world, s->world, sizeof view->world);
+    view->geometry = s->geometry; /* the slice origins stay with s */
     view->read_ms = s->read_ms;
     snprintf(view->label, sizeof view->label, "%s", s->label);
 }

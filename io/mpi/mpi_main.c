@@ -99,6 +99,13 @@ static int suggest_iso(cli_slices *s, int64_t k0, int64_t k1, cli_summary *sum)
 {
     const int64_t nx = s->desc.dims[0], ny = s->desc.dims[1];
     const int64_t ts = (int64_t)isomend_type_size(s->desc.type);
+    double level;
+    if (cli_slices_fixed_level(s, &level)) { /* a CT series: the bone level, as isomend's */
+        memset(sum, 0, sizeof *sum);
+        sum->has_suggestion = 1;
+        sum->suggested_iso = level;
+        return CLI_EXIT_OK;
+    }
     char *slice = k1 > k0 ? malloc((size_t)s->slice_bytes) : NULL;
     int rc = k1 > k0 && !slice ? CLI_EXIT_FAIL : CLI_EXIT_OK;
     if (rc) cli_error("%s: out of memory for a slice", s->label);
@@ -216,7 +223,7 @@ static int run(int argc, char **argv)
     unsigned allowed = OPT_OUTPUT | OPT_ISO | OPT_METHOD | OPT_RAW | OPT_SPACING | OPT_ORIGIN |
                        OPT_PAD | OPT_NO_NORMALS | OPT_FLIP | OPT_STATS | OPT_JSON | OPT_QUIET |
                        OPT_THREADS | OPT_FIRST | OPT_COUNT | OPT_STEP | OPT_CHANNEL | OPT_HELP |
-                       OPT_PAGES | OPT_MAX_MEMORY;
+                       OPT_PAGES | OPT_MAX_MEMORY | OPT_SLICE_POSITIONS;
     int rc = cli_parse_args(argc, argv, 2, "extract", allowed, &a);
     if (!rc && (a.seen & OPT_HELP)) {
         if (rank == 0) fputs(usage, stdout);
@@ -264,8 +271,10 @@ static int run(int argc, char **argv)
     a.src.progress = &bar;
     cli_slices sl;
     memset(&sl, 0, sizeof sl);
+    /* every rank reads --slice-positions itself: the same table, the same desc */
     rc = cli_slices_open(a.positional, a.npositional, &a.src, &sl);
     if ((rc = agree(rc)) != 0) goto fail;
+    if (rank == 0) cli_print_geometry_warning(sl.label, &sl.geometry);
 
     isomend_options opts;
     cli_extract_options(&a, &bar, &opts); /* no bar on screen: how Ctrl-C cancels */
@@ -303,7 +312,11 @@ static int run(int argc, char **argv)
         }
         a.iso = sum.suggested_iso;
         iso_suggested = 1;
-        if (rank == 0 && !quiet)
+        double bone;
+        if (rank == 0 && !quiet && cli_slices_fixed_level(&sl, &bone))
+            fprintf(stderr, "isomend-mpi: no --iso given: using %.9g HU, the bone level of the CT "
+                            "series %s (see 'isomend info')\n", a.iso, sl.label);
+        else if (rank == 0 && !quiet)
             fprintf(stderr, "isomend-mpi: no --iso given: using %.9g, the suggested level of %s "
                             "(Otsu, see 'isomend info')\n", a.iso, sl.label);
     }
@@ -444,6 +457,7 @@ static int run(int argc, char **argv)
             fprintf(jf, "{\"command\": \"extract\", \"program\": \"isomend-mpi\", \"version\": "
                         "\"%s\", \"ranks\": %d, ", isomend_version(), ranks);
             cli_json_run(jf, sl.label, sl.kind, a.output, v, &opts, iso_suggested);
+            cli_json_geometry(jf, &sl.geometry);
             fprintf(jf, ", \"slab_engine\": \"core\", \"peak_memory\": %" PRIu64, peak_max);
             stats.vertices = totals[0];
             stats.triangles = totals[1];

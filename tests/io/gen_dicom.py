@@ -12,13 +12,24 @@ shuffled names, and the positions are computed from the geometry, so sorting,
 spacing and orientation are all checked against what was meant.
 
 manifest.tsv, one case per line, tab-separated:
-  ok   NAME TYPE NX NY NZ EXPECTED.raw SX SY SZ OX OY OZ A0..A11 SERIES AXES SOURCE...
+  ok   NAME TYPE NX NY NZ EXPECTED.raw SX SY SZ OX OY OZ A0..A11 SERIES AXES
+       ORIGINS WARN TILT LONG SOURCE...
   err  NAME STATUS MESSAGE-SUBSTRING SERIES SOURCE...
 O = the origin isomend_io_load() describes (the series' own frame), A = the
 world transform (3x4 row-major); SERIES "-" for none; AXES 0 patient, 1 grid;
-STATUS an isomend_io_status number (of isomend_io_open, or of the load when
-the open succeeds).  SOURCE paths are relative to OUTDIR.
-cases.json: the same cases for the Python tests, with the geometry of each.
+ORIGINS "-" for a uniform grid, else a file of the slice origins
+isomend_io_slice_origins() must give (the series' own frame, one slice a
+line, x y z); WARN 1 when isomend_io_geometry_info() must give a warning,
+else 0; TILT its tilt in degrees, LONG its count of gaps over 1.5x the
+median; STATUS an isomend_io_status number (of isomend_io_open, or of the
+load when the open succeeds).  SOURCE paths are relative to OUTDIR.
+The geometry is computed here from the values as written (DS text read
+back), by the rule of isomend_io.h ("Slices where they are"): uniform when
+every slice origin lies within 1e-4 of the smaller pixel spacing of the
+evenly spaced line through the first and last; a warning when a gap along n
+differs from the median by more than 1% or exceeds 1.5x it.
+cases.json: the same cases for the Python tests, with the geometry of each
+("slice_origins": null or [[x, y, z], ...], "warning", "tilt_degrees").
 
 Usage: gen_dicom.py OUTDIR SAMPLES_DIR
 """
@@ -179,10 +190,10 @@ def set_pixels(ds, stored, signed, bits_stored):
 def write_series(folder, stored, geo, *, modality="CT", sop_class=CT_IMAGE, signed=False,
                  bits_stored=None, slope=None, intercept=None, syntax=ExplicitVRLittleEndian,
                  names="shuffled", number=1, description="", series_uid=None, photometric=None,
-                 edit=None):
-    """stored: [z, y, x] as stored, slice k at geo.position(k).  Files are
-    written in a shuffled order, Instance Numbers shuffled too.  Returns the paths
-    in slice order."""
+                 edit=None, positions=None):
+    """stored: [z, y, x] as stored, slice k at geo.position(k) (or
+    positions[k]).  Files are written in a shuffled order, Instance Numbers
+    shuffled too.  Returns the paths in slice order."""
     series_uid = series_uid or generate_uid()
     study, frame = generate_uid(), generate_uid()
     nz = stored.shape[0]
@@ -192,7 +203,7 @@ def write_series(folder, stored, geo, *, modality="CT", sop_class=CT_IMAGE, sign
     for i, k in enumerate(order):
         ds = base_dataset(sop_class, modality, series_uid, study, frame, number, description)
         ds.InstanceNumber = int(instance[k])
-        ds.ImagePositionPatient = [ds_text(v) for v in geo.position(k)]
+        ds.ImagePositionPatient = [ds_text(v) for v in (geo.position(k) if positions is None else positions[k])]
         ds.ImageOrientationPatient = [ds_text(v) for v in list(geo.row) + list(geo.col)]
         ds.PixelSpacing = [ds_text(geo.spacing[1]), ds_text(geo.spacing[0])]  # row, column spacing
         ds.SliceThickness = ds_text(geo.spacing[2])
@@ -218,8 +229,40 @@ def write_series(folder, stored, geo, *, modality="CT", sop_class=CT_IMAGE, sign
     return paths
 
 
-def expected(name, vol, geo, axes=0, series="-", sources=(), tname=None, spacing=None):
-    """Records a good case: vol [z, y, x] in the delivered dtype."""
+def written(v):
+    """A DS value as isomend reads it back."""
+    return float(ds_text(v))
+
+
+def slice_geometry(geo, positions):
+    """The slices' geometry by the rule of isomend_io.h, from the values as
+    written: (origins [n, 3] in the series' own frame, uniform, warning,
+    tilt degrees, gaps over 1.5x the median, mean gap)."""
+    row = np.array([written(v) for v in geo.row])
+    col = np.array([written(v) for v in geo.col])
+    r, c = row / np.sqrt(row @ row), col / np.sqrt(col @ col)
+    n = np.cross(r, c)
+    n /= np.sqrt(n @ n)
+    P = np.array([[written(v) for v in p] for p in positions])
+    o = np.column_stack([P @ r, P @ c, P @ n])
+    assert np.all(np.diff(o[:, 2]) > 0), "positions must be written in slice order"
+    k = np.arange(len(o))
+    mean = (o[-1, 2] - o[0, 2]) / (len(o) - 1)
+    even = o[0] + np.outer(k * mean, [0, 0, 1])
+    offset = np.sqrt(((o - even) ** 2).sum(1)).max()
+    gaps = np.diff(o[:, 2])
+    median = np.sort(gaps)[len(gaps) // 2]
+    long_gaps = int((gaps > 1.5 * median).sum())
+    warning = bool((np.abs(gaps - median) > 0.01 * median).any() or long_gaps)
+    d = o[-1] - o[0]
+    tilt = float(np.degrees(np.arctan2(np.hypot(d[0], d[1]), d[2])))
+    uniform = offset <= 1e-4 * min(geo.spacing[0], geo.spacing[1])
+    return o, bool(uniform), warning, tilt, long_gaps, float(mean)
+
+
+def expected(name, vol, geo, axes=0, series="-", sources=(), tname=None, spacing=None, positions=None):
+    """Records a good case: vol [z, y, x] in the delivered dtype; the slices
+    at geo.position(k), or positions[k] (written in slice order)."""
     nz, ny, nx = vol.shape
     p = os.path.join(OUT, name + ".expected.raw")
     np.ascontiguousarray(vol).astype(vol.dtype.newbyteorder("<")).tofile(p)
@@ -227,16 +270,28 @@ def expected(name, vol, geo, axes=0, series="-", sources=(), tname=None, spacing
                       np.dtype(np.int16): "i16", np.dtype(np.int32): "i32",
                       np.dtype(np.float32): "f32", np.dtype(np.float64): "f64"}[vol.dtype]
     sp = spacing or geo.spacing
-    origin = geo.own_origin() if axes == 0 or True else None
+    origin = geo.own_origin()
+    if positions is None:
+        positions = [geo.position(k) for k in range(nz)]
+    table, uniform, warning, tilt, long_gaps, mean = slice_geometry(geo, positions)
+    if not uniform:  # the series' own values: slice 0's origin, the mean gap
+        origin, sp = table[0], (sp[0], sp[1], mean)
+        origins_file = name + ".origins.txt"
+        np.savetxt(os.path.join(OUT, origins_file), table, fmt="%.17g")
     A = geo.affine(axes)
     rel = [os.path.relpath(s, OUT) for s in sources]
     LINES.append("\t".join(["ok", name, tname, str(nx), str(ny), str(nz), os.path.basename(p)] +
                            ["%.17g" % v for v in sp] + ["%.17g" % v for v in origin] +
-                           ["%.17g" % v for v in A.reshape(-1)] + [series, str(axes)] + rel))
+                           ["%.17g" % v for v in A.reshape(-1)] + [series, str(axes)] +
+                           ["-" if uniform else origins_file, str(int(warning)), "%.17g" % tilt,
+                            str(long_gaps)] + rel))
     CASES[name] = {"ok": True, "type": tname, "dims": [nx, ny, nz], "expected": p, "spacing": list(sp),
                    "origin": list(origin), "affine": A.tolist(), "p0": geo.p0.tolist(),
                    "series": None if series == "-" else series, "axes": axes,
+                   "slice_origins": None if uniform else table.tolist(), "warning": warning,
+                   "tilt_degrees": tilt, "long_gaps": long_gaps,
                    "sources": [os.path.join(OUT, r) for r in rel]}
+    return table, uniform, warning, tilt, long_gaps
 
 
 def error(name, status, substring, sources, series="-"):
@@ -411,6 +466,64 @@ if GDCMCONV:
             subprocess.run([GDCMCONV] + flags + [os.path.join(src, n), os.path.join(f, n)], check=True)
         expected("ct_" + tag, CT, geo_ct, sources=[f])
 
+# ---------------------------------------------------------------- slices where they are
+# Series that are not evenly spaced on one line are meshed at their slices'
+# true positions (isomend_io.h, "Slices where they are"): each case asserts
+# here that it really is what it is named for, by the rule the importer uses.
+CT_STORED = (CT.astype(np.int32) + 1024).astype(np.uint16)
+
+
+def placed(name, stored, delivered, geo, positions, **kw):
+    f = d(name)
+    write_series(f, stored, geo, positions=positions, names="IM%04d", **kw)
+    return expected(name, delivered, geo, sources=[f], positions=positions)
+
+
+# "rounded": an oblique MR whose Image Position (Patient) values are rounded
+# to 0.1 mm, as GE scanners write them: ~7 mm gaps that vary by 1-2% along n,
+# and slices off the line by up to ~0.07 mm
+geo_rd = Geometry(row=(1, 0, 0), col=rotation((1, 0, 0), 12)[:, 1], spacing=(0.9375, 0.9375, 6.972),
+                  p0=(-15.3, -48.2, -61.7))
+pos = [np.round(geo_rd.position(k), 1) for k in range(MRI_U16.shape[0])]
+_, uniform, warning, _, _ = placed("rounded", MRI_U16, MRI_U16, geo_rd, pos, modality="MR", sop_class=MR_IMAGE,
+                                   description="T2 axial oblique, positions to 0.1 mm")
+assert MRI_U16.shape[0] >= 20 and not uniform and warning, "rounded: the rounding must make the gaps uneven"
+
+# "two_spacings": 2.5 mm gaps, then 5 mm gaps from slice 16 on (a CT
+# reconstructed with two increments); the 5 mm gaps are 2x the median
+geo_ts = Geometry(spacing=(0.7, 0.8, 2.5), p0=(-14.0, -12.5, 10.0))
+z = np.concatenate([np.arange(16) * 2.5, 15 * 2.5 + np.arange(1, CT.shape[0] - 15) * 5.0])
+pos = [geo_ts.p0 + zk * geo_ts.n for zk in z]
+_, uniform, warning, _, _ = placed("two_spacings", CT_STORED, CT, geo_ts, pos, bits_stored=12, slope=1,
+                                   intercept=-1024)
+assert not uniform and warning
+
+
+# "tilt15": a 15 degree gantry tilt: every slice shifted along the column
+# direction by gap * tan(15 degrees) more than the one before, the
+# orientation unchanged (axial), Gantry/Detector Tilt (0018,1120) = 15
+def gantry(k, ds):
+    ds.GantryDetectorTilt = "15"
+
+
+pos = [geo_ct.position(k) + k * geo_ct.spacing[2] * np.tan(np.radians(15)) * geo_ct.col for k in range(CT.shape[0])]
+_, uniform, warning, tilt, _ = placed("tilt15", CT_STORED, CT, geo_ct, pos, bits_stored=12, slope=1,
+                                      intercept=-1024, edit=gantry)
+assert not uniform and not warning and abs(tilt - 15) < 1e-6, tilt
+
+# "missing_slice": slice 11 of a uniform series removed: a gap of 2x the median
+keep = [k for k in range(CT.shape[0]) if k != 11]
+pos = [geo_ct.position(k) for k in keep]
+_, uniform, warning, _, long_gaps = placed("missing_slice", CT_STORED[keep], CT[keep], geo_ct, pos,
+                                           bits_stored=12, slope=1, intercept=-1024)
+assert not uniform and warning and long_gaps == 1
+
+# "irregular": slice 9 moved by 0.3 gap along n (the old refusal, now meshed)
+pos = [geo_ct.position(k) + (0.3 * geo_ct.spacing[2] * geo_ct.n if k == 9 else 0) for k in range(CT.shape[0])]
+_, uniform, warning, _, long_gaps = placed("irregular", CT_STORED, CT, geo_ct, pos, bits_stored=12, slope=1,
+                                           intercept=-1024)
+assert not uniform and warning and long_gaps == 0
+
 # ---------------------------------------------------------------- defects
 
 def defect(name, status, substring, edit=None, drop=None, stored=None, geo=geo_ct, names="dcm", extra=None):
@@ -425,11 +538,6 @@ def defect(name, status, substring, edit=None, drop=None, stored=None, geo=geo_c
     return paths
 
 
-defect("missing_slice", MISMATCH, "1 missing slice", drop=11)
-defect("two_missing", MISMATCH, "2 missing slices",
-       extra=lambda f, p: (os.remove(p[7]), os.remove(p[8])))
-
-
 def dup(f, paths):
     ds = pydicom.dcmread(paths[5])
     ds.SOPInstanceUID = generate_uid()
@@ -437,24 +545,6 @@ def dup(f, paths):
 
 
 defect("duplicate", MISMATCH, "at the same position", extra=dup)
-
-
-def shift(k, ds):
-    if k == 9:
-        p = geo_ct.position(9) + 0.3 * geo_ct.spacing[2] * geo_ct.n
-        ds.ImagePositionPatient = [ds_text(v) for v in p]
-
-
-defect("irregular", MISMATCH, "non-uniform slice spacing", edit=shift)
-
-
-def tilt(k, ds):
-    p = geo_ct.position(k) + np.array([0, np.tan(np.radians(12)) * k * geo_ct.spacing[2], 0])
-    ds.ImagePositionPatient = [ds_text(v) for v in p]
-    ds.GantryDetectorTilt = "12"
-
-
-defect("gantry_tilt", UNSUPPORTED, "gantry tilt", edit=tilt)
 
 
 def other_size(f, paths):

@@ -4,16 +4,19 @@
 For N = 1, 2, 3 and 5 ranks (mpirun --oversubscribe on this 2-core machine)
 and sources of every kind (raw, NRRD raw and gzip, reversed axes, NaN
 samples, a TIFF folder through the importer, the bundled MRI, a volume with
-fewer slices than ranks), formats PLY, OBJ and STL and options (--pad,
+fewer slices than ranks, slices not evenly spaced: --slice-positions on a raw
+volume and the TIFF folder, every rank reading the same positions file),
+formats PLY, OBJ and STL and options (--pad,
 --flip, --no-normals, methods mc, durst, dmc, tetra; the suggested iso when
 --iso is not given), the mesh file is identical byte for byte to the one
 `isomend extract` writes, and the JSON statistics (vertices, triangles and
 their origins, cubes, case histogram, ambiguous faces, inverted combinations,
-NaN samples) are the same.
+NaN samples) and the slices' geometry and warnings are the same.
 
 Failures end every rank with one message naming the file and no output or
 temporary file: a corrupt slice that only one rank reads, a write that fails
-(the file size limit), a folder that does not exist, bad options.  The
+(the file size limit), a folder that does not exist, bad options, slice
+positions that do not match the slices or a positions file that is missing.  The
 methods with cube-private vertices (facial, gradient, asymptotic, mc33) on
 N = 1, 2, 3 write `isomend extract`'s bytes too.
 
@@ -36,7 +39,8 @@ import clitest  # noqa: E402
 FAILURES = []
 ENV = clitest.mpi_env()
 STATS = ("vertices", "triangles", "triangles_by_origin", "cubes", "case_histogram",
-         "ambiguous_faces", "inverted_combinations", "nan_samples", "iso", "iso_suggested")
+         "ambiguous_faces", "inverted_combinations", "nan_samples", "iso", "iso_suggested",
+         "geometry", "warnings")
 
 
 def fail(name, why):
@@ -100,6 +104,12 @@ def volumes(work, samples):
     os.makedirs(os.path.join(work, "tiffs"), exist_ok=True)
     for k in range(no.shape[0]):
         tifffile.imwrite(os.path.join(work, "tiffs", "s_%03d.tif" % k), no[k], compression="zlib")
+    # slices not evenly spaced (issue 34): a spacing change, a missing slice, jitter
+    gaps = 0.9 + 0.6 * (np.arange(36) >= 17) + 0.05 * np.sin(np.arange(36))
+    gaps[25] *= 2
+    with open(os.path.join(work, "gyroid_z.txt"), "w") as f:
+        f.write("# z of each slice\n" + "\n".join(repr(v) for v in np.concatenate([[2.0], 2.0 + np.cumsum(gaps)])))
+    tiff_z = ",".join(repr(v) for v in np.round(1.15 * np.arange(no.shape[0]) + 0.3, 1))
     mri = os.path.join(samples, "anatomical.nrrd")
     both = [["--iso", "0.2"], ["--iso", "0.2", "--pad", "--method", "mc"],
             ["--iso", "0.2", "--pad", "--method", "durst"], ["--iso", "0.2", "--pad", "--method", "tetra"],
@@ -111,6 +121,12 @@ def volumes(work, samples):
         ("nan sphere reversed", ["nan_sphere.nrrd"], "ply", [["--iso", "1.5"], ["--pad"]]),
         ("tiff folder", ["tiffs"], "ply", [["--pad"], ["--iso", "1990.5", "--method", "tetra"]]),
         ("mri", [mri], "ply", [["--pad"]]),
+        ("gyroid raw uneven slices", ["gyroid.raw", "--raw", "31,29,37:f32", "--slice-positions",
+                                      "@gyroid_z.txt"], "ply", both[:2] + both[3:4]),
+        ("gyroid raw uneven slices stl", ["gyroid.raw", "--raw", "31,29,37:f32", "--slice-positions",
+                                          "@gyroid_z.txt"], "stl", both[:1]),
+        ("tiff folder uneven slices", ["tiffs", "--slice-positions", tiff_z], "ply",
+         [["--pad"], ["--iso", "1990.5", "--method", "tetra"]]),
         ("thin (3 slices)", ["thin.raw", "--raw", "31,29,3:f32"], "ply", [["--iso", "0.1"],
                                                                            ["--iso", "0.1", "--pad"]]),
     ]
@@ -121,9 +137,12 @@ def test_same_files(t, samples, dicom):
     vols = volumes(t.work, samples)
     if dicom:  # gen_dicom.py's series: through the importer, mapped to patient space
         cases = json.load(open(os.path.join(dicom, "cases.json")))
-        for case in ("ct_folder", "ct_oblique", "ct_feet_first", "mr_coronal"):
+        for case in ("ct_folder", "ct_oblique", "ct_feet_first", "mr_coronal",
+                     # slices where they are (uneven gaps, rounded positions, tilt)
+                     "rounded", "two_spacings", "tilt15", "missing_slice"):
             if case in cases:
-                vols.append((f"dicom {case}", cases[case]["sources"], "ply", [["--pad", "--iso", "300"]]
+                # CT series: also without --iso (the bone level, as isomend extract's)
+                vols.append((f"dicom {case}", cases[case]["sources"], "ply", [["--pad", "--iso", "300"], ["--pad"]]
                              if case.startswith("ct") else [["--pad"]]))
     for name, src, fmt, sets in vols:
         for opts in sets:
@@ -137,6 +156,8 @@ def test_same_files(t, samples, dicom):
             data = open(ref, "rb").read()
             if want["triangles"] == 0:
                 fail(label, "empty mesh: the comparison would prove little")
+            if "--slice-positions" in src and want["geometry"]["uniform"]:
+                fail(label, "the slice positions are evenly spaced: the comparison proves little")
             for n in (1, 2, 3, 5):
                 out = os.path.join(t.work, f"mpi{n}.{fmt}")
                 m = t.ranks(n, src + opts, out)
@@ -144,6 +165,9 @@ def test_same_files(t, samples, dicom):
                     fail(f"{label} -n {n}", f"exit {m.returncode}: {m.stderr.strip()[:600]}")
                     continue
                 got = json.loads(m.stdout)
+                warned = [l for l in m.stderr.splitlines() if l.startswith("isomend-mpi: warning: ")]
+                if len(warned) != len(want["warnings"]):  # said once, by rank 0
+                    fail(f"{label} -n {n}", f"warning lines {warned}, expected {want['warnings']}")
                 if got["ranks"] != n:
                     fail(f"{label} -n {n}", f"ranks {got['ranks']}")
                 for k in STATS:
@@ -215,7 +239,13 @@ def test_failures(t):
                    os.path.join(w, "out_bad"), ["--iso"], 2)
     expect_failure(t, "bad slice file", 2, ["gyroid.raw", "--raw", "31,29,38:f32", "--iso", "0.2"],
                    os.path.join(w, "out_size"), ["gyroid.raw"], 1)
-    print("ok   missing folder, bad option, bad size: one message, nothing left")
+    expect_failure(t, "bad slice positions", 3, ["gyroid.raw", "--raw", "31,29,37:f32", "--iso", "0.2",
+                                                 "--slice-positions", "0,1,2"],
+                   os.path.join(w, "out_positions"), ["--slice-positions", "3 positions", "37 slices"], 2)
+    expect_failure(t, "missing positions file", 2, ["gyroid.raw", "--raw", "31,29,37:f32", "--iso", "0.2",
+                                                    "--slice-positions", "@no_such_z.txt"],
+                   os.path.join(w, "out_positions_file"), ["--slice-positions", "no_such_z.txt"], 1)
+    print("ok   missing folder, bad option, bad size, bad slice positions: one message, nothing left")
     # the methods with cube-private vertices split too (the core's pieces own
     # layer k's private vertices with slice k)
     for method in ("facial", "gradient", "asymptotic", "mc33"):

@@ -192,11 +192,15 @@ typedef struct isomend_io_options {
      * number of slices, strictly increasing, finite), for a stack or a
      * raw/NRRD volume whose slices are not evenly spaced (microscopy with
      * variable steps, re-sliced data): slice k is meshed at z =
-     * slice_positions[k] (the z spacing and origin are then not used).
-     * Positions evenly spaced within 1e-6 of their mean gap are taken as
-     * that spacing and origin (a uniform grid).  NULL / 0: evenly spaced.
-     * Refused for a DICOM series, whose positions are its own.  Copied by
-     * isomend_io_open(). */
+     * slice_positions[k] (a z spacing and origin given or read are then
+     * not used).  Positions each within 1e-6 x their mean gap of evenly
+     * spaced are taken as that spacing and origin (a uniform grid).
+     * Either way the z spacing reported is the mean gap and the origin's z
+     * slice_positions[0].  NULL / 0: evenly spaced.  A count that is not
+     * the number of slices, a value that is not finite or not greater than
+     * the one before: ISOMEND_IO_ERR_INVALID_ARGUMENT naming
+     * slice_positions.  Refused for a DICOM series, whose positions are its
+     * own.  Copied by isomend_io_open() (and by isomend_io_job_start()). */
     const double *slice_positions;
     size_t slice_position_count;
 } isomend_io_options;
@@ -293,7 +297,9 @@ ISOMEND_IO_API const char *isomend_io_slice_path(const isomend_io_source *src, i
  * (or the spacing).  A series whose slices are not evenly spaced on one line
  * along the slice normal (uniform 0) is meshed at its slices' true
  * positions: isomend_io_slice_origins() is not NULL, and isomend_io_load()
- * sets isomend_volume.slice_origins to it.
+ * sets isomend_volume.slice_origins to it.  A source without positions is
+ * uniform, its gaps all spacing[2], its tilt and offset 0.  The warning is
+ * set for DICOM series only (slice_positions are the caller's own).
  */
 typedef struct isomend_io_geometry {
     size_t size;            /* set by the caller: sizeof(isomend_io_geometry)  */
@@ -409,8 +415,9 @@ ISOMEND_IO_API isomend_io_status isomend_io_analyse(isomend_io_source *src,
  * cosine), y = row index (along the column direction cosine), z = slice
  * index (along n).  Spacing x, y = Pixel Spacing's second and first values
  * (column spacing, row spacing); z = the distance between the first and
- * last positions / (slices - 1).  The mesh is in patient coordinates (DICOM
- * LPS: +x towards the patient's left, +y posterior, +z head; millimetres):
+ * last positions along n / (slices - 1), the mean gap.  The mesh is in
+ * patient coordinates (DICOM LPS: +x towards the patient's left, +y
+ * posterior, +z head; millimetres):
  *     world = P0 + R * (index * spacing),  R = [row | column | n]
  * with P0 the first slice's Image Position (Patient).  Because the slices
  * are sorted along n, R is a rotation (determinant +1): a surface is never
@@ -421,6 +428,28 @@ ISOMEND_IO_API isomend_io_status isomend_io_analyse(isomend_io_source *src,
  * rows and columns run along +x and +y).  With ISOMEND_IO_AXES_GRID the
  * transform is the identity: the mesh stays in the series' own frame (x
  * along the rows, y along the columns, z along the slices, at R^-1 P0).
+ *
+ * Slices where they are: each slice k lies at its own origin in that frame,
+ * R^-1 P_k = (row . P_k, column . P_k, n . P_k).  A series whose origins are
+ * all within 1e-4 of the smaller pixel spacing of the evenly spaced line
+ * R^-1 P0 + k * (mean gap) * z is a uniform grid (isomend_io_slice_origins()
+ * NULL), described by origin and spacing as above.  Any other series is
+ * meshed at its slices' true positions, never resampled:
+ * isomend_io_slice_origins() holds the 3 * slices origins and
+ * isomend_io_load() passes them as isomend_volume.slice_origins, so each
+ * vertex lies between its two samples' true positions.  That covers gaps
+ * that vary (positions rounded to 0.1 mm by the scanner, a spacing that
+ * changes part-way, a missing slice) and slices shifted in their plane (the
+ * shear of a gantry tilt); the world transform stays R.
+ * isomend_io_geometry_info() reports the gaps along n (median, min, max),
+ * the tilt (the angle between n and the line from the first slice's
+ * position to the last's), the largest offset from the even grid, and one
+ * warning line when a gap differs from the median by more than 1% or
+ * exceeds 1.5x the median (a missing slice?); the mesh is made all the same.
+ * When options.spacing is given it replaces the positions' spacing: the
+ * series is then an evenly spaced grid of that spacing (no slice origins;
+ * the warning, if any, says so).  options.slice_positions is refused
+ * (ISOMEND_IO_ERR_INVALID_ARGUMENT): a series' positions are its own.
  *
  * Values: stored values are masked to Bits Stored (sign-extended when Pixel
  * Representation is 1); MONOCHROME1 is inverted (s' = smin + smax - s over
@@ -440,12 +469,12 @@ ISOMEND_IO_API isomend_io_status isomend_io_analyse(isomend_io_source *src,
  * interpretation, Pixel Spacing or Image Orientation (beyond 1e-4) differ
  * from the first image's; colour images; a missing Image Position,
  * Orientation or Pixel Spacing (unless options.spacing is set); two slices
- * at one position (duplicates, or several echoes / time points in one
- * series); a gap between neighbours that differs from the median gap by more
- * than 1% (a gap of k median gaps is reported as k - 1 missing slices);
- * slice positions that leave the line through the first one along n by more
- * than a tenth of a pixel (gantry tilt, or several stacks in one series);
- * fewer than two slices.  Irregular series are refused, never resampled.
+ * at one position along n (closer than a hundredth of the smaller pixel
+ * spacing: duplicates, or several echoes / time points in one series);
+ * fewer than two slices; several series without a choice.  Only what
+ * cannot be a volume is refused: uneven gaps, missing slices and sheared
+ * (tilted) stacks are meshed where their slices are (see "Slices where
+ * they are" above).
  *
  * Reading: isomend_io_read() decodes files in worker threads (a multi-frame
  * file is decoded once, on one thread); isomend_io_read_slice() of a

@@ -52,6 +52,9 @@ struct isomend_io_source {
     int axes = ISOMEND_IO_AXES_PATIENT;
     std::vector<DicomSeriesEntry> series_found;
     std::unique_ptr<DicomSeries> dicom;
+    // options.slice_positions, copied at open; where the slices are (every source)
+    std::vector<double> positions;
+    SliceGeometry geometry;
 };
 
 namespace {
@@ -317,6 +320,9 @@ void range_any(isomend_type t, const void *p, size_t n, double &mn, double &mx, 
 }
 
 constexpr int kOtsuBins = 256;
+// options.slice_positions within this fraction of the mean gap of evenly
+// spaced are a uniform grid (isomend_io.h)
+constexpr double kPositionsTolerance = 1e-6;
 // CT levels in Hounsfield units (docs/dicom.md says where they come from).
 constexpr double kBoneHU = 300.0;
 constexpr double kSkinHU = -500.0;
@@ -456,6 +462,7 @@ void do_load(isomend_io_source *s, isomend_volume *vol, double *seconds) {
             vol->spacing[a] = sp[a];
             vol->origin[a] = s->origin[a];
         }
+        vol->slice_origins = s->geometry.origins.empty() ? nullptr : s->geometry.origins.data();
     }
     if (seconds) *seconds = s->load_seconds;
 }
@@ -480,6 +487,7 @@ void apply_overrides(isomend_io_source *s) {
     bool origin_given = o.origin[0] != 0 || o.origin[1] != 0 || o.origin[2] != 0;
     if (s->dicom) {
         DicomSeries &d = *s->dicom;
+        const double before[3] = {d.origin[0], d.origin[1], d.origin[2]};
         if (origin_given) {
             // the world position of sample (0, 0, 0), in the series' own frame
             // and, through the rotation, in patient space
@@ -494,6 +502,10 @@ void apply_overrides(isomend_io_source *s) {
                                                          R[3 * r + 2] * d.origin[2]);
         }
         for (int a = 0; a < 3; a++) s->origin[a] = d.origin[a];
+        // the slice origins move with the origin (the same frame)
+        std::vector<double> &t = d.geometry.origins;
+        for (size_t i = 0; i < t.size(); i++) t[i] += d.origin[i % 3] - before[i % 3];
+        s->geometry = d.geometry;
         return;
     }
     for (int a = 0; a < 3; a++) {
@@ -506,6 +518,75 @@ void apply_overrides(isomend_io_source *s) {
             s->origin[a] = s->file_info.origin[a] - (s->file_info.axis_negative[a] ? last : 0.0);
         }
     }
+}
+
+// The caller's slice positions (options.slice_positions, validated and copied
+// into s->positions by do_open) for a stack or a raw/NRRD volume, after the
+// overrides: evenly spaced within 1e-6 of the mean gap, they become that
+// spacing and origin; otherwise the table of slice origins (origin x, origin
+// y, z_k) that isomend_io_load() hands to the core.  Either way spacing[2] is
+// the mean gap and origin z the first position.  Without positions: the
+// uniform grid of the spacing.
+void apply_positions(isomend_io_source *s) {
+    double &sz = s->is_file_volume ? s->file_info.spacing[2] : s->info.spacing[2];
+    if (s->positions.empty()) {
+        measure_uniform(sz, s->geometry);
+        return;
+    }
+    const std::vector<double> &p = s->positions;
+    const size_t n = p.size();
+    if ((int64_t)n != dim(s, 2))
+        throw IoError(ISOMEND_IO_ERR_INVALID_ARGUMENT,
+                      "slice_positions: " + std::to_string(n) + " positions for " +
+                          std::to_string(dim(s, 2)) +
+                          " slices (slice_position_count must be the number of slices of " +
+                          std::string(s->is_file_volume ? s->file_info.path : s->slices[0].path) +
+                          ")");
+    const double mean = (p[n - 1] - p[0]) / (double)(n - 1);
+    std::vector<double> origins(3 * n);
+    for (size_t k = 0; k < n; k++) {
+        origins[3 * k] = s->origin[0];
+        origins[3 * k + 1] = s->origin[1];
+        origins[3 * k + 2] = p[k];
+    }
+    measure_slices(std::move(origins), kPositionsTolerance * mean, s->geometry);
+    s->info.spacing[2] = s->file_info.spacing[2] = mean;
+    s->info.spacing_source[2] = ISOMEND_IO_SPACING_OPTION;
+    s->origin[2] = p[0];
+}
+
+// options.slice_positions: copied (the caller's array may go away after the
+// open), finite and strictly increasing; the count is checked against the
+// slices once they are known (apply_positions).
+void copy_positions(isomend_io_source *s) {
+    isomend_io_options &o = s->opts;
+    s->positions.clear();
+    if (o.slice_position_count > 0) {
+        if (!o.slice_positions)
+            throw IoError(ISOMEND_IO_ERR_INVALID_ARGUMENT,
+                          "slice_positions is NULL but slice_position_count is " +
+                              std::to_string(o.slice_position_count));
+        s->positions.assign(o.slice_positions, o.slice_positions + o.slice_position_count);
+        const std::vector<double> &p = s->positions;
+        for (size_t k = 0; k < p.size(); k++) {
+            if (!std::isfinite(p[k]))
+                throw IoError(ISOMEND_IO_ERR_INVALID_ARGUMENT,
+                              "slice_positions[" + std::to_string(k) + "] is not finite (" +
+                                  std::to_string(p[k]) + ")");
+            if (k > 0 && !(p[k] > p[k - 1])) {
+                char b[160];
+                std::snprintf(
+                    b, sizeof b,
+                    "slice_positions[%zu] = %.17g is not greater than slice_positions[%zu] = %.17g",
+                    k, p[k], k - 1, p[k - 1]);
+                throw IoError(ISOMEND_IO_ERR_INVALID_ARGUMENT,
+                              std::string(b) +
+                                  " (the positions must increase strictly, one per slice)");
+            }
+        }
+    }
+    o.slice_positions = s->positions.empty() ? nullptr : s->positions.data();
+    o.slice_position_count = s->positions.size();
 }
 
 void open_file_volume(isomend_io_source *s, const std::string &path, bool nrrd) {
@@ -534,6 +615,12 @@ void open_file_volume(isomend_io_source *s, const std::string &path, bool nrrd) 
 // that the dimensions and queries are the stack's; reads go to dicom.cpp.
 void open_dicom(isomend_io_source *s, const DicomFiles &files) {
     const isomend_io_options &o = s->opts;
+    if (!s->positions.empty())
+        throw IoError(
+            ISOMEND_IO_ERR_INVALID_ARGUMENT,
+            "slice_positions: " + files.label +
+                " is a DICOM series, whose slices are placed by their own Image Position (Patient) "
+                "values; slice positions are for image stacks and raw/NRRD volumes");
     DicomOptions d;
     d.series = s->series_choice;
     d.axes = s->axes;
@@ -587,6 +674,7 @@ void do_open(isomend_io_source *s, const char *const *paths, size_t count, const
         throw IoError(ISOMEND_IO_ERR_INVALID_ARGUMENT, "invalid channel " + std::to_string(o.channel));
     if (o.step == 0) throw IoError(ISOMEND_IO_ERR_INVALID_ARGUMENT, "step must not be 0");
     if (o.count < 0) throw IoError(ISOMEND_IO_ERR_INVALID_ARGUMENT, "count must be >= 0");
+    copy_positions(s);
     init_images();
 
     std::vector<std::string> files;
@@ -643,6 +731,7 @@ void do_open(isomend_io_source *s, const char *const *paths, size_t count, const
             if (isomend_fileio_is_nrrd_path(p.c_str()) || raw_requested) {
                 open_file_volume(s, p, !raw_requested);
                 apply_overrides(s);
+                apply_positions(s);
                 s->opened = true;
                 return;
             }
@@ -688,6 +777,7 @@ void do_open(isomend_io_source *s, const char *const *paths, size_t count, const
             throw IoError(ISOMEND_IO_ERR_CANCELLED, "cancelled while opening slices");
     });
     apply_overrides(s);
+    apply_positions(s);
     s->opened = true;
 }
 
@@ -854,6 +944,31 @@ ISOMEND_IO_API const char *isomend_io_slice_path(const isomend_io_source *src, i
     if (!src || !src->opened || k < 0 || k >= dim(src, 2)) return nullptr;
     if (src->is_file_volume) return src->file_info.path;
     return src->slices[(size_t)k].path.c_str();
+}
+
+ISOMEND_IO_API isomend_io_status isomend_io_geometry_info(const isomend_io_source *src,
+                                                          isomend_io_geometry *out) {
+    if (!src || !out || !src->opened || src->in_job) return ISOMEND_IO_ERR_INVALID_ARGUMENT;
+    const SliceGeometry &g = src->geometry;
+    isomend_io_geometry v;
+    std::memset(&v, 0, sizeof v);
+    v.size = std::min(out->size, sizeof v);
+    v.uniform = g.origins.empty() ? 1 : 0;
+    v.gap_median = g.gap_median;
+    v.gap_min = g.gap_min;
+    v.gap_max = g.gap_max;
+    v.tilt_degrees = g.tilt_degrees;
+    v.max_offset = g.max_offset;
+    v.long_gaps = g.long_gaps;
+    v.uneven_gaps = g.uneven_gaps;
+    v.warning = g.warning.c_str();
+    std::memcpy(out, &v, v.size);
+    return ISOMEND_IO_OK;
+}
+
+ISOMEND_IO_API const double *isomend_io_slice_origins(const isomend_io_source *src) {
+    if (!src || !src->opened || src->in_job || src->geometry.origins.empty()) return nullptr;
+    return src->geometry.origins.data();
 }
 
 ISOMEND_IO_API isomend_io_status isomend_io_read(isomend_io_source *src, void *buffer, size_t buffer_size) {
@@ -1064,6 +1179,7 @@ struct isomend_io_job {
     isomend_io_source *src = nullptr;
     std::vector<std::string> paths;
     isomend_io_options io_opts{};
+    std::vector<double> positions; // io_opts.slice_positions, copied
     isomend_options opts{};
     int use_suggested_iso = 0;
     // written by the job's thread, read by poll()
@@ -1130,6 +1246,11 @@ ISOMEND_IO_API isomend_io_status isomend_io_job_start(isomend_io_source *src, co
         }
         if (io_opts) job->io_opts = *io_opts;
         else isomend_io_options_init(&job->io_opts);
+        if (job->io_opts.slice_positions && job->io_opts.slice_position_count) {
+            const double *p = job->io_opts.slice_positions;
+            job->positions.assign(p, p + job->io_opts.slice_position_count);
+            job->io_opts.slice_positions = job->positions.data();
+        }
         job->io_opts.progress = job_progress;
         job->io_opts.progress_user = job.get();
         if (opts) job->opts = *opts;

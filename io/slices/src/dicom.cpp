@@ -14,8 +14,13 @@
 //      enhanced file (per-frame functional groups override the shared ones);
 //      checks that size, pixel format, orientation and pixel spacing agree;
 //      sorts by position along the normal n = row x column; refuses
-//      duplicates, missing slices, irregular gaps and positions off the
-//      normal line (gantry tilt);
+//      duplicates; places every frame at its own origin in the series'
+//      frame (row . P, column . P, n . P): a series within 1e-4 pixel of
+//      evenly spaced on one line is a uniform grid as before, any other
+//      (uneven gaps, positions rounded by the scanner, a missing slice, a
+//      spacing change, a gantry tilt's shear) keeps its table of slice
+//      origins, which the core meshes where the slices are (geometry.cpp;
+//      a one-line warning for gaps that vary by more than 1%);
 //   5. type: the stored range Bits Stored allows, through MONOCHROME1
 //      inversion and every frame's rescale, gives the delivered type (no
 //      value can clip);
@@ -24,10 +29,9 @@
 //      (mask to Bits Stored, sign extension, inversion, rescale) into its
 //      sorted slot.
 // Errors are IoError naming the file; api.cpp turns them into statuses.
-// Tolerances (docs/dicom.md says why): orientation 1e-4 per cosine; gaps
-// within 1% of the median gap; in-plane offset of a slice from the first
-// slice's normal line within a tenth of the smaller pixel spacing;
-// duplicates closer than a hundredth of it.
+// Tolerances (docs/dicom.md says why): orientation 1e-4 per cosine; a
+// uniform grid when every slice origin is within 1e-4 of the smaller pixel
+// spacing of the evenly spaced line; duplicates closer than a hundredth of it.
 #include "dicom.hpp"
 #include "internal.hpp"
 #include "parallel_slices.hpp"
@@ -62,8 +66,7 @@ namespace isomend_io {
 namespace {
 
 constexpr double kOrientationTolerance = 1e-4;
-constexpr double kGapTolerance = 0.01;       // of the median gap
-constexpr double kOffsetTolerance = 0.1;     // of the smaller pixel spacing
+constexpr double kUniformTolerance = 1e-4;   // of the smaller pixel spacing
 constexpr double kDuplicateTolerance = 0.01; // of the smaller pixel spacing
 
 const gdcm::Tag kPixelData(0x7fe0, 0x0010);
@@ -177,7 +180,6 @@ struct Header {
     int pixel_representation = 0;
     int64_t frames = 1;
     bool enhanced = false;
-    double gantry_tilt = 0;
     std::vector<FrameGeometry> geometry; // one per frame
 };
 
@@ -244,7 +246,6 @@ void read_header(Header &h) {
     h.pixel_representation = us_of<0x0028, 0x0103>(ds, 0);
     if (number_of(ds, 0x0028, 0x0008, &v)) h.frames = (int64_t)v;
     if (h.frames < 1) h.frames = 1;
-    if (number_of(ds, 0x0018, 0x1120, &v)) h.gantry_tilt = v;
     FrameGeometry top;
     read_geometry(ds, top);
     h.enhanced = ds.FindDataElement(gdcm::Tag(0x5200, 0x9230)) || ds.FindDataElement(gdcm::Tag(0x5200, 0x9229));
@@ -696,6 +697,11 @@ void dicom_open(const DicomFiles &in, const DicomOptions &o, DicomSeries &out,
     auto frame_name = [&](const DicomFrame &f) {
         return f.path + (out.multiframe || h0.frames > 1 ? " (frame " + std::to_string(f.frame + 1) + ")" : "");
     };
+    auto short_name = [&](const DicomFrame &f) {
+        size_t slash = f.path.find_last_of('/');
+        return (slash == std::string::npos ? f.path : f.path.substr(slash + 1)) +
+               (out.multiframe || h0.frames > 1 ? ", frame " + std::to_string(f.frame + 1) : "");
+    };
     const size_t nf = out.frames.size();
     if (nf < 2)
         throw IoError(ISOMEND_IO_ERR_TOO_FEW_SLICES,
@@ -709,48 +715,26 @@ void dicom_open(const DicomFiles &in, const DicomOptions &o, DicomSeries &out,
                           frame_name(out.frames[k]) + ": at the same position along the slice normal (" +
                               mm(out.frames[k].along) + ") as " + frame_name(out.frames[k - 1]) +
                               ": a duplicated slice, or several echoes / time points in one series");
-    std::vector<double> gaps;
-    for (size_t k = 1; k < nf; k++) gaps.push_back(out.frames[k].along - out.frames[k - 1].along);
-    std::vector<double> sorted = gaps;
-    std::nth_element(sorted.begin(), sorted.begin() + (long)(sorted.size() / 2), sorted.end());
-    const double median = sorted[sorted.size() / 2];
-    for (size_t k = 0; k < gaps.size(); k++) {
-        if (std::fabs(gaps[k] - median) <= kGapTolerance * median) continue;
-        const DicomFrame &a = out.frames[k], &b = out.frames[k + 1];
-        double ratio = gaps[k] / median;
-        double whole = std::round(ratio);
-        std::string between = " between " + frame_name(a) + " (at " + mm(a.along) + ") and " + frame_name(b) +
-                              " (at " + mm(b.along) + ")";
-        if (whole >= 2 && std::fabs(ratio - whole) <= kGapTolerance * whole)
-            throw IoError(ISOMEND_IO_ERR_MISMATCH,
-                          frame_name(b) + ": " + std::to_string((long long)whole - 1) + " missing slice" +
-                              (whole > 2 ? "s" : "") + between + ": a gap of " + mm(gaps[k]) +
-                              " where the others are " + mm(median));
-        throw IoError(ISOMEND_IO_ERR_MISMATCH,
-                      frame_name(b) + ": non-uniform slice spacing: a gap of " + mm(gaps[k]) + between +
-                          " where the median gap is " + mm(median) + " (tolerance 1%); resample the series");
+    // where the slices are: each frame's origin in the series' own frame
+    std::vector<double> origins(3 * nf);
+    for (size_t k = 0; k < nf; k++) {
+        origins[3 * k] = dot(r, out.frames[k].position);
+        origins[3 * k + 1] = dot(c, out.frames[k].position);
+        origins[3 * k + 2] = dot(n, out.frames[k].position);
     }
+    measure_slices(std::move(origins), kUniformTolerance * pixel, out.geometry);
+    if (o.spacing_given) { // the caller's spacing replaces the positions: an evenly spaced grid
+        out.geometry.origins.clear();
+        out.geometry.uniform = true;
+    }
+    out.geometry.warning =
+        gap_warning(out.geometry,
+                    o.spacing_given ? "meshed evenly at the spacing given instead"
+                                    : "meshed at the slices' true positions",
+                    [&](int64_t k) {
+                        return std::to_string(k) + " (" + short_name(out.frames[(size_t)k]) + ")";
+                    });
     const DicomFrame &f0 = out.frames[0];
-    for (size_t k = 1; k < nf; k++) {
-        const DicomFrame &f = out.frames[k];
-        double d[3], off[3];
-        for (int a = 0; a < 3; a++) d[a] = f.position[a] - f0.position[a];
-        double along = dot(d, n);
-        for (int a = 0; a < 3; a++) off[a] = d[a] - along * n[a];
-        double o_len = std::sqrt(dot(off, off));
-        if (o_len > kOffsetTolerance * pixel) {
-            double angle = std::atan2(o_len, std::fabs(along)) * 180.0 / M_PI;
-            std::string tilt;
-            for (size_t m : members)
-                if (headers[m].path == f.path && headers[m].gantry_tilt != 0)
-                    tilt = "; Gantry/Detector Tilt (0018,1120) is " + num(headers[m].gantry_tilt) + " degrees";
-            throw IoError(ISOMEND_IO_ERR_UNSUPPORTED,
-                          frame_name(f) + ": not on the slice normal through " + frame_name(f0) + ": offset " +
-                              mm(o_len) + " in the image plane, the stack is sheared by " + num(angle, 3) +
-                              " degrees (gantry tilt, or several stacks in one series)" + tilt +
-                              "; tilted series are not resampled");
-        }
-    }
     // spacing, frames
     out.spacing[0] = sx;
     out.spacing[1] = sy;

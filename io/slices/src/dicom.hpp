@@ -12,6 +12,7 @@
 #include <string>
 #include <vector>
 
+#include "internal.hpp"
 #include "isomend_io.h"
 
 namespace isomend_io {
@@ -76,6 +77,9 @@ struct DicomSeries {
     double affine[12] = {1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0}; // own frame -> world
     bool identity = true;
     int axes = ISOMEND_IO_AXES_PATIENT;
+    // where the slices are, in the series' own frame: uniform (origin and
+    // spacing), or each slice's origin (dot(row, P), dot(column, P), dot(n, P))
+    SliceGeometry geometry;
     size_t sample_size() const;
     size_t slice_bytes() const { return (size_t)width * (size_t)height * sample_size(); }
 };
@@ -88,7 +92,7 @@ struct DicomOptions {
 };
 
 // Reads every candidate's header, groups by series, chooses one, sorts and
-// validates it (see isomend_io.h, "DICOM").  Throws IoError (ISOMEND_IO_ERR_SERIES
+// validates it, and measures where its slices are (see isomend_io.h, "DICOM").  Throws IoError (ISOMEND_IO_ERR_SERIES
 // with `out.series` filled when the choice is missing or wrong).  `progress`
 // (0..1, calling thread) may throw to cancel.
 void dicom_open(const DicomFiles &in, const DicomOptions &o, DicomSeries &out,

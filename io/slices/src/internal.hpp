@@ -128,6 +128,33 @@ void read_parallel(const std::vector<Slice> &slices, const StackInfo &info, int 
                    const std::function<void(int64_t, const void *)> &sink,
                    const std::function<bool(double)> &progress);
 
+// ---- geometry.cpp ----
+// Where the slices are (isomend_io_geometry, isomend_volume.slice_origins).
+struct SliceGeometry {
+    bool uniform = true;
+    double gap_median = 0, gap_min = 0, gap_max = 0; // along z
+    double tilt_degrees = 0, max_offset = 0;
+    int64_t long_gaps = 0, uneven_gaps = 0;
+    int64_t longest = -1;        // k of the longest gap over 1.5x the median (k to k+1), -1 if none
+    std::vector<double> origins; // 3 a slice when not uniform, else empty
+    std::string warning;         // "" or one line (DICOM only)
+};
+
+// Measures the slice origins (3 a slice, z strictly increasing, at least two
+// slices): gaps along z, tilt, the largest distance from the evenly spaced
+// grid origin0 + k * mean gap along z; uniform when that is <= tolerance
+// (then g.origins is empty, else it receives `origins`).  Sets no warning.
+void measure_slices(std::vector<double> origins, double tolerance, SliceGeometry &g);
+
+// An evenly spaced grid with this gap.
+void measure_uniform(double gap, SliceGeometry &g);
+
+// The one-line warning for uneven or long gaps ("" if none): "slice gaps vary
+// from A to B mm (median M mm): <meshed>[; a gap of ... between slice
+// <slice_name(k)> and <slice_name(k+1)> is Rx the median: a missing slice?]".
+std::string gap_warning(const SliceGeometry &g, const std::string &meshed,
+                        const std::function<std::string(int64_t)> &slice_name);
+
 } // namespace isomend_io
 
 #endif
