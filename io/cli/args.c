@@ -30,6 +30,9 @@ static const struct {
     {"--max-memory", OPT_MAX_MEMORY, 1},
     {"--series", OPT_SERIES, 1}, {"--grid-axes", OPT_GRID_AXES, 0},
     {"--slice-positions", OPT_SLICE_POSITIONS, 1},
+    {"--decimate", OPT_DECIMATE, 1},   {"--target-triangles", OPT_TARGET_TRIANGLES, 1},
+    {"--max-error", OPT_MAX_ERROR, 1}, {"--smooth", OPT_SMOOTH, 1},
+    {"--min-component", OPT_MIN_COMPONENT, 1}, {"--largest", OPT_LARGEST, 1},
 };
 
 static int parse_raw(const char *v, cli_source_opts *o)
@@ -262,6 +265,50 @@ int cli_parse_args(int argc, char **argv, int first, const char *command, unsign
             }
             a->src.slice_positions = value;
             break;
+        case OPT_DECIMATE:
+            if (!cli_parse_doubles(value, &a->post.ratio, 1) || !(a->post.ratio > 0) ||
+                !(a->post.ratio <= 1)) {
+                cli_error("--decimate: '%s' is not a fraction of the triangles to keep, in (0, 1] "
+                          "(0.1 keeps a tenth)", value);
+                return CLI_EXIT_USAGE;
+            }
+            break;
+        case OPT_TARGET_TRIANGLES: {
+            int64_t t;
+            if (!parse_count_option("--target-triangles", value, 1, &t)) return CLI_EXIT_USAGE;
+            a->post.target = (uint64_t)t;
+            break;
+        }
+        case OPT_MAX_ERROR:
+            if (!cli_parse_doubles(value, &a->post.max_error, 1) || !(a->post.max_error > 0) ||
+                !isfinite(a->post.max_error)) {
+                cli_error("--max-error: '%s' is not a positive distance (world units, mm for DICOM)",
+                          value);
+                return CLI_EXIT_USAGE;
+            }
+            break;
+        case OPT_SMOOTH: {
+            int64_t n;
+            if (!parse_count_option("--smooth", value, 1, &n)) return CLI_EXIT_USAGE;
+            if (n > 10000) {
+                cli_error("--smooth: %lld iterations is more than 10000", (long long)n);
+                return CLI_EXIT_USAGE;
+            }
+            a->post.smooth = (int)n;
+            break;
+        }
+        case OPT_MIN_COMPONENT: {
+            int64_t n;
+            if (!parse_count_option("--min-component", value, 1, &n)) return CLI_EXIT_USAGE;
+            a->post.min_component = (uint64_t)n;
+            break;
+        }
+        case OPT_LARGEST: {
+            int64_t n;
+            if (!parse_count_option("--largest", value, 1, &n)) return CLI_EXIT_USAGE;
+            a->post.largest = (uint64_t)n;
+            break;
+        }
         case OPT_PAGES:
             if (strcmp(value, "huge") == 0)
                 a->pages = CLI_PAGES_HUGE;

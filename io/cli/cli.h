@@ -308,8 +308,22 @@ enum {
     OPT_THREADS = 1u << 12, OPT_BOX = 1u << 13, OPT_FIRST = 1u << 14, OPT_COUNT = 1u << 15,
     OPT_STEP = 1u << 16, OPT_CHANNEL = 1u << 17, OPT_GZIP = 1u << 18, OPT_HELP = 1u << 19,
     OPT_PAGES = 1u << 20, OPT_MAX_MEMORY = 1u << 21, OPT_SERIES = 1u << 22,
-    OPT_GRID_AXES = 1u << 23, OPT_SLICE_POSITIONS = 1u << 24
+    OPT_GRID_AXES = 1u << 23, OPT_SLICE_POSITIONS = 1u << 24, OPT_DECIMATE = 1u << 25,
+    OPT_TARGET_TRIANGLES = 1u << 26, OPT_MAX_ERROR = 1u << 27, OPT_SMOOTH = 1u << 28,
+    OPT_MIN_COMPONENT = 1u << 29, OPT_LARGEST = 1u << 30
 };
+#define OPT_POST \
+    (OPT_DECIMATE | OPT_TARGET_TRIANGLES | OPT_MAX_ERROR | OPT_SMOOTH | OPT_MIN_COMPONENT | OPT_LARGEST)
+
+/* The steps after the extraction (postprocess.c); zeros: not asked. */
+typedef struct cli_post {
+    double ratio;           /* --decimate      */
+    uint64_t target;        /* --target-triangles */
+    double max_error;       /* --max-error     */
+    int smooth;             /* --smooth        */
+    uint64_t min_component; /* --min-component */
+    uint64_t largest;       /* --largest       */
+} cli_post;
 
 #define CLI_MAX_SOURCES 4096
 
@@ -324,6 +338,7 @@ typedef struct cli_args {
     enum { CLI_PAGES_HUGE, CLI_PAGES_SMALL } pages; /* --pages */
     double box[6];
     uint64_t max_memory;                    /* --max-memory, 0 = not given */
+    cli_post post;
     cli_source_opts src;
 } cli_args;
 
@@ -413,6 +428,22 @@ int cli_stream_extract(cli_slices *s, const isomend_options *opts, const cli_sin
 typedef struct cli_timings {
     double read_ms, extract_ms, write_ms;
 } cli_timings;
+
+/* ---- postprocess.c ---- */
+
+typedef struct cli_post_report {
+    int cleaned, smoothed, decimated;
+    isomend_clean_report clean;
+    isomend_smooth_report smooth;
+    isomend_decimate_report decimate;
+    double clean_ms, smooth_ms, decimate_ms;
+} cli_post_report;
+
+/* Runs the steps `p` asks for on *mesh (replaced by the result); an exit
+ * code, the message printed naming `label`. */
+int cli_postprocess(isomend_mesh **mesh, const cli_post *p, cli_post_report *r, const char *label);
+void cli_print_post(FILE *fp, const cli_post_report *r);
+void cli_json_post(FILE *fp, const cli_post_report *r);
 
 void cli_print_table2(FILE *fp, const isomend_stats *st, isomend_method method);
 void cli_print_check(FILE *fp, const char *what, const isomend_check_report *r);

@@ -94,6 +94,14 @@ static const char *const usage_extract =
     "                           the z of every slice (FILE: one a line, # comments),\n"
     "                           strictly increasing, for slices not evenly spaced;\n"
     "                           replaces the z spacing and origin (not for DICOM)\n"
+    "After the extraction, each keeping a closed surface closed (in this order):\n"
+    "  --min-component N        drop components of fewer than N triangles\n"
+    "  --largest K              keep the K largest components\n"
+    "  --smooth N               N Taubin lambda|mu iterations, volume kept\n"
+    "  --decimate RATIO         keep RATIO of the triangles (0.1: a tenth)\n"
+    "  --target-triangles N     keep N triangles\n"
+    "  --max-error E            no collapse farther than E (world units) from the surface\n"
+    "                           it replaces; alone: decimate as far as that allows\n"
 #ifdef ISOMEND_HAVE_IO
     "  --first N --count N --step N   printf-pattern slice range\n"
     "  --channel N|luma         channel of multi-channel images\n"
@@ -250,7 +258,7 @@ static int cmd_extract(int argc, char **argv)
                        OPT_PAD | OPT_NO_NORMALS | OPT_FLIP | OPT_STATS | OPT_JSON | OPT_QUIET |
                        OPT_THREADS | OPT_FIRST | OPT_COUNT | OPT_STEP | OPT_CHANNEL | OPT_HELP |
                        OPT_PAGES | OPT_MAX_MEMORY | OPT_SERIES | OPT_GRID_AXES |
-                       OPT_SLICE_POSITIONS;
+                       OPT_SLICE_POSITIONS | OPT_POST;
     int rc = cli_parse_args(argc, argv, 2, "extract", allowed, &a);
     if (rc) return rc;
     if (a.seen & OPT_HELP) {
@@ -298,6 +306,16 @@ static int cmd_extract(int argc, char **argv)
     cli_memory_plan plan;
     cli_memory_plan_make(&sl.desc, &opts, fmt, a.max_memory, &plan);
     rc = plan_fits(&plan, &sl);
+    if (!rc && (a.seen & OPT_POST) && plan.stream) {
+        char need[32], limit[32];
+        cli_error("%s: --decimate, --smooth, --min-component and --largest work on the mesh in "
+                  "memory, which needs about %s, more than %s (%s); post-processing a streamed "
+                  "mesh is not built yet",
+                  sl.label, cli_bytes_text(plan.in_memory, need, sizeof need),
+                  plan.limit_given ? "--max-memory" : "the memory available",
+                  cli_bytes_text(plan.limit, limit, sizeof limit));
+        rc = CLI_EXIT_FAIL;
+    }
     if (rc) {
         cli_json_abort(&jo);
         cli_slices_close(&sl);
@@ -361,6 +379,8 @@ static int cmd_extract(int argc, char **argv)
     isomend_mesh *mesh = NULL;
     isomend_stats stats;
     isomend_check_report check;
+    cli_post_report post;
+    memset(&post, 0, sizeof post);
     int checked = 0;
     uint64_t check_skipped = 0; /* the check's need, when it did not fit the limit */
     cli_timings tm = {0, 0, 0};
@@ -429,6 +449,10 @@ static int cmd_extract(int argc, char **argv)
         }
         /* the samples are no longer needed; the check runs if it fits the limit */
         cli_source_drop_samples(&src);
+        if (a.seen & OPT_POST) {
+            rc = cli_postprocess(&mesh, &a.post, &post, src.label);
+            if (rc) goto fail_mesh;
+        }
         const uint64_t check_need = isomend_check_memory(isomend_mesh_vertex_count(mesh),
                                                          isomend_mesh_triangle_count(mesh));
         checked = !plan.limit || cli_resident_memory() + check_need <= plan.limit;
@@ -486,6 +510,7 @@ static int cmd_extract(int argc, char **argv)
         print_plan(text, &plan);
     }
     if (a.seen & OPT_STATS) cli_print_table2(text, &stats, a.method);
+    if (!quiet) cli_print_post(text, &post);
     if (!quiet) {
         char need[32], limit[32];
         if (checked)
@@ -533,6 +558,7 @@ static int cmd_extract(int argc, char **argv)
             fprintf(jf, "null");
         fprintf(jf, ", \"check_skipped\": %s",
                 checked ? "null" : check_skipped ? "\"memory\"" : "\"streamed\"");
+        cli_json_post(jf, &post);
         fprintf(jf, ", \"timings_ms\": {\"read\": %.3f, \"extract\": %.3f, \"write\": %.3f}}\n",
                 tm.read_ms, tm.extract_ms, tm.write_ms);
         rc = cli_json_finish(&jo);
