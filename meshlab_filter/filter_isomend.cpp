@@ -87,6 +87,8 @@ bool FilterIsomendPlugin::applyFilter(QAction *a, MeshDocument &md, const RichPa
                             });
     for (const std::string &line : run.log_lines())
         Log(line);
+    if (!run.warning().empty()) /* slices not evenly spaced: meshed where they are */
+        Log(GLLogStream::WARNING, "isomend: warning: " + run.warning());
     if (!ok)
         return fail(QString::fromStdString(run.error()));
 

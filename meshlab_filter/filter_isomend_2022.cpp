@@ -96,6 +96,8 @@ std::map<std::string, QVariant> FilterIsomendPlugin::applyFilter(const QAction *
                             });
     for (const std::string &line : run.log_lines())
         log(line);
+    if (!run.warning().empty()) /* slices not evenly spaced: meshed where they are */
+        log(GLLogStream::WARNING, "isomend: warning: " + run.warning());
     if (!ok)
         fail(QString::fromStdString(run.error()));
 

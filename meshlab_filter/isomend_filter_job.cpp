@@ -12,8 +12,15 @@
  *      with ISOMEND_IO_CHANNEL_LUMA (Rec.709 luma);
  *   3. the spacing of each axis: the parameter if > 0, else what
  *      isomend_io_spacing() found (file metadata or 1);
- *   4. isomend_io_load() reads the volume into the handle's buffer;
- *   5. isomend_extract() with the chosen method and flags; a result without a
+ *   4. the slices' geometry (isomend_io_geometry_info): a log line, and the
+ *      importer's warning for the host (slices not evenly spaced, a long
+ *      gap); such a series is meshed at its slices' true positions, unless
+ *      spacingZ is set: then it is opened again with the spacing as
+ *      isomend_io_options.spacing, an evenly spaced grid (as the command
+ *      line's --spacing);
+ *   5. isomend_io_load() reads the volume into the handle's buffer and
+ *      describes it, vol.slice_origins included;
+ *   6. isomend_extract() with the chosen method and flags; a result without a
  *      triangle is an error (no empty layer), reported with the value range.
  * Progress: open 0-5 %, read 5-45 %, extract 45-95 %; the adapter's copy
  * into the host's mesh is the rest.
@@ -106,7 +113,7 @@ struct ProgressState {
     {
         if (!*sink)
             return true;
-        percent = std::max(0, std::min(100, percent));
+        percent = std::max(last, std::max(0, std::min(100, percent))); /* a reopen restarts */
         if (percent == last)
             return true;
         last = percent;
@@ -155,6 +162,23 @@ struct SourceHandle {
         src = nullptr;
     }
 };
+
+/* One log line on the slices' geometry: evenly spaced at the z spacing in
+ * use (the spacingZ parameter's, if set), or where the gaps differ
+ * (isomend_io_geometry's fields; the warning is logged apart). */
+std::string geometry_line(const isomend_io_geometry &g, double spacing_z)
+{
+    if (g.uniform)
+        return format("slices evenly spaced, gap %g", spacing_z);
+    std::string line = format("slices not evenly spaced, meshed at their positions: gaps %g to %g "
+                              "(median %g; %" PRId64 " uneven, %" PRId64 " over 1.5x the median)",
+                              g.gap_min, g.gap_max, g.gap_median, g.uneven_gaps, g.long_gaps);
+    if (g.tilt_degrees > 0.0)
+        line += format(", tilt %.3g degrees", g.tilt_degrees);
+    if (g.max_offset > 0.0)
+        line += format(", largest offset from an even grid %.3g", g.max_offset);
+    return line;
+}
 
 double seconds_since(std::chrono::steady_clock::time_point t0)
 {
@@ -224,7 +248,9 @@ ParamText param_text(const char *name)
                              "(TIFF resolution, NRRD header), else 1."};
     if (n == kParamSpacing[2])
         return {"Spacing Z", "World distance between slices. 0 = from the files' metadata "
-                             "(ImageJ spacing=, NRRD header), else 1."};
+                             "(ImageJ spacing=, NRRD header; a DICOM series' slice positions, "
+                             "also when they are not evenly spaced), else 1. Set: the slices "
+                             "are evenly spaced at this distance."};
     if (n == kParamChannel)
         return {"Channel", "Image channel to use (0 = first). -1 = luminance: the only channel "
                            "of a grey image, the Rec.709 luma of an RGB(A) image."};
@@ -359,6 +385,9 @@ bool Job::run(const Params &params, const ProgressFn &progress)
     mesh_ = nullptr;
     stats_ = isomend_stats{};
     log_.clear();
+    warning_.clear();
+    geometry_ = isomend_io_geometry{};
+    geometry_known_ = false;
     error_.clear();
     layer_name_.clear();
     try {
@@ -517,8 +546,48 @@ bool Job::run_unguarded(const Params &params, const ProgressFn &progress)
     int identity = 1;
     has_world_ = isomend_io_world_transform(handle.src, world_, &identity) == ISOMEND_IO_OK && !identity;
 
-    /* 4. read */
-    isomend_volume vol;
+    /* 4. the slices' geometry: a series whose slices are not evenly spaced (a
+     * DICOM series with rounded positions, a spacing change, a gantry tilt,
+     * a missing slice) is meshed at their true positions: isomend_io_load()
+     * puts them in vol.slice_origins */
+    std::string geometry_warning;
+    auto read_geometry = [&]() {
+        geometry_ = isomend_io_geometry{};
+        geometry_.size = sizeof geometry_;
+        geometry_known_ = isomend_io_geometry_info(handle.src, &geometry_) == ISOMEND_IO_OK;
+        geometry_warning = geometry_known_ && geometry_.warning ? geometry_.warning : "";
+        geometry_.warning = nullptr; /* the handle's, gone after the run: see warning() */
+    };
+    read_geometry();
+    if (geometry_known_ && !geometry_.uniform && params.spacing[2] > 0.0) {
+        /* unless spacingZ is set: then, as the command line's --spacing, the
+         * series is an evenly spaced grid of that spacing.  The importer does
+         * that with options.spacing (all three axes: the values above), and
+         * its warning says so; open again with it. */
+        SourceHandle again;
+        if (isomend_io_create(&again.src) != ISOMEND_IO_OK)
+            return fail("out of memory");
+        dicom_choices(again.src);
+        for (int a = 0; a < 3; ++a)
+            io_opts.spacing[a] = spacing[a];
+        st = isomend_io_open(again.src, &path, 1, &io_opts);
+        if (state.cancelled)
+            return fail("cancelled");
+        if (st != ISOMEND_IO_OK)
+            return fail(std::string("source: ") + isomend_io_message(again.src));
+        std::swap(handle.src, again.src);
+        identity = 1;
+        has_world_ =
+            isomend_io_world_transform(handle.src, world_, &identity) == ISOMEND_IO_OK && !identity;
+        read_geometry();
+    }
+    if (geometry_known_)
+        log_.push_back(geometry_line(geometry_, spacing[2]));
+    if (!geometry_warning.empty())
+        warning_ = source + ": " + geometry_warning;
+
+    /* 5. read (isomend_io_load() fills every field, slice_origins included) */
+    isomend_volume vol{};
     double read_seconds = 0.0;
     st = isomend_io_load(handle.src, &vol, &read_seconds);
     if (state.cancelled)
@@ -528,7 +597,7 @@ bool Job::run_unguarded(const Params &params, const ProgressFn &progress)
     for (int a = 0; a < 3; ++a)
         vol.spacing[a] = spacing[a];
 
-    /* 5. extract */
+    /* 6. extract */
     isomend_options opts;
     isomend_options_init(&opts);
     opts.iso = params.iso;

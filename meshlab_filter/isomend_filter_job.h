@@ -25,6 +25,7 @@
 #include <vector>
 
 #include "isomend.h"
+#include "isomend_io.h"
 
 namespace isomend_filter {
 
@@ -118,9 +119,19 @@ public:
     const isomend_stats &stats() const { return stats_; }
     /* The new layer's name, see layer_name_for() ("head", "ct"). */
     const std::string &layer_name() const { return layer_name_; }
-    /* Lines for the host's log, in order (source, volume, options, counts,
-     * histogram, times). */
+    /* Lines for the host's log, in order (source, volume, slice geometry,
+     * options, counts, histogram, times). */
     const std::vector<std::string> &log_lines() const { return log_; }
+    /* The importer's geometry warning (isomend_io_geometry.warning: slices
+     * not evenly spaced, a long gap), prefixed with the source, or "" when
+     * there is none; the adapter logs it at MeshLab's warning level.  Also
+     * set when the run fails later (reading, extraction). */
+    const std::string &warning() const { return warning_; }
+    /* The slices' geometry as the importer reported it (valid after the
+     * source was opened: geometry_known()); its `warning` is NULL (the text
+     * is warning()'s). */
+    const isomend_io_geometry &geometry() const { return geometry_; }
+    bool geometry_known() const { return geometry_known_; }
     const std::string &error() const { return error_; }
 
 private:
@@ -133,6 +144,9 @@ private:
     isomend_stats stats_{};
     std::string layer_name_;
     std::vector<std::string> log_;
+    std::string warning_;
+    isomend_io_geometry geometry_{};
+    bool geometry_known_ = false;
     std::string error_;
 };
 

@@ -29,6 +29,10 @@ Conventions:
     coordinates (LPS mm: Blender's +X the patient's left, +Y posterior, +Z the
     head, so the Front view shows the face), turned by its direction cosines;
     ``grid_axes`` keeps the series' own axes; ``series`` picks one of several.
+    A series whose slices are not evenly spaced (positions rounded by the
+    scanner, a spacing change, a gantry tilt, a missing slice) is meshed at
+    its slices' true positions; the importer's warning is reported at
+    WARNING level after the import's INFO report.
   - the object is placed at the volume's origin (sample (0, 0, 0)); its
     vertices are relative to it.
   - normals: ``smooth`` shades the faces smooth; with ``gradient_normals``
@@ -76,8 +80,10 @@ from . import isomend
 _method_items_cache = []
 
 # Outcome of the last finished import: {"status": 'FINISHED' or 'CANCELLED',
-# "message": the report}.  Lets a script that started the import modally (it
-# returns {'RUNNING_MODAL'} at once) find out how it ended.
+# "message": the report, "warning": the importer's warning on the slices'
+# geometry (also reported at WARNING level), or ""}.  Lets a script that
+# started the import modally (it returns {'RUNNING_MODAL'} at once) find out
+# how it ended.
 last_import = {}
 
 
@@ -242,7 +248,7 @@ class IMPORT_MESH_OT_slice_stack(Operator, ImportHelper):
         except Exception as exc:  # refused before anything ran
             self.report({'ERROR'}, str(exc))
             last_import.clear()
-            last_import.update(status='CANCELLED', message=str(exc))
+            last_import.update(status='CANCELLED', message=str(exc), warning="")
             return {'CANCELLED'}
         self._job_obj = job
         wm = context.window_manager
@@ -261,7 +267,8 @@ class IMPORT_MESH_OT_slice_stack(Operator, ImportHelper):
             context.window_manager.event_timer_remove(self._timer)
             context.window_manager.progress_end()
             last_import.clear()
-            last_import.update(status='CANCELLED', message="Import cancelled: Blender ended the operator")
+            last_import.update(status='CANCELLED', message="Import cancelled: Blender ended the operator",
+                               warning="")
 
     def modal(self, context, event):
         job = self._job_obj
@@ -292,17 +299,18 @@ class IMPORT_MESH_OT_slice_stack(Operator, ImportHelper):
 
     # ---------------------------------------------------------------- result
     def _finish(self, context, job):
-        status, message = self._finish_inner(context, job)
-        # The outcome of the last import, for scripts that started it modally.
+        status, message, warning = self._finish_inner(context, job)
+        # The outcome of the last import, for scripts that started it modally;
+        # "warning": the importer's warning on the slices' geometry, or "".
         last_import.clear()
-        last_import.update(status=status, message=message)
+        last_import.update(status=status, message=message, warning=warning)
         return {status}
 
     def _finish_inner(self, context, job):
         status, level, message = job.outcome()
         if status != 'FINISHED':
             self.report({level}, message)
-            return status, message
+            return status, message, ""
         mesh, info = job.result
         name = import_stack.stack_name(job.paths)
         t0 = time.perf_counter()
@@ -311,15 +319,20 @@ class IMPORT_MESH_OT_slice_stack(Operator, ImportHelper):
                                self.smooth)
         except Exception as exc:  # e.g. out of memory in Blender: nothing is left behind
             self.report({'ERROR'}, "could not build the mesh: %s" % exc)
-            return 'CANCELLED', "could not build the mesh: %s" % exc
+            return 'CANCELLED', "could not build the mesh: %s" % exc, ""
         for key, value in import_stack.custom_properties(mesh, info).items():
             obj[key] = value
         msg = import_stack.report(obj.name, mesh, info, suggested=job.iso is None)
         self.report({'INFO'}, msg)
+        # slices not evenly spaced (a DICOM series with a spacing change, a
+        # gantry tilt, a missing slice): meshed where they are, and said so
+        warning = import_stack.geometry_warning(obj.name, info)
+        if warning:
+            self.report({'WARNING'}, warning)
         if bpy.app.background:
             print("isomend: %s (read + extract %.2f s, Blender mesh %.2f s)"
                   % (msg, job.seconds, time.perf_counter() - t0), flush=True)
-        return 'FINISHED', msg
+        return 'FINISHED', msg, warning
 
 
 def _make_object(context, name, buffers, smooth):

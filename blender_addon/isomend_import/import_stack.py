@@ -10,7 +10,9 @@ It holds everything the operator does that is not a call into Blender:
   - the import itself (``ImportJob``: run in the calling thread with progress,
     or started on the C library's own thread and polled),
   - the arrays Blender's mesh is built from (``mesh_buffers``), the custom
-    properties and the report,
+    properties, the report and the importer's warning on the slices'
+    geometry (``geometry_warning``: a DICOM series whose slices are not
+    evenly spaced is meshed where they are, and the user is told),
   - the check that the bundled libraries can load on this system
     (``library_problem``) before anything is attempted.
 
@@ -209,7 +211,8 @@ class ImportJob:
                 info = {"dims": src.dims, "dtype": np.dtype(src.dtype).name,
                         "spacing": src.spacing, "spacing_sources": src.spacing_sources,
                         "origin": src.origin, "kind": src.kind, "format": src.format,
-                        "dicom": src.dicom}
+                        "dicom": src.dicom, "geometry": src.geometry,
+                        "slice_origins": src.slice_origins}
                 mesh = src.extract(iso=self.iso, method=self.method, pad=self.pad,
                                    normals=self.normals, origins=True, progress=self.progress)
             self.result = (mesh, info)
@@ -312,6 +315,26 @@ def custom_properties(mesh, info):
     return props
 
 
+def geometry_text(info):
+    """How the slices lie, for the report: "" when they are evenly spaced (or
+    unknown), else where their gaps differ ("slices not evenly spaced (gaps
+    1.2 to 2.5 mm), meshed at their positions")."""
+    geo = info.get("geometry")
+    if not geo or geo["uniform"]:
+        return ""
+    text = "slices not evenly spaced (gaps %g to %g mm" % (geo["gap_min"], geo["gap_max"])
+    if geo["tilt_degrees"] > 0:
+        text += ", tilt %.3g degrees" % geo["tilt_degrees"]
+    return text + "), meshed at their positions"
+
+
+def geometry_warning(name, info):
+    """The importer's warning on the slices' geometry (uneven gaps, a long gap
+    where slices may be missing), with the object's name; "" if none."""
+    geo = info.get("geometry")
+    return "%s: %s" % (name, geo["warning"]) if geo and geo["warning"] else ""
+
+
 def report(name, mesh, info, suggested):
     """The one-line report of a finished import."""
     sp = info["spacing"]
@@ -326,6 +349,9 @@ def report(name, mesh, info, suggested):
         msg += ("; DICOM %s series \"%s\", %s axes%s"
                 % (dicom["modality"], dicom["description"], dicom["axes"],
                    " (bone level, HU)" if dicom["hounsfield"] and suggested else ""))
+    geometry = geometry_text(info)
+    if geometry:
+        msg += "; " + geometry
     return msg
 
 

@@ -15,6 +15,7 @@ it, and so can any script::
 
     with isomend.open_source("scan/") as src:  # folder, glob, pattern, file list, multi-page TIFF
         print(src.dims, src.dtype, src.spacing, src.analyse()["suggested_iso"])
+        print(src.geometry)                    # evenly spaced slices?  gaps, tilt, warning
         mesh = src.extract()                   # iso: the importer's suggestion (Otsu)
     mesh = isomend.extract_source("scan/", iso=None, method="dmc")   # the same in one call
 
@@ -155,6 +156,8 @@ class Volume(ctypes.Structure):
         ("strides", ctypes.c_int64 * 3),
         ("spacing", ctypes.c_double * 3),
         ("origin", ctypes.c_double * 3),
+        # NULL (a uniform grid) or 3 * dims[2] doubles: each slice's sample (0, 0, k)
+        ("slice_origins", ctypes.c_void_p),
     ]
 
 
@@ -219,6 +222,23 @@ class IOOptions(ctypes.Structure):
         ("raw_big_endian", ctypes.c_int),
         ("progress", IO_PROGRESS_FN),
         ("progress_user", ctypes.c_void_p),
+        ("slice_positions", ctypes.c_void_p),   # const double *, NULL: evenly spaced
+        ("slice_position_count", ctypes.c_size_t),
+    ]
+
+
+class IOGeometry(ctypes.Structure):
+    _fields_ = [
+        ("size", ctypes.c_size_t),
+        ("uniform", ctypes.c_int),
+        ("gap_median", ctypes.c_double),
+        ("gap_min", ctypes.c_double),
+        ("gap_max", ctypes.c_double),
+        ("tilt_degrees", ctypes.c_double),
+        ("max_offset", ctypes.c_double),
+        ("long_gaps", ctypes.c_int64),
+        ("uneven_gaps", ctypes.c_int64),
+        ("warning", ctypes.c_char_p),
     ]
 
 
@@ -420,6 +440,8 @@ def _io_lib():
         _declare(lib, "isomend_io_series_chosen", ctypes.c_int64, [c_void_p])
         _declare(lib, "isomend_io_dicom_info", c_int, [c_void_p, P(IODicom)])
         _declare(lib, "isomend_io_world_transform", c_int, [c_void_p, P(ctypes.c_double), P(c_int)])
+        _declare(lib, "isomend_io_geometry_info", c_int, [c_void_p, P(IOGeometry)])
+        _declare(lib, "isomend_io_slice_origins", P(ctypes.c_double), [c_void_p])
         _declare(lib, "isomend_io_level_name", c_char_p, [c_int])
         _declare(lib, "isomend_io_level_value", c_int, [c_void_p, c_int, P(ctypes.c_double)])
         _declare(lib, "isomend_io_suggested_level", c_int, [c_void_p])
@@ -551,9 +573,32 @@ class _Progress:
 
 # ------------------------------------------------------------ volumes
 
-def _as_volume(array, axes, spacing, origin):
+def _slice_positions(value, what, count=None):
+    """A 1-D float64 array of slice positions (finite, strictly increasing;
+    ``count`` of them if given), or ValueError naming ``what``."""
+    z = np.array(value, dtype=np.float64).reshape(-1) if np.ndim(value) <= 1 else None
+    if z is None:
+        raise ValueError("%s: expected one z value per slice, got shape %s" % (what, np.shape(value)))
+    if count is not None and len(z) != count:
+        raise ValueError("%s: expected %d values (one per slice), got %d" % (what, count, len(z)))
+    if len(z) < 2:
+        raise ValueError("%s: expected at least 2 values, got %d" % (what, len(z)))
+    if not np.isfinite(z).all():
+        raise ValueError("%s: every value must be finite" % what)
+    steps = np.diff(z)
+    if not (steps > 0).all():
+        k = int(np.argmin(steps > 0))
+        raise ValueError("%s: must increase strictly (slice %d at %r, slice %d at %r)"
+                         % (what, k, float(z[k]), k + 1, float(z[k + 1])))
+    return z
+
+
+def _as_volume(array, axes, spacing, origin, slice_positions=None):
     """Describes a numpy array as an isomend_volume without copying when possible.
-    Returns (Volume, the array kept alive)."""
+    Returns (Volume, the arrays kept alive: the samples and the slice origins).
+    ``slice_positions``: the z of each slice (one per slice along world z), for
+    slices that are not evenly spaced: slice k's sample (0, 0) is at (origin x,
+    origin y, slice_positions[k]) (isomend_volume.slice_origins)."""
     if not isinstance(array, np.ndarray):
         array = np.asarray(array)
     if array.ndim != 3:
@@ -584,7 +629,7 @@ def _as_volume(array, axes, spacing, origin):
         # The C API reads all-zero strides as "contiguous": only possible here for a
         # fully broadcast array, whose samples are all equal; make it explicit.
         array = np.ascontiguousarray(array)
-        return _as_volume(array, axes, spacing, origin)
+        return _as_volume(array, axes, spacing, origin, slice_positions)
     sp = _triple(spacing, "spacing", 1.0)
     for i, s in enumerate(sp):
         if not (math.isfinite(s) and s > 0):
@@ -595,7 +640,13 @@ def _as_volume(array, axes, spacing, origin):
             raise ValueError("origin: %s component must be finite, got %r" % ("xyz"[i], o))
     vol.spacing[:] = sp
     vol.origin[:] = org
-    return vol, array
+    table = None
+    if slice_positions is not None:
+        z = _slice_positions(slice_positions, "slice_positions", vol.dims[2])
+        table = np.empty((len(z), 3), np.float64)  # C order: x, y, z of each slice
+        table[:, 0], table[:, 1], table[:, 2] = org[0], org[1], z
+        vol.slice_origins = table.ctypes.data
+    return vol, (array, table)
 
 
 def _triple(value, name, default):
@@ -797,7 +848,7 @@ def _take_mesh_mapped(lib, handle, stats, iso, method_id, want_normals, want_ori
 
 def extract(volume, iso, method="dmc", spacing=None, origin=None, pad=False, flip=False,
             normals=True, origins=True, threads=0, axes="zyx", progress=None,
-            small_pages=False):
+            small_pages=False, slice_positions=None):
     """Extracts the isosurface of a 3D numpy array at level ``iso``.
 
     volume:  3D array, ``array[z, y, x]`` unless ``axes`` says otherwise (see the module doc).
@@ -814,17 +865,22 @@ def extract(volume, iso, method="dmc", spacing=None, origin=None, pad=False, fli
     small_pages: output arrays without huge pages (ISOMEND_FLAG_SMALL_PAGES); the same
              mesh.  Huge pages, the default, were faster on every machine measured but
              one virtual machine, for a process that extracts once (see the README).
+    slice_positions: for slices that are not evenly spaced, the world z of each slice
+             (one per slice along z, finite, strictly increasing): slice k is meshed at
+             z = slice_positions[k], its sample (0, 0) at (origin x, origin y); spacing z
+             and origin z are then not used (isomend_volume.slice_origins).
     Returns a Mesh.  Raises IsomendError (Cancelled when cancelled), ValueError, TypeError.
     """
     if iso is None:
         raise ValueError("iso: required for a numpy volume (a Source can suggest one)")
-    vol, keep = _as_volume(volume, axes, spacing, origin)
+    vol, keep = _as_volume(volume, axes, spacing, origin, slice_positions)
     prog = _Progress(progress) if progress is not None else None
     opts = _options(iso, method, pad, flip, normals, origins, threads, prog, small_pages)
     handle = ctypes.c_void_p()
     stats = Stats()
     status = _core_lib().isomend_extract(ctypes.byref(vol), ctypes.byref(opts),
                                          ctypes.byref(handle), ctypes.byref(stats))
+    first_slice = keep[1][0].tolist() if keep[1] is not None else None
     del keep
     if prog is not None:
         prog.reraise()
@@ -833,7 +889,8 @@ def extract(volume, iso, method="dmc", spacing=None, origin=None, pad=False, fli
             _core_lib().isomend_mesh_destroy(handle)
         _raise_core(status, "isomend_extract")
     mesh = _take_mesh(handle, stats, opts.iso, opts.method, normals, origins)
-    mesh.volume_origin = tuple(vol.origin)
+    # sample (0, 0, 0): on the first slice when the slices are placed one by one
+    mesh.volume_origin = tuple(first_slice) if first_slice else tuple(vol.origin)
     mesh.volume_spacing = tuple(vol.spacing)
     return mesh
 
@@ -884,8 +941,9 @@ def _paths_list(paths):
 
 def _io_options(lib, channel=None, spacing=None, origin=None, first=0, count=0, step=1,
                 threads=0, memory_limit=0, raw_dims=None, raw_type=None, raw_header=0,
-                raw_big_endian=False):
-    """isomend_io_options from open_source()'s keyword arguments (checked), no progress."""
+                raw_big_endian=False, slice_positions=None):
+    """isomend_io_options from open_source()'s keyword arguments (checked), no progress.
+    The slice positions' array is kept alive by the returned struct (``_keep``)."""
     opts = IOOptions()
     lib.isomend_io_options_init(ctypes.byref(opts))
     opts.first, opts.count, opts.step = int(first), int(count), int(step)
@@ -924,6 +982,11 @@ def _io_options(lib, channel=None, spacing=None, origin=None, first=0, count=0, 
         opts.raw_type = _type_id(raw_type)
     opts.raw_header = int(raw_header)
     opts.raw_big_endian = 1 if raw_big_endian else 0
+    if slice_positions is not None:
+        z = np.ascontiguousarray(_slice_positions(slice_positions, "slice_positions"))
+        opts.slice_positions = z.ctypes.data
+        opts.slice_position_count = len(z)
+        opts._keep = z  # read by isomend_io_open (a job's: on its thread, later)
     return opts
 
 
@@ -966,6 +1029,13 @@ class Source(_Closable):
     modality, series_uid, description, rescale, orientation, ...), ``series``
     (every series found) and ``world_transform`` (the 3x4 patient transform
     of the mesh, None when it is the identity), else None / [] / None.
+    Every source has ``geometry`` (a dict: uniform, gap_median, gap_min,
+    gap_max, tilt_degrees, max_offset, long_gaps, uneven_gaps, warning: ""
+    or one line for the user) and ``slice_origins``: None for evenly spaced
+    slices, else an (nz, 3) array, each slice's sample (0, 0) in the frame of
+    the loaded volume (the mesh is built at these positions).
+    ``slice_positions`` (the z of each slice of a stack, raw or NRRD volume
+    whose slices are not evenly spaced) places them; a DICOM series has its own.
 
     DICOM: ``series`` picks one (a Series Instance UID, or its 1-based
     position N as listed); ``grid_axes=True`` keeps the series' own axes.  A
@@ -975,7 +1045,8 @@ class Source(_Closable):
 
     def __init__(self, paths, channel=None, spacing=None, origin=None, first=0, count=0, step=1,
                  threads=0, memory_limit=0, raw_dims=None, raw_type=None, raw_header=0,
-                 raw_big_endian=False, progress=None, series=None, grid_axes=False):
+                 raw_big_endian=False, progress=None, series=None, grid_axes=False,
+                 slice_positions=None):
         self._handle = None
         lib = _io_lib()
         self._lib = lib
@@ -984,7 +1055,7 @@ class Source(_Closable):
         opts = _io_options(lib, channel=channel, spacing=spacing, origin=origin, first=first,
                            count=count, step=step, threads=threads, memory_limit=memory_limit,
                            raw_dims=raw_dims, raw_type=raw_type, raw_header=raw_header,
-                           raw_big_endian=raw_big_endian)
+                           raw_big_endian=raw_big_endian, slice_positions=slice_positions)
         opts.progress = self._progress.c_fn
         handle = ctypes.c_void_p()
         status = lib.isomend_io_create(ctypes.byref(handle))
@@ -1098,6 +1169,17 @@ class Source(_Closable):
                 "series_index": int(lib.isomend_io_series_chosen(h)) + 1}
         lvl = lib.isomend_io_suggested_level(h)
         self.suggested_level = IO_LEVEL_NAMES[lvl] if 0 <= lvl < len(IO_LEVEL_NAMES) else "otsu"
+        geo = IOGeometry()
+        geo.size = ctypes.sizeof(IOGeometry)
+        self._check(lib.isomend_io_geometry_info(h, ctypes.byref(geo)), "geometry")
+        self.geometry = {
+            "uniform": bool(geo.uniform), "gap_median": geo.gap_median, "gap_min": geo.gap_min,
+            "gap_max": geo.gap_max, "tilt_degrees": geo.tilt_degrees, "max_offset": geo.max_offset,
+            "long_gaps": int(geo.long_gaps), "uneven_gaps": int(geo.uneven_gaps),
+            "warning": (geo.warning or b"").decode(errors="replace")}
+        origins = lib.isomend_io_slice_origins(h)
+        self.slice_origins = (np.ctypeslib.as_array(origins, shape=(self.dims[2], 3)).copy()
+                              if origins else None)
 
     def level(self, name):
         """The value of a named iso level: "otsu" (analyses the volume), or for
@@ -1195,6 +1277,8 @@ class Source(_Closable):
         mesh = _take_mesh(handle, stats, iso_used, method_id, normals, origins, world)
         vol, seconds = described or self._describe()
         origin = np.array(vol.origin[:], float)
+        if vol.slice_origins:  # slices where they are: sample (0, 0, 0) is on the first
+            origin = np.array(ctypes.cast(vol.slice_origins, ctypes.POINTER(ctypes.c_double))[:3], float)
         if world is not None:  # sample (0, 0, 0) in patient space
             origin = world[:, :3] @ origin + world[:, 3]
         mesh.volume_origin = tuple(origin.tolist())
@@ -1256,7 +1340,7 @@ class ExtractJob(_Closable):
         lib = self._lib = _io_lib()
         series = open_kwargs.pop("series", None)
         grid_axes = open_kwargs.pop("grid_axes", False)
-        io_opts = _io_options(lib, threads=threads, **open_kwargs)
+        io_opts = self._io_opts = _io_options(lib, threads=threads, **open_kwargs)
         self._opts = _options(iso if iso is not None else 0.0, method, pad, flip, normals, origins,
                               threads, None, small_pages)
         self._want = (normals, origins)
@@ -1298,7 +1382,8 @@ class ExtractJob(_Closable):
 
     def result(self):
         """Waits for the job and returns (mesh, info): the Mesh, and a dict of the
-        source's dims, dtype, spacing, spacing_sources, origin, kind, format.
+        source's dims, dtype, spacing, spacing_sources, origin, kind, format, dicom,
+        world_transform, geometry and slice_origins (see Source).
         Raises IsomendError (Cancelled if cancelled).  Once only."""
         if self._job is None:
             raise ValueError("the job's result was already taken")
@@ -1318,7 +1403,8 @@ class ExtractJob(_Closable):
             info = {"dims": src.dims, "dtype": np.dtype(src.dtype).name, "spacing": src.spacing,
                     "spacing_sources": src.spacing_sources, "origin": src.origin,
                     "kind": src.kind, "format": src.format, "dicom": src.dicom,
-                    "world_transform": src.world_transform}
+                    "world_transform": src.world_transform, "geometry": src.geometry,
+                    "slice_origins": src.slice_origins}
         return mesh, info
 
     def close(self):
@@ -1338,7 +1424,8 @@ def open_source(paths, **kwargs):
     TIFF, a raw file (raw_dims, raw_type), an NRRD file or a DICOM series (a
     folder, a DICOMDIR, DICOM files, a multi-frame file).  Keyword arguments:
     channel (index, 'auto', 'luma'), spacing, origin, first, count, step, threads,
-    memory_limit, raw_dims, raw_type, raw_header, raw_big_endian, progress;
+    memory_limit, raw_dims, raw_type, raw_header, raw_big_endian, slice_positions
+    (the z of each slice when they are not evenly spaced), progress;
     for DICOM series (a 1-based position or a UID) and grid_axes.
     Returns a Source; raises IsomendError naming the file and the reason."""
     return Source(paths, **kwargs)

@@ -10,7 +10,10 @@ counts (and mending triangles) equal to the `isomend extract` command line's
 on the same input; mesh.validate() returns False (nothing to repair); every
 edge used exactly twice (padded: closed); positive signed volume (outward
 winding) and outward custom normals; the spacing and unit scale in the
-object's dimensions and the origin in its location.  Broken inputs must make
+object's dimensions and the origin in its location; the importer's geometry
+warning in the import's outcome (``last_import``) exactly when the CLI gives
+one, and for a series whose slices are not evenly spaced the vertices at the
+slices' true positions (issue 34).  Broken inputs must make
 the operator raise RuntimeError with the reason and leave nothing behind.
 Any failed assertion exits non-zero (--python-exit-code 1).
 """
@@ -193,8 +196,33 @@ def run_case(i, case):
     upper = (n + 1) * np.array(spacing) * s
     if cli.get("world_transform") is not None:  # a turned grid: its box is larger
         upper = np.full(3, np.linalg.norm(upper))
+    if "slice_z" in case:  # slices where they are: the padded grid ends a gap beyond the ends
+        z = np.array(case["slice_z"])
+        upper[2] = (z[-1] - z[0] + (z[1] - z[0]) + (z[-1] - z[-2])) * s
     check(bool((dims <= upper * (1 + 1e-5)).all()) and bool((dims > 0).all()),
           "%s: dimensions %s exceed the padded grid %s" % (tag, dims, upper))
+    # the importer's warning on the slices' geometry: reported for an uneven
+    # series (the CLI's words, with the object's name), nothing otherwise
+    warning = cli.get("geometry", {}).get("warning", "")
+    want = "%s: %s" % (obj.name, warning) if warning else ""
+    check(module.last_import.get("warning") == want,
+          "%s: the import's warning %r, expected %r" % (tag, module.last_import.get("warning"), want))
+    if "slice_z" in case:
+        # issue 34: an uneven series is meshed at its slices' true positions
+        z = np.array(case["slice_z"])
+        wz = world[:, 2] / s
+        check(z[0] - 1e-3 <= wz.min() and wz.max() <= z[-1] + 1e-3,
+              "%s: vertices' z %.4f .. %.4f outside the slices' %.4f .. %.4f" % (tag, wz.min(), wz.max(), z[0], z[-1]))
+        if case.get("every_slice"):
+            # unpadded, a surface in every slice: the z span is the first and
+            # last slices', and every slice's true z carries vertices
+            check(abs(wz.min() - z[0]) < 1e-3 and abs(wz.max() - z[-1]) < 1e-3,
+                  "%s: vertices' z span %.4f .. %.4f, the first and last slices are at %.4f, %.4f"
+                  % (tag, wz.min(), wz.max(), z[0], z[-1]))
+            zs = np.unique(np.round(wz, 4))
+            near = np.abs(zs[:, None] - z[None, :]).min(axis=0)
+            check(bool((near < 1e-3).all()), "%s: no vertex at the true z of slices %s"
+                  % (tag, np.flatnonzero(near >= 1e-3).tolist()))
     print("%s: %d vertices, %d triangles, %d mending, import %.3f s, dimensions %s"
           % (tag, len(me.vertices), len(me.polygons), obj["isomend_mending_triangles"], seconds,
              np.round(dims, 5)), flush=True)

@@ -8,7 +8,9 @@
    triangle counts);
 3. runs Blender in background mode with a fresh user-scripts/config/cache/tmp
    folder (nothing in $HOME), which installs the add-on package, enables it and
-   runs blender_import_test.py on those cases.
+   runs blender_import_test.py on those cases;
+4. checks that Blender reported (WARNING) the importer's geometry warning for
+   each series whose slices are not evenly spaced (issue 34).
 
 Usage: run_blender_tests.py --blender EXE --package ZIP [--install legacy|extension]
                             --cli isomend --work DIR [--sample samples/anatomical.nrrd]
@@ -266,6 +268,22 @@ def main():
                             ("ct_oblique", {"grid_axes": True}), ("two_series", {"series": "2"})):
             cases.append({"name": name, "directory": os.path.join(dicom, name), "files": [],
                           "params": dict(dparams, **extra), "cli_source": [os.path.join(dicom, name)]})
+        # issue 34: a series whose slice spacing changes part-way (2.5 mm, then 5
+        # mm gaps), once refused: at the bone level (closed, the CLI's mesh), and
+        # at iso -1000.5 unpadded, where the air's noise crosses every slice, so
+        # that the vertices show where each slice is (cases.json's slice origins)
+        with open(os.path.join(dicom, "cases.json")) as fp:
+            uneven = json.load(fp)["two_spacings"]
+        A = np.array(uneven["affine"], float)
+        slice_z = (np.array(uneven["slice_origins"], float) @ A[:, :3].T + A[:, 3])[:, 2]
+        assert uneven["warning"] and np.ptp(np.diff(slice_z)) > 1.0, "two_spacings must be uneven"
+        source = os.path.join(dicom, "two_spacings")
+        cases.append({"name": "two_spacings", "directory": source, "files": [], "params": dict(dparams),
+                      "cli_source": [source], "slice_z": slice_z.tolist()})
+        cases.append({"name": "two_spacings", "directory": source, "files": [],
+                      "params": dict(dparams, use_suggested_iso=False, iso=-1000.5, pad=False,
+                                     smooth=False, unit_scale=1.0),
+                      "cli_source": [source], "slice_z": slice_z.tolist(), "every_slice": True})
     if args.mode == "gui":
         cases = cases[:1]  # the modal test imports the first case only
     for i, case in enumerate(cases):
@@ -277,6 +295,10 @@ def main():
               % (i, case["name"], case["params"]["method"], c["vertices"], c["triangles"],
                  c["triangles_by_origin"]["mend"], c["iso"]))
     assert cases[0]["cli"]["triangles_by_origin"]["mend"] > 0, "the foam case must exercise mending"
+    for case in cases:
+        if "slice_z" in case:
+            geo = case["cli"]["geometry"]
+            assert not geo["uniform"] and geo["warning"], "the CLI must find %s uneven: %s" % (case["name"], geo)
 
     # broken inputs: each must raise RuntimeError naming the reason
     mismatch = os.path.join(work, "mismatch")
@@ -298,7 +320,7 @@ def main():
             {"directory": os.path.join(dicom, "two_series"), "files": [], "expect": "2 DICOM series|T1"},
             {"directory": os.path.join(dicom, "two_series"), "files": [], "series": "3",
              "expect": "no series 3"},
-            {"directory": os.path.join(dicom, "missing_slice"), "files": [], "expect": "1 missing slice"},
+            {"directory": os.path.join(dicom, "duplicate"), "files": [], "expect": "at the same position"},
         ]
 
     big = None
@@ -343,6 +365,13 @@ def main():
     # printed by Blender and swallowed: any traceback fails the test
     if "Traceback (most recent call last)" in r.stdout:
         sys.exit("Blender printed a Python traceback (above)")
+    # the operator's WARNING report (Blender prints reports in background mode):
+    # the importer's geometry warning, the one the CLI gives, for each uneven series
+    if args.mode == "background":
+        for case in cases:
+            warning = case["cli"].get("geometry", {}).get("warning")
+            if warning and "Warning: %s: %s" % (case["name"], warning) not in r.stdout:
+                sys.exit("Blender did not report the warning %r for %s" % (warning, case["name"]))
 
 
 if __name__ == "__main__":

@@ -272,6 +272,90 @@ def test_a_dicom_series_is_chosen_placed_and_reported(two_series):
                    import_stack.custom_properties(mesh, dict(info, dicom=None)))
 
 
+@pytest.fixture(scope="module")
+def uneven_ct(tmp_path_factory):
+    """Issue 34: an axial CT series of a ball (pydicom) whose slice spacing
+    changes part-way, 1.5 mm then 2.5 mm: once refused, now meshed at the
+    slices' true positions."""
+    pydicom = pytest.importorskip("pydicom")
+    from pydicom.dataset import Dataset, FileMetaDataset
+    from pydicom.uid import ExplicitVRLittleEndian, generate_uid
+    folder = tmp_path_factory.mktemp("dicom") / "uneven"
+    folder.mkdir()
+    z, y, x = np.meshgrid(np.arange(10.0), np.arange(12.0), np.arange(14.0), indexing="ij")
+    hu = np.where(np.sqrt((x - 6.5) ** 2 + (y - 5.5) ** 2 + (z - 4.5) ** 2) < 4.0, 700, -1000)
+    steps = np.concatenate([[0.0], np.cumsum(np.where(np.arange(9) < 4, 1.5, 2.5))])
+    positions = [float("%.6g" % (20.0 + v)) for v in steps]     # as the files say them
+    series, study, frame = generate_uid(), generate_uid(), generate_uid()
+    for k in range(hu.shape[0]):
+        ds = Dataset()
+        ds.SOPClassUID, ds.SOPInstanceUID = "1.2.840.10008.5.1.4.1.1.2", generate_uid()
+        ds.StudyInstanceUID, ds.SeriesInstanceUID, ds.FrameOfReferenceUID = study, series, frame
+        ds.Modality, ds.SeriesNumber, ds.InstanceNumber = "CT", 1, 10 - k
+        ds.SeriesDescription = "uneven ball"
+        ds.PatientName, ds.PatientID = "Phantom^Isomend", "ISOMEND-TEST"
+        ds.ImagePositionPatient = ["-5", "-6", "%.6g" % positions[k]]
+        ds.ImageOrientationPatient = ["1", "0", "0", "0", "1", "0"]
+        ds.PixelSpacing, ds.SliceThickness = ["0.8", "0.7"], "1.5"
+        ds.RescaleSlope, ds.RescaleIntercept, ds.RescaleType = "1", "-1024", "HU"
+        ds.SamplesPerPixel, ds.PhotometricInterpretation = 1, "MONOCHROME2"
+        ds.Rows, ds.Columns = hu.shape[1], hu.shape[2]
+        ds.BitsAllocated, ds.BitsStored, ds.HighBit, ds.PixelRepresentation = 16, 12, 11, 0
+        ds.PixelData = (hu[k] + 1024).astype("<u2").tobytes()
+        meta = FileMetaDataset()
+        meta.MediaStorageSOPClassUID, meta.MediaStorageSOPInstanceUID = ds.SOPClassUID, ds.SOPInstanceUID
+        meta.TransferSyntaxUID = ExplicitVRLittleEndian
+        ds.file_meta, ds.is_little_endian, ds.is_implicit_VR = meta, True, False
+        ds.preamble = b"\0" * 128
+        pydicom.dcmwrite(str(folder / ("IMG%03d.dcm" % (7 * k % 10))), ds, write_like_original=False)
+    return {"folder": str(folder), "hu": hu.astype(np.int16), "positions": positions}
+
+
+def test_an_unevenly_spaced_dicom_series_is_meshed_where_its_slices_are(uneven_ct):
+    j = job([uneven_ct["folder"]])          # suggested: the bone level of a CT
+    j.run()
+    assert j.error is None and j.outcome() == ('FINISHED', None, None), j.error
+    mesh, info = j.result
+    geo = info["geometry"]
+    assert not geo["uniform"] and geo["warning"], geo
+    assert geo["gap_min"] == pytest.approx(1.5) and geo["gap_max"] == pytest.approx(2.5)
+    assert geo["uneven_gaps"] > 0 and geo["tilt_degrees"] == pytest.approx(0.0, abs=1e-9)
+    np.testing.assert_array_equal(info["slice_origins"][:, 2], uneven_ct["positions"])
+    # the core's mesh of the same samples at the same positions (the axial
+    # series' frame is patient space: x, y from Image Position, no transform)
+    want = isomend.extract(uneven_ct["hu"], 300.0, pad=True, spacing=(0.7, 0.8, 1.0),
+                           origin=(-5.0, -6.0, 0.0), slice_positions=uneven_ct["positions"])
+    same(mesh, want)
+    assert mesh.volume_origin == (-5.0, -6.0, uneven_ct["positions"][0])
+    # the surface touches no border slice: its z lies strictly between them
+    zs = mesh.positions[:, 2]
+    assert uneven_ct["positions"][0] < zs.min() and zs.max() < uneven_ct["positions"][-1]
+    text = import_stack.report("uneven", mesh, info, suggested=True)
+    assert "; slices not evenly spaced (gaps 1.5 to 2.5 mm), meshed at their positions" in text
+    warning = import_stack.geometry_warning("uneven", info)
+    assert warning == "uneven: " + geo["warning"]
+    # the same through the library's thread (the operator's modal path)
+    j = job([uneven_ct["folder"]])
+    j.start()
+    while not j.poll():
+        pass
+    same(j.result[0], want)
+    assert j.result[1]["geometry"] == geo
+
+
+def test_the_geometry_text_says_only_what_differs():
+    even = {"geometry": {"uniform": True, "gap_min": 1.0, "gap_max": 1.0, "tilt_degrees": 0.0,
+                         "warning": ""}}
+    assert import_stack.geometry_text(even) == "" and import_stack.geometry_warning("a", even) == ""
+    assert import_stack.geometry_text({}) == "" and import_stack.geometry_warning("a", {}) == ""
+    tilted = {"geometry": {"uniform": False, "gap_min": 1.25, "gap_max": 1.25, "tilt_degrees": 15.0,
+                           "warning": "the slices are sheared by a 15 degree gantry tilt"}}
+    assert (import_stack.geometry_text(tilted)
+            == "slices not evenly spaced (gaps 1.25 to 1.25 mm, tilt 15 degrees), meshed at their positions")
+    assert (import_stack.geometry_warning("head", tilted)
+            == "head: the slices are sheared by a 15 degree gantry tilt")
+
+
 # ------------------------------------------------------------ the mesh
 
 def test_mesh_buffers_are_relative_to_the_origin_scaled_and_typed(blob):
@@ -302,6 +386,9 @@ def test_report_names_the_object_counts_iso_and_spacing(blob):
                            % (mesh.vertex_count, mesh.triangle_count))
     assert "iso %g (suggested)" % mesh.iso in text and "16x14x12 samples" in text
     assert "(suggested)" not in import_stack.report("x", mesh, info, suggested=False)
+    # evenly spaced slices: nothing said about them, no warning
+    assert info["geometry"]["uniform"] and info["slice_origins"] is None
+    assert "evenly" not in text and import_stack.geometry_warning("knee_scan", info) == ""
 
 
 # ------------------------------------------------------------ can the libraries load?

@@ -206,6 +206,47 @@ def test_spacing_and_origin_place_the_mesh_in_world_units():
     np.testing.assert_allclose(c.positions, a.positions * 2, rtol=1e-6)
 
 
+def test_slice_positions_mesh_each_slice_where_it_is():
+    """Issue 34: slices that are not evenly spaced (isomend_volume.slice_origins
+    through extract(slice_positions=)): the same triangles and vertex order as
+    the uniform grid, each vertex moved along z to where its edge lies between
+    the two slices' true positions."""
+    vol = sphere()
+    nz = vol.shape[0]
+    gaps = np.where(np.arange(nz - 1) < 9, 1.25, 2.0)   # a spacing change part-way
+    gaps[15] = 4.0                                       # and a missing slice
+    z = 30.0 + np.concatenate([[0.0], np.cumsum(gaps)])
+    a = isomend.extract(vol, 0.0, spacing=(0.5, 2.0, 1.0), origin=(10, -20, 0))
+    b = isomend.extract(vol, 0.0, spacing=(0.5, 2.0, 1.0), origin=(10, -20, 0),
+                        slice_positions=list(z))         # a temporary: kept alive by extract
+    np.testing.assert_array_equal(b.triangles, a.triangles)
+    np.testing.assert_array_equal(b.positions[:, :2], a.positions[:, :2])
+    index = a.positions[:, 2].astype(np.float64)          # k + t on the uniform grid
+    np.testing.assert_allclose(b.positions[:, 2], np.interp(index, np.arange(nz), z), rtol=0, atol=2e-5)
+    in_slice = index == np.round(index)                   # edges along x and y
+    assert in_slice.sum() > 100
+    np.testing.assert_allclose(b.positions[in_slice, 2], z[np.round(index[in_slice]).astype(int)],
+                               rtol=1e-7)
+    assert b.volume_origin == (10.0, -20.0, z[0])
+    np.testing.assert_allclose(np.array(b.grid_box)[[2, 5]], [z[0], z[-1]])
+    assert b.check()["hole_edges"] == 0 and b.check()["nonmanifold_edges"] == 0
+    lengths = np.linalg.norm(b.normals, axis=1)
+    assert np.abs(lengths - 1).max() < 1e-5
+    # the normals are the gradients over the true neighbours: not the uniform grid's
+    assert np.abs(b.normals - a.normals).max() > 0.05
+    # evenly spaced positions are the uniform grid
+    even = isomend.extract(vol, 0.0, slice_positions=3.0 + 1.5 * np.arange(nz), pad=True)
+    grid = isomend.extract(vol, 0.0, spacing=(1, 1, 1.5), origin=(0, 0, 3.0), pad=True)
+    np.testing.assert_array_equal(even.triangles, grid.triangles)
+    np.testing.assert_allclose(even.positions, grid.positions, rtol=0, atol=1e-5)
+    # refused before anything reaches C
+    for bad, words in ((z[:-1], "expected %d values" % nz), (z[::-1], "increase strictly"),
+                       (np.where(np.arange(nz) == 4, np.nan, z), "finite"),
+                       (np.stack([z, z]), "one z value per slice")):
+        with pytest.raises(ValueError, match="slice_positions: .*" + words):
+            isomend.extract(vol, 0.0, slice_positions=bad)
+
+
 @pytest.mark.parametrize("view", ["fortran", "reversed_x", "reversed_z", "sliced", "transposed_xyz"])
 def test_strided_views_need_no_copy_and_give_the_same_mesh(view):
     base = sphere(26)
@@ -507,6 +548,41 @@ def test_extract_job_cancel_errors_and_abandon(stack, tmp_path):
         isomend.ExtractJob(stack["multi"]).close()
         job = isomend.ExtractJob(stack["multi"])
         del job
+
+
+def test_a_stack_at_uneven_slice_positions(stack):
+    """open_source(slice_positions=) (isomend_io_options.slice_positions): the
+    source's geometry says how the slices lie, slice_origins where they are,
+    and the mesh is extract()'s at those positions, also through a job."""
+    with isomend.open_source(stack["folder"]) as src:
+        g = src.geometry
+        assert g["uniform"] and g["warning"] == "" and src.slice_origins is None
+        assert g["gap_median"] == g["gap_min"] == g["gap_max"] == 1.0
+        assert g["long_gaps"] == g["uneven_gaps"] == 0 and g["tilt_degrees"] == 0.0
+    steps = np.array([0, 1, 2, 3.4, 4.8, 5.8, 6.8, 7.8, 9.8, 10.8, 11.8, 12.8])
+    z = 2.0 + 0.8 * steps       # gaps 0.8, two of 1.12, one of 1.6 (a missing slice?)
+    with isomend.open_source(stack["folder"], slice_positions=z) as src:
+        g = src.geometry
+        assert not g["uniform"]
+        assert g["gap_median"] == pytest.approx(0.8) and g["gap_min"] == pytest.approx(0.8)
+        assert g["gap_max"] == pytest.approx(1.6)
+        assert g["uneven_gaps"] == 3 and g["long_gaps"] == 1 and g["max_offset"] > 0
+        assert src.slice_origins.shape == (12, 3)
+        np.testing.assert_array_equal(src.slice_origins[:, 2], z)
+        np.testing.assert_array_equal(src.slice_origins[:, :2], 0.0)
+        mesh = src.extract(iso=300.0, pad=True)
+    want = isomend.extract(stack["volume"], 300.0, pad=True, slice_positions=z)
+    same_mesh(mesh, want)
+    assert mesh.volume_origin == (0.0, 0.0, z[0])
+    job = isomend.ExtractJob(stack["folder"], iso=300.0, pad=True, slice_positions=list(z))
+    mesh, info = job.result()
+    same_mesh(mesh, want)
+    assert not info["geometry"]["uniform"]
+    np.testing.assert_array_equal(info["slice_origins"][:, 2], z)
+    with pytest.raises(ValueError, match="slice_positions: must increase strictly"):
+        isomend.open_source(stack["folder"], slice_positions=z[::-1])
+    with pytest.raises(isomend.IsomendError):   # 11 positions for 12 slices
+        isomend.open_source(stack["folder"], slice_positions=z[:-1])
 
 
 def test_source_errors_name_the_file_and_the_reason(stack, tmp_path):

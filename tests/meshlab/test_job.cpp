@@ -259,6 +259,14 @@ void test_run(const std::string &dir)
                                     nullptr);
         check_same_mesh(run.mesh(), mesh);
         isomend_mesh_destroy(mesh);
+        /* evenly spaced slices (issue 34): the geometry says so, at the z
+         * spacing in use, and there is no warning */
+        CHECK(run.geometry_known() && run.geometry().uniform);
+        CHECK(run.warning().empty());
+        bool geometry_logged = false;
+        for (const std::string &line : run.log_lines())
+            geometry_logged = geometry_logged || line == "slices evenly spaced, gap 2.25";
+        CHECK(geometry_logged);
         p.spacing[0] = p.spacing[1] = p.spacing[2] = 0;
     }
 

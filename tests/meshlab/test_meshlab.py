@@ -27,7 +27,10 @@ Usage (run by ctest):
             the CLI's check finds holes for mc and none for dmc, and MeshLab
             agrees: MC open, DMC closed two-manifold genus 0.
   dicom     DICOM series (tests/io/gen_dicom.py): the CLI's meshes in patient
-            space, MeshLab's measure closed, errors naming the file.
+            space, MeshLab's measure closed, errors naming the file; a
+            series whose slice spacing changes part-way (issue 34) loads,
+            gives the CLI's mesh with its vertices at the slices' true
+            positions, and the importer's warning is in MeshLab's log.
   realdata  the ITK T1 MRI (scripts/get-test-data.sh): at the suggested level
             MeshLab counts MC's hole edges as boundary edges and finds DMC's
             result closed and two-manifold; an explicit iso 2 below the
@@ -169,6 +172,7 @@ class Runner:
         self.work = work
         self.n = 0
         self.last_output = ""
+        self.last_log = ""
 
     def isomend(self, source, args):
         """`isomend extract`; returns (json dict, PLY path)."""
@@ -212,6 +216,7 @@ class ServerRunner(Runner):
         r = subprocess.run(cmd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, timeout=120)
         self.last_output = r.stdout.decode(errors="replace")
         text = open(log, errors="replace").read() if os.path.exists(log) else ""
+        self.last_log = text
         if r.returncode != 0 and r.returncode != 255:
             print(r.stdout.decode(errors="replace")[-2000:])
         return r.returncode, text, out if os.path.exists(out) else None
@@ -281,6 +286,7 @@ class HarnessRunner(Runner):
             f.write("\n".join(steps) + "\n")
         rc = self.run(steps, log)
         text = open(log, errors="replace").read() if os.path.exists(log) else ""
+        self.last_log = text
         return rc, text, out if os.path.exists(out) else None
 
     def topology(self, log):
@@ -739,6 +745,9 @@ def test_dicom(run):
                           ("two_series", {"dicomSeries": "1"}, ["--series", "1"])):
         compare(run, "DICOM %s %s" % (name, ml), os.path.join(dicom, name),
                 dict(ml, iso=300.0), ["--iso", "300", "--pad"] + cli, log_expect="DICOM CT series")
+        check("slices evenly spaced, gap 1.25" in run.last_log and "isomend: warning" not in run.last_log,
+              "an evenly spaced series: the log says so, no warning")
+    test_dicom_uneven(run, dicom)
     print("DICOM CT bone, MeshLab's topological measures:")
     rc, log, out = run.meshlab({"source": os.path.join(dicom, "ct_oblique"), "iso": 300.0}, topology=True)
     t = run.topology(log)
@@ -746,7 +755,8 @@ def test_dicom(run):
           "closed two-manifold: %s" % t)
     for label, params, expect in (
             ("two series, none chosen", {"source": os.path.join(dicom, "two_series")}, "2 DICOM series"),
-            ("a missing slice", {"source": os.path.join(dicom, "missing_slice")}, "1 missing slice"),
+            ("two slices at one position", {"source": os.path.join(dicom, "duplicate")},
+             "at the same position"),
             ("series 7 of a folder holding one", {"source": os.path.join(dicom, "ct"), "dicomSeries": "7"},
              "no series 7")):
         print("%s:" % label)
@@ -755,6 +765,66 @@ def test_dicom(run):
         reason = m.group(1) if m else ""
         check(rc == run.fail_rc and expect in reason and out is None,
               "exit %s, %r in %r, no file" % (run.fail_rc, expect, reason))
+
+
+def test_dicom_uneven(run, dicom):
+    """Issue 34: "two_spacings" of gen_dicom.py (a CT with 2.5 mm gaps, then 5
+    mm gaps: once refused) loads, and is meshed at its slices' true positions
+    (cases.json's slice origins, turned into patient space), as the CLI meshes
+    it; the importer's warning is in MeshLab's log at warning level."""
+    name = "two_spacings"
+    with open(os.path.join(dicom, "cases.json")) as fp:
+        case = json.load(fp)[name]
+    source = os.path.join(dicom, name)
+    A = np.array(case["affine"], float)
+    origins = np.array(case["slice_origins"], float) @ A[:, :3].T + A[:, 3]   # patient space
+    z = origins[:, 2]
+    check(case["warning"] and np.ptp(np.diff(z)) > 1.0,
+          "cases.json: %s is uneven (gaps %g to %g) and warns" % (name, np.diff(z).min(), np.diff(z).max()))
+    ref = compare(run, "DICOM %s (gaps %g then %g mm), bone, padded DMC" % (name, np.diff(z)[0], np.diff(z)[-1]),
+                  source, {"iso": 300.0}, ["--iso", "300", "--pad"], log_expect="DICOM CT series")
+    log = run.last_log
+    if ref is None:
+        return
+    warning = ref["geometry"]["warning"]
+    check(bool(warning) and not ref["geometry"]["uniform"], "the CLI warns: %r" % warning)
+    check(("isomend: warning: %s: %s" % (source, warning)) in log,
+          "MeshLab's log has the importer's warning: %r"
+          % [l for l in log.splitlines() if "warning" in l])
+    check(re.search(r"slices not evenly spaced, meshed at their positions: gaps %g to %g "
+                    % (np.diff(z).min(), np.diff(z).max()), log) is not None,
+          "the log reports the geometry: %r" % [l for l in log.splitlines() if "slices" in l])
+    # a z spacing set for such a series makes it evenly spaced at that spacing,
+    # as the CLI's --spacing does, and the importer's warning says so
+    sp = case["spacing"]
+    ref = compare(run, "DICOM %s with spacingZ 7 (evenly spaced at 7 mm)" % name, source,
+                  {"iso": 300.0, "spacingZ": 7.0}, ["--iso", "300", "--pad", "--spacing", "%r,%r,7" % (sp[0], sp[1])],
+                  log_expect="slices evenly spaced, gap 7")
+    if ref is not None:
+        warning = ref["geometry"]["warning"]
+        check("evenly" in warning and ("isomend: warning: %s: %s" % (source, warning)) in run.last_log,
+              "the log has the CLI's warning with --spacing: %r" % warning)
+    print("DICOM %s, iso -1000.5 (the air's noise: every slice crosses it), unpadded:" % name)
+    rc, log, out = run.meshlab({"source": source, "iso": -1000.5, "pad": False})
+    if not check(rc == 0 and out is not None, "%s exit 0 with a PLY (rc %d)" % (run.name, rc)):
+        return
+    ref, ref_ply = run.isomend(source, ["--iso", "-1000.5"])
+    v, t = read_ply(out)
+    check(len(v) == ref["vertices"] and len(t) == ref["triangles"],
+          "vertex/triangle counts %d/%d equal the CLI's %d/%d"
+          % (len(v), len(t), ref["vertices"], ref["triangles"]))
+    vz = v["z"].astype(np.float64)
+    want = z.astype(np.float32).astype(np.float64)
+    check(vz.min() == want[0] and vz.max() == want[-1],
+          "the vertices' z span %.6g .. %.6g is the first and last slices' %.6g .. %.6g"
+          % (vz.min(), vz.max(), want[0], want[-1]))
+    # the vertices of edges within a slice lie at that slice's z: every slice
+    # is where the series says, not on an evenly spaced grid
+    hit = np.isin(want, vz)
+    check(bool(hit.all()), "every slice's true z carries vertices (missing: %s)" % want[~hit])
+    between = vz[~np.isin(vz, want)]
+    k = np.searchsorted(want, between)
+    check(bool(((k > 0) & (k < len(want))).all()), "every other vertex lies between two slices")
 
 
 def main():
