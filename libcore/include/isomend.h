@@ -624,8 +624,10 @@ ISOMEND_API isomend_status isomend_mesh_check(const isomend_mesh *mesh,
  */
 
 /* Decimation targets: the larger triangle count of ratio * triangles and
- * target_triangles is kept; max_error (world units, 0: none) bounds every
- * collapse's error.  At least one of the three must be set. */
+ * target_triangles is kept; max_error (world units, 0: none) keeps every
+ * input vertex within that distance of the triangles around the vertex it
+ * is collapsed into (so within it of the result).  At least one of the
+ * three must be set. */
 typedef struct isomend_decimate_options {
     double ratio;              /* fraction of the triangles to keep, [0, 1]; 0: unused */
     uint64_t target_triangles; /* triangles to keep; 0: unused                      */
@@ -642,13 +644,14 @@ typedef struct isomend_decimate_report {
     int reached;               /* 1: the target was reached; 0: stopped short,    */
                                /* every further collapse would break the surface */
                                /* or exceed max_error                            */
-    double max_error;          /* the largest collapse error made: no vertex of   */
-                               /* the result lies farther than this from a plane */
-                               /* of the input triangles it replaces             */
+    double max_error;          /* the largest and the mean distance from the      */
+    double mean_error;         /* input's vertices to the result (measured)      */
     uint64_t collapses;
     uint64_t locked_vertices;  /* border and non-manifold: kept as they are      */
     uint64_t refused_topology; /* collapses refused by the link condition        */
-    uint64_t refused_geometry; /* ... by a flipped or degenerate triangle        */
+    uint64_t refused_geometry; /* ... by a flipped, degenerate or too thin       */
+                               /* triangle                                       */
+    uint64_t refused_error;    /* ... by max_error                               */
 } isomend_decimate_report;
 
 /*

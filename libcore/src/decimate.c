@@ -49,9 +49,9 @@ enum { V_LOCKED = 1, V_DEAD = 2 };
 #define MIN_SHAPE 0.03
 
 typedef struct item {
-    double cost;
+    float cost;
     uint32_t a, b;   /* a < b */
-    uint32_t sa, sb; /* the vertices' stamps when pushed */
+    uint32_t stamps; /* stamp[a] + stamp[b] when pushed (stamps only grow) */
 } item;
 
 typedef struct dec {
@@ -68,13 +68,19 @@ typedef struct dec {
     uint32_t gen;
     item *heap;
     size_t nheap, cap;
+    int unordered;   /* push_edge appends without ordering (push_all) */
     double max_cost;
+    double max_dist;      /* max_error, or 0: no distance check            */
+    const float *orig;    /* the input's positions                         */
+    uint32_t *parent;     /* the vertex an input vertex was collapsed into */
+    uint32_t *members;    /* the input vertices a vertex stands for: a list */
+    uint32_t *member_next; /* through these, from members[v]               */
     isomend_decimate_report *rep;
 } dec;
 
 /* ---------------------------------------------------------------- the heap */
 
-static int item_less(const item *x, const item *y)
+static inline int item_less(const item *x, const item *y)
 {
     if (x->cost != y->cost)
         return x->cost < y->cost;
@@ -83,6 +89,7 @@ static int item_less(const item *x, const item *y)
     return x->b < y->b;
 }
 
+/* A 4-ary heap of 16-byte items: a node's children share a cache line. */
 static int heap_push(dec *d, item it)
 {
     if (d->nheap == d->cap) {
@@ -95,7 +102,7 @@ static int heap_push(dec *d, item it)
     }
     size_t i = d->nheap++;
     while (i > 0) {
-        size_t up = (i - 1) / 2;
+        size_t up = (i - 1) / 4;
         if (!item_less(&it, &d->heap[up]))
             break;
         d->heap[i] = d->heap[up];
@@ -105,24 +112,41 @@ static int heap_push(dec *d, item it)
     return 1;
 }
 
-static item heap_pop(dec *d)
+/* Moves `x` down from node i into its place. */
+static void sift_down(item *h, size_t n, size_t i, item x)
 {
-    item top = d->heap[0], last = d->heap[--d->nheap];
-    size_t i = 0, n = d->nheap;
     for (;;) {
-        size_t c = 2 * i + 1;
+        const size_t c = 4 * i + 1;
         if (c >= n)
             break;
-        if (c + 1 < n && item_less(&d->heap[c + 1], &d->heap[c]))
-            c++;
-        if (!item_less(&d->heap[c], &last))
+        size_t m = c;
+        const size_t end = c + 4 < n ? c + 4 : n;
+        for (size_t k = c + 1; k < end; k++)
+            if (item_less(&h[k], &h[m]))
+                m = k;
+        if (!item_less(&h[m], &x))
             break;
-        d->heap[i] = d->heap[c];
-        i = c;
+        h[i] = h[m];
+        i = m;
     }
-    if (n)
-        d->heap[i] = last;
+    h[i] = x;
+}
+
+static item heap_pop(dec *d)
+{
+    const item top = d->heap[0];
+    const item last = d->heap[--d->nheap];
+    if (d->nheap)
+        sift_down(d->heap, d->nheap, 0, last);
     return top;
+}
+
+/* Makes a heap of the items pushed unordered (heap_append). */
+static void heapify(dec *d)
+{
+    for (size_t i = d->nheap / 4 + 1; i-- > 0;)
+        if (i < d->nheap)
+            sift_down(d->heap, d->nheap, i, d->heap[i]);
 }
 
 /* ------------------------------------------------------------- quadrics */
@@ -220,6 +244,74 @@ static void prune(dec *d, uint32_t v)
 static inline uint32_t corner_next(const dec *d, uint32_t c) { return d->tv[c - c % 3 + (c % 3 + 1) % 3]; }
 static inline uint32_t corner_prev(const dec *d, uint32_t c) { return d->tv[c - c % 3 + (c % 3 + 2) % 3]; }
 
+/* ------------------------------------------------------------- distance */
+
+/* Squared distance from input vertex u to the live triangles around x1 and
+ * x2 (NONE: none), with a and b moved to v (v NULL: nothing moves; the
+ * triangles with both a and b die with their edge). */
+static double fan_distance2(const dec *d, uint32_t u, uint32_t x1, uint32_t x2, uint32_t a,
+                            uint32_t b, const double *v)
+{
+    const double p[3] = {d->orig[3 * (size_t)u], d->orig[3 * (size_t)u + 1],
+                         d->orig[3 * (size_t)u + 2]};
+    double best = INFINITY;
+    for (int s = 0; s < 2; s++) {
+        const uint32_t x = s ? x2 : x1;
+        if (x == NONE)
+            continue;
+        for (uint32_t c = d->head[x]; c != NONE; c = d->next[c]) {
+            const uint32_t t = c / 3;
+            if (d->tdead[t])
+                continue;
+            const double *q[3];
+            int moved = 0;
+            for (int k = 0; k < 3; k++) {
+                const uint32_t y = d->tv[3 * t + (uint32_t)k];
+                const int m = v && (y == a || y == b);
+                moved += m;
+                q[k] = m ? v : d->p + 3 * (size_t)y;
+            }
+            if (moved > 1)
+                continue;
+            const double e = point_triangle_distance2(p, q[0], q[1], q[2]);
+            best = e < best ? e : best;
+        }
+    }
+    return best;
+}
+
+/* Whether every input vertex stays within max_dist of the triangles around
+ * the vertex it stands in for, after (a, b) collapses to v: the members of
+ * a and b (to the new fan) and of every neighbour of a or b (whose fans
+ * change too).  Uses the marks of collapse_allowed (the neighbours of a). */
+static int collapse_close(dec *d, uint32_t a, uint32_t b, const double v[3])
+{
+    const double limit = d->max_dist * d->max_dist;
+    for (int s = 0; s < 2; s++)
+        for (uint32_t u = d->members[s ? b : a]; u != NONE; u = d->member_next[u])
+            if (fan_distance2(d, u, a, b, a, b, v) > limit)
+                return 0;
+    if (++d->gen == 0) {
+        memset(d->mark, 0, d->nv * sizeof(uint32_t));
+        d->gen = 1;
+    }
+    const uint32_t g = d->gen;
+    d->mark[a] = d->mark[b] = g;
+    for (int s = 0; s < 2; s++)
+        for (uint32_t c = d->head[s ? b : a]; c != NONE; c = d->next[c]) {
+            if (d->tdead[c / 3])
+                continue;
+            const uint32_t w = corner_next(d, c);
+            if (d->mark[w] == g)
+                continue;
+            d->mark[w] = g;
+            for (uint32_t u = d->members[w]; u != NONE; u = d->member_next[u])
+                if (fan_distance2(d, u, w, NONE, a, b, v) > limit)
+                    return 0;
+        }
+    return 1;
+}
+
 /* --------------------------------------------------------- one collapse */
 
 static int push_edge(dec *d, uint32_t a, uint32_t b)
@@ -235,7 +327,19 @@ static int push_edge(dec *d, uint32_t a, uint32_t b)
     const double cost = collapse_point(d, a, b, v);
     if (cost > d->max_cost)
         return 1;
-    item it = {cost, a, b, d->stamp[a], d->stamp[b]};
+    item it = {(float)cost, a, b, d->stamp[a] + d->stamp[b]};
+    if (d->unordered) { /* push_all: heapified at once */
+        if (d->nheap == d->cap) {
+            size_t cap = d->cap ? 2 * d->cap : 1024;
+            item *h = realloc(d->heap, cap * sizeof(item));
+            if (!h)
+                return 0;
+            d->heap = h;
+            d->cap = cap;
+        }
+        d->heap[d->nheap++] = it;
+        return 1;
+    }
     return heap_push(d, it);
 }
 
@@ -352,6 +456,12 @@ static int collapse(dec *d, uint32_t a, uint32_t b, const double v[3])
     }
     d->head[b] = NONE;
     d->vf[b] |= V_DEAD;
+    d->parent[b] = a;
+    uint32_t *tail = &d->members[a]; /* b's members join a's */
+    while (*tail != NONE)
+        tail = &d->member_next[*tail];
+    *tail = d->members[b];
+    d->members[b] = NONE;
     for (int i = 0; i < 10; i++)
         d->q[10 * a + i] += d->q[10 * b + i];
     memcpy(d->p + 3 * a, v, 3 * sizeof(double));
@@ -363,8 +473,7 @@ static int collapse(dec *d, uint32_t a, uint32_t b, const double v[3])
     return 1;
 }
 
-/* Pushes every edge of the live mesh (each once, from its a < b direction). */
-static int push_all(dec *d)
+static int push_all_edges(dec *d)
 {
     for (size_t t = 0; t < d->nt; t++) {
         if (d->tdead[t])
@@ -376,6 +485,16 @@ static int push_all(dec *d)
         }
     }
     return 1;
+}
+
+/* Pushes every edge of the live mesh (each once, from its a < b direction). */
+static int push_all(dec *d)
+{
+    d->unordered = 1;
+    const int ok = push_all_edges(d);
+    d->unordered = 0;
+    heapify(d);
+    return ok;
 }
 
 /* ---------------------------------------------------------- the output */
@@ -459,7 +578,7 @@ isomend_status isomend_mesh_decimate(const isomend_mesh *mesh, const isomend_dec
     d.nv = mesh->nv;
     d.nt = mesh->nt;
     d.alive = mesh->nt;
-    d.max_cost = o->max_error > 0 ? o->max_error * o->max_error : INFINITY;
+    d.max_cost = INFINITY; /* max_error is checked by distances (collapse_close) */
     if (d.nt > (size_t)UINT32_MAX / 3 || d.nv >= (size_t)UINT32_MAX)
         return ISOMEND_ERR_TOO_LARGE;
     uint64_t target = 0;
@@ -481,9 +600,19 @@ isomend_status isomend_mesh_decimate(const isomend_mesh *mesh, const isomend_dec
     d.vf = calloc(nv, 1);
     d.stamp = calloc(nv, sizeof(uint32_t));
     d.mark = calloc(nv, sizeof(uint32_t));
+    d.parent = malloc(nv * sizeof(uint32_t));
+    d.members = malloc(nv * sizeof(uint32_t));
+    d.member_next = malloc(nv * sizeof(uint32_t));
+    d.orig = mesh->pos;
+    d.max_dist = o->max_error;
     isomend_status status = ISOMEND_ERR_OUT_OF_MEMORY;
-    if (!d.p || !d.q || !d.tv || !d.tdead || !d.head || !d.next || !d.vf || !d.stamp || !d.mark)
+    if (!d.p || !d.q || !d.tv || !d.tdead || !d.head || !d.next || !d.vf || !d.stamp || !d.mark ||
+        !d.parent || !d.members || !d.member_next)
         goto done;
+    for (size_t v = 0; v < d.nv; v++) {
+        d.parent[v] = d.members[v] = (uint32_t)v;
+        d.member_next[v] = NONE;
+    }
     for (size_t i = 0; i < 3 * d.nv; i++)
         d.p[i] = mesh->pos[i];
     memcpy(d.tv, mesh->tri, 3 * d.nt * sizeof(uint32_t));
@@ -519,18 +648,19 @@ isomend_status isomend_mesh_decimate(const isomend_mesh *mesh, const isomend_dec
         uint64_t made = 0;
         while (d.nheap && d.alive > target) {
             const item it = heap_pop(&d);
-            if ((d.vf[it.a] | d.vf[it.b]) & V_DEAD || d.stamp[it.a] != it.sa ||
-                d.stamp[it.b] != it.sb)
+            if ((d.vf[it.a] | d.vf[it.b]) & V_DEAD || d.stamp[it.a] + d.stamp[it.b] != it.stamps)
                 continue;
             double v[3];
             (void)collapse_point(&d, it.a, it.b, v);
             if (!collapse_allowed(&d, it.a, it.b, v))
                 continue;
+            if (d.max_dist > 0 && !collapse_close(&d, it.a, it.b, v)) {
+                rep.refused_error++;
+                continue;
+            }
             if (!collapse(&d, it.a, it.b, v))
                 goto done;
             made++;
-            if (sqrt(it.cost) > rep.max_error)
-                rep.max_error = sqrt(it.cost);
         }
         rep.collapses += made;
         if (d.alive <= target || made == 0 || round == 8)
@@ -544,6 +674,13 @@ isomend_status isomend_mesh_decimate(const isomend_mesh *mesh, const isomend_dec
     if (status == ISOMEND_OK) {
         rep.triangles_after = (*out)->nt;
         rep.vertices_after = (*out)->nv;
+        /* how far the input's vertices lie from the result */
+        if (!mesh_distances(mesh->pos, mesh->nv, (*out)->pos, (*out)->tri, (*out)->nt,
+                            &rep.max_error, &rep.mean_error)) {
+            isomend_mesh_destroy(*out);
+            *out = NULL;
+            status = ISOMEND_ERR_OUT_OF_MEMORY;
+        }
     }
 done:
     free(d.p);
@@ -555,6 +692,9 @@ done:
     free(d.vf);
     free(d.stamp);
     free(d.mark);
+    free(d.parent);
+    free(d.members);
+    free(d.member_next);
     free(d.heap);
     if (report)
         *report = rep;

@@ -317,6 +317,13 @@ void mesh_area_normals(isomend_mesh *m, const float *keep);
 int mesh_free_vertices(const isomend_mesh *m, uint8_t *free_flag, uint32_t **first,
                        uint32_t **corners);
 
+/* distance.c: the squared distance from p to triangle (a, b, c); the largest
+ * and mean distance from np points to a triangle mesh (0 without memory). */
+double point_triangle_distance2(const double p[3], const double a[3], const double b[3],
+                                const double c[3]);
+int mesh_distances(const float *pts, size_t np, const float *pos, const uint32_t *tri, size_t nt,
+                   double *max_out, double *mean_out);
+
 /* components.c: each vertex's component (triangles joined through shared
  * vertices), numbered in vertex order; returns their count (isolated
  * vertices count as components of their own). */

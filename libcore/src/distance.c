@@ -1,0 +1,229 @@
+/*
+ * distance.c - how far points lie from a triangle mesh: the distance from
+ * each input vertex to a decimated result (isomend_decimate_report), the
+ * one-sided Hausdorff distance that VTK's vtkCellLocator or MeshLab's
+ * Hausdorff filter measure.
+ *
+ * A uniform grid of cells about twice the mean edge long files each
+ * triangle under every cell its bounding box touches (a compressed row
+ * table); a point searches rings of cells around its own, outwards, until
+ * the ring is farther than the nearest triangle found.  Points outside the
+ * grid start from the nearest cell.
+ */
+#include "extract_internal.h"
+
+#include <stdlib.h>
+
+/* Squared distance from p to triangle (a, b, c) (Ericson, "Real-Time Collision
+ * Detection", 5.1.5: the closest point by Voronoi regions). */
+double point_triangle_distance2(const double p[3], const double a[3], const double b[3],
+                              const double c[3])
+{
+    double ab[3], ac[3], ap[3], q[3];
+    for (int i = 0; i < 3; i++) {
+        ab[i] = b[i] - a[i];
+        ac[i] = c[i] - a[i];
+        ap[i] = p[i] - a[i];
+    }
+#define DOT(x, y) ((x)[0] * (y)[0] + (x)[1] * (y)[1] + (x)[2] * (y)[2])
+    const double d1 = DOT(ab, ap), d2 = DOT(ac, ap);
+    if (d1 <= 0 && d2 <= 0) {
+        memcpy(q, a, sizeof q);
+    } else {
+        double bp[3], cp[3];
+        for (int i = 0; i < 3; i++) {
+            bp[i] = p[i] - b[i];
+            cp[i] = p[i] - c[i];
+        }
+        const double d3 = DOT(ab, bp), d4 = DOT(ac, bp), d5 = DOT(ab, cp), d6 = DOT(ac, cp);
+        const double vc = d1 * d4 - d3 * d2, vb = d5 * d2 - d1 * d6, va = d3 * d6 - d5 * d4;
+        if (d3 >= 0 && d4 <= d3) {
+            memcpy(q, b, sizeof q);
+        } else if (d6 >= 0 && d5 <= d6) {
+            memcpy(q, c, sizeof q);
+        } else if (vc <= 0 && d1 >= 0 && d3 <= 0) {
+            const double v = d1 / (d1 - d3);
+            for (int i = 0; i < 3; i++)
+                q[i] = a[i] + v * ab[i];
+        } else if (vb <= 0 && d2 >= 0 && d6 <= 0) {
+            const double w = d2 / (d2 - d6);
+            for (int i = 0; i < 3; i++)
+                q[i] = a[i] + w * ac[i];
+        } else if (va <= 0 && (d4 - d3) >= 0 && (d5 - d6) >= 0) {
+            const double w = (d4 - d3) / ((d4 - d3) + (d5 - d6));
+            for (int i = 0; i < 3; i++)
+                q[i] = b[i] + w * (c[i] - b[i]);
+        } else {
+            const double den = 1.0 / (va + vb + vc);
+            const double v = vb * den, w = vc * den;
+            for (int i = 0; i < 3; i++)
+                q[i] = a[i] + ab[i] * v + ac[i] * w;
+        }
+    }
+#undef DOT
+    const double dx = p[0] - q[0], dy = p[1] - q[1], dz = p[2] - q[2];
+    return dx * dx + dy * dy + dz * dz;
+}
+
+
+typedef struct cell_grid {
+    double lo[3], size;
+    int64_t n[3];
+    uint32_t *first; /* n0 n1 n2 + 1 */
+    uint32_t *tris;
+} cell_grid;
+
+static int64_t cell_of(const cell_grid *g, double x, int a)
+{
+    int64_t c = (int64_t)floor((x - g->lo[a]) / g->size);
+    return c < 0 ? 0 : c >= g->n[a] ? g->n[a] - 1 : c;
+}
+
+int mesh_distances(const float *pts, size_t np, const float *pos, const uint32_t *tri, size_t nt,
+                   double *max_out, double *mean_out)
+{
+    *max_out = *mean_out = 0;
+    if (!np || !nt)
+        return 1;
+    cell_grid g;
+    g.tris = NULL;
+    double hi[3];
+    for (int a = 0; a < 3; a++) {
+        g.lo[a] = INFINITY;
+        hi[a] = -INFINITY;
+    }
+    double edges = 0;
+    for (size_t t = 0; t < nt; t++)
+        for (int k = 0; k < 3; k++) {
+            const float *p = pos + 3 * (size_t)tri[3 * t + (size_t)k],
+                        *q = pos + 3 * (size_t)tri[3 * t + (size_t)(k + 1) % 3];
+            for (int a = 0; a < 3; a++) {
+                g.lo[a] = p[a] < g.lo[a] ? p[a] : g.lo[a];
+                hi[a] = p[a] > hi[a] ? p[a] : hi[a];
+            }
+            const double dx = (double)p[0] - q[0], dy = (double)p[1] - q[1], dz = (double)p[2] - q[2];
+            edges += sqrt(dx * dx + dy * dy + dz * dz);
+        }
+    g.size = 2.0 * edges / (3.0 * (double)nt);
+    double extent = 0;
+    for (int a = 0; a < 3; a++)
+        extent = hi[a] - g.lo[a] > extent ? hi[a] - g.lo[a] : extent;
+    if (!(g.size > 0) || !isfinite(g.size))
+        g.size = extent > 0 ? extent : 1.0;
+    /* at most about 4 cells a triangle */
+    for (;;) {
+        uint64_t cells = 1;
+        for (int a = 0; a < 3; a++) {
+            g.n[a] = (int64_t)((hi[a] - g.lo[a]) / g.size) + 1;
+            cells *= (uint64_t)g.n[a];
+        }
+        if (cells <= 4 * (uint64_t)nt + 64)
+            break;
+        g.size *= 1.5;
+    }
+    const size_t ncell = (size_t)(g.n[0] * g.n[1] * g.n[2]);
+    g.first = calloc(ncell + 1, sizeof(uint32_t));
+    if (!g.first)
+        return 0;
+    /* two passes: count, then file */
+    uint64_t total = 0;
+    for (int pass = 0; pass < 2; pass++) {
+        for (size_t t = 0; t < nt; t++) {
+            int64_t c0[3], c1[3];
+            for (int a = 0; a < 3; a++) {
+                double mn = INFINITY, mx = -INFINITY;
+                for (int k = 0; k < 3; k++) {
+                    const double x = pos[3 * (size_t)tri[3 * t + (size_t)k] + (size_t)a];
+                    mn = x < mn ? x : mn;
+                    mx = x > mx ? x : mx;
+                }
+                c0[a] = cell_of(&g, mn, a);
+                c1[a] = cell_of(&g, mx, a);
+            }
+            for (int64_t z = c0[2]; z <= c1[2]; z++)
+                for (int64_t y = c0[1]; y <= c1[1]; y++)
+                    for (int64_t x = c0[0]; x <= c1[0]; x++) {
+                        const size_t cell = (size_t)((z * g.n[1] + y) * g.n[0] + x);
+                        if (pass == 0)
+                            g.first[cell + 1]++;
+                        else
+                            g.tris[g.first[cell]++] = (uint32_t)t;
+                    }
+        }
+        if (pass == 0) {
+            for (size_t c = 0; c < ncell; c++)
+                g.first[c + 1] += g.first[c];
+            total = g.first[ncell];
+            g.tris = malloc((total ? total : 1) * sizeof(uint32_t));
+            if (!g.tris) {
+                free(g.first);
+                return 0;
+            }
+        } else {
+            for (size_t c = ncell; c > 0; c--)
+                g.first[c] = g.first[c - 1];
+            g.first[0] = 0;
+        }
+    }
+    double worst = 0, sum = 0;
+    for (size_t i = 0; i < np; i++) {
+        const double p[3] = {pts[3 * i], pts[3 * i + 1], pts[3 * i + 2]};
+        int64_t c[3];
+        for (int a = 0; a < 3; a++)
+            c[a] = cell_of(&g, p[a], a);
+        double best = INFINITY;
+        int64_t maxr = g.n[0] > g.n[1] ? g.n[0] : g.n[1];
+        maxr = g.n[2] > maxr ? g.n[2] : maxr;
+        for (int64_t r = 0; r <= maxr; r++) {
+            /* every cell of ring r (the shell of the cube of radius r) */
+            for (int64_t z = c[2] - r; z <= c[2] + r; z++) {
+                if (z < 0 || z >= g.n[2])
+                    continue;
+                for (int64_t y = c[1] - r; y <= c[1] + r; y++) {
+                    if (y < 0 || y >= g.n[1])
+                        continue;
+                    const int shell = z == c[2] - r || z == c[2] + r || y == c[1] - r || y == c[1] + r;
+                    for (int64_t x = c[0] - r; x <= c[0] + r; x += shell ? 1 : 2 * r) {
+                        if (x >= 0 && x < g.n[0]) {
+                            const size_t cell = (size_t)((z * g.n[1] + y) * g.n[0] + x);
+                            for (uint32_t k = g.first[cell]; k < g.first[cell + 1]; k++) {
+                                const uint32_t *v = tri + 3 * (size_t)g.tris[k];
+                                double q[3][3];
+                                for (int m = 0; m < 3; m++)
+                                    for (int a = 0; a < 3; a++)
+                                        q[m][a] = pos[3 * (size_t)v[m] + (size_t)a];
+                                const double e = point_triangle_distance2(p, q[0], q[1], q[2]);
+                                best = e < best ? e : best;
+                            }
+                        }
+                        if (r == 0)
+                            break;
+                    }
+                }
+            }
+            /* the cells not searched yet lie beyond the faces of the cube of
+             * rings 0 .. r that have cells beyond them */
+            double reach = INFINITY;
+            for (int a = 0; a < 3; a++) {
+                if (c[a] - r > 0) {
+                    const double dlo = p[a] - (g.lo[a] + (double)(c[a] - r) * g.size);
+                    reach = dlo < reach ? dlo : reach;
+                }
+                if (c[a] + r + 1 < g.n[a]) {
+                    const double dhi = g.lo[a] + (double)(c[a] + r + 1) * g.size - p[a];
+                    reach = dhi < reach ? dhi : reach;
+                }
+            }
+            if (best < INFINITY && (reach == INFINITY || (reach > 0 && reach * reach >= best)))
+                break;
+        }
+        const double d = sqrt(best);
+        worst = d > worst ? d : worst;
+        sum += d;
+    }
+    free(g.first);
+    free(g.tris);
+    *max_out = worst;
+    *mean_out = sum / (double)np;
+    return 1;
+}
