@@ -235,7 +235,8 @@ def _save(path, a):
 class IsomendVolume(ctypes.Structure):
     _fields_ = [("data", ctypes.c_void_p), ("type", ctypes.c_int),
                 ("dims", ctypes.c_int64 * 3), ("strides", ctypes.c_int64 * 3),
-                ("spacing", ctypes.c_double * 3), ("origin", ctypes.c_double * 3)]
+                ("spacing", ctypes.c_double * 3), ("origin", ctypes.c_double * 3),
+                ("slice_origins", ctypes.c_void_p)]  # isomend.h: NULL, a uniform grid
 
 
 class IsomendOptions(ctypes.Structure):

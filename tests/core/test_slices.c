@@ -173,7 +173,7 @@ static void compare_with_index_grid(const isomend_volume *vol, double iso, const
             const size_t nv = isomend_mesh_vertex_count(a), nt = isomend_mesh_triangle_count(a);
             CHECK_EQ_INT(nv, isomend_mesh_vertex_count(b));
             CHECK_EQ_INT(nt, isomend_mesh_triangle_count(b));
-            if (nt == isomend_mesh_triangle_count(b)) {
+            if (nt && nt == isomend_mesh_triangle_count(b)) {
                 if (memcmp(isomend_mesh_triangles(a), isomend_mesh_triangles(b), 12 * nt) ||
                     memcmp(isomend_mesh_triangle_origins(a), isomend_mesh_triangle_origins(b), nt)) {
                     fprintf(stderr, "%s %s flags %u: triangles differ from the index grid's\n",
@@ -185,7 +185,7 @@ static void compare_with_index_grid(const isomend_volume *vol, double iso, const
             keep k = {0};
             CHECK(keyed_vertices(vol, &o, &k));
             CHECK_EQ_INT(k.n, nv);
-            if (k.n == nv && memcmp(k.pos, isomend_mesh_positions(a), 12 * nv)) {
+            if (k.n == nv && nv && memcmp(k.pos, isomend_mesh_positions(a), 12 * nv)) {
                 fprintf(stderr, "%s: the piece's positions differ from the mesh's\n", what);
                 CHECK(0);
             }
