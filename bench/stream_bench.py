@@ -154,7 +154,6 @@ def main():
     env = {k: v for k, v in os.environ.items() if k != "DISPLAY"}  # hwloc's GL plugin, see tests/mpi
     env.update(OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1", HWLOC_COMPONENTS="-gl")
     failures = []
-    engines = set()
     ref = os.path.join(a.work, "in_memory.ply")
     for _ in range(a.repeats):
         for name in runs:
@@ -182,7 +181,6 @@ def main():
                 continue
             r = json.loads(txt)
             if name == "streamed":
-                engines.add(r.get("stream_engine"))
                 if not r["streamed"]:
                     failures.append("streamed: the run did not stream")
             tm = r["timings_ms"]
@@ -197,7 +195,7 @@ def main():
             continue
         t = statistics.median(x[0] for x in xs)
         peak = max(x[1] for x in xs)
-        label = name + (" (" + "/".join(sorted(map(str, engines))) + ")" if name == "streamed" else "")
+        label = name
         work = statistics.median(x[3] for x in xs)
         rows.append(f"| {label} | {t:.2f} | {t / t_mem:.2f} | {work:.2f} | {nz / t:.0f} | "
                     f"{mb / t:.1f} | {peak / 2 ** 20:.0f} | {xs[0][2]} |")

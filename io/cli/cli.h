@@ -259,9 +259,6 @@ typedef struct cli_source {
     char label[1024];        /* SOURCE as given (first path)                   */
 } cli_source;
 
-/* Opens and loads SOURCE (paths[0..n)).  Returns an exit code; on failure
- * the message is printed and nothing needs closing. */
-int cli_source_open(const char *const *paths, int n, const cli_source_opts *o, cli_source *src);
 /* Loads an opened source whole into `src` (s is closed in every case). */
 int cli_source_load(cli_slices *s, cli_source *src);
 void cli_source_close(cli_source *src);
@@ -408,12 +405,6 @@ void cli_sink_for_world(cli_sink *sink, cli_world *w);
 void cli_world_map(const cli_world *w, float *pos, float *nrm, size_t count);
 void cli_world_free(cli_world *w); /* accepts NULL */
 
-/* Hands a whole mesh to a sink in the streaming order; exit code. */
-int cli_feed_mesh(const isomend_mesh *mesh, const cli_sink *sink);
-
-/* What implements cli_stream_extract(): the core's streaming API
- * (isomend_stream_*); --json reports it. */
-#define CLI_STREAM_ENGINE "core"
 
 /*
  * Extracts the surface of the slices of `s` (from slice 0) and hands the

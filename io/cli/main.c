@@ -234,19 +234,18 @@ static void print_plan(FILE *fp, const cli_memory_plan *p)
 {
     char need[32], limit[32];
     if (p->stream)
-        fprintf(fp, "streamed: the in-memory path would need about %s, more than %s of %s "
-                    "(extraction: %s)\n",
+        fprintf(fp, "streamed: the in-memory path would need about %s, more than %s of %s\n",
                 cli_bytes_text(p->in_memory, need, sizeof need),
                 p->limit_given ? "--max-memory" : "the memory available",
-                cli_bytes_text(p->limit, limit, sizeof limit), CLI_STREAM_ENGINE);
+                cli_bytes_text(p->limit, limit, sizeof limit));
 }
 
 static void json_plan(FILE *jf, const cli_memory_plan *p)
 {
-    fprintf(jf, ", \"streamed\": %s, \"stream_engine\": %s, \"memory_limit\": %" PRIu64
+    fprintf(jf, ", \"streamed\": %s, \"memory_limit\": %" PRIu64
                 ", \"memory_limit_from\": \"%s\", \"memory_estimate\": %" PRIu64
                 ", \"memory_streaming\": %" PRIu64 ", \"peak_memory\": %" PRIu64,
-            p->stream ? "true" : "false", p->stream ? "\"" CLI_STREAM_ENGINE "\"" : "null",
+            p->stream ? "true" : "false",
             p->limit, p->limit_given ? "option" : "MemAvailable", p->in_memory, p->streaming,
             cli_peak_memory());
 }

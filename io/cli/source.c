@@ -865,15 +865,6 @@ int cli_source_load(cli_slices *s, cli_source *src)
     return rc;
 }
 
-int cli_source_open(const char *const *paths, int n, const cli_source_opts *o, cli_source *src)
-{
-    cli_slices s;
-    memset(src, 0, sizeof *src);
-    int rc = cli_slices_open(paths, n, o, &s);
-    if (rc) return rc;
-    return cli_source_load(&s, src);
-}
-
 void cli_source_drop_samples(cli_source *src)
 {
     if (!src || !src->owned) return; /* an importer's volume stays with its handle */
@@ -1099,6 +1090,17 @@ static int dicom_of(const cli_source *src, isomend_io_dicom *d)
 }
 #endif
 
+#ifdef ISOMEND_HAVE_IO
+/* The importer's named levels of a CT series, indexed by isomend_io_level. */
+static int levels_of(cli_source *src, double lv[3])
+{
+    for (int l = ISOMEND_IO_LEVEL_OTSU; l <= ISOMEND_IO_LEVEL_SKIN; l++)
+        if (io_api.level_value((isomend_io_source *)src->io, l, &lv[l]) != ISOMEND_IO_OK)
+            return 0;
+    return 1;
+}
+#endif
+
 const char *cli_source_suggested_level(const cli_source *src)
 {
 #ifdef ISOMEND_HAVE_IO
@@ -1113,7 +1115,9 @@ const char *cli_source_suggested_level(const cli_source *src)
 
 int cli_source_level(cli_source *src, const char *name, double *value)
 {
-    int level = strcmp(name, "bone") == 0 ? 1 : strcmp(name, "skin") == 0 ? 2 : 0;
+    int level = strcmp(name, "bone") == 0   ? ISOMEND_IO_LEVEL_BONE
+                : strcmp(name, "skin") == 0 ? ISOMEND_IO_LEVEL_SKIN
+                                            : ISOMEND_IO_LEVEL_OTSU;
 #ifdef ISOMEND_HAVE_IO
     if (src->io) {
         if (io_api.level_value((isomend_io_source *)src->io, level, value) != ISOMEND_IO_OK) {
@@ -1123,7 +1127,7 @@ int cli_source_level(cli_source *src, const char *name, double *value)
         return CLI_EXIT_OK;
     }
 #endif
-    if (level != 0) {
+    if (level != ISOMEND_IO_LEVEL_OTSU) {
         cli_error("--iso %s: the %s level is for CT DICOM series in Hounsfield units; %s is a %s "
                   "source (give the level as a number)", name, name, src->label, src->kind);
         return CLI_EXIT_USAGE;
@@ -1222,12 +1226,12 @@ void cli_print_dicom(FILE *fp, cli_source *src, const cli_summary *sum)
                     "(world = position + R * index * spacing)\n");
     else
         fprintf(fp, "  axes:        patient (LPS mm): x to the patient's left, y posterior, z head\n");
-    double otsu = 0;
+    double lv[3];
     (void)sum;
-    if (d.hounsfield &&
-        io_api.level_value((isomend_io_source *)src->io, ISOMEND_IO_LEVEL_OTSU, &otsu) == ISOMEND_IO_OK)
-        fprintf(fp, "  levels (HU): bone 300, skin -500, Otsu %.9g; extract uses bone unless --iso "
-                    "skin|otsu|VALUE\n", otsu);
+    if (d.hounsfield && levels_of(src, lv))
+        fprintf(fp, "  levels (HU): bone %.9g, skin %.9g, Otsu %.9g; extract uses bone unless --iso "
+                    "skin|otsu|VALUE\n", lv[ISOMEND_IO_LEVEL_BONE], lv[ISOMEND_IO_LEVEL_SKIN],
+                lv[ISOMEND_IO_LEVEL_OTSU]);
 #else
     (void)fp;
     (void)src;
@@ -1258,11 +1262,11 @@ void cli_json_dicom(FILE *fp, cli_source *src, const cli_summary *sum)
             d.orientation[1], d.orientation[2], d.orientation[3], d.orientation[4], d.orientation[5]);
     fprintf(fp, ", \"normal\": [%.17g, %.17g, %.17g], \"position\": [%.17g, %.17g, %.17g]",
             d.normal[0], d.normal[1], d.normal[2], d.position[0], d.position[1], d.position[2]);
-    double otsu = 0;
-    if (d.hounsfield &&
-        io_api.level_value((isomend_io_source *)src->io, ISOMEND_IO_LEVEL_OTSU, &otsu) == ISOMEND_IO_OK)
-        fprintf(fp, ", \"levels\": {\"bone\": 300, \"skin\": -500, \"otsu\": %.17g, \"extract\": \"bone\"}",
-                otsu);
+    double lv[3];
+    if (d.hounsfield && levels_of(src, lv))
+        fprintf(fp, ", \"levels\": {\"bone\": %.17g, \"skin\": %.17g, \"otsu\": %.17g, "
+                    "\"extract\": \"bone\"}",
+                lv[ISOMEND_IO_LEVEL_BONE], lv[ISOMEND_IO_LEVEL_SKIN], lv[ISOMEND_IO_LEVEL_OTSU]);
     else
         fprintf(fp, ", \"levels\": null");
     fprintf(fp, ", \"files\": %lld, \"multiframe\": %s, \"non_image\": %lld, \"non_dicom\": %lld, "

@@ -259,35 +259,6 @@ void cli_sink_for_world(cli_sink *sink, cli_world *w)
 
 /* ------------------------------------------------------------------ extraction */
 
-/* Hands an extracted mesh to a sink in batches, in the streaming order
- * (every vertex a triangle uses comes first). */
-int cli_feed_mesh(const isomend_mesh *mesh, const cli_sink *sink)
-{
-    enum { BATCH = 1 << 16 };
-    const size_t nv = isomend_mesh_vertex_count(mesh), nt = isomend_mesh_triangle_count(mesh);
-    const float *pos = isomend_mesh_positions(mesh), *nrm = isomend_mesh_normals(mesh);
-    const uint32_t *tri = isomend_mesh_triangles(mesh);
-    const uint8_t *org = isomend_mesh_triangle_origins(mesh);
-    for (size_t v = 0; v < nv; v += BATCH) {
-        size_t n = nv - v < BATCH ? nv - v : BATCH;
-        if (sink->vertices(sink->user, v, n, pos + 3 * v, nrm ? nrm + 3 * v : NULL, NULL))
-            return CLI_EXIT_FAIL;
-    }
-    uint64_t *ids = malloc(3 * BATCH * sizeof *ids);
-    if (!ids && nt) {
-        cli_error("out of memory");
-        return CLI_EXIT_FAIL;
-    }
-    int rc = CLI_EXIT_OK;
-    for (size_t t = 0; t < nt && rc == CLI_EXIT_OK; t += BATCH) {
-        size_t n = nt - t < BATCH ? nt - t : BATCH;
-        for (size_t i = 0; i < 3 * n; i++) ids[i] = tri[3 * t + i];
-        if (sink->triangles(sink->user, n, ids, org ? org + t : NULL)) rc = CLI_EXIT_FAIL;
-    }
-    free(ids);
-    return rc;
-}
-
 int cli_stream_extract(cli_slices *s, const isomend_options *opts, const cli_sink *sink,
                        isomend_stats *stats)
 {

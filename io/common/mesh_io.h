@@ -32,21 +32,12 @@
 #include <stddef.h>
 #include <stdint.h>
 
+#include "mesh_format.h"
 #include "volume_readers.h"
 
 #ifdef __cplusplus
 extern "C" {
 #endif
-
-typedef enum isomend_mesh_format {
-    ISOMEND_MESH_UNKNOWN = 0,
-    ISOMEND_MESH_PLY = 1,
-    ISOMEND_MESH_OBJ = 2,
-    ISOMEND_MESH_STL = 3
-} isomend_mesh_format;
-
-/* The format for a path's extension, ISOMEND_MESH_UNKNOWN if none matches. */
-isomend_mesh_format isomend_mesh_format_of(const char *path);
 
 /*
  * Writes a triangle mesh.  `normals` may be NULL (no normals in PLY/OBJ).

@@ -609,8 +609,3 @@ uint64_t isomend_mesh_writer_vertex_count(const isomend_mesh_writer *w)
 {
     return w ? w->nv : 0;
 }
-
-uint64_t isomend_mesh_writer_triangle_count(const isomend_mesh_writer *w)
-{
-    return w ? w->nt : 0;
-}

@@ -55,7 +55,8 @@
 #include <stddef.h>
 #include <stdint.h>
 
-#include "mesh_io.h"
+#include "mesh_format.h"
+#include "volume_readers.h"
 
 #ifdef __cplusplus
 extern "C" {
@@ -113,7 +114,6 @@ void isomend_mesh_writer_abort(isomend_mesh_writer *w);
 const char *isomend_mesh_writer_message(const isomend_mesh_writer *w);
 
 uint64_t isomend_mesh_writer_vertex_count(const isomend_mesh_writer *w);
-uint64_t isomend_mesh_writer_triangle_count(const isomend_mesh_writer *w);
 
 /* ---- the records, for writers that place bytes themselves (isomend-mpi) ----
  *

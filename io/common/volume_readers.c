@@ -34,24 +34,6 @@
 #define GZ_MAX_RATIO 1032u      /* deflate's maximum expansion factor            */
 #define GZ_SLACK 4096u
 
-const char *isomend_fileio_status_string(isomend_fileio_status status)
-{
-    switch (status) {
-    case ISOMEND_FILEIO_OK: return "ok";
-    case ISOMEND_FILEIO_ERR_INVALID_ARGUMENT: return "invalid argument";
-    case ISOMEND_FILEIO_ERR_NOT_FOUND: return "file not found";
-    case ISOMEND_FILEIO_ERR_UNREADABLE: return "file cannot be read";
-    case ISOMEND_FILEIO_ERR_FORMAT: return "malformed header";
-    case ISOMEND_FILEIO_ERR_UNSUPPORTED: return "unsupported file content";
-    case ISOMEND_FILEIO_ERR_SIZE: return "data size does not match the description";
-    case ISOMEND_FILEIO_ERR_CORRUPT: return "corrupt compressed data";
-    case ISOMEND_FILEIO_ERR_OUT_OF_MEMORY: return "out of memory";
-    case ISOMEND_FILEIO_ERR_WRITE: return "cannot write the output file";
-    case ISOMEND_FILEIO_ERR_CANCELLED: return "cancelled";
-    }
-    return "unknown status";
-}
-
 static void swap_bytes(void *data, size_t count, size_t size)
 {
     unsigned char *p = data;

@@ -66,9 +66,6 @@ typedef enum isomend_fileio_status {
     ISOMEND_FILEIO_ERR_CANCELLED = 10        /* the progress callback asked to stop    */
 } isomend_fileio_status;
 
-/* A static description of a status ("malformed header"). */
-const char *isomend_fileio_status_string(isomend_fileio_status status);
-
 /* Size of a message buffer that always holds a whole message. */
 #define ISOMEND_FILEIO_MSG_SIZE 1280
 #define ISOMEND_FILEIO_PATH_MAX 1024

@@ -458,7 +458,7 @@ static int run(int argc, char **argv)
                         "\"%s\", \"ranks\": %d, ", isomend_version(), ranks);
             cli_json_run(jf, sl.label, sl.kind, a.output, v, &opts, iso_suggested);
             cli_json_geometry(jf, &sl.geometry);
-            fprintf(jf, ", \"slab_engine\": \"core\", \"peak_memory\": %" PRIu64, peak_max);
+            fprintf(jf, ", \"peak_memory\": %" PRIu64, peak_max);
             stats.vertices = totals[0];
             stats.triangles = totals[1];
             cli_json_stats(jf, &stats);

@@ -189,7 +189,7 @@ def write_positions_file(path, z):
     with open(path, "w") as fh:
         fh.write("# slice positions, one z a line\n\n")
         for i, v in enumerate(z):
-            fh.write(f"  {v!r}   # slice {i}\n" if i % 3 == 0 else f"{v!r}\n")
+            fh.write(f"  {float(v)!r}   # slice {i}\n" if i % 3 == 0 else f"{float(v)!r}\n")
             if i % 5 == 4:
                 fh.write("\n# ---\n")
 
