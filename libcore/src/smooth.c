@@ -19,7 +19,9 @@
  */
 #include "extract_internal.h"
 
+#include <pthread.h>
 #include <stdlib.h>
+#include <unistd.h>
 
 #define LAMBDA 0.5
 #define MU (-0.53)
@@ -59,6 +61,77 @@ static void weighted_normals(const isomend_mesh *m, const double *p, double *n)
     }
 }
 
+/* One step over vertices [lo, hi): q from p. */
+typedef struct smooth_job {
+    size_t nv;
+    const uint32_t *first, *nb;
+    const uint8_t *free_v;
+    const double *p;
+    double *q;
+    double f;
+} smooth_job;
+
+typedef struct smooth_part {
+    const smooth_job *job;
+    size_t lo, hi;
+} smooth_part;
+
+static void step_range(const smooth_job *j, size_t lo, size_t hi)
+{
+    const double *p = j->p;
+    double *q = j->q;
+    for (size_t v = lo; v < hi; v++) {
+        const uint32_t b = j->first[v], e = j->first[v + 1];
+        if (!j->free_v[v]) {
+            q[3 * v] = p[3 * v];
+            q[3 * v + 1] = p[3 * v + 1];
+            q[3 * v + 2] = p[3 * v + 2];
+            continue;
+        }
+        double sx = 0, sy = 0, sz = 0;
+        for (uint32_t x = b; x < e; x++) {
+            const double *w = p + 3 * (size_t)j->nb[x];
+            sx += w[0];
+            sy += w[1];
+            sz += w[2];
+        }
+        const double inv = 1.0 / (double)(e - b);
+        q[3 * v] = p[3 * v] + j->f * (sx * inv - p[3 * v]);
+        q[3 * v + 1] = p[3 * v + 1] + j->f * (sy * inv - p[3 * v + 1]);
+        q[3 * v + 2] = p[3 * v + 2] + j->f * (sz * inv - p[3 * v + 2]);
+    }
+}
+
+static void *step_thread(void *arg)
+{
+    const smooth_part *part = arg;
+    step_range(part->job, part->lo, part->hi);
+    return NULL;
+}
+
+/* One step on `nthreads` threads (the calling one included); one thread
+ * where others cannot start. */
+static void run_steps(const smooth_job *j, int nthreads)
+{
+    pthread_t th[8];
+    smooth_part parts[8];
+    int started = 0;
+    for (int t = 1; t < nthreads; t++) {
+        parts[t].job = j;
+        parts[t].lo = j->nv * (size_t)t / (size_t)nthreads;
+        parts[t].hi = j->nv * (size_t)(t + 1) / (size_t)nthreads;
+        if (pthread_create(&th[t], NULL, step_thread, &parts[t]) != 0)
+            break;
+        started = t;
+    }
+    /* this thread: its own part, and the parts of threads that did not start */
+    step_range(j, 0, j->nv / (size_t)nthreads);
+    if (started + 1 < nthreads)
+        step_range(j, j->nv * (size_t)(started + 1) / (size_t)nthreads, j->nv);
+    for (int t = 1; t <= started; t++)
+        pthread_join(th[t], NULL);
+}
+
 isomend_status isomend_mesh_smooth(const isomend_mesh *mesh, int iterations, isomend_mesh **out,
                                    isomend_smooth_report *report)
 {
@@ -89,27 +162,26 @@ isomend_status isomend_mesh_smooth(const isomend_mesh *mesh, int iterations, iso
     uint64_t moved = 0;
     for (size_t v = 0; v < mesh->nv; v++)
         moved += free_v[v];
-    /* lambda, mu, lambda, mu ...: q = p + f (mean of the neighbours - p) */
+    /* each corner's entry becomes the neighbour it leads to: around a free
+     * vertex every neighbour is the `next` of exactly one corner */
+    for (size_t x = 0; x < 3 * mesh->nt; x++) {
+        const uint32_t c = corners[x];
+        corners[x] = mesh->tri[c - c % 3 + (c % 3 + 1) % 3];
+    }
+    /* lambda, mu, lambda, mu ...: q = p + f (mean of the neighbours - p),
+     * every vertex from the previous step's positions only, so the threads'
+     * split changes nothing */
+    smooth_job job = {mesh->nv, first, corners, free_v, p, q, 0};
+    int nthreads = 1;
+    if (mesh->nv >= 65536) {
+        const long cores = sysconf(_SC_NPROCESSORS_ONLN);
+        nthreads = cores < 1 ? 1 : cores > 8 ? 8 : (int)cores;
+    }
     for (int it = 0; it < 2 * iterations; it++) {
-        const double f = it % 2 ? MU : LAMBDA;
-        for (size_t v = 0; v < mesh->nv; v++) {
-            double s[3] = {0, 0, 0};
-            const uint32_t b = first[v], e = first[v + 1];
-            if (free_v[v]) {
-                for (uint32_t x = b; x < e; x++) {
-                    const uint32_t c = corners[x];
-                    const uint32_t w = mesh->tri[c - c % 3 + (c % 3 + 1) % 3]; /* once each */
-                    for (int d = 0; d < 3; d++)
-                        s[d] += p[3 * (size_t)w + (size_t)d];
-                }
-                for (int d = 0; d < 3; d++)
-                    q[3 * v + (size_t)d] =
-                        p[3 * v + (size_t)d] + f * (s[d] / (double)(e - b) - p[3 * v + (size_t)d]);
-            } else {
-                for (int d = 0; d < 3; d++)
-                    q[3 * v + (size_t)d] = p[3 * v + (size_t)d];
-            }
-        }
+        job.f = it % 2 ? MU : LAMBDA;
+        job.p = p;
+        job.q = q;
+        run_steps(&job, nthreads);
         double *t = p;
         p = q;
         q = t;
