@@ -18,16 +18,13 @@
  *     than twice or twice the same way, on repeated-index triangles and
  *     where the triangles around a vertex form several fans are locked:
  *     never moved, never removed, so the border stays where it is;
- *   - with a maximum error, the collapse's quadric error (the sum of squared
- *     distances to the planes of the input triangles it stands for) is at
- *     most its square.
- * Collapses are taken cheapest first from one heap, ties broken by the
- * vertices' numbers, on one thread: the result does not depend on the
- * thread count.  A collapse changes the costs of the edges around its
- * vertex, which are pushed again; entries of vertices changed since are
- * recognised by stamps and dropped.  When the heap runs dry short of the
- * target, every edge is pushed again once more (refusals may have been
- * lifted by collapses around them); a round without a collapse ends it.
+ *   - with a maximum error, every input vertex stays within it of the
+ *     triangles around the vertex it was collapsed into (collapse_close),
+ *     so within it of the result.  The report's errors are measured at the
+ *     end (distance.c).
+ * Collapses are taken in passes (the loop in isomend_mesh_decimate says
+ * how), cheapest first, ties in the order of the triangles: the result does
+ * not depend on the thread count, which only shares out the costing.
  *
  * Layout: a corner table (corner c = 3t + k of triangle t) with, per
  * vertex, a singly linked list of its corners; a collapse moves b's corners
@@ -36,6 +33,7 @@
  */
 #include "extract_internal.h"
 
+#include <float.h>
 #include <stdlib.h>
 
 #define NONE UINT32_MAX
@@ -48,11 +46,11 @@ enum { V_LOCKED = 1, V_DEAD = 2 };
  * flat regions, whose later collapses would all be refused as flips. */
 #define MIN_SHAPE 0.03
 
-typedef struct item {
+/* A candidate collapse of a pass: the edge (a < b) and its cost. */
+typedef struct cand {
     float cost;
-    uint32_t a, b;   /* a < b */
-    uint32_t stamps; /* stamp[a] + stamp[b] when pushed (stamps only grow) */
-} item;
+    uint32_t a, b;
+} cand;
 
 typedef struct dec {
     size_t nv, nt, alive;
@@ -63,13 +61,9 @@ typedef struct dec {
     uint32_t *head;  /* a vertex's first corner */
     uint32_t *next;  /* the next corner of the same vertex */
     uint8_t *vf;     /* V_LOCKED, V_DEAD */
-    uint32_t *stamp;
     uint32_t *mark;  /* scratch marks, generation `gen` */
     uint32_t gen;
-    item *heap;
-    size_t nheap, cap;
-    int unordered;   /* push_edge appends without ordering (push_all) */
-    double max_cost;
+    uint32_t *pass_mark; /* the pass in which a vertex last changed */
     double max_dist;      /* max_error, or 0: no distance check            */
     const float *orig;    /* the input's positions                         */
     uint32_t *parent;     /* the vertex an input vertex was collapsed into */
@@ -77,77 +71,6 @@ typedef struct dec {
     uint32_t *member_next; /* through these, from members[v]               */
     isomend_decimate_report *rep;
 } dec;
-
-/* ---------------------------------------------------------------- the heap */
-
-static inline int item_less(const item *x, const item *y)
-{
-    if (x->cost != y->cost)
-        return x->cost < y->cost;
-    if (x->a != y->a)
-        return x->a < y->a;
-    return x->b < y->b;
-}
-
-/* A 4-ary heap of 16-byte items: a node's children share a cache line. */
-static int heap_push(dec *d, item it)
-{
-    if (d->nheap == d->cap) {
-        size_t cap = d->cap ? 2 * d->cap : 1024;
-        item *h = realloc(d->heap, cap * sizeof(item));
-        if (!h)
-            return 0;
-        d->heap = h;
-        d->cap = cap;
-    }
-    size_t i = d->nheap++;
-    while (i > 0) {
-        size_t up = (i - 1) / 4;
-        if (!item_less(&it, &d->heap[up]))
-            break;
-        d->heap[i] = d->heap[up];
-        i = up;
-    }
-    d->heap[i] = it;
-    return 1;
-}
-
-/* Moves `x` down from node i into its place. */
-static void sift_down(item *h, size_t n, size_t i, item x)
-{
-    for (;;) {
-        const size_t c = 4 * i + 1;
-        if (c >= n)
-            break;
-        size_t m = c;
-        const size_t end = c + 4 < n ? c + 4 : n;
-        for (size_t k = c + 1; k < end; k++)
-            if (item_less(&h[k], &h[m]))
-                m = k;
-        if (!item_less(&h[m], &x))
-            break;
-        h[i] = h[m];
-        i = m;
-    }
-    h[i] = x;
-}
-
-static item heap_pop(dec *d)
-{
-    const item top = d->heap[0];
-    const item last = d->heap[--d->nheap];
-    if (d->nheap)
-        sift_down(d->heap, d->nheap, 0, last);
-    return top;
-}
-
-/* Makes a heap of the items pushed unordered (heap_append). */
-static void heapify(dec *d)
-{
-    for (size_t i = d->nheap / 4 + 1; i-- > 0;)
-        if (i < d->nheap)
-            sift_down(d->heap, d->nheap, i, d->heap[i]);
-}
 
 /* ------------------------------------------------------------- quadrics */
 
@@ -314,35 +237,6 @@ static int collapse_close(dec *d, uint32_t a, uint32_t b, const double v[3])
 
 /* --------------------------------------------------------- one collapse */
 
-static int push_edge(dec *d, uint32_t a, uint32_t b)
-{
-    if (a > b) {
-        const uint32_t t = a;
-        a = b;
-        b = t;
-    }
-    if ((d->vf[a] | d->vf[b]) & (V_LOCKED | V_DEAD))
-        return 1;
-    double v[3];
-    const double cost = collapse_point(d, a, b, v);
-    if (cost > d->max_cost)
-        return 1;
-    item it = {(float)cost, a, b, d->stamp[a] + d->stamp[b]};
-    if (d->unordered) { /* push_all: heapified at once */
-        if (d->nheap == d->cap) {
-            size_t cap = d->cap ? 2 * d->cap : 1024;
-            item *h = realloc(d->heap, cap * sizeof(item));
-            if (!h)
-                return 0;
-            d->heap = h;
-            d->cap = cap;
-        }
-        d->heap[d->nheap++] = it;
-        return 1;
-    }
-    return heap_push(d, it);
-}
-
 /* n = (p1 - p0) x (p2 - p0) of triangle t with vertices moved_a and moved_b
  * at v (if v is not NULL), and *edges the sum of its squared edge lengths. */
 static void tri_normal(const dec *d, uint32_t t, uint32_t moved_a, uint32_t moved_b,
@@ -436,8 +330,8 @@ topology:
     return 0;
 }
 
-/* Collapses (a, b) into a at v; pushes the edges around a again. */
-static int collapse(dec *d, uint32_t a, uint32_t b, const double v[3])
+/* Collapses (a, b) into a at v. */
+static void collapse(dec *d, uint32_t a, uint32_t b, const double v[3])
 {
     for (uint32_t c = d->head[b]; c != NONE;) {
         const uint32_t t = c / 3, nextc = d->next[c];
@@ -465,36 +359,78 @@ static int collapse(dec *d, uint32_t a, uint32_t b, const double v[3])
     for (int i = 0; i < 10; i++)
         d->q[10 * a + i] += d->q[10 * b + i];
     memcpy(d->p + 3 * a, v, 3 * sizeof(double));
-    d->stamp[a]++;
     prune(d, a);
-    for (uint32_t c = d->head[a]; c != NONE; c = d->next[c])
-        if (!push_edge(d, a, corner_next(d, c)))
-            return 0;
-    return 1;
 }
 
-static int push_all_edges(dec *d)
+/* ----------------------------------------------------------- the passes */
+
+/* The candidates of a pass: every live edge (once, from its a < b side)
+ * whose ends are free, in the order of the triangles. */
+static cand *gather(const dec *d, size_t *n)
 {
+    cand *c = malloc(3 * (d->nt ? d->nt : 1) * sizeof(cand));
+    if (!c)
+        return NULL;
+    size_t k = 0;
     for (size_t t = 0; t < d->nt; t++) {
         if (d->tdead[t])
             continue;
-        for (int k = 0; k < 3; k++) {
-            const uint32_t a = d->tv[3 * t + (size_t)k], b = d->tv[3 * t + (size_t)(k + 1) % 3];
-            if (a < b && !push_edge(d, a, b))
-                return 0;
+        for (int e = 0; e < 3; e++) {
+            const uint32_t a = d->tv[3 * t + (size_t)e], b = d->tv[3 * t + (size_t)(e + 1) % 3];
+            if (a < b && !((d->vf[a] | d->vf[b]) & (V_LOCKED | V_DEAD)))
+                c[k++] = (cand){0, a, b};
         }
     }
-    return 1;
+    *n = k;
+    return c;
 }
 
-/* Pushes every edge of the live mesh (each once, from its a < b direction). */
-static int push_all(dec *d)
+typedef struct cost_job {
+    const dec *d;
+    cand *c;
+} cost_job;
+
+/* The costs of candidates [lo, hi): read-only on the mesh, any thread. */
+static void cost_range(void *arg, size_t lo, size_t hi)
 {
-    d->unordered = 1;
-    const int ok = push_all_edges(d);
-    d->unordered = 0;
-    heapify(d);
-    return ok;
+    const cost_job *j = arg;
+    for (size_t i = lo; i < hi; i++) {
+        double v[3];
+        const double e = collapse_point(j->d, j->c[i].a, j->c[i].b, v);
+        j->c[i].cost = e < (double)FLT_MAX ? (float)e : FLT_MAX;
+    }
+}
+
+/* Sorts candidates by cost, keeping the order of equal ones (a least
+ * significant digit radix sort on the costs' bits, which order as the
+ * non-negative floats do).  0 without memory. */
+static int sort_candidates(cand *c, size_t n)
+{
+    cand *tmp = malloc((n ? n : 1) * sizeof(cand));
+    if (!tmp)
+        return 0;
+    cand *src = c, *dst = tmp;
+    for (int shift = 0; shift < 32; shift += 8) {
+        size_t count[257] = {0};
+        for (size_t i = 0; i < n; i++) {
+            uint32_t k;
+            memcpy(&k, &src[i].cost, 4);
+            count[((k >> shift) & 255) + 1]++;
+        }
+        for (int b = 0; b < 256; b++)
+            count[b + 1] += count[b];
+        for (size_t i = 0; i < n; i++) {
+            uint32_t k;
+            memcpy(&k, &src[i].cost, 4);
+            dst[count[(k >> shift) & 255]++] = src[i];
+        }
+        cand *t = src;
+        src = dst;
+        dst = t;
+    }
+    /* four passes: the sorted run is back in c */
+    free(tmp);
+    return 1;
 }
 
 /* ---------------------------------------------------------- the output */
@@ -578,7 +514,6 @@ isomend_status isomend_mesh_decimate(const isomend_mesh *mesh, const isomend_dec
     d.nv = mesh->nv;
     d.nt = mesh->nt;
     d.alive = mesh->nt;
-    d.max_cost = INFINITY; /* max_error is checked by distances (collapse_close) */
     if (d.nt > (size_t)UINT32_MAX / 3 || d.nv >= (size_t)UINT32_MAX)
         return ISOMEND_ERR_TOO_LARGE;
     uint64_t target = 0;
@@ -598,7 +533,7 @@ isomend_status isomend_mesh_decimate(const isomend_mesh *mesh, const isomend_dec
     d.head = malloc(nv * sizeof(uint32_t));
     d.next = malloc(nc * sizeof(uint32_t));
     d.vf = calloc(nv, 1);
-    d.stamp = calloc(nv, sizeof(uint32_t));
+    d.pass_mark = calloc(nv, sizeof(uint32_t));
     d.mark = calloc(nv, sizeof(uint32_t));
     d.parent = malloc(nv * sizeof(uint32_t));
     d.members = malloc(nv * sizeof(uint32_t));
@@ -606,7 +541,7 @@ isomend_status isomend_mesh_decimate(const isomend_mesh *mesh, const isomend_dec
     d.orig = mesh->pos;
     d.max_dist = o->max_error;
     isomend_status status = ISOMEND_ERR_OUT_OF_MEMORY;
-    if (!d.p || !d.q || !d.tv || !d.tdead || !d.head || !d.next || !d.vf || !d.stamp || !d.mark ||
+    if (!d.p || !d.q || !d.tv || !d.tdead || !d.head || !d.next || !d.vf || !d.pass_mark || !d.mark ||
         !d.parent || !d.members || !d.member_next)
         goto done;
     for (size_t v = 0; v < d.nv; v++) {
@@ -642,32 +577,58 @@ isomend_status isomend_mesh_decimate(const isomend_mesh *mesh, const isomend_dec
         for (int k = 0; k < 3; k++)
             quadric_add_plane(d.q + 10 * (size_t)d.tv[3 * t + (size_t)k], n, dd);
     }
-    if (!push_all(&d))
-        goto done;
-    for (int round = 0; d.alive > target; round++) {
+    /*
+     * Passes.  Each gathers the live edges, costs them (on threads: a pure
+     * function of the mesh), sorts them, and collapses them cheapest first,
+     * each vertex at most once a pass (a vertex that changed waits for the
+     * next pass, where its edges are costed again), up to the cost at twice
+     * the collapses still needed (so that a pass does not spend expensive
+     * edges while cheaper ones are yet to appear).  A pass without a
+     * collapse under that limit is run again without it; one without any
+     * ends the decimation short of the target.
+     */
+    int unlimited = 0;
+    for (uint32_t pass = 1; d.alive > target; pass++) {
+        size_t n = 0;
+        cand *c = gather(&d, &n);
+        if (!c)
+            goto done;
+        cost_job job = {&d, c};
+        parallel_for(n, cost_range, &job);
+        if (!sort_candidates(c, n)) {
+            free(c);
+            goto done;
+        }
+        const size_t need = (d.alive - target + 1) / 2;
+        const float limit = unlimited || 2 * need >= n ? FLT_MAX : c[2 * need].cost;
         uint64_t made = 0;
-        while (d.nheap && d.alive > target) {
-            const item it = heap_pop(&d);
-            if ((d.vf[it.a] | d.vf[it.b]) & V_DEAD || d.stamp[it.a] + d.stamp[it.b] != it.stamps)
+        for (size_t i = 0; i < n && d.alive > target; i++) {
+            if (c[i].cost > limit)
+                break;
+            const uint32_t ea = c[i].a, eb = c[i].b;
+            if (d.pass_mark[ea] == pass || d.pass_mark[eb] == pass)
                 continue;
             double v[3];
-            (void)collapse_point(&d, it.a, it.b, v);
-            if (!collapse_allowed(&d, it.a, it.b, v))
+            (void)collapse_point(&d, ea, eb, v);
+            if (!collapse_allowed(&d, ea, eb, v))
                 continue;
-            if (d.max_dist > 0 && !collapse_close(&d, it.a, it.b, v)) {
+            if (d.max_dist > 0 && !collapse_close(&d, ea, eb, v)) {
                 rep.refused_error++;
                 continue;
             }
-            if (!collapse(&d, it.a, it.b, v))
-                goto done;
+            collapse(&d, ea, eb, v);
+            d.pass_mark[ea] = d.pass_mark[eb] = pass;
             made++;
         }
+        free(c);
         rep.collapses += made;
-        if (d.alive <= target || made == 0 || round == 8)
-            break;
-        d.nheap = 0;
-        if (!push_all(&d))
-            goto done;
+        if (made == 0) {
+            if (unlimited || limit == FLT_MAX)
+                break;
+            unlimited = 1;
+        } else {
+            unlimited = 0;
+        }
     }
     rep.reached = d.alive <= target;
     status = build_output(&d, mesh, out);
@@ -690,12 +651,11 @@ done:
     free(d.head);
     free(d.next);
     free(d.vf);
-    free(d.stamp);
+    free(d.pass_mark);
     free(d.mark);
     free(d.parent);
     free(d.members);
     free(d.member_next);
-    free(d.heap);
     if (report)
         *report = rep;
     return status;

@@ -2,11 +2,15 @@
  * mesh_build.c - what the post-processing steps (decimate.c, smooth.c,
  * components.c) share to make a new mesh from an old one: the frame it was
  * extracted in (the grid box and, for a grid with slice origins, the table
- * the check needs) and normals from the triangles.
+ * the check needs), normals from the triangles, which vertices may move, and
+ * a loop split over threads (for work whose result does not depend on the
+ * split).
  */
 #include "extract_internal.h"
 
+#include <pthread.h>
 #include <stdlib.h>
+#include <unistd.h>
 
 isomend_status mesh_copy_frame(isomend_mesh *dst, const isomend_mesh *src)
 {
@@ -139,4 +143,42 @@ int mesh_free_vertices(const isomend_mesh *m, uint8_t *free_flag, uint32_t **fir
     else
         free(corners);
     return 1;
+}
+
+typedef struct parallel_part {
+    void (*fn)(void *, size_t, size_t);
+    void *arg;
+    size_t lo, hi;
+} parallel_part;
+
+static void *parallel_thread(void *p)
+{
+    const parallel_part *part = p;
+    part->fn(part->arg, part->lo, part->hi);
+    return NULL;
+}
+
+void parallel_for(size_t n, void (*fn)(void *arg, size_t lo, size_t hi), void *arg)
+{
+    int nthreads = 1;
+    if (n >= 32768) {
+        const long cores = sysconf(_SC_NPROCESSORS_ONLN);
+        nthreads = cores < 1 ? 1 : cores > 8 ? 8 : (int)cores;
+    }
+    pthread_t th[8];
+    parallel_part parts[8];
+    int started = 0;
+    for (int t = 1; t < nthreads; t++) {
+        parts[t] = (parallel_part){fn, arg, n * (size_t)t / (size_t)nthreads,
+                                   n * (size_t)(t + 1) / (size_t)nthreads};
+        if (pthread_create(&th[t], NULL, parallel_thread, &parts[t]) != 0)
+            break;
+        started = t;
+    }
+    /* this thread: its own part, and the parts of threads that did not start */
+    fn(arg, 0, n / (size_t)nthreads);
+    if (started + 1 < nthreads)
+        fn(arg, n * (size_t)(started + 1) / (size_t)nthreads, n);
+    for (int t = 1; t <= started; t++)
+        pthread_join(th[t], NULL);
 }

@@ -19,9 +19,7 @@
  */
 #include "extract_internal.h"
 
-#include <pthread.h>
 #include <stdlib.h>
-#include <unistd.h>
 
 #define LAMBDA 0.5
 #define MU (-0.53)
@@ -61,7 +59,7 @@ static void weighted_normals(const isomend_mesh *m, const double *p, double *n)
     }
 }
 
-/* One step over vertices [lo, hi): q from p. */
+/* A step of the smoothing: q from p for every vertex. */
 typedef struct smooth_job {
     size_t nv;
     const uint32_t *first, *nb;
@@ -71,13 +69,10 @@ typedef struct smooth_job {
     double f;
 } smooth_job;
 
-typedef struct smooth_part {
-    const smooth_job *job;
-    size_t lo, hi;
-} smooth_part;
-
-static void step_range(const smooth_job *j, size_t lo, size_t hi)
+/* One step over vertices [lo, hi) of the job: q from p. */
+static void step_range(void *arg, size_t lo, size_t hi)
 {
+    const smooth_job *j = arg;
     const double *p = j->p;
     double *q = j->q;
     for (size_t v = lo; v < hi; v++) {
@@ -100,36 +95,6 @@ static void step_range(const smooth_job *j, size_t lo, size_t hi)
         q[3 * v + 1] = p[3 * v + 1] + j->f * (sy * inv - p[3 * v + 1]);
         q[3 * v + 2] = p[3 * v + 2] + j->f * (sz * inv - p[3 * v + 2]);
     }
-}
-
-static void *step_thread(void *arg)
-{
-    const smooth_part *part = arg;
-    step_range(part->job, part->lo, part->hi);
-    return NULL;
-}
-
-/* One step on `nthreads` threads (the calling one included); one thread
- * where others cannot start. */
-static void run_steps(const smooth_job *j, int nthreads)
-{
-    pthread_t th[8];
-    smooth_part parts[8];
-    int started = 0;
-    for (int t = 1; t < nthreads; t++) {
-        parts[t].job = j;
-        parts[t].lo = j->nv * (size_t)t / (size_t)nthreads;
-        parts[t].hi = j->nv * (size_t)(t + 1) / (size_t)nthreads;
-        if (pthread_create(&th[t], NULL, step_thread, &parts[t]) != 0)
-            break;
-        started = t;
-    }
-    /* this thread: its own part, and the parts of threads that did not start */
-    step_range(j, 0, j->nv / (size_t)nthreads);
-    if (started + 1 < nthreads)
-        step_range(j, j->nv * (size_t)(started + 1) / (size_t)nthreads, j->nv);
-    for (int t = 1; t <= started; t++)
-        pthread_join(th[t], NULL);
 }
 
 isomend_status isomend_mesh_smooth(const isomend_mesh *mesh, int iterations, isomend_mesh **out,
@@ -172,16 +137,11 @@ isomend_status isomend_mesh_smooth(const isomend_mesh *mesh, int iterations, iso
      * every vertex from the previous step's positions only, so the threads'
      * split changes nothing */
     smooth_job job = {mesh->nv, first, corners, free_v, p, q, 0};
-    int nthreads = 1;
-    if (mesh->nv >= 65536) {
-        const long cores = sysconf(_SC_NPROCESSORS_ONLN);
-        nthreads = cores < 1 ? 1 : cores > 8 ? 8 : (int)cores;
-    }
     for (int it = 0; it < 2 * iterations; it++) {
         job.f = it % 2 ? MU : LAMBDA;
         job.p = p;
         job.q = q;
-        run_steps(&job, nthreads);
+        parallel_for(mesh->nv, step_range, &job);
         double *t = p;
         p = q;
         q = t;
