@@ -60,6 +60,13 @@ inline void fill_parameters(RichParameterList &par)
                             tip(job::kParamSeries)));
     par.addParam(RichBool(job::kParamGridAxes, d.grid_axes, label(job::kParamGridAxes),
                           tip(job::kParamGridAxes)));
+    /* post-processing, in the order the job applies them (all off by default) */
+    par.addParam(RichInt(job::kParamMinComponent, d.min_component, label(job::kParamMinComponent),
+                         tip(job::kParamMinComponent)));
+    par.addParam(RichInt(job::kParamSmooth, d.smooth_iterations, label(job::kParamSmooth),
+                         tip(job::kParamSmooth)));
+    par.addParam(RichFloat(job::kParamDecimate, static_cast<float>(d.decimate_ratio),
+                           label(job::kParamDecimate), tip(job::kParamDecimate)));
 }
 
 /* Reads the values back. */
@@ -81,6 +88,12 @@ inline isomend_filter::Params read_parameters(const RichParameterList &par)
         p.series = par.getString(job::kParamSeries).toStdString();
     if (par.hasParameter(job::kParamGridAxes))
         p.grid_axes = par.getBool(job::kParamGridAxes);
+    if (par.hasParameter(job::kParamMinComponent))
+        p.min_component = par.getInt(job::kParamMinComponent);
+    if (par.hasParameter(job::kParamSmooth))
+        p.smooth_iterations = par.getInt(job::kParamSmooth);
+    if (par.hasParameter(job::kParamDecimate))
+        p.decimate_ratio = par.getFloat(job::kParamDecimate);
     return p;
 }
 

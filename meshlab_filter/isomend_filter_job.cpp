@@ -21,9 +21,14 @@
  *   5. isomend_io_load() reads the volume into the handle's buffer and
  *      describes it, vol.slice_origins included;
  *   6. isomend_extract() with the chosen method and flags; a result without a
- *      triangle is an error (no empty layer), reported with the value range.
- * Progress: open 0-5 %, read 5-45 %, extract 45-95 %; the adapter's copy
- * into the host's mesh is the rest.
+ *      triangle is an error (no empty layer), reported with the value range;
+ *   7. post-processing, each step a call of the core that keeps a closed,
+ *      oriented surface closed, in the command line's order (io/cli/
+ *      postprocess.c): clean-up (minComponent: isomend_mesh_clean), smoothing
+ *      (smoothIterations: isomend_mesh_smooth), decimation (decimateRatio:
+ *      isomend_mesh_decimate); a log line per step, as the CLI's summary.
+ * Progress: open 0-5 %, read 5-45 %, extract 45-95 %, post-processing 95-96 %;
+ * the adapter's copy into the host's mesh is the rest.
  */
 #include "isomend_filter_job.h"
 
@@ -74,6 +79,9 @@ const char *const kParamRawDims = "rawDims";
 const char *const kParamRawType = "rawType";
 const char *const kParamSeries = "dicomSeries";
 const char *const kParamGridAxes = "dicomGridAxes";
+const char *const kParamMinComponent = "minComponent";
+const char *const kParamSmooth = "smoothIterations";
+const char *const kParamDecimate = "decimateRatio";
 
 namespace {
 
@@ -273,6 +281,20 @@ ParamText param_text(const char *name)
         return {"DICOM grid axes",
                 "Keep a DICOM series' own axes (columns, rows, slices) instead of placing the mesh in "
                 "patient coordinates (LPS mm, turned by the series' orientation)."};
+    if (n == kParamMinComponent)
+        return {"Minimum component",
+                "Post-processing, first: drop the connected pieces of the mesh with fewer "
+                "triangles than this (specks of noise). 0 = keep everything."};
+    if (n == kParamSmooth)
+        return {"Smoothing iterations",
+                "Post-processing, second: Taubin lambda|mu smoothing steps that remove the voxel "
+                "staircase without shrinking (the enclosed volume is restored); the surface stays "
+                "closed. 0 = off."};
+    if (n == kParamDecimate)
+        return {"Decimation ratio",
+                "Post-processing, last: the fraction of the triangles to keep (0.2 = a fifth), by "
+                "quadric edge collapse that keeps the surface closed and 2-manifold; the log says "
+                "whether the target was reached and the largest error. 0 = off."};
     if (n == kParamRawType)
         return {"Raw sample type",
                 "Only for a raw file: the sample type (little-endian). Ignored when rawDims is "
@@ -384,6 +406,7 @@ bool Job::run(const Params &params, const ProgressFn &progress)
     isomend_mesh_destroy(mesh_);
     mesh_ = nullptr;
     stats_ = isomend_stats{};
+    post_ = PostReport{};
     log_.clear();
     warning_.clear();
     geometry_ = isomend_io_geometry{};
@@ -427,6 +450,17 @@ bool Job::run_unguarded(const Params &params, const ProgressFn &progress)
     if (params.channel < -1)
         return fail(format("channel: %d is not a channel (-1 = luminance, 0, 1, ...)",
                            params.channel));
+    if (params.min_component < 0)
+        return fail(format("%s: %d is not a triangle count (0 = off)", kParamMinComponent,
+                           params.min_component));
+    if (params.smooth_iterations < 0 || params.smooth_iterations > 10000)
+        return fail(
+            format("%s: %d is not 0 (off) to 10000", kParamSmooth, params.smooth_iterations));
+    if (!std::isfinite(params.decimate_ratio) || params.decimate_ratio < 0.0 ||
+        params.decimate_ratio > 1.0)
+        return fail(format("%s: %g is not a fraction of the triangles to keep (0 = off, or up "
+                           "to 1)",
+                           kParamDecimate, params.decimate_ratio));
 
     isomend_io_options io_opts;
     isomend_io_options_init(&io_opts);
@@ -650,8 +684,97 @@ bool Job::run_unguarded(const Params &params, const ProgressFn &progress)
     for (int c = 0; c < 15; ++c)
         histogram += format(" %d:%" PRIu64, c, stats_.case_histogram[c]);
     log_.push_back(histogram);
+
+    /* 7. post-processing */
+    if (params.min_component > 0 || params.smooth_iterations > 0 || params.decimate_ratio > 0.0) {
+        state.report(95, "isomend: post-processing");
+        const auto t_post = std::chrono::steady_clock::now();
+        if (!postprocess(params))
+            return false;
+        post_.seconds = seconds_since(t_post);
+        state.report(96, "isomend: post-processing");
+        log_.push_back(format("time: read %.3f s, extract %.3f s, post-processing %.3f s, "
+                              "total %.3f s",
+                              read_seconds, extract_seconds, post_.seconds,
+                              seconds_since(t_start)));
+        return true;
+    }
     log_.push_back(format("time: read %.3f s, extract %.3f s, total %.3f s", read_seconds,
                           extract_seconds, seconds_since(t_start)));
+    return true;
+}
+
+bool Job::postprocess(const Params &params)
+{
+    /* mesh_ is replaced by each step's result; the log lines say what the
+     * command line's summary says (io/cli/postprocess.c) */
+    auto replace = [this](isomend_mesh *out) {
+        isomend_mesh_destroy(mesh_);
+        mesh_ = out;
+    };
+    if (params.min_component > 0) {
+        isomend_mesh *out = nullptr;
+        const isomend_status st = isomend_mesh_clean(
+            mesh_, static_cast<uint64_t>(params.min_component), 0, &out, &post_.clean);
+        if (st != ISOMEND_OK) {
+            isomend_mesh_destroy(out);
+            return fail(std::string("minComponent: clean-up failed: ") + isomend_status_string(st));
+        }
+        replace(out);
+        post_.cleaned = true;
+        const isomend_clean_report &c = post_.clean;
+        log_.push_back(format("clean-up (components of fewer than %d triangles dropped): %" PRIu64
+                              " of %" PRIu64 " components kept, %" PRIu64 " triangles and %" PRIu64
+                              " vertices removed",
+                              params.min_component, c.components_after, c.components_before,
+                              c.triangles_removed, c.vertices_removed));
+        if (isomend_mesh_triangle_count(mesh_) == 0)
+            return fail(format("minComponent: all %" PRIu64 " components have fewer than %d "
+                               "triangles; nothing was created",
+                               c.components_before, params.min_component));
+    }
+    if (params.smooth_iterations > 0) {
+        isomend_mesh *out = nullptr;
+        const isomend_status st =
+            isomend_mesh_smooth(mesh_, params.smooth_iterations, &out, &post_.smooth);
+        if (st != ISOMEND_OK) {
+            isomend_mesh_destroy(out);
+            return fail(std::string("smoothIterations: smoothing failed: ") +
+                        isomend_status_string(st));
+        }
+        replace(out);
+        post_.smoothed = true;
+        const isomend_smooth_report &r = post_.smooth;
+        const double v0 = r.volume_before, v1 = r.volume_after;
+        log_.push_back(format("smoothing (%d iterations): %" PRIu64
+                              " vertices moved, at most %.4g; volume %.6g -> %.6g (%+.3f %%)",
+                              params.smooth_iterations, r.moved_vertices, r.max_displacement, v0,
+                              v1, v0 != 0 ? 100.0 * (v1 - v0) / v0 : 0.0));
+    }
+    if (params.decimate_ratio > 0.0) {
+        isomend_decimate_options d;
+        isomend_decimate_options_init(&d);
+        d.ratio = params.decimate_ratio;
+        isomend_mesh *out = nullptr;
+        const isomend_status st = isomend_mesh_decimate(mesh_, &d, &out, &post_.decimate);
+        if (st != ISOMEND_OK) {
+            isomend_mesh_destroy(out);
+            return fail(std::string("decimateRatio: decimation failed: ") +
+                        isomend_status_string(st));
+        }
+        replace(out);
+        post_.decimated = true;
+        const isomend_decimate_report &r = post_.decimate;
+        log_.push_back(format("decimation (ratio %g): %" PRIu64 " -> %" PRIu64
+                              " triangles, %" PRIu64 " -> %" PRIu64 " vertices (target %" PRIu64
+                              ", %s), largest error %.4g, mean %.4g, %" PRIu64 " locked vertices",
+                              params.decimate_ratio, r.triangles_before, r.triangles_after,
+                              r.vertices_before, r.vertices_after, r.target_triangles,
+                              r.reached ? "reached"
+                                        : "not reached: further collapses would break the "
+                                          "surface",
+                              r.max_error, r.mean_error, r.locked_vertices));
+    }
     return true;
 }
 

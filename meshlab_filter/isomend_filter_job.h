@@ -8,6 +8,8 @@
  *        lists, turns parameter values into isomend_io / isomend calls, maps
  *        progress to 0..100, and produces the log lines and the error text.
  *        All extraction goes through the C APIs (isomend_io.h, isomend.h).
+ *        Also the post-processing (clean-up, smoothing, decimation) of the
+ *        core's mesh before it becomes the layer, so both adapters have it.
  *   filter_isomend.{h,cpp}       MeshLab 2020.09's MeshFilterInterface: the
  *        RichParameter list, the progress callback, Log(), and copying the
  *        isomend_mesh into a new CMeshO layer.
@@ -46,6 +48,11 @@ extern const char *const kParamRawDims;
 extern const char *const kParamRawType;
 extern const char *const kParamSeries;   /* DICOM: series N or UID ("" = the only one) */
 extern const char *const kParamGridAxes; /* DICOM: the series' own axes, not patient space */
+/* Post-processing of the extracted mesh (isomend.h, "post-processing"), in
+ * the command line's order: clean-up, smoothing, decimation.  0 = off. */
+extern const char *const kParamMinComponent; /* drop components of fewer triangles */
+extern const char *const kParamSmooth;       /* Taubin smoothing iterations        */
+extern const char *const kParamDecimate;     /* fraction of the triangles to keep  */
 
 /* One choice of the "method" enum: display name and core method. */
 struct MethodChoice {
@@ -84,6 +91,19 @@ struct Params {
     int raw_type_index = 0;        /* isomend_type                           */
     std::string series;            /* DICOM series: N or UID; "" = the only one */
     bool grid_axes = false;        /* DICOM: keep the series' own axes        */
+    int min_component = 0;         /* triangles; 0 = no clean-up              */
+    int smooth_iterations = 0;     /* 0 = no smoothing, else 1..10000         */
+    double decimate_ratio = 0.0;   /* 0 = no decimation, else (0, 1]          */
+};
+
+/* What the post-processing steps did (a step's flag is false when its
+ * parameter was 0). */
+struct PostReport {
+    bool cleaned = false, smoothed = false, decimated = false;
+    isomend_clean_report clean{};
+    isomend_smooth_report smooth{};
+    isomend_decimate_report decimate{};
+    double seconds = 0.0;
 };
 /* The defaults above, also the dialog's defaults. */
 Params default_params();
@@ -116,7 +136,10 @@ public:
      * transform, 3x4 row-major) or nullptr when it is the identity; copy the
      * mesh through it with isomend_mesh_copy_transformed(). */
     const double *world_transform() const { return has_world_ ? world_ : nullptr; }
+    /* The extraction's statistics (before any post-processing: the layer's
+     * counts are the mesh's, see post_report()). */
     const isomend_stats &stats() const { return stats_; }
+    const PostReport &post_report() const { return post_; }
     /* The new layer's name, see layer_name_for() ("head", "ct"). */
     const std::string &layer_name() const { return layer_name_; }
     /* Lines for the host's log, in order (source, volume, slice geometry,
@@ -137,11 +160,13 @@ public:
 private:
     bool fail(const std::string &message);
     bool run_unguarded(const Params &params, const ProgressFn &progress);
+    bool postprocess(const Params &params);
 
     isomend_mesh *mesh_ = nullptr;
     double world_[12] = {1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0};
     bool has_world_ = false;
     isomend_stats stats_{};
+    PostReport post_;
     std::string layer_name_;
     std::vector<std::string> log_;
     std::string warning_;

@@ -40,6 +40,10 @@ Conventions:
     (the volume's exact surface normals, ~2 s more per million triangles);
     without ``smooth`` the faces are flat.
   - a multi-file selection is put in natural order (s_2 before s_10).
+  - post-processing (Minimum Component, Smooth Iterations, Decimate Ratio; all
+    0 = off) runs on the extracted mesh in the command line's order, on
+    Blender's main thread after the library's thread ends (not cancellable);
+    the report says what each step did.
 
 Cancellation: in the interactive UI the import runs on a thread of the C
 library's own (``isomend.ExtractJob``, isomend_io_job_start) while a modal
@@ -173,6 +177,23 @@ class IMPORT_MESH_OT_slice_stack(Operator, ImportHelper):
         description="Keep a DICOM series' own axes (columns, rows, slices) instead of placing the "
                     "mesh in patient coordinates (LPS mm, turned by the series' orientation)",
         default=False)
+    # post-processing of the extracted mesh, in the command line's order
+    # (isomend.postprocess): clean-up, smoothing, decimation; 0 = off
+    min_component: IntProperty(
+        name="Minimum Component",
+        description="Drop the connected pieces of the mesh with fewer triangles than this "
+                    "(specks of noise); 0 = keep everything",
+        default=0, min=0, max=2**31 - 1)
+    smooth_iterations: IntProperty(
+        name="Smooth Iterations",
+        description="Taubin smoothing steps that remove the voxel staircase without shrinking "
+                    "(the enclosed volume is restored; the surface stays closed); 0 = off",
+        default=0, min=0, max=10000, soft_max=100)
+    decimate: FloatProperty(
+        name="Decimate Ratio",
+        description="Fraction of the triangles to keep (0.2 = a fifth), by quadric edge collapse "
+                    "that keeps the surface closed and 2-manifold; 0 = off",
+        default=0.0, min=0.0, max=1.0, precision=3, subtype='FACTOR')
     modal_ui: BoolProperty(options={'HIDDEN', 'SKIP_SAVE'}, default=False)
 
     def draw(self, _context):
@@ -193,6 +214,10 @@ class IMPORT_MESH_OT_slice_stack(Operator, ImportHelper):
         row = layout.row()
         row.active = self.smooth
         row.prop(self, "gradient_normals")
+        layout.label(text="Post-processing")
+        layout.prop(self, "min_component")
+        layout.prop(self, "smooth_iterations")
+        layout.prop(self, "decimate")
 
     # ---------------------------------------------------------------- inputs
     def _iso(self):
@@ -207,7 +232,10 @@ class IMPORT_MESH_OT_slice_stack(Operator, ImportHelper):
         spacing = import_stack.spacing_argument(self.spacing)
         return import_stack.ImportJob(paths, self._iso(), self.method.lower(), spacing,
                                       self.channel, self.pad, self.smooth and self.gradient_normals,
-                                      series=self.series.strip() or None, grid_axes=self.grid_axes)
+                                      series=self.series.strip() or None, grid_axes=self.grid_axes,
+                                      decimate=self.decimate,
+                                      smooth_iterations=self.smooth_iterations,
+                                      min_component=self.min_component)
 
     # ---------------------------------------------------------------- running
     def invoke(self, context, event):

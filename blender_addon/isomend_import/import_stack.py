@@ -138,7 +138,7 @@ def method_items():
 
 # Share of each stage in the overall progress bar.
 STAGE_SPAN = {"open": (0.0, 0.05), "read": (0.05, 0.55), "analyse": (0.55, 0.6),
-              "extract": (0.6, 0.92), "mesh": (0.92, 1.0)}
+              "extract": (0.6, 0.9), "postprocess": (0.9, 0.92), "mesh": (0.92, 1.0)}
 
 
 def overall(stage, fraction):
@@ -172,8 +172,14 @@ class ImportJob:
     ``error`` the exception; ``cancel`` says whether a cancel was asked."""
 
     def __init__(self, paths, iso, method, spacing, channel, pad, normals, series=None,
-                 grid_axes=False):
+                 grid_axes=False, decimate=0.0, smooth_iterations=0, min_component=0):
         self.paths = paths
+        # post-processing of the extracted mesh, in the command line's order
+        # (isomend.postprocess): clean-up, smoothing, decimation; 0 = off
+        self.min_component = min_component
+        self.smooth_iterations = smooth_iterations
+        self.decimate = decimate
+        isomend.check_postprocess(**self._post_arguments())  # ValueError before anything runs
         self.series = series        # DICOM: which series (None: the only one)
         self.grid_axes = grid_axes  # DICOM: the series' own axes, not patient space
         self.iso = iso          # None: the importer's suggestion
@@ -215,7 +221,7 @@ class ImportJob:
                         "slice_origins": src.slice_origins}
                 mesh = src.extract(iso=self.iso, method=self.method, pad=self.pad,
                                    normals=self.normals, origins=True, progress=self.progress)
-            self.result = (mesh, info)
+            self.result = (self._postprocess(mesh), info)
         except Exception as exc:  # reported by the caller
             self.error = exc
         self.seconds = time.perf_counter() - t0
@@ -246,7 +252,9 @@ class ImportJob:
         if done:
             native, self._native = self._native, None
             try:
-                self.result = native.result()  # at once: the thread has ended
+                mesh, info = native.result()  # at once: the thread has ended
+                if not self.cancel:  # Esc as the extraction ended: nothing more is done
+                    self.result = (self._postprocess(mesh), info)
             except Exception as exc:
                 self.error = exc
             finally:
@@ -259,6 +267,21 @@ class ImportJob:
         if self._native is not None:
             native, self._native = self._native, None
             native.close()
+
+    def _post_arguments(self):
+        return {"decimate": self.decimate or None, "smooth": int(self.smooth_iterations),
+                "min_component": int(self.min_component)}
+
+    def _postprocess(self, mesh):
+        """The post-processing steps asked for (on the calling thread: the
+        core's calls, no progress points); the mesh itself when none."""
+        args = self._post_arguments()
+        if not (args["decimate"] or args["smooth"] or args["min_component"]):
+            return mesh
+        self.progress("postprocess", 0.0)
+        mesh = isomend.postprocess(mesh, **args)
+        self.progress("postprocess", 1.0)
+        return mesh
 
     def outcome(self):
         """('FINISHED', None) when there is a mesh to build, else ('CANCELLED',
@@ -352,7 +375,33 @@ def report(name, mesh, info, suggested):
     geometry = geometry_text(info)
     if geometry:
         msg += "; " + geometry
+    post = postprocess_text(mesh)
+    if post:
+        msg += "; " + post
     return msg
+
+
+def postprocess_text(mesh):
+    """What the post-processing did, for the report ("" when nothing ran):
+    components kept, the smoothing's volume change, the decimation's counts,
+    whether its target was reached, and its largest error."""
+    post = getattr(mesh, "postprocess", None) or {}
+    parts = []
+    c = post.get("clean")
+    if c:
+        parts.append("clean-up: %d of %d components kept (%d triangles removed)"
+                     % (c["components_after"], c["components_before"], c["triangles_removed"]))
+    s = post.get("smooth")
+    if s:
+        v0, v1 = s["volume_before"], s["volume_after"]
+        parts.append("smoothed: %d vertices moved, volume %+.3f %%"
+                     % (s["moved_vertices"], 100.0 * (v1 - v0) / v0 if v0 else 0.0))
+    d = post.get("decimate")
+    if d:
+        parts.append("decimated: %d -> %d triangles (target %d %s), largest error %.3g mm"
+                     % (d["triangles_before"], d["triangles_after"], d["target_triangles"],
+                        "reached" if d["reached"] else "not reached", d["max_error"]))
+    return "; ".join(parts)
 
 
 # ------------------------------------------------------------ can the libraries load?

@@ -19,6 +19,9 @@ it, and so can any script::
         mesh = src.extract()                   # iso: the importer's suggestion (Otsu)
     mesh = isomend.extract_source("scan/", iso=None, method="dmc")   # the same in one call
 
+    small, report = mesh.decimate(ratio=0.2)  # also mesh.smooth(5), mesh.clean(min_triangles=100)
+    mesh = isomend.extract(vol, 300.0, pad=True, min_component=100, smooth=5, decimate=0.2)
+
 Axes.  A numpy volume is indexed ``array[z, y, x]`` by default (C order, x
 fastest), which is the core's contiguous layout and how image stacks load
 (slice, row, column).  ``axes="xyz"`` says the array is ``array[x, y, z]``
@@ -206,6 +209,50 @@ class CheckReport(ctypes.Structure):
     ]
 
 
+class DecimateOptions(ctypes.Structure):
+    _fields_ = [
+        ("ratio", ctypes.c_double),
+        ("target_triangles", ctypes.c_uint64),
+        ("max_error", ctypes.c_double),
+    ]
+
+
+class DecimateReport(ctypes.Structure):
+    _fields_ = [
+        ("triangles_before", ctypes.c_uint64),
+        ("triangles_after", ctypes.c_uint64),
+        ("vertices_before", ctypes.c_uint64),
+        ("vertices_after", ctypes.c_uint64),
+        ("target_triangles", ctypes.c_uint64),
+        ("reached", ctypes.c_int),
+        ("max_error", ctypes.c_double),
+        ("mean_error", ctypes.c_double),
+        ("collapses", ctypes.c_uint64),
+        ("locked_vertices", ctypes.c_uint64),
+        ("refused_topology", ctypes.c_uint64),
+        ("refused_geometry", ctypes.c_uint64),
+        ("refused_error", ctypes.c_uint64),
+    ]
+
+
+class SmoothReport(ctypes.Structure):
+    _fields_ = [
+        ("moved_vertices", ctypes.c_uint64),
+        ("volume_before", ctypes.c_double),
+        ("volume_after", ctypes.c_double),
+        ("max_displacement", ctypes.c_double),
+    ]
+
+
+class CleanReport(ctypes.Structure):
+    _fields_ = [
+        ("components_before", ctypes.c_uint64),
+        ("components_after", ctypes.c_uint64),
+        ("triangles_removed", ctypes.c_uint64),
+        ("vertices_removed", ctypes.c_uint64),
+    ]
+
+
 class IOOptions(ctypes.Structure):
     _fields_ = [
         ("first", ctypes.c_int64),
@@ -385,6 +432,14 @@ def _core_lib():
         _declare(lib, "isomend_mesh_copy_transformed", c_int,
                  [ctypes.c_void_p, P(c_double), ctypes.c_void_p, ctypes.c_void_p, ctypes.c_void_p,
                   ctypes.c_void_p])
+        _declare(lib, "isomend_decimate_options_init", None, [P(DecimateOptions)])
+        _declare(lib, "isomend_mesh_decimate", c_int,
+                 [ctypes.c_void_p, P(DecimateOptions), P(ctypes.c_void_p), P(DecimateReport)])
+        _declare(lib, "isomend_mesh_smooth", c_int,
+                 [ctypes.c_void_p, c_int, P(ctypes.c_void_p), P(SmoothReport)])
+        _declare(lib, "isomend_mesh_clean", c_int,
+                 [ctypes.c_void_p, ctypes.c_uint64, ctypes.c_uint64, P(ctypes.c_void_p),
+                  P(CleanReport)])
         _declare(lib, "isomend_case_of", c_int, [ctypes.c_uint])
         _declare(lib, "isomend_case_triangles", c_int, [ctypes.c_uint, P(c_int)])
         _core, _core_path = lib, path
@@ -713,6 +768,90 @@ def _report_dict(rep):
     return {name: getattr(rep, name) for name, _ in CheckReport._fields_}
 
 
+def _struct_dict(rep):
+    return {name: getattr(rep, name) for name, _ in type(rep)._fields_}
+
+
+def _count(value, name):
+    """A non-negative integer argument (bool refused)."""
+    if isinstance(value, bool) or not isinstance(value, (int, np.integer)):
+        raise TypeError("%s: an integer, not %r" % (name, value))
+    if value < 0:
+        raise ValueError("%s: %d is negative" % (name, value))
+    return int(value)
+
+
+def _decimate_targets(ratio=None, target_triangles=None, max_error=None):
+    """The decimation targets checked (no library needed): (ratio or 0,
+    target_triangles or 0, max_error or 0)."""
+    if ratio is None and target_triangles is None and max_error is None:
+        raise ValueError("decimate: give ratio, target_triangles or max_error")
+    r = t = e = 0
+    if ratio is not None:
+        r = float(ratio)
+        if not (0.0 < r <= 1.0):
+            raise ValueError("ratio: %r is not a fraction of the triangles to keep, in (0, 1]" % ratio)
+    if target_triangles is not None:
+        t = _count(target_triangles, "target_triangles")
+        if t == 0:
+            raise ValueError("target_triangles: 0 (give a count > 0, or None)")
+    if max_error is not None:
+        e = float(max_error)
+        if not (np.isfinite(e) and e > 0.0):
+            raise ValueError("max_error: %r is not a distance > 0" % max_error)
+    return r, t, e
+
+
+def _decimate_options(ratio, target_triangles, max_error):
+    r, t, e = _decimate_targets(ratio, target_triangles, max_error)
+    opts = DecimateOptions()
+    _core_lib().isomend_decimate_options_init(ctypes.byref(opts))
+    opts.ratio, opts.target_triangles, opts.max_error = r, t, e
+    return opts
+
+
+def postprocess(mesh, decimate=None, smooth=0, min_component=0, largest=0):
+    """The command line's post-processing of an extracted Mesh, in its order:
+    clean-up (``min_component``: drop components of fewer triangles;
+    ``largest``: keep the N largest), smoothing (``smooth`` iterations),
+    decimation (``decimate``: a ratio in (0, 1], or a dict with ratio,
+    target_triangles, max_error).  0/None skip a step.  Returns the last
+    Mesh made (``mesh`` itself when no step runs); its ``postprocess`` dict
+    holds each step's report."""
+    min_component, largest, smooth, targets = check_postprocess(decimate, smooth, min_component,
+                                                                 largest)
+    if min_component or largest:
+        mesh, _ = mesh.clean(min_component, largest)
+    if smooth:
+        mesh, _ = mesh.smooth(smooth)
+    if targets is not None:
+        mesh, _ = mesh.decimate(**targets)
+    return mesh
+
+
+def check_postprocess(decimate=None, smooth=0, min_component=0, largest=0):
+    """Checks postprocess()'s arguments without a mesh (before an
+    extraction): returns (min_component, largest, smooth, decimation targets
+    as a dict or None), raises ValueError/TypeError."""
+    min_component = _count(min_component, "min_component")
+    largest = _count(largest, "largest")
+    smooth = _count(smooth, "smooth")
+    if isinstance(decimate, dict):
+        unknown = set(decimate) - {"ratio", "target_triangles", "max_error"}
+        if unknown:
+            raise ValueError("decimate: unknown keys %s" % sorted(unknown))
+        targets = dict(decimate)
+    elif decimate is not None and not (isinstance(decimate, (int, float)) and decimate == 0):
+        targets = {"ratio": decimate}
+    else:
+        targets = None
+    if targets is not None:
+        _decimate_targets(**targets)  # refused before any step runs
+    if smooth > 10000:
+        raise ValueError("smooth: %d is more than 10000" % smooth)
+    return min_component, largest, smooth, targets
+
+
 class Mesh:
     """An extracted mesh held in numpy arrays (views of the C mesh's own arrays,
     which is freed when the last of them is released).
@@ -724,6 +863,13 @@ class Mesh:
     the volume as extracted (the world position of its sample (0, 0, 0): from
     Source.extract it may differ from Source.origin for a file whose axis
     points the negative way); read_seconds (Source.extract only).
+
+    Post-processing (the core's, each keeping a closed, oriented surface
+    closed): ``clean()``, ``smooth()`` and ``decimate()`` return a new Mesh and
+    the step's report as a dict; the new mesh's ``stats`` stay the
+    extraction's, its ``origins`` are None and its ``postprocess`` dict holds
+    the reports of every step that made it ("clean", "smooth", "decimate";
+    None for a step not run), as the command line's --json.
     """
 
     def __init__(self, positions, normals, triangles, origins, grid_box, stats, iso, method):
@@ -739,6 +885,89 @@ class Mesh:
         self.volume_origin = None
         self.volume_spacing = None
         self.read_seconds = None
+        self.postprocess = {"clean": None, "smooth": None, "decimate": None}
+        self._c = None      # the C mesh (_MeshMemory) the arrays come from
+        self._world = None  # the 3x4 map of a mesh copied into patient space
+
+    def _derived(self, handle, step, report):
+        """The Mesh of a post-processing step's C mesh ``handle``."""
+        lib = _core_lib()
+        mesh = _wrap_mesh(lib, handle, dict(self.stats), self.iso, self.method,
+                          self.normals is not None, False, self._world)
+        mesh.volume_origin = self.volume_origin
+        mesh.volume_spacing = self.volume_spacing
+        mesh.read_seconds = self.read_seconds
+        mesh.postprocess = dict(self.postprocess)
+        mesh.postprocess[step] = report
+        return mesh
+
+    def _handle(self, what):
+        if self._c is None or self._c._handle is None:
+            raise ValueError("%s: this Mesh was not made by isomend (no C mesh to work on)" % what)
+        return self._c._handle
+
+    def clean(self, min_triangles=0, keep_largest=0):
+        """Drops the connected components (triangles joined through shared
+        vertices) of fewer than ``min_triangles`` triangles, then keeps the
+        ``keep_largest`` largest (0: all).  Returns (Mesh, report) with report
+        keys components_before, components_after, triangles_removed,
+        vertices_removed (isomend_mesh_clean)."""
+        min_triangles = _count(min_triangles, "min_triangles")
+        keep_largest = _count(keep_largest, "keep_largest")
+        lib = _core_lib()
+        out, rep = ctypes.c_void_p(), CleanReport()
+        status = lib.isomend_mesh_clean(self._handle("clean"), min_triangles, keep_largest,
+                                        ctypes.byref(out), ctypes.byref(rep))
+        if status != 0:
+            if out.value:
+                lib.isomend_mesh_destroy(out)
+            _raise_core(status, "isomend_mesh_clean")
+        report = _struct_dict(rep)
+        return self._derived(out, "clean", report), report
+
+    def smooth(self, iterations):
+        """Taubin lambda|mu smoothing, ``iterations`` pairs of steps (0..10000),
+        then each component's enclosed volume restored; locked vertices (on a
+        border or a hole) never move.  Returns (Mesh, report) with report keys
+        moved_vertices, volume_before, volume_after, max_displacement
+        (isomend_mesh_smooth)."""
+        iterations = _count(iterations, "iterations")
+        if iterations > 10000:
+            raise ValueError("iterations: %d is more than 10000" % iterations)
+        lib = _core_lib()
+        out, rep = ctypes.c_void_p(), SmoothReport()
+        status = lib.isomend_mesh_smooth(self._handle("smooth"), iterations, ctypes.byref(out),
+                                         ctypes.byref(rep))
+        if status != 0:
+            if out.value:
+                lib.isomend_mesh_destroy(out)
+            _raise_core(status, "isomend_mesh_smooth")
+        report = _struct_dict(rep)
+        return self._derived(out, "smooth", report), report
+
+    def decimate(self, ratio=None, target_triangles=None, max_error=None):
+        """Quadric-error edge collapse that keeps the surface closed and
+        2-manifold.  Targets (at least one): ``ratio`` the fraction of the
+        triangles to keep, in (0, 1]; ``target_triangles`` a count (the larger
+        of the two is kept); ``max_error`` a distance in world units every
+        input vertex stays within.  Returns (Mesh, report) with report keys
+        triangles_before/after, vertices_before/after, target_triangles,
+        reached (bool: False when every further collapse would break the
+        surface or exceed max_error), max_error and mean_error (measured),
+        collapses, locked_vertices, refused_topology, refused_geometry,
+        refused_error (isomend_mesh_decimate)."""
+        opts = _decimate_options(ratio, target_triangles, max_error)
+        lib = _core_lib()
+        out, rep = ctypes.c_void_p(), DecimateReport()
+        status = lib.isomend_mesh_decimate(self._handle("decimate"), ctypes.byref(opts),
+                                           ctypes.byref(out), ctypes.byref(rep))
+        if status != 0:
+            if out.value:
+                lib.isomend_mesh_destroy(out)
+            _raise_core(status, "isomend_mesh_decimate")
+        report = _struct_dict(rep)
+        report["reached"] = bool(report["reached"])
+        return self._derived(out, "decimate", report), report
 
     @property
     def vertex_count(self):
@@ -798,30 +1027,31 @@ def _take_mesh(handle, stats, iso, method_id, want_normals, want_origins, world=
     is 350 MB; a copy would double the peak memory and cost as much time as a
     third of the extraction.  ``world`` (3x4, a DICOM series' patient
     transform) instead copies the mesh through the map
-    (isomend_mesh_copy_transformed) and frees the C mesh."""
+    (isomend_mesh_copy_transformed)."""
     lib = _core_lib()
-    if world is not None:
-        return _take_mesh_mapped(lib, handle, stats, iso, method_id, want_normals, want_origins, world)
+    name = lib.isomend_method_name(method_id).decode()
+    return _wrap_mesh(lib, handle, _stats_dict(stats), iso, name, want_normals, want_origins, world)
+
+
+def _wrap_mesh(lib, handle, stats, iso, method_name, want_normals, want_origins, world):
+    """A Mesh over the C mesh ``handle`` (owned from now on: destroyed with
+    the Mesh's last array, or at once if this fails).  The Mesh keeps the C
+    mesh (``_c``) for the post-processing methods, which work on it; with
+    ``world`` its arrays are a mapped copy and ``_world`` the map."""
     owner = _MeshMemory(handle)  # destroys the handle if anything below fails
     nv = lib.isomend_mesh_vertex_count(handle)
     nt = lib.isomend_mesh_triangle_count(handle)
-    positions = owner.view(lib.isomend_mesh_positions(handle), (nv, 3), _F32)
-    triangles = owner.view(lib.isomend_mesh_triangles(handle), (nt, 3), _U32)
-    normals = (owner.view(lib.isomend_mesh_normals(handle), (nv, 3), _F32)
-               if want_normals else None)
-    origins = (owner.view(lib.isomend_mesh_triangle_origins(handle), (nt,), _U8)
-               if want_origins else None)
     box = (ctypes.c_double * 6)()
     lib.isomend_mesh_grid_box(handle, box)
-    del owner
-    name = lib.isomend_method_name(method_id).decode()
-    return Mesh(positions, normals, triangles, origins, tuple(box), _stats_dict(stats), iso, name)
-
-
-def _take_mesh_mapped(lib, handle, stats, iso, method_id, want_normals, want_origins, world):
-    try:
-        nv = lib.isomend_mesh_vertex_count(handle)
-        nt = lib.isomend_mesh_triangle_count(handle)
+    if world is None:
+        positions = owner.view(lib.isomend_mesh_positions(handle), (nv, 3), _F32)
+        triangles = owner.view(lib.isomend_mesh_triangles(handle), (nt, 3), _U32)
+        normals = (owner.view(lib.isomend_mesh_normals(handle), (nv, 3), _F32)
+                   if want_normals else None)
+        origins = (owner.view(lib.isomend_mesh_triangle_origins(handle), (nt,), _U8)
+                   if want_origins else None)
+        grid_box = tuple(box)
+    else:
         positions = np.empty((nv, 3), np.float32)
         triangles = np.empty((nt, 3), np.uint32)
         normals = np.empty((nv, 3), np.float32) if want_normals else None
@@ -832,23 +1062,23 @@ def _take_mesh_mapped(lib, handle, stats, iso, method_id, want_normals, want_ori
                                                    ptr(triangles), ptr(origins))
         if status != 0:
             _raise_core(status, "isomend_mesh_copy_transformed")
-        box = (ctypes.c_double * 6)()
-        lib.isomend_mesh_grid_box(handle, box)
-    finally:
-        lib.isomend_mesh_destroy(handle)
-    # the box of the mapped grid's corners (a turned grid's faces are not the
-    # box's: check() then sees its border as holes unless the mesh is padded)
-    M = np.asarray(world, float).reshape(3, 4)
-    corners = np.array([[box[a], box[1 + b], box[2 + c]] for a in (0, 3) for b in (0, 3) for c in (0, 3)], float)
-    mapped = corners @ M[:, :3].T + M[:, 3]
-    grid_box = tuple(mapped.min(0).tolist() + mapped.max(0).tolist())
-    name = lib.isomend_method_name(method_id).decode()
-    return Mesh(positions, normals, triangles, origins, grid_box, _stats_dict(stats), iso, name)
+        # the box of the mapped grid's corners (a turned grid's faces are not the
+        # box's: check() then sees its border as holes unless the mesh is padded)
+        M = np.asarray(world, float).reshape(3, 4)
+        corners = np.array([[box[a], box[1 + b], box[2 + c]] for a in (0, 3) for b in (0, 3)
+                            for c in (0, 3)], float)
+        mapped = corners @ M[:, :3].T + M[:, 3]
+        grid_box = tuple(mapped.min(0).tolist() + mapped.max(0).tolist())
+    mesh = Mesh(positions, normals, triangles, origins, grid_box, stats, iso, method_name)
+    mesh._c = owner
+    mesh._world = world
+    return mesh
 
 
 def extract(volume, iso, method="dmc", spacing=None, origin=None, pad=False, flip=False,
             normals=True, origins=True, threads=0, axes="zyx", progress=None,
-            small_pages=False, slice_positions=None):
+            small_pages=False, slice_positions=None, decimate=None, smooth=0, min_component=0,
+            largest=0):
     """Extracts the isosurface of a 3D numpy array at level ``iso``.
 
     volume:  3D array, ``array[z, y, x]`` unless ``axes`` says otherwise (see the module doc).
@@ -869,10 +1099,20 @@ def extract(volume, iso, method="dmc", spacing=None, origin=None, pad=False, fli
              (one per slice along z, finite, strictly increasing): slice k is meshed at
              z = slice_positions[k], its sample (0, 0) at (origin x, origin y); spacing z
              and origin z are then not used (isomend_volume.slice_origins).
+    min_component, largest, smooth, decimate: post-processing, in the command line's
+             order (see postprocess()): drop components of fewer than min_component
+             triangles, keep the `largest` largest, `smooth` Taubin iterations, then
+             decimate (a ratio in (0, 1], or a dict of ratio, target_triangles,
+             max_error).  0/None: off.  The reports are in mesh.postprocess.
     Returns a Mesh.  Raises IsomendError (Cancelled when cancelled), ValueError, TypeError.
     """
     if iso is None:
         raise ValueError("iso: required for a numpy volume (a Source can suggest one)")
+    post = {"decimate": decimate, "smooth": smooth, "min_component": min_component,
+            "largest": largest}
+    if decimate is not None or smooth or min_component or largest:
+        # the arguments are checked before the extraction
+        check_postprocess(**post)
     vol, keep = _as_volume(volume, axes, spacing, origin, slice_positions)
     prog = _Progress(progress) if progress is not None else None
     opts = _options(iso, method, pad, flip, normals, origins, threads, prog, small_pages)
@@ -892,7 +1132,7 @@ def extract(volume, iso, method="dmc", spacing=None, origin=None, pad=False, fli
     # sample (0, 0, 0): on the first slice when the slices are placed one by one
     mesh.volume_origin = tuple(first_slice) if first_slice else tuple(vol.origin)
     mesh.volume_spacing = tuple(vol.spacing)
-    return mesh
+    return postprocess(mesh, **post)
 
 
 def check(positions, triangles, box=None):

@@ -279,6 +279,49 @@ if real:
     check(real["cli_explicit"]["triangles"] != real["cli_suggested"]["triangles"],
           "the explicit iso must give another surface than the suggestion")
 
+# ------------------------------------------------------------ post-processing (issue 37)
+# Minimum Component, Smooth Iterations and Decimate Ratio: the CLI's mesh with
+# --min-component 20 --smooth 5 --decimate 0.2 (counts, closed), about a fifth
+# of the plain import's triangles, and the report says what each step did
+post = SPEC.get("postprocess")
+if post:
+    reset()
+    pp, cli = post["params"], post["cli"]
+    r = bpy.ops.import_mesh.slice_stack(directory=post["directory"], **pp)
+    objs = list(bpy.data.objects)
+    check(r == {"FINISHED"} and len(objs) == 1, "post-processing import: %s, %d objects" % (r, len(objs)))
+    if len(objs) == 1:
+        me = objs[0].data
+        want = cli["check"]  # the counts of the CLI's final mesh
+        check((len(me.vertices), len(me.polygons)) == (want["vertices"], want["triangles"]),
+              "post-processing: %d vertices, %d triangles; the CLI's %d, %d"
+              % (len(me.vertices), len(me.polygons), want["vertices"], want["triangles"]))
+        ratio = len(me.polygons) / post["plain_triangles"]
+        check(0.17 < ratio < 0.23, "post-processing: %d triangles are %.3f of the plain import's %d"
+              % (len(me.polygons), ratio, post["plain_triangles"]))
+        ei = np.empty(len(me.loops), np.int32)
+        me.loops.foreach_get("edge_index", ei)
+        uses = np.bincount(ei, minlength=len(me.edges))
+        check(bool((uses == 2).all()), "post-processing: %d edges not used exactly twice (not closed)"
+              % int((uses != 2).sum()))
+        check(me.validate(verbose=True) is False, "post-processing: mesh.validate() repaired the mesh")
+        msg = module.last_import.get("message", "")
+        c, d = cli["postprocess"]["clean"], cli["postprocess"]["decimate"]
+        for part in ("clean-up: %d of %d components kept" % (c["components_after"], c["components_before"]),
+                     "smoothed: %d vertices moved" % cli["postprocess"]["smooth"]["moved_vertices"],
+                     "decimated: %d -> %d triangles (target %d reached)"
+                     % (d["triangles_before"], d["triangles_after"], d["target_triangles"]),
+                     "largest error"):
+            check(part in msg, "post-processing: the report %r does not say %r" % (msg, part))
+        print("post-processing: %d triangles (%.3f of %d); %s" % (len(me.polygons), ratio,
+                                                                  post["plain_triangles"], msg), flush=True)
+    # a plain import (the properties' defaults: off) reports no post-processing
+    reset()
+    bpy.ops.import_mesh.slice_stack(directory=post["directory"], iso=pp["iso"], pad=True,
+                                    spacing=pp["spacing"])
+    check("decimated" not in module.last_import.get("message", "x decimated"),
+          "a plain import reports post-processing: %r" % module.last_import.get("message"))
+
 # ------------------------------------------------------------ errors leave nothing behind
 for err in SPEC["errors"]:
     reset()

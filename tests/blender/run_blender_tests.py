@@ -336,6 +336,27 @@ def main():
         for k in range(v.shape[0]):
             tifffile.imwrite(os.path.join(big, "b_%03d.tif" % k), v[k])
 
+    # issue 37: the operator's post-processing (Minimum Component, Smooth
+    # Iterations, Decimate Ratio) on the foam stack equals the CLI's
+    # --min-component 20 --smooth 5 --decimate 0.2 (the same core calls)
+    post = None
+    if args.mode == "background":
+        out_json = os.path.join(work, "post.cli.json")
+        cmd = [args.cli, "extract", folder, "-o", os.path.join(work, "post.cli.ply"), "--iso", "127.5",
+               "--pad", "--spacing", "1,1,1", "--min-component", "20", "--smooth", "5",
+               "--decimate", "0.2", "--json", out_json, "--quiet"]
+        r = subprocess.run(cmd, capture_output=True, text=True, timeout=120)
+        if r.returncode != 0:
+            sys.exit("isomend CLI failed (%s): %s" % (" ".join(cmd), r.stderr.strip()))
+        with open(out_json) as fp:
+            cli_post = json.load(fp)
+        assert cli_post["postprocess"]["clean"]["components_after"] < \
+            cli_post["postprocess"]["clean"]["components_before"], "the foam must have specks"
+        post = {"directory": folder, "params": {"iso": 127.5, "pad": True, "spacing": (1.0, 1.0, 1.0),
+                                                "unit_scale": 0.01, "min_component": 20,
+                                                "smooth_iterations": 5, "decimate": 0.2},
+                "cli": cli_post, "plain_triangles": cases[0]["cli"]["triangles"]}
+
     explicit = None
     if args.get_test_data and args.mode == "background":
         explicit = real_stack_case(args, work)
@@ -343,7 +364,8 @@ def main():
     spec = os.path.join(work, "cases.json")
     with open(spec, "w") as fp:
         json.dump({"package": os.path.abspath(args.package), "install": args.install, "cases": cases,
-                   "errors": errors, "big": big, "explicit_iso": explicit}, fp, indent=1)
+                   "errors": errors, "big": big, "explicit_iso": explicit, "postprocess": post},
+                  fp, indent=1)
 
     env = blender_env(work, "")
     if args.mode == "background":

@@ -106,7 +106,7 @@ def test_method_items_start_with_the_thesis_methods_and_list_the_library_ones():
 
 
 def test_overall_progress_is_monotone_and_clamped():
-    order = ["open", "read", "analyse", "extract", "mesh"]
+    order = ["open", "read", "analyse", "extract", "postprocess", "mesh"]
     values = [import_stack.overall(s, f) for s in order for f in (0.0, 0.5, 1.0)]
     assert values == sorted(values) and values[0] == 0.0 and values[-1] == 1.0
     assert import_stack.overall("read", -1) == import_stack.overall("read", 0)
@@ -261,6 +261,16 @@ def test_a_dicom_series_is_chosen_placed_and_reported(two_series):
     # the tilted series: patient space turns it (the same triangles elsewhere)
     assert meshes[0].triangle_count == meshes[1].triangle_count
     assert not np.allclose(meshes[0].positions, meshes[1].positions, atol=0.1)
+    # post-processing of a mesh in patient space (issue 37): the steps run on
+    # the grid-frame C mesh and the result is mapped again, so smoothing and
+    # decimating the patient-space mesh and the grid-axes mesh give the same
+    # triangles, placed as their inputs are
+    post = [isomend.postprocess(mm, smooth=3, decimate=0.5) for mm in meshes]
+    np.testing.assert_array_equal(post[0].triangles, post[1].triangles)
+    for mm, pp in zip(meshes, post):
+        assert pp.check()["hole_edges"] == 0 and pp.triangle_count < 0.6 * mm.triangle_count
+        assert np.allclose(pp.positions.mean(0), mm.positions.mean(0), atol=0.5)
+        assert pp.grid_box == mm.grid_box
     # the other series, by its UID, and an explicit iso with it
     j = import_stack.ImportJob([folder], 500.0, "dmc", None, -1, True, True, series=uids["MR"])
     j.run()
@@ -389,6 +399,48 @@ def test_report_names_the_object_counts_iso_and_spacing(blob):
     # evenly spaced slices: nothing said about them, no warning
     assert info["geometry"]["uniform"] and info["slice_origins"] is None
     assert "evenly" not in text and import_stack.geometry_warning("knee_scan", info) == ""
+
+
+def test_post_processing_runs_in_the_clis_order_and_is_reported(blob):
+    """Minimum Component, Smooth Iterations, Decimate Ratio (issue 37): run()
+    and start()/poll() give isomend.postprocess's mesh, the stage is seen, and
+    the report says what each step did."""
+    kw = dict(decimate=0.2, smooth_iterations=5, min_component=10)
+    j = import_stack.ImportJob([blob["folder"]], 250.0, "dmc", None, -1, True, True, **kw)
+    stages = []
+    j.printer = lambda stage, fraction: stages.append(stage)
+    j.run()
+    assert j.error is None, j.error
+    mesh, info = j.result
+    plain = isomend.extract_source(blob["folder"], iso=250.0, pad=True)
+    want = isomend.postprocess(plain, decimate=0.2, smooth=5, min_component=10)
+    same(mesh, want)
+    assert "postprocess" in stages
+    assert abs(mesh.triangle_count - 0.2 * plain.triangle_count) <= 0.02 * plain.triangle_count
+    ck = mesh.check()
+    assert ck["hole_edges"] == 0 and ck["nonmanifold_edges"] == 0
+    d = mesh.postprocess["decimate"]
+    text = import_stack.report("knee_scan", mesh, info, suggested=False)
+    assert "%d vertices, %d triangles" % (mesh.vertex_count, mesh.triangle_count) in text
+    assert ("decimated: %d -> %d triangles (target %d reached), largest error"
+            % (d["triangles_before"], d["triangles_after"], d["target_triangles"])) in text
+    assert "smoothed: %d vertices moved" % mesh.postprocess["smooth"]["moved_vertices"] in text
+    assert "clean-up: " in text
+    # on the library's thread: the same
+    j2 = import_stack.ImportJob([blob["folder"]], 250.0, "dmc", None, -1, True, True, **kw)
+    j2.start()
+    while not j2.poll():
+        pass
+    assert j2.outcome()[0] == 'FINISHED'
+    same(j2.result[0], want)
+    # off by default: no post-processing text
+    j3 = job([blob["folder"]], iso=250.0)
+    j3.run()
+    assert j3.result[0].postprocess["decimate"] is None
+    assert import_stack.postprocess_text(j3.result[0]) == ""
+    # a bad value is refused when the job is made (the operator reports it)
+    with pytest.raises(ValueError, match="ratio"):
+        import_stack.ImportJob([blob["folder"]], 250.0, "dmc", None, -1, True, True, decimate=1.5)
 
 
 # ------------------------------------------------------------ can the libraries load?

@@ -633,3 +633,131 @@ def test_channels_of_an_rgb_stack(tmp_path):
     assert err.value.status_name == "UNSUPPORTED"
     assert "c_0.tif" in str(err.value) and "channel" in str(err.value)
 
+
+
+# ------------------------------------------------------------ post-processing (issue 37)
+
+def sphere_with_speck():
+    """A padded sphere plus a one-sample speck far from it: two components,
+    the speck's 8 triangles the smaller."""
+    vol = sphere(40, r=14, centre=(19.2, 20.1, 18.7))
+    vol[3, 3, 3] = 1.0
+    return vol
+
+
+def test_mesh_clean_drops_small_components_and_stays_closed():
+    m = isomend.extract(sphere_with_speck(), 0.0, pad=True)
+    assert m.check()["components"] == 2
+    c, rep = m.clean(min_triangles=20)
+    assert set(rep) == {"components_before", "components_after", "triangles_removed",
+                        "vertices_removed"}
+    assert (rep["components_before"], rep["components_after"]) == (2, 1)
+    assert rep["triangles_removed"] == 8 and rep["vertices_removed"] == 6
+    assert c.triangle_count == m.triangle_count - 8
+    ck = c.check()
+    assert ck["components"] == 1 and ck["hole_edges"] == 0 and ck["nonmanifold_edges"] == 0
+    assert c.postprocess["clean"] == rep and c.origins is None and c.normals is not None
+    # the input is unchanged; keep_largest alone does the same here
+    assert m.check()["components"] == 2
+    c2, rep2 = m.clean(keep_largest=1)
+    assert rep2["components_after"] == 1
+    np.testing.assert_array_equal(c2.triangles, c.triangles)
+
+
+def test_mesh_smooth_keeps_the_volume_and_closure():
+    # a binary ball: the voxel staircase that smoothing removes
+    ball = np.where(sphere(40, r=14, centre=(19.2, 20.1, 18.7)) > 0, 255, 0).astype(np.uint8)
+    m = isomend.extract(ball, 127.5, pad=True)
+    s, rep = m.smooth(10)
+    assert set(rep) == {"moved_vertices", "volume_before", "volume_after", "max_displacement"}
+    assert rep["moved_vertices"] == m.vertex_count  # closed: nothing locked
+    assert 0 < rep["max_displacement"] < 1.5
+    # the same triangles, vertices moved, the enclosed volume kept
+    np.testing.assert_array_equal(s.triangles, m.triangles)
+    assert not np.array_equal(s.positions, m.positions)
+    v0, v1 = signed_volume(m.positions, m.triangles), signed_volume(s.positions, s.triangles)
+    assert abs(v1 - v0) < 1e-3 * abs(v0)
+    assert abs(rep["volume_before"] - v0) < 1e-3 * abs(v0)
+    ck = s.check()
+    assert ck["hole_edges"] == 0 and ck["misoriented_edges"] == 0
+    # smoother: the spread of the vertices' distances from the centre shrinks (0.20 -> 0.11)
+    centre = np.array([19.2, 20.1, 18.7])
+    spread = lambda p: np.std(np.linalg.norm(p.astype(np.float64) - centre, axis=1))
+    assert spread(s.positions) < 0.7 * spread(m.positions)
+    same, _ = m.smooth(0)
+    np.testing.assert_array_equal(same.positions, m.positions)
+
+
+def test_mesh_decimate_to_a_ratio_a_count_and_an_error():
+    m = isomend.extract(sphere(40, r=14, centre=(19.2, 20.1, 18.7)), 0.0, pad=True)
+    d, rep = m.decimate(ratio=0.2)
+    keys = {"triangles_before", "triangles_after", "vertices_before", "vertices_after",
+            "target_triangles", "reached", "max_error", "mean_error", "collapses",
+            "locked_vertices", "refused_topology", "refused_geometry", "refused_error"}
+    assert set(rep) == keys
+    assert rep["reached"] is True and rep["triangles_before"] == m.triangle_count
+    assert rep["triangles_after"] == d.triangle_count <= rep["target_triangles"] + 2
+    assert abs(d.triangle_count - 0.2 * m.triangle_count) <= 0.01 * m.triangle_count
+    ck = d.check()
+    assert (ck["hole_edges"], ck["nonmanifold_edges"], ck["misoriented_edges"]) == (0, 0, 0)
+    assert ck["euler"] == 2 and ck["components"] == 1
+    assert 0 < rep["mean_error"] <= rep["max_error"] < 0.5
+    assert d.normals is not None and np.allclose(np.linalg.norm(d.normals, axis=1), 1, atol=1e-4)
+    # outward orientation kept
+    assert signed_volume(d.positions, d.triangles) > 0
+    d2, rep2 = m.decimate(target_triangles=1000)
+    assert rep2["target_triangles"] == 1000 and d2.triangle_count <= 1002
+    # an error bound: fewer collapses than the ratio's, every one within it
+    d3, rep3 = m.decimate(ratio=0.01, max_error=0.05)
+    assert rep3["max_error"] <= 0.05 + 1e-9 and rep3["refused_error"] > 0
+    assert rep3["reached"] is False and d3.triangle_count > 0.01 * m.triangle_count
+
+
+def test_extract_postprocesses_in_the_command_lines_order():
+    vol = sphere_with_speck()
+    e = isomend.extract(vol, 0.0, pad=True, min_component=20, smooth=5, decimate=0.2)
+    m = isomend.extract(vol, 0.0, pad=True)
+    c, _ = m.clean(20)
+    s, _ = c.smooth(5)
+    d, _ = s.decimate(ratio=0.2)
+    np.testing.assert_array_equal(e.triangles, d.triangles)
+    np.testing.assert_array_equal(e.positions, d.positions)
+    assert set(e.postprocess) == {"clean", "smooth", "decimate"}
+    assert all(e.postprocess[k] is not None for k in e.postprocess)
+    assert e.postprocess["clean"]["components_after"] == 1
+    assert e.check()["hole_edges"] == 0
+    # the extraction's stats stay (mending counts describe the extraction)
+    assert e.stats == m.stats
+    # a dict of targets; off by default
+    t = isomend.extract(vol, 0.0, pad=True, decimate={"target_triangles": 500})
+    assert t.postprocess["decimate"]["target_triangles"] == 500 and t.postprocess["clean"] is None
+    plain = isomend.extract(vol, 0.0, pad=True, decimate=0)
+    assert plain.postprocess == {"clean": None, "smooth": None, "decimate": None}
+    assert plain.triangle_count == m.triangle_count and plain.origins is not None
+    # largest=1 drops the speck
+    assert isomend.extract(vol, 0.0, pad=True, largest=1).check()["components"] == 1
+
+
+def test_postprocess_refuses_bad_arguments_before_extracting():
+    m = isomend.extract(sphere(), 0.0, pad=True)
+    with pytest.raises(ValueError, match="ratio"):
+        m.decimate(ratio=1.5)
+    with pytest.raises(ValueError, match="ratio"):
+        m.decimate(ratio=0.0)
+    with pytest.raises(ValueError, match="give ratio"):
+        m.decimate()
+    with pytest.raises(ValueError, match="max_error"):
+        m.decimate(max_error=-1)
+    with pytest.raises(ValueError, match="iterations"):
+        m.smooth(-1)
+    with pytest.raises(ValueError, match="iterations"):
+        m.smooth(10001)
+    with pytest.raises(TypeError, match="min_triangles"):
+        m.clean(min_triangles=2.5)
+    called = []
+    with pytest.raises(ValueError, match="ratio"):
+        isomend.extract(sphere(), 0.0, decimate=2.0,
+                        progress=lambda *a: called.append(a))
+    assert called == []  # refused before the extraction started
+    with pytest.raises(ValueError, match="unknown"):
+        isomend.extract(sphere(), 0.0, decimate={"ratio": 0.5, "speed": 1})

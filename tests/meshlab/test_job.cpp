@@ -134,10 +134,11 @@ void test_lists()
         CHECK(types[static_cast<size_t>(t)] == isomend_type_name(static_cast<isomend_type>(t)));
 
     /* every parameter has a label and a tooltip */
-    const char *names[] = {job::kParamSource,     job::kParamIso,        job::kParamMethod,
-                           job::kParamSpacing[0], job::kParamSpacing[1], job::kParamSpacing[2],
-                           job::kParamChannel,    job::kParamPad,        job::kParamFlip,
-                           job::kParamRawDims,    job::kParamRawType};
+    const char *names[] = {
+        job::kParamSource,     job::kParamIso,          job::kParamMethod,  job::kParamSpacing[0],
+        job::kParamSpacing[1], job::kParamSpacing[2],   job::kParamChannel, job::kParamPad,
+        job::kParamFlip,       job::kParamRawDims,      job::kParamRawType, job::kParamSeries,
+        job::kParamGridAxes,   job::kParamMinComponent, job::kParamSmooth,  job::kParamDecimate};
     for (const char *n : names) {
         const job::ParamText t = job::param_text(n);
         CHECK(t.label && *t.label);
@@ -282,6 +283,76 @@ void test_run(const std::string &dir)
         p.flip_normals = false;
     }
 
+    /* post-processing (issue 37): clean-up, smoothing, decimation in the
+     * command line's order, each exactly the core's call on the previous
+     * result; the mesh stays closed; a log line per step */
+    {
+        job::Params q = p;
+        q.min_component = 50;
+        q.smooth_iterations = 5;
+        q.decimate_ratio = 0.2;
+        job::Job run;
+        const bool ok = run.run(q, nullptr);
+        CHECK(ok);
+        if (!ok)
+            std::fprintf(stderr, "post-processing run failed: %s\n", run.error().c_str());
+        isomend_mesh *mesh =
+            direct(v, nx, ny, nz, iso, ISOMEND_METHOD_DMC, ISOMEND_FLAG_PAD, unit, nullptr);
+        const size_t plain = isomend_mesh_triangle_count(mesh);
+        isomend_mesh *cleaned = nullptr, *smoothed = nullptr, *decimated = nullptr;
+        isomend_clean_report cr{};
+        isomend_decimate_report dr{};
+        CHECK(isomend_mesh_clean(mesh, 50, 0, &cleaned, &cr) == ISOMEND_OK);
+        CHECK(isomend_mesh_smooth(cleaned, 5, &smoothed, nullptr) == ISOMEND_OK);
+        isomend_decimate_options d;
+        isomend_decimate_options_init(&d);
+        d.ratio = 0.2;
+        CHECK(isomend_mesh_decimate(smoothed, &d, &decimated, &dr) == ISOMEND_OK);
+        if (ok && decimated)
+            check_same_mesh(run.mesh(), decimated);
+        const job::PostReport &r = run.post_report();
+        CHECK(r.cleaned && r.smoothed && r.decimated);
+        CHECK(r.clean.components_before == cr.components_before &&
+              r.clean.components_after == cr.components_after);
+        CHECK(cr.components_before > cr.components_after); /* the blobs have small pieces */
+        CHECK(r.decimate.triangles_after == dr.triangles_after);
+        const size_t nt = ok ? isomend_mesh_triangle_count(run.mesh()) : 0;
+        CHECK(nt > 0 && nt < plain / 4);
+        /* closed: the padded surface has no hole edges before or after */
+        isomend_check_report before{}, after{};
+        CHECK(isomend_mesh_check(mesh, &before) == ISOMEND_OK);
+        if (ok)
+            CHECK(isomend_mesh_check(run.mesh(), &after) == ISOMEND_OK);
+        CHECK(before.hole_edges == 0 && after.hole_edges == 0);
+        bool clean_logged = false, smooth_logged = false, decimate_logged = false;
+        for (const std::string &line : run.log_lines()) {
+            clean_logged = clean_logged || contains(line, "clean-up");
+            smooth_logged = smooth_logged || contains(line, "smoothing (5 iterations)");
+            decimate_logged = decimate_logged || (contains(line, "decimation (ratio 0.2)") &&
+                                                  contains(line, "largest error"));
+        }
+        CHECK(clean_logged && smooth_logged && decimate_logged);
+        isomend_mesh_destroy(decimated);
+        isomend_mesh_destroy(smoothed);
+        isomend_mesh_destroy(cleaned);
+        isomend_mesh_destroy(mesh);
+
+        /* off by default: the plain run has no post-processing line */
+        job::Job plain_run;
+        CHECK(plain_run.run(p, nullptr));
+        const job::PostReport &pr = plain_run.post_report();
+        CHECK(!pr.cleaned && !pr.smoothed && !pr.decimated);
+        for (const std::string &line : plain_run.log_lines())
+            CHECK(!contains(line, "decimation") && !contains(line, "smoothing"));
+
+        /* a minimum above every component: an error, no mesh */
+        job::Params big = p;
+        big.min_component = 100000000;
+        job::Job none;
+        CHECK(!none.run(big, nullptr));
+        CHECK(none.mesh() == nullptr && contains(none.error(), "minComponent"));
+    }
+
     /* cancellation from the progress callback: no mesh */
     {
         job::Job run;
@@ -331,7 +402,19 @@ void test_errors(const std::string &dir)
         {"NaN spacingZ", [](job::Params &q) { q.spacing[2] = std::nan(""); }, "spacingZ"},
         {"channel", [](job::Params &q) { q.channel = -3; }, "channel:"},
         {"rawDims", [](job::Params &q) { q.raw_dims = "12 x"; }, "rawDims"},
-        {"rawType", [](job::Params &q) { q.raw_dims = "2 2 2"; q.raw_type_index = 42; }, "rawType"},
+        {"rawType",
+         [](job::Params &q) {
+             q.raw_dims = "2 2 2";
+             q.raw_type_index = 42;
+         },
+         "rawType"},
+        {"minComponent", [](job::Params &q) { q.min_component = -1; }, "minComponent:"},
+        {"smoothIterations", [](job::Params &q) { q.smooth_iterations = -2; }, "smoothIterations:"},
+        {"too many iterations", [](job::Params &q) { q.smooth_iterations = 10001; },
+         "smoothIterations:"},
+        {"decimateRatio > 1", [](job::Params &q) { q.decimate_ratio = 1.5; }, "decimateRatio:"},
+        {"NaN decimateRatio", [](job::Params &q) { q.decimate_ratio = std::nan(""); },
+         "decimateRatio:"},
     };
     for (const Case &c : cases) {
         job::Params q = job::default_params();

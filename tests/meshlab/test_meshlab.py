@@ -22,7 +22,9 @@ Usage (run by ctest):
   topology  padded DMC of a sphere cut by the volume border and of a torus:
             MeshLab reports 0 boundary edges, two-manifold, genus 0 and 1
             (and the unpadded cut sphere has boundary edges: the measure sees
-            a difference).
+            a difference); the torus post-processed (minComponent,
+            smoothIterations 5, decimateRatio 0.2): the CLI's mesh, a fifth of
+            the faces, still closed with genus 1, a log line per step.
   holes     F1 (thesis Chapter 5.2) tiled by mirroring into a 7^3 volume:
             the CLI's check finds holes for mc and none for dmc, and MeshLab
             agrees: MC open, DMC closed two-manifold genus 0.
@@ -34,7 +36,9 @@ Usage (run by ctest):
   realdata  the ITK T1 MRI (scripts/get-test-data.sh): at the suggested level
             MeshLab counts MC's hole edges as boundary edges and finds DMC's
             result closed and two-manifold; an explicit iso 2 below the
-            suggestion builds the surface at that level, not at the suggestion.
+            suggestion builds the surface at that level, not at the suggestion;
+            post-processed (minComponent 50, smoothing 5, decimation 0.2): the
+            CLI's mesh, a fifth of the faces, closed, the components kept.
   methods   every method the menu lists after the first three (facial,
             gradient, asymptotic, tetra, mc33 when the core builds them), by
             index: the CLI's mesh for that method, closed on the tiled F1.
@@ -133,7 +137,8 @@ def mlx(params, topology=False):
     aborts on a missing one)."""
     p = {"source": "", "iso": 0.5, "method": 0, "spacingX": 0, "spacingY": 0, "spacingZ": 0,
          "channel": -1, "pad": True, "flipNormals": False, "rawDims": "", "rawType": 0,
-         "dicomSeries": "", "dicomGridAxes": False}
+         "dicomSeries": "", "dicomGridAxes": False, "minComponent": 0, "smoothIterations": 0,
+         "decimateRatio": 0.0}
     p.update(params)
     names = p.pop("enum_names", METHODS)
     enum_methods = " ".join('enum_val%d=%s' % (i, quoteattr(m)) for i, m in enumerate(names))
@@ -155,7 +160,10 @@ def mlx(params, topology=False):
         '  <Param type="RichEnum" name="rawType" value="%d" enum_cardinality="%d" %s/>'
         % (p["rawType"], len(TYPES), enum_types)]
     lines += ['  <Param type="RichString" name="dicomSeries" value=%s/>' % quoteattr(str(p["dicomSeries"])),
-              '  <Param type="RichBool" name="dicomGridAxes" value="%s"/>' % b(p["dicomGridAxes"])]
+              '  <Param type="RichBool" name="dicomGridAxes" value="%s"/>' % b(p["dicomGridAxes"]),
+              '  <Param type="RichInt" name="minComponent" value="%d"/>' % p["minComponent"],
+              '  <Param type="RichInt" name="smoothIterations" value="%d"/>' % p["smoothIterations"],
+              '  <Param type="RichFloat" name="decimateRatio" value="%r"/>' % float(p["decimateRatio"])]
     lines.append(" </filter>")
     if topology:
         lines.append(' <filter name="Compute Topological Measures"/>')
@@ -546,6 +554,8 @@ def test_topology(run):
         check(t.get("components") == 1, "1 connected component (%s)" % t.get("components"))
         check(t.get("genus") == genus, "Genus is %d (%s)" % (genus, t.get("genus")))
         check(t.get("holes") == 0, "0 holes (%s)" % t.get("holes"))
+        if name == "torus":
+            postprocess_torus(run, folder, ref, genus)
         if name.startswith("sphere"):
             print("%s, unpadded DMC (the check can fail):" % name)
             rc, log, out = run.meshlab({"source": folder, "iso": 127.5, "pad": False},
@@ -553,6 +563,40 @@ def test_topology(run):
             t = run.topology(log)
             check(rc == 0 and (t.get("boundary_edges") or 0) > 0,
                   "open where the border cuts it: Boundary Edges %s > 0" % t.get("boundary_edges"))
+
+
+def postprocess_torus(run, folder, plain, genus):
+    """Issue 37: the filter's post-processing (smoothIterations 5, then
+    decimateRatio 0.2) gives the CLI's --smooth 5 --decimate 0.2 mesh: about a
+    fifth of the plain run's faces, still closed, two-manifold, one component
+    of the same genus (MeshLab's own measures), and a log line per step."""
+    print("torus, padded DMC, smoothIterations 5, decimateRatio 0.2, minComponent 1:")
+    rc, log, out = run.meshlab({"source": folder, "iso": 127.5, "pad": True, "smoothIterations": 5,
+                                "decimateRatio": 0.2, "minComponent": 1}, topology=True)
+    check(rc == 0 and out is not None, "%s exit 0 (rc %d)" % (run.name, rc))
+    t = run.topology(log)
+    ref, _ = run.isomend(folder, ["--iso", "127.5", "--pad", "--min-component", "1", "--smooth", "5",
+                                  "--decimate", "0.2"])
+    want = ref["check"]  # the counts of the CLI's final mesh
+    check(t.get("V") == want["vertices"] and t.get("F") == want["triangles"],
+          "MeshLab's V/F %s/%s equal the CLI's post-processed %d/%d"
+          % (t.get("V"), t.get("F"), want["vertices"], want["triangles"]))
+    ratio = (t.get("F") or 0) / plain["triangles"]
+    check(0.18 <= ratio <= 0.22, "%s faces are %.3f of the plain run's %d (about 0.2)"
+          % (t.get("F"), ratio, plain["triangles"]))
+    check(t.get("boundary_edges") == 0 and t.get("two_manifold"),
+          "still closed: Boundary Edges %s, two-manifold %s" % (t.get("boundary_edges"), t.get("two_manifold")))
+    check(t.get("components") == 1 and t.get("genus") == genus,
+          "1 component of genus %d (%s, %s)" % (genus, t.get("components"), t.get("genus")))
+    d = ref["postprocess"]["decimate"]
+    for line in ("clean-up (components of fewer than 1 triangles dropped): 1 of 1 components kept",
+                 "smoothing (5 iterations): %d vertices moved" % ref["postprocess"]["smooth"]["moved_vertices"],
+                 "decimation (ratio 0.2): %d -> %d triangles" % (d["triangles_before"], d["triangles_after"]),
+                 "(target %d, reached), largest error" % d["target_triangles"]):
+        check(line in log, "the log says %r" % line)
+    vert, tris = read_ply(out)
+    check(len(tris) == want["triangles"], "the saved PLY has %d triangles (CLI %d)"
+          % (len(tris), want["triangles"]))
 
 
 def test_holes(run):
@@ -640,6 +684,31 @@ def test_realdata(run, get_data):
     check(t.get("boundary_edges") == 0 and t["two_manifold"],
           "closed two-manifold at %g too" % level)
 
+    # issue 37: post-processing on the MRI (minComponent 50, smoothIterations 5,
+    # decimateRatio 0.2): the CLI's mesh, a fifth of the faces, still closed
+    print("T1 MRI at %g, padded DMC, minComponent 50, smoothIterations 5, decimateRatio 0.2:" % iso)
+    ref, _ = run.isomend(tiff, ["--iso", repr(iso), "--pad", "--method", "dmc", "--min-component", "50",
+                                "--smooth", "5", "--decimate", "0.2"])
+    rc, log, out = run.meshlab({"source": tiff, "iso": iso, "method": 0, "pad": True, "minComponent": 50,
+                                "smoothIterations": 5, "decimateRatio": 0.2}, topology=True, save=False)
+    t = run.topology(log)
+    want = ref["check"]
+    check(rc == 0 and t.get("V") == want["vertices"] and t.get("F") == want["triangles"],
+          "MeshLab's V/F %s/%s equal the CLI's post-processed %d/%d"
+          % (t.get("V"), t.get("F"), want["vertices"], want["triangles"]))
+    kept = refs[0]["triangles"] - ref["postprocess"]["clean"]["triangles_removed"]
+    check(0.19 <= (t.get("F") or 0) / kept <= 0.21,
+          "%s faces are about 0.2 of the %d left after the clean-up" % (t.get("F"), kept))
+    check(t.get("boundary_edges") == 0 and t.get("two_manifold"),
+          "closed two-manifold after post-processing (Boundary Edges %s)" % t.get("boundary_edges"))
+    c = ref["postprocess"]["clean"]
+    check(c["components_after"] < c["components_before"] and t.get("components") == c["components_after"],
+          "MeshLab counts the %d components the clean-up kept (%s)" % (c["components_after"], t.get("components")))
+    for line in ("clean-up (components of fewer than 50 triangles dropped): %d of %d components kept"
+                 % (c["components_after"], c["components_before"]),
+                 "smoothing (5 iterations):", "decimation (ratio 0.2): ", "largest error"):
+        check(line in log, "the log says %r" % line)
+
 
 def test_methods(run, job):
     """Every method of the plugin's menu beyond the thesis's three (they come
@@ -679,7 +748,8 @@ def test_errors(run):
     block = run.listing()
     check(bool(block), "%s lists \"%s\"" % (run.name, FILTER))
     check(all(l in block for l in ("Source", "Iso level", "Method", "Spacing X", "Channel",
-                                   "Pad (closed surface)", "Flip normals", "Raw dimensions"                                   )),
+                                   "Pad (closed surface)", "Flip normals", "Raw dimensions",
+                                   "Minimum component", "Smoothing iterations", "Decimation ratio")),
           "the listing shows the parameters with their tooltips")
 
     good = os.path.join(work, "good")
@@ -715,6 +785,11 @@ def test_errors(run):
         ("grey + alpha with channel -1", {"source": grey_alpha}, "set the channel parameter"),
         ("no surface at the iso level", {"source": good, "iso": 1000.0}, "no surface"),
         ("empty source", {"source": ""}, "source"),
+        ("decimateRatio above 1", {"source": good, "iso": 127.5, "decimateRatio": 1.5}, "decimateRatio"),
+        ("negative smoothIterations", {"source": good, "iso": 127.5, "smoothIterations": -1},
+         "smoothIterations"),
+        ("minComponent above every component", {"source": good, "iso": 127.5, "minComponent": 100000000},
+         "minComponent"),
     ]
     for label, params, expect in cases:
         print("%s:" % label)
