@@ -615,8 +615,10 @@ ISOMEND_API isomend_status isomend_mesh_check(const isomend_mesh *mesh,
  * edges (the volume's border of an unpadded surface, the holes of MC), on
  * edges used more than twice or twice the same way, and where a vertex's
  * triangles form several fans are locked: never moved, never removed.  Each
- * step makes a new mesh (the input is unchanged; destroy both) on one
- * thread: the result does not depend on isomend_options.threads.  The new
+ * step makes a new mesh (the input is unchanged; destroy both).  Large
+ * meshes share the work of a step (the decimation's costing, each smoothing
+ * step) among the machine's cores, in ways that change nothing: the result
+ * is the same bytes for any number of cores.  The new
  * mesh keeps the input's grid box and frame (isomend_mesh_check works as on
  * the input) and has no triangle origins; its normals, if the input had
  * any, are the triangles' area-weighted normals (decimation, smoothing) or
