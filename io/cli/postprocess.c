@@ -114,12 +114,14 @@ void cli_json_post(FILE *fp, const cli_post_report *r)
         fprintf(fp, "{\"triangles_before\": %" PRIu64 ", \"triangles_after\": %" PRIu64
                     ", \"vertices_before\": %" PRIu64 ", \"vertices_after\": %" PRIu64
                     ", \"target_triangles\": %" PRIu64 ", \"reached\": %s, \"max_error\": %.9g"
-                    ", \"collapses\": %" PRIu64 ", \"locked_vertices\": %" PRIu64
-                    ", \"refused_topology\": %" PRIu64 ", \"refused_geometry\": %" PRIu64
+                    ", \"mean_error\": %.9g, \"collapses\": %" PRIu64
+                    ", \"locked_vertices\": %" PRIu64 ", \"refused_topology\": %" PRIu64
+                    ", \"refused_geometry\": %" PRIu64 ", \"refused_error\": %" PRIu64
                     ", \"ms\": %.3f}",
                 d->triangles_before, d->triangles_after, d->vertices_before, d->vertices_after,
-                d->target_triangles, d->reached ? "true" : "false", d->max_error, d->collapses,
-                d->locked_vertices, d->refused_topology, d->refused_geometry, r->decimate_ms);
+                d->target_triangles, d->reached ? "true" : "false", d->max_error, d->mean_error,
+                d->collapses, d->locked_vertices, d->refused_topology, d->refused_geometry,
+                d->refused_error, r->decimate_ms);
     } else {
         fprintf(fp, "null");
     }

@@ -1,0 +1,402 @@
+#!/usr/bin/env python3
+"""Post-processing benchmark: isomend's decimation and smoothing against peers,
+on the same meshes, in one run (docs/postprocess.md).
+
+Meshes (each isomend's padded DMC surface, closed and oriented): the bundled
+MRI, a CT-like phantom (i16 HU: hollow bone balls, a bone torus, fragments in
+soft tissue, noise) and a busy gyroid (about 2.9 M triangles at 256^3).
+
+Decimation to 10 % of the triangles with
+  isomend        `isomend extract ... --decimate 0.1` (the decimation step's
+                 time from --json postprocess.decimate.ms)
+  vtk-quadric    vtkQuadricDecimation (TargetReduction 0.9)
+  vtk-pro        vtkDecimatePro (TargetReduction 0.9, PreserveTopologyOn,
+                 SplittingOff, BoundaryVertexDeletionOff)
+  meshopt        meshopt_simplify with meshopt_SimplifyLockBorder
+                 (bench/meshopt_simplify.c, when built)
+  meshlab        MeshLab 2020.09's "Simplification: Quadric Edge Collapse
+                 Decimation" through meshlabserver under Xvfb, Preserve
+                 Topology and Boundary, Preserve Normal, optimal placement;
+                 meshlabserver logs no filter time: the time is its run's
+                 minus a run that only loads and saves the mesh (approximate)
+Each tool's time is its decimation alone (no reading or writing).  Each
+result is written as PLY and judged: triangles reached; the distance from
+the input's vertices to the result (vtkCellLocator), mean and max as a
+fraction of the bounding box's diagonal; and `isomend check`'s verdict (hole
+edges, non-manifold edges, misoriented edges, components, Euler
+characteristic; the input's components and Euler for comparison).
+
+Smoothing: isomend `--smooth 20` against vtkWindowedSincPolyDataFilter (20
+iterations, pass band 0.1, normalised coordinates): time and volume change
+(vtkMassProperties).
+
+The machine is a shared, loaded VM: compare tools within a run (ratios),
+not absolute times across runs.
+
+usage: postprocess_bench.py --isomend PATH --samples DIR --work DIR [--out FILE.md]
+                            [--smoke] [--check] [--peers all|isomend] [--meshopt PATH]
+"""
+import argparse
+import json
+import os
+import shutil
+import subprocess
+import sys
+import time
+
+import numpy as np
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+XVFB = os.path.join(HERE, "..", "tests", "meshlab", "with_xvfb.py")
+
+MLX = """<!DOCTYPE FilterScript>
+<FilterScript>
+ <filter name="Simplification: Quadric Edge Collapse Decimation">
+  <Param type="RichInt" name="TargetFaceNum" value="{target}"/>
+  <Param type="RichFloat" name="TargetPerc" value="0"/>
+  <Param type="RichFloat" name="QualityThr" value="0.3"/>
+  <Param type="RichBool" name="PreserveBoundary" value="true"/>
+  <Param type="RichFloat" name="BoundaryWeight" value="1"/>
+  <Param type="RichBool" name="PreserveNormal" value="true"/>
+  <Param type="RichBool" name="PreserveTopology" value="true"/>
+  <Param type="RichBool" name="OptimalPlacement" value="true"/>
+  <Param type="RichBool" name="PlanarQuadric" value="false"/>
+  <Param type="RichFloat" name="PlanarWeight" value="0.001"/>
+  <Param type="RichBool" name="QualityWeight" value="false"/>
+  <Param type="RichBool" name="AutoClean" value="true"/>
+  <Param type="RichBool" name="Selected" value="false"/>
+ </filter>
+</FilterScript>
+"""
+
+
+# ------------------------------------------------------------------ volumes
+
+def ct_phantom(path, n):
+    """i16 HU, like tests/cli/test_postprocess.py's phantom (meshed at 300)."""
+    rng = np.random.default_rng(11)
+    v = np.empty((n, n, n), np.int16)
+    y, x = np.mgrid[0:n, 0:n].astype(np.float32)
+    c = (n - 1) / 2
+    balls = [(0.32, 0.40, 0.35, 0.13), (0.66, 0.55, 0.40, 0.11), (0.45, 0.62, 0.68, 0.10)]
+    frags = [(*rng.uniform(0.25, 0.75, 3) * n, rng.uniform(0.9, 2.6) * n / 72) for _ in range(12)]
+    tx, ty, tz, R, rr = 0.52 * n, 0.30 * n, 0.72 * n, 0.09 * n, 0.035 * n
+    for k in range(n):
+        a = np.full((n, n), -1000, np.float32)
+        a[((x - c) / (0.46 * n)) ** 2 + ((y - c) / (0.40 * n)) ** 2 + ((k - c) / (0.46 * n)) ** 2 < 1] = 40
+        for bx, by, bz, r in balls:
+            d = np.sqrt((x - bx * n) ** 2 + (y - by * n) ** 2 + (k - bz * n) ** 2)
+            a[d < r * n] = 900
+            a[d < 0.6 * r * n] = 150
+        q = np.sqrt((x - tx) ** 2 + (y - ty) ** 2) - R
+        a[q ** 2 + (k - tz) ** 2 < rr * rr] = 1100
+        for fx, fy, fz, r in frags:
+            a[(x - fx) ** 2 + (y - fy) ** 2 + (k - fz) ** 2 < r * r] = 700
+        a += rng.uniform(-40, 40, a.shape).astype(np.float32)
+        v[k] = a
+    v.astype("<i2").tofile(path)
+
+
+def gyroid(path, n, periods=4):
+    """f32 gyroid, `periods` periods across: about 2.9 M triangles at 256^3."""
+    t = np.arange(n, dtype=np.float32) * (2 * np.pi * periods / n)
+    y, x = np.meshgrid(t, t, indexing="ij")
+    with open(path, "wb") as f:
+        for z in t:
+            s = np.sin(x) * np.cos(y) + np.sin(y) * np.cos(z) + np.sin(z) * np.cos(x)
+            s.astype("<f4").tofile(f)
+
+
+# ------------------------------------------------------------------ measures
+
+def read_poly(path):
+    import vtk
+    r = vtk.vtkPLYReader()
+    r.SetFileName(path)
+    r.Update()
+    return r.GetOutput()
+
+
+def write_poly(poly, path):
+    import vtk
+    w = vtk.vtkPLYWriter()
+    w.SetFileName(path)
+    w.SetFileTypeToBinary()
+    w.SetDataByteOrderToLittleEndian()
+    w.SetInputData(poly)
+    if not w.Write():
+        raise RuntimeError(f"VTK could not write {path}")
+
+
+def distances(src_poly, dst_poly):
+    import vtk
+    from vtk.util.numpy_support import vtk_to_numpy
+    loc = vtk.vtkCellLocator()
+    loc.SetDataSet(dst_poly)
+    loc.BuildLocator()
+    pts = vtk_to_numpy(src_poly.GetPoints().GetData()).astype(np.float64)
+    p = [0.0, 0.0, 0.0]
+    cid, sid, d2 = vtk.reference(0), vtk.reference(0), vtk.reference(0.0)
+    out = np.empty(len(pts))
+    for i, q in enumerate(pts):
+        loc.FindClosestPoint(q.tolist(), p, cid, sid, d2)
+        out[i] = d2.get()
+    return np.sqrt(out)
+
+
+def ply_positions(path):
+    """x y z of isomend's binary PLY (float properties, x y z first)."""
+    data = open(path, "rb").read()
+    end = data.index(b"end_header\n") + len(b"end_header\n")
+    head = data[:end].decode().splitlines()
+    nv = int(next(ln.split()[2] for ln in head if ln.startswith("element vertex")))
+    nprops = sum(1 for ln in head if ln.startswith("property float"))
+    return np.frombuffer(data, "<f4", nv * nprops, end).reshape(nv, nprops)[:, :3]
+
+
+def volume(poly):
+    import vtk
+    mp = vtk.vtkMassProperties()
+    mp.SetInputData(poly)
+    mp.Update()
+    return mp.GetVolume()
+
+
+def check(exe, path):
+    p = subprocess.run([exe, "check", path, "--json", "-"], capture_output=True, text=True)
+    try:
+        return json.loads(p.stdout)["check"]
+    except (ValueError, KeyError):
+        return {"error": p.stderr.strip()[-200:]}
+
+
+# ------------------------------------------------------------------ tools
+
+def run_isomend(a, src_args, out):
+    p = subprocess.run([a.isomend, "extract", *src_args, "-q", "--decimate", "0.1", "-o", out,
+                        "--json", "-"], capture_output=True, text=True)
+    if p.returncode:
+        raise RuntimeError(p.stderr.strip())
+    j = json.loads(p.stdout)
+    return j["postprocess"]["decimate"]["ms"], j
+
+
+def run_vtk(kind, inp, out):
+    import vtk
+    poly = read_poly(inp)
+    if kind == "vtk-quadric":
+        f = vtk.vtkQuadricDecimation()
+        f.SetTargetReduction(0.9)
+    else:
+        f = vtk.vtkDecimatePro()
+        f.SetTargetReduction(0.9)
+        f.PreserveTopologyOn()
+        f.SplittingOff()
+        f.BoundaryVertexDeletionOff()
+    f.SetInputData(poly)
+    t0 = time.perf_counter()
+    f.Update()
+    ms = (time.perf_counter() - t0) * 1e3
+    write_poly(f.GetOutput(), out)
+    return ms
+
+
+def run_meshopt(exe, inp, out):
+    p = subprocess.run([exe, inp, out, "0.1"], capture_output=True, text=True)
+    if p.returncode:
+        raise RuntimeError(p.stderr.strip())
+    return float(p.stdout.split()[2])
+
+
+def run_meshlab(work, inp, out, target):
+    script = os.path.join(work, "quadric.mlx")
+    with open(script, "w") as f:
+        f.write(MLX.format(target=target))
+    log = os.path.join(work, "meshlab_log.txt")
+    if os.path.exists(log):
+        os.remove(log)
+    t0 = time.perf_counter()
+    p = subprocess.run([sys.executable, XVFB, "meshlabserver", "-i", inp, "-o", out, "-s", script,
+                        "-l", log], capture_output=True, text=True, timeout=1800)
+    wall = (time.perf_counter() - t0) * 1e3
+    if p.returncode or not os.path.exists(out):
+        raise RuntimeError(f"meshlabserver exit {p.returncode}: {p.stdout[-300:]} {p.stderr[-300:]}")
+    # meshlabserver 2020.09 logs no filter time: subtract a run that only
+    # loads and saves the same mesh (Xvfb's start included in both)
+    t0 = time.perf_counter()
+    q = subprocess.run([sys.executable, XVFB, "meshlabserver", "-i", inp, "-o",
+                        os.path.join(work, "meshlab_copy.ply")], capture_output=True, text=True,
+                       timeout=1800)
+    base = (time.perf_counter() - t0) * 1e3
+    if q.returncode:
+        raise RuntimeError(f"meshlabserver (load and save) exit {q.returncode}")
+    return max(wall - base, 0.0)
+
+
+def fmt_ms(ms):
+    return f"{ms / 1000:.2f} s" if ms >= 1000 else f"{ms:.0f} ms"
+
+
+def main():
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--isomend", required=True)
+    ap.add_argument("--samples", required=True)
+    ap.add_argument("--work", required=True)
+    ap.add_argument("--out")
+    ap.add_argument("--smoke", action="store_true", help="small meshes, seconds")
+    ap.add_argument("--check", action="store_true",
+                    help="fail unless every tool ran and isomend's meshes are closed")
+    ap.add_argument("--peers", default="all", choices=["all", "isomend"])
+    ap.add_argument("--meshopt", help="isomend_bench_meshopt (bench/meshopt_simplify.c)")
+    a = ap.parse_args()
+    a.isomend = os.path.abspath(a.isomend)
+    work = os.path.abspath(a.work)
+    shutil.rmtree(work, ignore_errors=True)
+    os.makedirs(work)
+    problems = []
+
+    n_ct, n_gy = (48, 48) if a.smoke else (160, 256)
+    ct_phantom(os.path.join(work, "ct.raw"), n_ct)
+    gyroid(os.path.join(work, "gyroid.raw"), n_gy)
+    meshes = [
+        ("MRI (anatomical.nrrd)", [os.path.join(os.path.abspath(a.samples), "anatomical.nrrd"), "--pad"]),
+        (f"CT phantom {n_ct}^3 i16", [os.path.join(work, "ct.raw"), "--raw", f"{n_ct},{n_ct},{n_ct}:i16",
+                                       "--iso", "300", "--pad"]),
+        (f"gyroid {n_gy}^3 f32", [os.path.join(work, "gyroid.raw"), "--raw", f"{n_gy},{n_gy},{n_gy}:f32",
+                                   "--iso", "0", "--pad"]),
+    ]
+    tools = ["isomend"]
+    if a.peers == "all":
+        tools += ["vtk-quadric", "vtk-pro"]
+        if a.meshopt:
+            tools.append("meshopt")
+        elif a.check:
+            print("note: no --meshopt (libmeshoptimizer-dev not installed): meshoptimizer skipped")
+        if shutil.which("meshlabserver") and shutil.which("Xvfb"):
+            tools.append("meshlab")
+        else:
+            problems.append("meshlabserver or Xvfb missing")
+
+    rows, smooth_rows = [], []
+    for label, src in meshes:
+        inp = os.path.join(work, "input.ply")
+        p = subprocess.run([a.isomend, "extract", *src, "-q", "-o", inp, "--json", "-"],
+                           capture_output=True, text=True)
+        if p.returncode:
+            sys.exit(f"isomend extract failed: {p.stderr}")
+        j0 = json.loads(p.stdout)
+        c0 = j0["check"]
+        vtk_ok = a.peers == "all"  # isomend alone: no VTK needed, isomend's own measures
+        ipoly = read_poly(inp) if vtk_ok else None
+        xyz = ply_positions(inp)
+        diag = float(np.linalg.norm(xyz.max(axis=0) - xyz.min(axis=0)))
+        ntri = j0["triangles"]
+        print(f"{label}: {ntri} triangles, {c0['components']} components, Euler {c0['euler']}", flush=True)
+        for tool in tools:
+            out = os.path.join(work, f"out_{tool}.ply")
+            try:
+                if tool == "isomend":
+                    ms, j = run_isomend(a, src, out)
+                elif tool.startswith("vtk"):
+                    ms = run_vtk(tool, inp, out)
+                elif tool == "meshopt":
+                    ms = run_meshopt(a.meshopt, inp, out)
+                else:
+                    ms = run_meshlab(work, inp, out, int(round(0.1 * ntri)))
+            except Exception as e:  # noqa: BLE001 - a peer failing is a row, not a crash
+                problems.append(f"{label} {tool}: {e}")
+                rows.append((label, tool, None, None, None, None, None, str(e)[:80]))
+                continue
+            c = check(a.isomend, out)
+            if vtk_ok:
+                opoly = read_poly(out)
+                d = distances(ipoly, opoly) / diag
+                dmean, dmax = d.mean(), d.max()
+                nout = opoly.GetNumberOfCells()
+            else:  # isomend's measured distances (the same as VTK's: cli_postprocess)
+                dj = j["postprocess"]["decimate"]
+                dmean, dmax = dj["mean_error"] / diag, dj["max_error"] / diag
+                nout = dj["triangles_after"]
+            verdict = ("error: " + c["error"]) if "error" in c else (
+                f"{c['holes']} / {c['nonmanifold_edges']} / {c['misoriented_edges']} / "
+                f"{c['components']} / {c['euler']}")
+            rows.append((label, tool, ms, nout, dmean, dmax, c, verdict))
+            print(f"  {tool:12s} {fmt_ms(ms):>9s} {nout:8d} tri  mean {dmean:.2e} "
+                  f"max {dmax:.2e}  holes/nm/mis/comp/euler {verdict}", flush=True)
+            if tool == "isomend" and ("error" in c or c["holes"] or c["nonmanifold_edges"] or
+                                      c["misoriented_edges"] or c["components"] != c0["components"] or
+                                      c["euler"] != c0["euler"]):
+                problems.append(f"{label} isomend decimated mesh not closed or topology changed: {c}")
+        # smoothing
+        sp = subprocess.run([a.isomend, "extract", *src, "-q", "--smooth", "20", "-o",
+                             os.path.join(work, "smooth.ply"), "--json", "-"], capture_output=True, text=True)
+        if sp.returncode:
+            problems.append(f"{label} --smooth 20: {sp.stderr.strip()}")
+        else:
+            sj = json.loads(sp.stdout)
+            sm = sj["postprocess"]["smooth"]
+            if vtk_ok:
+                v0 = volume(ipoly)
+                v1 = volume(read_poly(os.path.join(work, "smooth.ply")))
+            else:
+                v0, v1 = sm["volume_before"], sm["volume_after"]
+            smooth_rows.append((label, "isomend --smooth 20", sm["ms"], 100 * (v1 - v0) / v0))
+            c = sj["check"]
+            if c["holes"] or c["nonmanifold_edges"] or c["misoriented_edges"] or c["euler"] != c0["euler"]:
+                problems.append(f"{label} isomend smoothed mesh not closed: {c}")
+            if abs(v1 - v0) > 0.005 * abs(v0):
+                problems.append(f"{label} isomend smoothing changed the volume {v0} -> {v1}")
+            if a.peers == "all":
+                import vtk
+                f = vtk.vtkWindowedSincPolyDataFilter()
+                f.SetInputData(ipoly)
+                f.SetNumberOfIterations(20)
+                f.SetPassBand(0.1)
+                f.NormalizeCoordinatesOn()
+                f.BoundarySmoothingOff()
+                f.FeatureEdgeSmoothingOff()
+                f.NonManifoldSmoothingOn()
+                t0 = time.perf_counter()
+                f.Update()
+                ms = (time.perf_counter() - t0) * 1e3
+                v2 = volume(f.GetOutput())
+                smooth_rows.append((label, "vtkWindowedSinc 20, pass band 0.1", ms, 100 * (v2 - v0) / v0))
+            for r in smooth_rows[-2:] if a.peers == "all" else smooth_rows[-1:]:
+                print(f"  {r[1]:36s} {fmt_ms(r[2]):>9s} volume {r[3]:+.3f} %", flush=True)
+        rows.append((label, "input", None, ntri, None, None, c0,
+                     f"{c0['holes']} / {c0['nonmanifold_edges']} / {c0['misoriented_edges']} / "
+                     f"{c0['components']} / {c0['euler']}"))
+
+    lines = ["| mesh | tool | time | triangles | mean dist. | max dist. | holes / non-manifold / misoriented / components / Euler |",
+             "|---|---|---|---|---|---|---|"]
+    order = {t: i for i, t in enumerate(["input", *tools])}
+    for label, _ in meshes:
+        for r in sorted((r for r in rows if r[0] == label), key=lambda r: order.get(r[1], 99)):
+            if r[2] is None and r[1] != "input":
+                lines.append(f"| {label} | {r[1]} | failed | | | | {r[7]} |")
+            elif r[1] == "input":
+                lines.append(f"| {label} | input | | {r[3]} | | | {r[7]} |")
+            else:
+                lines.append(f"| {label} | {r[1]} | {fmt_ms(r[2])} | {r[3]} | {r[4]:.2e} | {r[5]:.2e} | {r[7]} |")
+    lines += ["", "| mesh | smoothing | time | volume change |", "|---|---|---|---|"]
+    for label, tool, ms, dv in smooth_rows:
+        lines.append(f"| {label} | {tool} | {fmt_ms(ms)} | {dv:+.3f} % |")
+    table = "\n".join(lines)
+    print()
+    print(table)
+    if a.out:
+        os.makedirs(os.path.dirname(os.path.abspath(a.out)), exist_ok=True)
+        with open(a.out, "w") as f:
+            f.write(table + "\n")
+    if a.check and problems:
+        for pr in problems:
+            print("FAIL:", pr)
+        return 1
+    for pr in problems:
+        print("note:", pr)
+    print("postprocess bench: ok")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
