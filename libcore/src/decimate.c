@@ -151,7 +151,8 @@ static double collapse_point(const dec *d, uint32_t a, uint32_t b, double v[3])
 
 /* --------------------------------------------------------- adjacency */
 
-/* Unlinks the corners of dead triangles from v's list. */
+/* Unlinks the corners of dead triangles from v's list (collapse() keeps
+ * every list free of them). */
 static void prune(dec *d, uint32_t v)
 {
     uint32_t *link = &d->head[v];
@@ -262,8 +263,6 @@ static void tri_normal(const dec *d, uint32_t t, uint32_t moved_a, uint32_t move
 /* Whether (a, b) may collapse to v (the checks at the top of this file). */
 static int collapse_allowed(dec *d, uint32_t a, uint32_t b, const double v[3])
 {
-    prune(d, a);
-    prune(d, b);
     /* link condition: the neighbours common to a and b */
     if (++d->gen == 0) {
         memset(d->mark, 0, d->nv * sizeof(uint32_t));
@@ -333,12 +332,16 @@ topology:
 /* Collapses (a, b) into a at v. */
 static void collapse(dec *d, uint32_t a, uint32_t b, const double v[3])
 {
+    uint32_t opposite[2] = {NONE, NONE};
+    int nopp = 0;
     for (uint32_t c = d->head[b]; c != NONE;) {
         const uint32_t t = c / 3, nextc = d->next[c];
         if (!d->tdead[t]) {
             if (corner_next(d, c) == a || corner_prev(d, c) == a) {
                 d->tdead[t] = 1;
                 d->alive--;
+                if (nopp < 2) /* the dying triangle's third vertex */
+                    opposite[nopp++] = corner_next(d, c) == a ? corner_prev(d, c) : corner_next(d, c);
             } else {
                 d->tv[c] = a;
             }
@@ -359,7 +362,11 @@ static void collapse(dec *d, uint32_t a, uint32_t b, const double v[3])
     for (int i = 0; i < 10; i++)
         d->q[10 * a + i] += d->q[10 * b + i];
     memcpy(d->p + 3 * a, v, 3 * sizeof(double));
+    /* every list stays free of dead corners: a's, and the third vertices'
+     * of the two triangles that died */
     prune(d, a);
+    for (int k = 0; k < nopp; k++)
+        prune(d, opposite[k]);
 }
 
 /* ----------------------------------------------------------- the passes */

@@ -166,12 +166,23 @@ int mesh_distances(const float *pts, size_t np, const float *pos, const uint32_t
         }
     }
     double worst = 0, sum = 0;
+    size_t last = 0; /* the triangle nearest to the previous point: points come
+                      * in mesh order, so it is usually near, and its distance
+                      * lets the search stop at the point's own cell */
     for (size_t i = 0; i < np; i++) {
         const double p[3] = {pts[3 * i], pts[3 * i + 1], pts[3 * i + 2]};
         int64_t c[3];
         for (int a = 0; a < 3; a++)
             c[a] = cell_of(&g, p[a], a);
-        double best = INFINITY;
+        double best;
+        {
+            const uint32_t *v = tri + 3 * last;
+            double q[3][3];
+            for (int m = 0; m < 3; m++)
+                for (int a = 0; a < 3; a++)
+                    q[m][a] = pos[3 * (size_t)v[m] + (size_t)a];
+            best = point_triangle_distance2(p, q[0], q[1], q[2]);
+        }
         int64_t maxr = g.n[0] > g.n[1] ? g.n[0] : g.n[1];
         maxr = g.n[2] > maxr ? g.n[2] : maxr;
         for (int64_t r = 0; r <= maxr; r++) {
@@ -193,7 +204,10 @@ int mesh_distances(const float *pts, size_t np, const float *pos, const uint32_t
                                     for (int a = 0; a < 3; a++)
                                         q[m][a] = pos[3 * (size_t)v[m] + (size_t)a];
                                 const double e = point_triangle_distance2(p, q[0], q[1], q[2]);
-                                best = e < best ? e : best;
+                                if (e < best) {
+                                    best = e;
+                                    last = g.tris[k];
+                                }
                             }
                         }
                         if (r == 0)
