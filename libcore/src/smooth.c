@@ -10,7 +10,8 @@
  * and takes the staircase.  What volume is still lost is given back per
  * component: its free vertices move along their normals by one offset,
  * (V0 - V1) / A, A the area those vertices carry (a third of each of their
- * triangles'), in up to eight passes (each takes the previous one's
+ * triangles'), in up to eight passes until every component is within
+ * 1e-9 of its volume (each takes the previous one's
  * curvature term) of at most a quarter of the component's mean edge each
  * (an island the filter shrank to almost a point grows back gradually).
  * Locked vertices (mesh_free_vertices: the border of an unpadded surface,
@@ -170,6 +171,11 @@ isomend_status isomend_mesh_smooth(const isomend_mesh *mesh, int iterations, iso
      * filter shrank to almost a point grows back over several) */
     for (int pass = 0; pass < 8 && iterations > 0; pass++) {
         component_volumes(mesh, p, label, v1, nc);
+        int restored = 1; /* every component within 1e-9 of its volume: done */
+        for (int64_t c = 0; c < nc && restored; c++)
+            restored = fabs(v1[c] - v0[c]) <= 1e-9 * fabs(v0[c]);
+        if (restored)
+            break;
         weighted_normals(mesh, p, q);
         for (int64_t c = 0; c < nc; c++)
             area[c] = 0;
