@@ -297,6 +297,9 @@ void make_vertex(const grid *g, int flip, int64_t i, int64_t j, int64_t k, int a
                  float *nrm);
 void make_vertex_between(const grid *g, int flip, const int64_t p0[3], const int64_t p1[3],
                          float *pos, float *nrm);
+/* ... and the gradient's component along axis a at marched sample p (value
+ * f0) on a uniform grid (along x and y on any). */
+double gradient_component(const grid *g, const int64_t p[3], int a, double f0);
 
 /* slice_geometry.c: slices where they are.  The table's checks; marched
  * slice m's origin (padding one gap beyond the ends); the vertex between

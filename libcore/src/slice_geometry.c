@@ -70,28 +70,11 @@ static void sample_position(const grid *g, const int64_t p[3], double w[3])
     w[1] += (double)(p[1] - g->pad) * g->h[1];
 }
 
-/* One-sided or central difference of marched sample p along in-plane axis a. */
-static double plane_component(const grid *g, const int64_t p[3], int a, double f0)
-{
-    int64_t q[3] = {p[0], p[1], p[2]}, r[3] = {p[0], p[1], p[2]};
-    q[a]++;
-    r[a]--;
-    const double fp = fetch(g, q[0], q[1], q[2]), fm = fetch(g, r[0], r[1], r[2]);
-    const int vp = !isnan(fp), vm = !isnan(fm);
-    if (vp && vm)
-        return (fp - fm) * g->inv2h[a];
-    if (vp)
-        return (fp - f0) / g->h[a];
-    if (vm)
-        return (f0 - fm) / g->h[a];
-    return 0.0;
-}
-
 /* The world gradient at marched sample p (value f0). */
 static void sheared_gradient(const grid *g, const int64_t p[3], double f0, double gr[3])
 {
-    gr[0] = plane_component(g, p, 0, f0);
-    gr[1] = plane_component(g, p, 1, f0);
+    gr[0] = gradient_component(g, p, 0, f0); /* in-plane: as on a uniform grid */
+    gr[1] = gradient_component(g, p, 1, f0);
     gr[2] = 0.0;
     const double fp = fetch(g, p[0], p[1], p[2] + 1), fm = fetch(g, p[0], p[1], p[2] - 1);
     const int vp = !isnan(fp), vm = !isnan(fm);

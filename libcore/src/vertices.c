@@ -13,8 +13,9 @@
  */
 #include "extract_internal.h"
 
-/* World-space gradient component along axis a at marched sample p. */
-static double gradient_component(const grid *g, const int64_t p[3], int a, double f0)
+/* World-space gradient component along axis a at marched sample p (value
+ * f0): central, or one-sided next to the border, NaN and padding. */
+double gradient_component(const grid *g, const int64_t p[3], int a, double f0)
 {
     int64_t q[3] = {p[0], p[1], p[2]}, r[3] = {p[0], p[1], p[2]};
     q[a]++;
