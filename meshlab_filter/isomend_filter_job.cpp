@@ -232,7 +232,8 @@ ParamText param_text(const char *name)
         return {"Source",
                 "The volume: a folder of slice images (natural order, the folder's most common "
                 "image extension), a printf pattern (/data/slice_%04d.tif), a glob "
-                "(/data/slice_*.png), a multi-page TIFF, an NRRD file (.nrrd/.nhdr), or a raw "
+                "(/data/slice_*.png), a multi-page TIFF, an NRRD file (.nrrd/.nhdr), a NIfTI file "
+                "(.nii/.nii.gz/.hdr, placed by its sform/qform in patient LPS mm), or a raw "
                 "file (then set rawDims and rawType)."};
     if (n == kParamIso)
         return {"Iso level",

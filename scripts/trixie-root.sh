@@ -36,6 +36,7 @@ die() { echo "trixie-root: $*" >&2; exit 1; }
 # those its GUI needs to load every stock plugin (else a warning box).
 PKGS=(build-essential cmake pkg-config zlib1g-dev patchelf file
   libopenimageio-dev openimageio-tools libtiff-dev libtiff-tools libopenexr-dev libgdcm-dev libgdcm-tools
+  libnifti2-dev
   qtbase5-dev libqt5opengl5-dev libglew-dev libeigen3-dev
   meshlab blender
   lib3ds-1-3 libmuparser2v5 libopenctm1

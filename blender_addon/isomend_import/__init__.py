@@ -122,7 +122,7 @@ class IMPORT_MESH_OT_slice_stack(Operator, ImportHelper):
 
     filename_ext = ""
     filter_glob: StringProperty(
-        default="*.tif;*.tiff;*.png;*.exr;*.jpg;*.jpeg;*.bmp;*.dpx;*.jp2;*.hdr;*.nrrd;*.nhdr;*.dcm;DICOMDIR",
+        default="*.tif;*.tiff;*.png;*.exr;*.jpg;*.jpeg;*.bmp;*.dpx;*.jp2;*.hdr;*.nrrd;*.nhdr;*.dcm;DICOMDIR;*.nii;*.nii.gz;*.img",
         options={'HIDDEN'})
     directory: StringProperty(subtype='DIR_PATH', options={'HIDDEN', 'SKIP_SAVE'})
     files: CollectionProperty(type=OperatorFileListElement, options={'HIDDEN', 'SKIP_SAVE'})

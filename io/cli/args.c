@@ -28,7 +28,7 @@ static const struct {
     {"--step", OPT_STEP, 1},     {"--channel", OPT_CHANNEL, 1}, {"--gzip", OPT_GZIP, 0},
     {"--help", OPT_HELP, 0},     {"-h", OPT_HELP, 0},         {"--pages", OPT_PAGES, 1},
     {"--max-memory", OPT_MAX_MEMORY, 1},
-    {"--series", OPT_SERIES, 1}, {"--grid-axes", OPT_GRID_AXES, 0},
+    {"--series", OPT_SERIES, 1}, {"--grid-axes", OPT_GRID_AXES, 0}, {"--ras", OPT_RAS, 0},
     {"--slice-positions", OPT_SLICE_POSITIONS, 1},
     {"--decimate", OPT_DECIMATE, 1},   {"--target-triangles", OPT_TARGET_TRIANGLES, 1},
     {"--max-error", OPT_MAX_ERROR, 1}, {"--smooth", OPT_SMOOTH, 1},
@@ -256,6 +256,9 @@ int cli_parse_args(int argc, char **argv, int first, const char *command, unsign
         case OPT_GRID_AXES:
             a->src.grid_axes = 1;
             break;
+        case OPT_RAS:
+            a->src.ras = 1;
+            break;
         case OPT_SLICE_POSITIONS:
             /* parsed when SOURCE is open: the count must match its slices */
             if (!*value || strcmp(value, "@") == 0) {
@@ -344,8 +347,8 @@ int cli_parse_args(int argc, char **argv, int first, const char *command, unsign
         }
     }
 #ifndef ISOMEND_HAVE_IO
-    if (a->seen & (OPT_FIRST | OPT_COUNT | OPT_STEP | OPT_CHANNEL | OPT_SERIES | OPT_GRID_AXES)) {
-        cli_error("--first/--count/--step/--channel/--series/--grid-axes need the slice-stack importer "
+    if (a->seen & (OPT_FIRST | OPT_COUNT | OPT_STEP | OPT_CHANNEL | OPT_SERIES | OPT_GRID_AXES | OPT_RAS)) {
+        cli_error("--first/--count/--step/--channel/--series/--grid-axes/--ras need the slice-stack importer "
                   "(this isomend was built without it: -DISOMEND_BUILD_IO=ON)");
         return CLI_EXIT_USAGE;
     }

@@ -114,6 +114,7 @@ typedef struct cli_source_opts {
     /* DICOM (importer only) */
     const char *series;     /* --series UID|N, NULL = the only one */
     int grid_axes;          /* --grid-axes: the series' own frame, no rotation */
+    int ras;                /* --ras: a NIfTI volume in its RAS axes (not LPS) */
     int list_series;        /* `info`: several series and no choice lists them */
     /* --slice-positions as given ("z0,z1,..." or "@FILE"), NULL = none; parsed
      * by cli_slices_open() (the count is only known once SOURCE is open) */
@@ -284,6 +285,10 @@ void cli_source_view(const cli_slices *s, cli_source *view);
 /* DICOM reporting (source.c; no-ops without the importer). */
 void cli_print_dicom(FILE *fp, cli_source *src, const cli_summary *sum);
 void cli_json_dicom(FILE *fp, cli_source *src, const cli_summary *sum);
+/* NIfTI reporting: the header's facts and the transform used (text lines;
+ * the JSON object or null); no-ops / null for other sources. */
+void cli_print_nifti(FILE *fp, const cli_source *src);
+void cli_json_nifti(FILE *fp, const cli_source *src);
 void cli_print_series(FILE *fp, const cli_source *src);
 void cli_json_series(FILE *fp, const cli_source *src);
 /* The level named "otsu", "bone" or "skin" (an importer's source: its rule;
@@ -309,6 +314,8 @@ enum {
     OPT_TARGET_TRIANGLES = 1u << 26, OPT_MAX_ERROR = 1u << 27, OPT_SMOOTH = 1u << 28,
     OPT_MIN_COMPONENT = 1u << 29, OPT_LARGEST = 1u << 30
 };
+/* --ras: NIfTI in the file's RAS axes (the enum's int range is full) */
+#define OPT_RAS (1u << 31)
 #define OPT_POST \
     (OPT_DECIMATE | OPT_TARGET_TRIANGLES | OPT_MAX_ERROR | OPT_SMOOTH | OPT_MIN_COMPONENT | OPT_LARGEST)
 

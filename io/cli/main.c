@@ -63,6 +63,9 @@ static const char *const usage_extract =
     "  DICOM-FOLDER | DICOMDIR | FILE1.dcm FILE2.dcm ... | MULTIFRAME.dcm\n"
     "                           a DICOM series (GDCM), found by content; the mesh in\n"
     "                           patient coordinates (LPS, mm)\n"
+    "  FILE.nii | FILE.nii.gz | FILE.hdr/.img\n"
+    "                           a NIfTI-1/-2 volume (libnifti2), placed by its sform or\n"
+    "                           qform in patient coordinates (LPS, mm; --ras for RAS)\n"
 #endif
     "\n"
     "MESH: .ply (binary, with normals), .obj (with normals) or .stl (binary)\n"
@@ -107,7 +110,10 @@ static const char *const usage_extract =
     "  --channel N|luma         channel of multi-channel images\n"
     "  --series N|UID           DICOM: the series (N as listed by 'isomend info')\n"
     "  --grid-axes              DICOM: keep the series' own axes (rows, columns,\n"
-    "                           slices) instead of turning the mesh into patient space\n"
+    "                           slices) instead of turning the mesh into patient space;\n"
+    "                           NIfTI: the voxel grid (i, j, k times spacing), not mapped\n"
+    "  --ras                    NIfTI: the file's RAS axes (FSL, FreeSurfer) instead of\n"
+    "                           the patient LPS axes DICOM meshes are in\n"
 #endif
     "\n"
     "Exit status: 0 written, 1 failure, 2 usage error, 130 interrupted (nothing written).\n";
@@ -129,7 +135,7 @@ static const char *const usage_info =
     "                           [--slice-positions Z0,Z1,...|@FILE]\n"
 #ifdef ISOMEND_HAVE_IO
     "                           [--first N] [--count N] [--step N] [--channel N|luma]\n"
-    "                           [--series N|UID] [--grid-axes]\n"
+    "                           [--series N|UID] [--grid-axes] [--ras]\n"
 #endif
     "\n"
     "Prints the dimensions, sample type, value range, a coarse histogram, the\n"
@@ -137,6 +143,8 @@ static const char *const usage_info =
     "For DICOM also the series (all of them when a folder holds several and\n"
     "--series is not given), modality, values, orientation and, for CT in HU,\n"
     "the bone and skin levels and which one extract uses.\n"
+    "For NIfTI also the version, datatype, scaling and the transform used (sform,\n"
+    "qform or pixdim) with its matrix.\n"
     "The slices' geometry: evenly spaced or not (gaps: median, smallest,\n"
     "largest; gantry tilt; gaps over 1.5x the median); slices whose gaps differ\n"
     "from the median by more than 1 % get one warning line on stderr.\n"
@@ -165,7 +173,12 @@ static void print_source_line(FILE *fp, const cli_slices *s, const isomend_volum
                     "positions\n",
                 s->geometry.from, s->geometry.gap_min, s->geometry.gap_max, s->geometry.gap_median,
                 s->geometry.tilt_degrees != 0 ? ", tilted" : "");
-    if (s->dicom)
+    if (strcmp(s->kind, "nifti") == 0)
+        fprintf(fp, "  axes: %s\n",
+                s->grid_axes ? "the volume's own (--grid-axes): x = i, y = j, z = k, not mapped"
+                : s->has_world ? "the file's sform/qform, in patient LPS mm (or RAS with --ras)"
+                               : "patient LPS mm (or RAS with --ras), the grid axis aligned");
+    else if (s->dicom)
         fprintf(fp, "  axes: %s\n",
                 s->grid_axes ? "the series' own (--grid-axes): x rows, y columns, z slices, not rotated"
                 : s->has_world ? "patient (LPS mm), turned by the series' direction cosines"
@@ -256,7 +269,7 @@ static int cmd_extract(int argc, char **argv)
     unsigned allowed = OPT_OUTPUT | OPT_ISO | OPT_METHOD | OPT_RAW | OPT_SPACING | OPT_ORIGIN |
                        OPT_PAD | OPT_NO_NORMALS | OPT_FLIP | OPT_STATS | OPT_JSON | OPT_QUIET |
                        OPT_THREADS | OPT_FIRST | OPT_COUNT | OPT_STEP | OPT_CHANNEL | OPT_HELP |
-                       OPT_PAGES | OPT_MAX_MEMORY | OPT_SERIES | OPT_GRID_AXES |
+                       OPT_PAGES | OPT_MAX_MEMORY | OPT_SERIES | OPT_GRID_AXES | OPT_RAS |
                        OPT_SLICE_POSITIONS | OPT_POST;
     int rc = cli_parse_args(argc, argv, 2, "extract", allowed, &a);
     if (rc) return rc;
@@ -667,7 +680,7 @@ static int cmd_info(int argc, char **argv)
     cli_args a;
     unsigned allowed = OPT_RAW | OPT_SPACING | OPT_ORIGIN | OPT_JSON | OPT_QUIET | OPT_FIRST |
                        OPT_COUNT | OPT_STEP | OPT_CHANNEL | OPT_HELP | OPT_MAX_MEMORY |
-                       OPT_SERIES | OPT_GRID_AXES | OPT_SLICE_POSITIONS;
+                       OPT_SERIES | OPT_GRID_AXES | OPT_RAS | OPT_SLICE_POSITIONS;
     int rc = cli_parse_args(argc, argv, 2, "info", allowed, &a);
     if (rc) return rc;
     if (a.seen & OPT_HELP) {
@@ -751,6 +764,7 @@ static int cmd_info(int argc, char **argv)
         fprintf(text, "  origin:      %g, %g, %g\n", v->origin[0], v->origin[1], v->origin[2]);
         print_geometry(text, &src.geometry, v->dims[2]);
         cli_print_dicom(text, &src, &sum);
+        cli_print_nifti(text, &src);
         if (sum.has_suggestion && strcmp(cli_source_suggested_level(&src), "bone") == 0)
             fprintf(text, "  suggested iso: %.9g (the bone level, HU)\n", sum.suggested_iso);
         else if (sum.has_suggestion)
@@ -808,6 +822,8 @@ static int cmd_info(int argc, char **argv)
         }
         fprintf(jf, ", \"dicom\": ");
         cli_json_dicom(jf, &src, &sum);
+        fprintf(jf, ", \"nifti\": ");
+        cli_json_nifti(jf, &src);
         fprintf(jf, ", \"timings_ms\": {\"read\": %.3f}}\n", streamed ? sl.read_ms : src.read_ms);
     }
     if (!streamed) cli_source_close(&src);

@@ -78,6 +78,7 @@ static struct io_api {
     isomend_io_status (*series_get)(const isomend_io_source *, int64_t, isomend_io_series *);
     int64_t (*series_chosen)(const isomend_io_source *);
     isomend_io_status (*dicom_info)(const isomend_io_source *, isomend_io_dicom *);
+    isomend_io_status (*nifti_info)(const isomend_io_source *, isomend_io_nifti *);
     isomend_io_status (*world_transform)(const isomend_io_source *, double *, int *);
     isomend_io_status (*level_value)(isomend_io_source *, int, double *);
     int (*suggested_level)(const isomend_io_source *);
@@ -147,6 +148,7 @@ static int io_load_api(char *why, size_t why_size)
     IO_SYM(series_get, "isomend_io_series_get");
     IO_SYM(series_chosen, "isomend_io_series_chosen");
     IO_SYM(dicom_info, "isomend_io_dicom_info");
+    IO_SYM(nifti_info, "isomend_io_nifti_info");
     IO_SYM(world_transform, "isomend_io_world_transform");
     IO_SYM(level_value, "isomend_io_level_value");
     IO_SYM(suggested_level, "isomend_io_suggested_level");
@@ -530,6 +532,7 @@ static int open_io(const char *const *paths, int n, const cli_source_opts *o,
     opts.progress_user = o->progress;
     if (o->series) io_api.set_series(io, o->series);
     if (o->grid_axes) io_api.set_axes(io, ISOMEND_IO_AXES_GRID);
+    if (o->ras) io_api.set_axes(io, ISOMEND_IO_AXES_RAS);
     isomend_io_status st = io_api.open(io, paths, (size_t)n, &opts);
     cli_progress_clear(o->progress);
     if (st == ISOMEND_IO_ERR_SERIES && o->list_series && !o->series) {
@@ -632,10 +635,16 @@ int cli_slices_open(const char *const *paths, int n, const cli_source_opts *o, c
     memset(s, 0, sizeof *s);
     snprintf(s->label, sizeof s->label, "%s", paths[0]);
     s->progress = o->progress;
-    if ((o->series || o->grid_axes) &&
+    if ((o->series || o->grid_axes || o->ras) &&
         ((n == 1 && (o->have_raw || isomend_fileio_is_nrrd_path(paths[0]))) ||
          strncmp(paths[0], "builtin:", 8) == 0)) {
-        cli_error("%s: --series and --grid-axes apply to DICOM series only", paths[0]);
+        cli_error("%s: --series, --grid-axes and --ras apply to DICOM series and NIfTI volumes only",
+                  paths[0]);
+        return CLI_EXIT_USAGE;
+    }
+    if (o->ras && o->grid_axes) {
+        cli_error("--ras and --grid-axes exclude each other (RAS is a world frame, the grid axes "
+                  "none)");
         return CLI_EXIT_USAGE;
     }
     double *positions = NULL;
@@ -693,7 +702,17 @@ static int opened(const char *const *paths, int n, const cli_source_opts *o,
             return CLI_EXIT_USAGE;
         }
         rc = open_io(paths, n, o, positions, npositions, s);
-        if (rc == CLI_EXIT_OK && !s->dicom && (o->series || o->grid_axes)) {
+        int nifti = rc == CLI_EXIT_OK && strcmp(s->kind, "nifti") == 0;
+        if (rc == CLI_EXIT_OK && !nifti && !s->dicom && o->ras) {
+            cli_error("%s: --ras applies to NIfTI volumes only (this is a %s source)", paths[0],
+                      s->kind);
+            return CLI_EXIT_USAGE;
+        }
+        if (rc == CLI_EXIT_OK && nifti && o->series) {
+            cli_error("%s: --series applies to DICOM series only (this is a NIfTI volume)", paths[0]);
+            return CLI_EXIT_USAGE;
+        }
+        if (rc == CLI_EXIT_OK && !s->dicom && !nifti && (o->series || o->grid_axes)) {
             cli_error("%s: --series and --grid-axes apply to DICOM series only (this is a %s "
                       "source)", paths[0], s->kind);
             return CLI_EXIT_USAGE;
@@ -1279,6 +1298,81 @@ void cli_json_dicom(FILE *fp, cli_source *src, const cli_summary *sum)
 #else
     (void)src;
     (void)sum;
+    fprintf(fp, "null");
+#endif
+}
+
+/* ------------------------------------------------------------------ NIfTI */
+
+#ifdef ISOMEND_HAVE_IO
+static int nifti_of(const cli_source *src, isomend_io_nifti *n)
+{
+    memset(n, 0, sizeof *n);
+    n->size = sizeof *n;
+    return src->io && strcmp(src->kind, "nifti") == 0 &&
+           io_api.nifti_info((const isomend_io_source *)src->io, n) == ISOMEND_IO_OK;
+}
+
+static const char *nifti_axes_name(int axes)
+{
+    return axes == ISOMEND_IO_AXES_GRID ? "grid" : axes == ISOMEND_IO_AXES_RAS ? "ras" : "patient";
+}
+#endif
+
+void cli_print_nifti(FILE *fp, const cli_source *src)
+{
+#ifdef ISOMEND_HAVE_IO
+    isomend_io_nifti n;
+    if (!nifti_of(src, &n)) return;
+    if (n.version)
+        fprintf(fp, "  nifti:       NIfTI-%d%s%s, datatype %s\n", n.version,
+                n.two_files ? " (.hdr/.img pair)" : "", n.gzip ? ", gzip" : "", n.datatype);
+    else
+        fprintf(fp, "  nifti:       ANALYZE 7.5 (.hdr/.img pair)%s, datatype %s\n",
+                n.gzip ? ", gzip" : "", n.datatype);
+    if (n.scaled)
+        fprintf(fp, "  values:      scaled: scl_slope %g, scl_inter %g\n", n.scl_slope, n.scl_inter);
+    fprintf(fp, "  transform:   %s (sform_code %d, qform_code %d), (i, j, k) -> RAS mm:\n",
+            n.transform, n.sform_code, n.qform_code);
+    for (int r = 0; r < 3; r++)
+        fprintf(fp, "               %12.6g %12.6g %12.6g %12.6g\n", n.file_affine[4 * r],
+                n.file_affine[4 * r + 1], n.file_affine[4 * r + 2], n.file_affine[4 * r + 3]);
+    if (n.axes == ISOMEND_IO_AXES_GRID)
+        fprintf(fp, "  axes:        grid (--grid-axes): x = i, y = j, z = k, not mapped to the world\n");
+    else if (n.axes == ISOMEND_IO_AXES_RAS)
+        fprintf(fp, "  axes:        RAS mm (--ras): x right, y anterior, z superior, as FSL/FreeSurfer\n");
+    else
+        fprintf(fp, "  axes:        patient (LPS mm, as DICOM): x to the patient's left, y posterior, "
+                    "z head (--ras for RAS)\n");
+#else
+    (void)fp;
+    (void)src;
+#endif
+}
+
+void cli_json_nifti(FILE *fp, const cli_source *src)
+{
+#ifdef ISOMEND_HAVE_IO
+    isomend_io_nifti n;
+    if (!nifti_of(src, &n)) {
+        fprintf(fp, "null");
+        return;
+    }
+    fprintf(fp, "{\"version\": %d, \"two_files\": %s, \"gzip\": %s", n.version,
+            n.two_files ? "true" : "false", n.gzip ? "true" : "false");
+    json_text_member(fp, 0, "header_path", n.header_path);
+    json_text_member(fp, 0, "image_path", n.image_path);
+    json_text_member(fp, 0, "datatype", n.datatype);
+    fprintf(fp, ", \"scaled\": %s, \"scl_slope\": %.17g, \"scl_inter\": %.17g, \"sform_code\": %d, "
+                "\"qform_code\": %d",
+            n.scaled ? "true" : "false", n.scl_slope, n.scl_inter, n.sform_code, n.qform_code);
+    json_text_member(fp, 0, "transform", n.transform);
+    fprintf(fp, ", \"file_affine\": ");
+    cli_json_doubles(fp, n.file_affine, 12);
+    json_text_member(fp, 0, "axes", nifti_axes_name(n.axes));
+    fputc('}', fp);
+#else
+    (void)src;
     fprintf(fp, "null");
 #endif
 }

@@ -761,3 +761,27 @@ def test_postprocess_refuses_bad_arguments_before_extracting():
     assert called == []  # refused before the extraction started
     with pytest.raises(ValueError, match="unknown"):
         isomend.extract(sphere(), 0.0, decimate={"ratio": 0.5, "speed": 1})
+
+
+def test_nifti_source_is_placed_by_its_sform_in_patient_space(tmp_path):
+    """A .nii.gz (NIfTI issue 36): kind "nifti", the mesh through the world
+    transform, every vertex on an edge of the voxel grid of nibabel's affine
+    (RAS) after the LPS flip."""
+    nib = pytest.importorskip("nibabel")
+    vol = sphere(dtype=np.float32).transpose(2, 1, 0)  # [i, j, k]
+    t = np.radians(30)
+    A = np.eye(4)
+    A[:3, :3] = np.array([[-np.cos(t), -np.sin(t), 0], [-np.sin(t), np.cos(t), 0], [0, 0, 1]]) @ np.diag([0.8, 0.9, 1.2])
+    A[:3, 3] = [10.0, -20.0, 5.0]
+    img = nib.Nifti1Image(np.ascontiguousarray(vol), A)
+    img.header.set_sform(A, code=2)
+    path = str(tmp_path / "blob.nii.gz")
+    nib.save(img, path)
+    with isomend.open_source(path) as src:
+        assert src.kind == "nifti" and src.world_transform is not None
+        mesh = src.extract(iso=0.0, pad=True)
+    assert mesh.check()["hole_edges"] == 0 and len(mesh.positions) > 100
+    ras = np.asarray(mesh.positions, float) * [-1, -1, 1]
+    ijk = (np.linalg.inv(nib.load(path).affine) @ np.c_[ras, np.ones(len(ras))].T).T[:, :3]
+    on_edge = (np.abs(ijk - np.round(ijk)) < 1e-4).sum(axis=1) >= 2
+    assert on_edge.all(), ijk[~on_edge][:3]

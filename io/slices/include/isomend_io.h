@@ -29,7 +29,10 @@
  *     .nhdr): read by io/common's readers, see isomend_io_options;
  *   - a DICOM series (read with GDCM): a folder holding DICOM files (any
  *     names, found by their content), a DICOMDIR, a list, glob or pattern of
- *     DICOM files, or one multi-frame (enhanced) DICOM file; see "DICOM" below.
+ *     DICOM files, or one multi-frame (enhanced) DICOM file; see "DICOM" below;
+ *   - a NIfTI volume (read with libnifti2): one .nii or .nii.gz file, or a
+ *     .hdr/.img pair (either name), NIfTI-1, NIfTI-2 or ANALYZE 7.5; see
+ *     "NIfTI" below.
  * Every 2D format OpenImageIO reads is accepted.  Tested: TIFF u8, u16, i16
  * (negative values kept), f32, packed 12-bit (restored to its real 0..4095
  * values, not OIIO's scaled 16-bit ones; likewise 1- and 4-bit), tiled TIFF,
@@ -276,15 +279,17 @@ typedef enum isomend_io_kind {
     ISOMEND_IO_KIND_MULTIPAGE = 4, /* pages/parts of one file */
     ISOMEND_IO_KIND_RAW = 5,
     ISOMEND_IO_KIND_NRRD = 6,
-    ISOMEND_IO_KIND_DICOM = 7      /* a DICOM series, see "DICOM" below */
+    ISOMEND_IO_KIND_DICOM = 7,     /* a DICOM series, see "DICOM" below */
+    ISOMEND_IO_KIND_NIFTI = 8      /* a NIfTI volume, see "NIfTI" below */
 } isomend_io_kind;
-/* "folder", "glob", "pattern", "list", "multipage", "raw", "nrrd", "dicom";
- * NULL if invalid. */
+/* "folder", "glob", "pattern", "list", "multipage", "raw", "nrrd", "dicom",
+ * "nifti"; NULL if invalid. */
 ISOMEND_IO_API const char *isomend_io_kind_name(int kind);
 ISOMEND_IO_API int isomend_io_source_kind(const isomend_io_source *src); /* -1 before open */
 
 /* The OpenImageIO format name of the first slice ("tiff", "openexr", ...),
- * "raw", "nrrd" or "dicom"; "" before open. Owned by the handle. */
+ * "raw", "nrrd", "dicom", or for NIfTI "nifti1", "nifti2" or "analyze";
+ * "" before open. Owned by the handle. */
 ISOMEND_IO_API const char *isomend_io_format(const isomend_io_source *src);
 
 /* Path of slice k (for a multi-page file: the file's path for every k);
@@ -482,10 +487,12 @@ ISOMEND_IO_API isomend_io_status isomend_io_analyse(isomend_io_source *src,
  * source loads the volume first (with the memory check).
  */
 
-/* The axes of a DICOM mesh (isomend_io_set_axes). */
+/* The axes of a DICOM or NIfTI mesh (isomend_io_set_axes). */
 typedef enum isomend_io_axes {
     ISOMEND_IO_AXES_PATIENT = 0, /* patient coordinates, LPS mm (default) */
-    ISOMEND_IO_AXES_GRID = 1     /* the series' own frame, no rotation     */
+    ISOMEND_IO_AXES_GRID = 1,    /* the series' (volume's) own frame, no rotation */
+    ISOMEND_IO_AXES_RAS = 2      /* NIfTI: the file's RAS mm (FSL, FreeSurfer);
+                                    refused by isomend_io_open() for DICOM */
 } isomend_io_axes;
 
 /*
@@ -496,7 +503,8 @@ typedef enum isomend_io_axes {
  */
 ISOMEND_IO_API isomend_io_status isomend_io_set_series(isomend_io_source *src, const char *series);
 
-/* Chooses the axes (isomend_io_axes) before opening; ignored by other sources. */
+/* Chooses the axes (isomend_io_axes) before opening; ignored by sources
+ * other than DICOM and NIfTI. */
 ISOMEND_IO_API isomend_io_status isomend_io_set_axes(isomend_io_source *src, int axes);
 
 /* One series of a DICOM source.  Strings are owned by the handle. */
@@ -558,12 +566,95 @@ ISOMEND_IO_API isomend_io_status isomend_io_dicom_info(const isomend_io_source *
  * volume isomend_io_load() describes) to the source's world frame:
  *     world[r] = affine[4r] x + affine[4r+1] y + affine[4r+2] z + affine[4r+3]
  * (3x4, row-major).  The identity for every source except a DICOM series in
- * patient axes that is not axial along +x, +y.  `identity` (may be NULL)
+ * patient axes that is not axial along +x, +y, and a NIfTI volume whose
+ * transform is more than a scaling and a translation (see "NIfTI").  `identity` (may be NULL)
  * receives 1 when it is exactly the identity.  Apply it with the core's
  * isomend_mesh_copy_transformed(); isomend_io_extract() does not.
  */
 ISOMEND_IO_API isomend_io_status isomend_io_world_transform(const isomend_io_source *src,
                                                             double affine[12], int *identity);
+
+/* ------------------------------------------------------------------ NIfTI */
+
+/*
+ * A NIfTI source is one path named .nii or .nii.gz, or .hdr / .img (also
+ * .gz) whose header libnifti2 reads as NIfTI-1, NIfTI-2 or ANALYZE 7.5 (a
+ * Radiance .hdr image is not one); read with Debian's libnifti2 (which
+ * handles gzip and byte order).
+ *
+ * Volume: x = i, y = j, z = k of the file (the voxels as stored, never
+ * reordered), spacing = |pixdim| (in mm: xyz_units metres and microns are
+ * converted; a zero pixdim takes its axis's length in the affine), the
+ * spacing sources "header".  A 4th to 7th dimension of 1 is accepted;
+ * several volumes (fMRI, DWI) are refused (ISOMEND_IO_ERR_UNSUPPORTED): mesh
+ * one volume, extracted first.  Every dimension must be at least 2.
+ *
+ * Values: scl_slope / scl_inter are applied when the slope is not 0 (the
+ * NIfTI rule for "no scaling") and they are not exactly 1 and 0; the
+ * delivered type then holds every scaled value, by the DICOM rule: integer
+ * slope and intercept on integer samples give the smallest of u8, i16, u16,
+ * i32 that holds slope * [stored range] + intercept (f64 beyond), anything
+ * else f32 (f64 for int32, uint32 and float64 samples).  Unscaled samples
+ * keep their type: uint8, int8, uint16, int16, int32, float32, float64;
+ * uint32 becomes f64 (exact).  Other datatypes (RGB, complex, 64-bit
+ * integers, float128, binary) are refused naming the file and the type.
+ *
+ * World: the sform if sform_code > 0, else the qform if qform_code > 0,
+ * else pixdim scaling (NIfTI's "method 1", the ANALYZE case): A (3x4,
+ * (i, j, k) -> RAS mm).  The default, ISOMEND_IO_AXES_PATIENT, puts the mesh
+ * in the DICOM path's patient coordinates (LPS mm: x = -R, y = -A), so that
+ * a NIfTI converted from a DICOM series and the series itself give the same
+ * mesh in the same place; ISOMEND_IO_AXES_RAS keeps the file's RAS (what
+ * FSL, FreeSurfer and nibabel show); ISOMEND_IO_AXES_GRID leaves the map
+ * out.  With F = diag(-1, -1, 1) (LPS) or the identity (RAS) and S =
+ * diag(spacing), L = F A S^-1; the volume's origin is L^-1 F t (t the
+ * affine's translation, or options.origin, then in the chosen axes) and
+ * isomend_io_world_transform() returns [L | F t - L origin] (the
+ * translation ~1e-14).  L is a rotation for a qform and may be any
+ * invertible map for an sform (a shear, a mirror: det L < 0 for most
+ * files, whose i axis points left); the core's
+ * isomend_mesh_copy_transformed() reverses the winding of a mirrored copy,
+ * so the mesh stays outward.  A singular or non-finite transform is refused
+ * (ISOMEND_IO_ERR_CORRUPT).  options.spacing replaces the spacing (L keeps
+ * the file's directions); options.slice_positions is refused.
+ *
+ * Validation (every message names the file): a missing file (or the .img of
+ * a .hdr), a header that is not NIfTI/ANALYZE (ISOMEND_IO_ERR_UNREADABLE) or
+ * that libnifti cannot read (ISOMEND_IO_ERR_CORRUPT), uncompressed data
+ * shorter than the header says (at open), compressed data that end early
+ * (at read, ISOMEND_IO_ERR_CORRUPT).
+ *
+ * Reading: an uncompressed file is read slice by slice (isomend_io_read()
+ * reports progress and can be cancelled between slices;
+ * isomend_io_read_slice() reads one slice with a seek).  A gzip-compressed
+ * file (.nii.gz) is decompressed in one pass by isomend_io_read(); its
+ * isomend_io_read_slice(k) decompresses slices 0..k again, so streaming a
+ * .nii.gz costs time quadratic in the slices (isomend_io_analyse() loads it
+ * once instead, with the memory check).
+ */
+
+/* What an opened NIfTI volume holds.  Strings are owned by the handle. */
+typedef struct isomend_io_nifti {
+    size_t size;               /* set by the caller: sizeof(isomend_io_nifti)    */
+    int version;               /* 1 or 2 (NIfTI-1 / -2), 0 for ANALYZE 7.5      */
+    int two_files;             /* a .hdr/.img pair                              */
+    int gzip;                  /* the data are gzip-compressed                  */
+    const char *header_path;   /* the .nii or .hdr                              */
+    const char *image_path;    /* the .nii or .img                              */
+    const char *datatype;      /* as stored, libnifti's name ("INT16", ...)     */
+    int scaled;                /* scl_slope / scl_inter applied                 */
+    double scl_slope, scl_inter; /* as in the header                            */
+    int sform_code, qform_code;
+    const char *transform;     /* the one used: "sform", "qform" or "pixdim"    */
+    double file_affine[12];    /* that transform, (i, j, k) -> RAS mm, 3x4
+                                  row-major, as in the file (units converted)   */
+    int axes;                  /* isomend_io_axes in use                        */
+} isomend_io_nifti;
+
+/* Fills `out` (its first out->size bytes at most) for an opened NIfTI
+ * source; ISOMEND_IO_ERR_UNSUPPORTED for other sources. */
+ISOMEND_IO_API isomend_io_status isomend_io_nifti_info(const isomend_io_source *src,
+                                                       isomend_io_nifti *out);
 
 /* Named iso levels. */
 typedef enum isomend_io_level {

@@ -11,6 +11,7 @@
 // read them with the same code and give the same messages.
 #include "dicom.hpp"
 #include "image.hpp"
+#include "nifti.hpp"
 
 #include <algorithm>
 #include <chrono>
@@ -52,6 +53,7 @@ struct isomend_io_source {
     int axes = ISOMEND_IO_AXES_PATIENT;
     std::vector<DicomSeriesEntry> series_found;
     std::unique_ptr<DicomSeries> dicom;
+    std::unique_ptr<NiftiVolume> nifti; // a NIfTI volume (nifti.cpp)
     // options.slice_positions, copied at open; where the slices are (every source)
     std::vector<double> positions;
     SliceGeometry geometry;
@@ -280,6 +282,11 @@ void do_read(isomend_io_source *s, void *buffer, size_t size, isomend_io_progres
         read_file_volume(s, buffer, size, fn, user);
         return;
     }
+    if (s->nifti) {
+        nifti_read(*s->nifti, buffer,
+                   [&](double f) -> bool { return fn ? fn(user, ISOMEND_IO_STAGE_READ, f) != 0 : false; });
+        return;
+    }
     if (s->dicom) {
         dicom_read(*s->dicom, buffer, s->opts.threads,
                    [&](double f) -> bool { return fn ? fn(user, ISOMEND_IO_STAGE_READ, f) != 0 : false; });
@@ -376,7 +383,8 @@ template <typename F> void for_each_slice(isomend_io_source *s, F &&f, double ba
     const size_t sb = (size_t)slice_bytes(s);
     isomend_io_progress_fn fn = s->opts.progress;
     void *user = s->opts.progress_user;
-    if (!s->loaded && ((s->is_file_volume && s->file_info.encoding == ISOMEND_FILEIO_ENC_GZIP) || s->dicom)) {
+    if (!s->loaded && ((s->is_file_volume && s->file_info.encoding == ISOMEND_FILEIO_ENC_GZIP) || s->dicom ||
+                       (s->nifti && s->nifti->gzip))) {
         // Slice k of a gzip stream costs decompressing slices 0..k (and a
         // frame of a DICOM file decoding the file): load once (with the
         // memory check) rather than stream in quadratic time.
@@ -387,15 +395,16 @@ template <typename F> void for_each_slice(isomend_io_source *s, F &&f, double ba
         return;
     }
     // Streaming keeps one slice per reader thread in memory: check that much.
-    uint64_t workers = s->is_file_volume ? 1 : (uint64_t)reader_threads(s);
+    uint64_t workers = s->is_file_volume || s->nifti ? 1 : (uint64_t)reader_threads(s);
     check_memory_for(s, sb > 0 && workers > UINT64_MAX / sb ? UINT64_MAX : sb * workers,
                      std::to_string(workers) + " slice buffer(s) of " + std::to_string(dim(s, 0)) + "x" +
                          std::to_string(dim(s, 1)) + " " + isomend_type_name(src_type(s)));
     std::mutex mu;
-    if (s->is_file_volume) {
+    if (s->is_file_volume || s->nifti) { // one file: its slices in order, one buffer
         std::vector<char> buf(sb);
         for (int64_t k = 0; k < dim(s, 2); k++) {
-            read_file_slice(s, k, buf.data(), buf.size());
+            if (s->nifti) nifti_read_slice(*s->nifti, k, buf.data());
+            else read_file_slice(s, k, buf.data(), buf.size());
             f(buf.data(), n);
             if (fn && fn(user, ISOMEND_IO_STAGE_ANALYSE, base + part * (double)(k + 1) / (double)dim(s, 2)))
                 throw IoError(ISOMEND_IO_ERR_CANCELLED, "cancelled while analysing");
@@ -485,6 +494,12 @@ void apply_overrides(isomend_io_source *s) {
         }
     }
     bool origin_given = o.origin[0] != 0 || o.origin[1] != 0 || o.origin[2] != 0;
+    if (s->nifti) {
+        // options.origin: the world position of voxel (0, 0, 0), in the chosen axes
+        nifti_place(*s->nifti, o.origin, origin_given);
+        for (int a = 0; a < 3; a++) s->origin[a] = s->nifti->origin[a];
+        return;
+    }
     if (s->dicom) {
         DicomSeries &d = *s->dicom;
         const double before[3] = {d.origin[0], d.origin[1], d.origin[2]};
@@ -660,6 +675,36 @@ void open_dicom(isomend_io_source *s, const DicomFiles &files) {
     s->opened = true;
 }
 
+// A NIfTI volume (nifti.cpp) presented as a stack of its k slices, so that
+// the dimensions and queries are the stack's; reads go to nifti.cpp.
+void open_nifti(isomend_io_source *s, const std::string &path) {
+    if (!s->positions.empty())
+        throw IoError(ISOMEND_IO_ERR_INVALID_ARGUMENT,
+                      "slice_positions: " + path +
+                          " is a NIfTI volume, placed by its own sform/qform; slice positions are for "
+                          "image stacks and raw/NRRD volumes");
+    if (s->opts.progress && s->opts.progress(s->opts.progress_user, ISOMEND_IO_STAGE_OPEN, 0.0))
+        throw IoError(ISOMEND_IO_ERR_CANCELLED, "cancelled while opening " + path);
+    s->nifti.reset(new NiftiVolume);
+    nifti_open(path, s->axes, *s->nifti);
+    const NiftiVolume &v = *s->nifti;
+    s->kind = ISOMEND_IO_KIND_NIFTI;
+    s->info = StackInfo{};
+    s->info.width = (int)v.dims[0];
+    s->info.height = (int)v.dims[1];
+    s->info.file_channels = 1;
+    s->info.type = v.type;
+    s->info.format = v.version == 0 ? "analyze" : v.version == 2 ? "nifti2" : "nifti1";
+    for (int a = 0; a < 3; a++) {
+        s->info.spacing[a] = v.spacing[a];
+        s->info.spacing_source[a] = ISOMEND_IO_SPACING_HEADER;
+    }
+    for (int64_t k = 0; k < v.dims[2]; k++) s->slices.push_back(Slice{v.path, (int)k, true});
+    apply_overrides(s);
+    measure_uniform(s->info.spacing[2], s->geometry);
+    s->opened = true;
+}
+
 void do_open(isomend_io_source *s, const char *const *paths, size_t count, const isomend_io_options *opts) {
     if (s->open_attempted)
         throw IoError(ISOMEND_IO_ERR_INVALID_ARGUMENT, "isomend_io_open may be called once per handle");
@@ -681,6 +726,15 @@ void do_open(isomend_io_source *s, const char *const *paths, size_t count, const
     bool raw_requested = o.raw_dims[0] > 0 || o.raw_dims[1] > 0 || o.raw_dims[2] > 0;
     DicomFiles dicom_files;
     bool is_dicom = false;
+    if (!raw_requested && count == 1 && !is_directory(paths[0]) && is_nifti_path(paths[0])) {
+        open_nifti(s, paths[0]);
+        return;
+    }
+    if (s->axes == ISOMEND_IO_AXES_RAS)
+        throw IoError(ISOMEND_IO_ERR_INVALID_ARGUMENT,
+                      std::string(paths[0]) +
+                          ": RAS axes apply to NIfTI volumes only (a DICOM series is in patient LPS "
+                          "coordinates; --grid-axes keeps its own frame)");
     if (!raw_requested) {
         std::string p0 = paths[0];
         if (count >= 2) {
@@ -928,6 +982,7 @@ ISOMEND_IO_API const char *isomend_io_kind_name(int kind) {
     case ISOMEND_IO_KIND_RAW: return "raw";
     case ISOMEND_IO_KIND_NRRD: return "nrrd";
     case ISOMEND_IO_KIND_DICOM: return "dicom";
+    case ISOMEND_IO_KIND_NIFTI: return "nifti";
     default: return nullptr;
     }
 }
@@ -992,6 +1047,7 @@ ISOMEND_IO_API isomend_io_status isomend_io_read_slice(isomend_io_source *src, i
                           "buffer of " + std::to_string(buffer_size) + " bytes is too small for one slice (" +
                               std::to_string(slice_bytes(src)) + " bytes)");
         if (src->is_file_volume) read_file_slice(src, k, buffer, buffer_size);
+        else if (src->nifti) nifti_read_slice(*src->nifti, k, buffer);
         else if (src->dicom) dicom_read_slice(*src->dicom, k, buffer);
         else read_slice(src->slices[(size_t)k], src->info, buffer);
     });
@@ -1059,7 +1115,7 @@ ISOMEND_IO_API isomend_io_status isomend_io_set_axes(isomend_io_source *src, int
     return guard(src, [&] {
         if (src->open_attempted)
             throw IoError(ISOMEND_IO_ERR_INVALID_ARGUMENT, "the axes are chosen before isomend_io_open");
-        if (axes != ISOMEND_IO_AXES_PATIENT && axes != ISOMEND_IO_AXES_GRID)
+        if (axes != ISOMEND_IO_AXES_PATIENT && axes != ISOMEND_IO_AXES_GRID && axes != ISOMEND_IO_AXES_RAS)
             throw IoError(ISOMEND_IO_ERR_INVALID_ARGUMENT, "invalid axes " + std::to_string(axes));
         src->axes = axes;
     });
@@ -1128,9 +1184,35 @@ ISOMEND_IO_API isomend_io_status isomend_io_dicom_info(const isomend_io_source *
 ISOMEND_IO_API isomend_io_status isomend_io_world_transform(const isomend_io_source *src, double affine[12],
                                                             int *identity) {
     if (!src || !affine || !src->opened) return ISOMEND_IO_ERR_INVALID_ARGUMENT;
-    bool id = !src->dicom || src->dicom->identity;
-    for (int i = 0; i < 12; i++) affine[i] = id ? (i % 5 == 0 ? 1.0 : 0.0) : src->dicom->affine[i];
+    const double *a = src->nifti ? src->nifti->affine : src->dicom ? src->dicom->affine : nullptr;
+    bool id = src->nifti ? src->nifti->identity : !src->dicom || src->dicom->identity;
+    for (int i = 0; i < 12; i++) affine[i] = id ? (i % 5 == 0 ? 1.0 : 0.0) : a[i];
     if (identity) *identity = id ? 1 : 0;
+    return ISOMEND_IO_OK;
+}
+
+ISOMEND_IO_API isomend_io_status isomend_io_nifti_info(const isomend_io_source *src, isomend_io_nifti *out) {
+    if (!src || !out || !src->opened || src->in_job) return ISOMEND_IO_ERR_INVALID_ARGUMENT;
+    if (!src->nifti) return ISOMEND_IO_ERR_UNSUPPORTED;
+    const NiftiVolume &n = *src->nifti;
+    isomend_io_nifti v;
+    std::memset(&v, 0, sizeof v);
+    v.size = std::min(out->size, sizeof v);
+    v.version = n.version;
+    v.two_files = n.two_files ? 1 : 0;
+    v.gzip = n.gzip ? 1 : 0;
+    v.header_path = n.header_path.c_str();
+    v.image_path = n.image_path.c_str();
+    v.datatype = n.datatype_name.c_str();
+    v.scaled = n.scaled ? 1 : 0;
+    v.scl_slope = n.slope;
+    v.scl_inter = n.inter;
+    v.sform_code = n.sform_code;
+    v.qform_code = n.qform_code;
+    v.transform = n.transform.c_str();
+    std::memcpy(v.file_affine, n.file_affine, sizeof v.file_affine);
+    v.axes = n.axes;
+    std::memcpy(out, &v, v.size);
     return ISOMEND_IO_OK;
 }
 
