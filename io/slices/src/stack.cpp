@@ -18,6 +18,7 @@
 
 #include <algorithm>
 #include <chrono>
+#include <condition_variable>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
@@ -331,6 +332,11 @@ void scan_stack(const std::vector<Slice> &slices, int channel, int threads, Stac
     std::atomic<size_t> done{1};
     std::atomic<bool> stop{false};
     std::mutex mu;
+    std::condition_variable finished; // the last header checked, or a failure
+    auto wake = [&] {
+        { std::lock_guard<std::mutex> lock(mu); } // the waiter is waiting or sees the state
+        finished.notify_all();
+    };
     size_t error_index = SIZE_MAX;
     isomend_io_status error_status = ISOMEND_IO_OK;
     std::string error_message;
@@ -342,6 +348,7 @@ void scan_stack(const std::vector<Slice> &slices, int channel, int threads, Stac
             error_message = msg;
         }
         stop.store(true);
+        finished.notify_all(); // under the lock: the waiter cannot miss it
     };
     const size_t per = (n - 1 + workers - 1) / workers;
     auto worker = [&](size_t begin, size_t end) {
@@ -355,7 +362,7 @@ void scan_stack(const std::vector<Slice> &slices, int channel, int threads, Stac
                     fail(k, e.status, e.what());
                     return;
                 }
-                done.fetch_add(1);
+                if (done.fetch_add(1) + 1 >= n) wake();
             }
         } catch (const std::bad_alloc &) {
             fail(n, ISOMEND_IO_ERR_OUT_OF_MEMORY, "out of memory while scanning slices");
@@ -379,12 +386,17 @@ void scan_stack(const std::vector<Slice> &slices, int channel, int threads, Stac
         throw IoError(ISOMEND_IO_ERR_INTERNAL, "cannot start header scan threads");
     }
     try {
+        // Woken when the last header is checked or a worker fails, else every
+        // 50 ms for the progress report: no run waits for a polling period.
         for (;;) {
             // at least one report, before any wait: a cancel is always seen
             if (progress) progress((double)done.load() / (double)n); // may throw (cancel)
-            if (stop.load() || done.load() >= n) break;
-            std::this_thread::sleep_for(std::chrono::milliseconds(20));
+            std::unique_lock<std::mutex> lock(mu);
+            if (finished.wait_for(lock, std::chrono::milliseconds(50),
+                                  [&] { return stop.load() || done.load() >= n; }))
+                break;
         }
+        if (progress) progress((double)done.load() / (double)n);
     } catch (...) {
         join_all();
         throw;
