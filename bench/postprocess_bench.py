@@ -109,12 +109,13 @@ def gyroid(path, n, periods=4):
 
 # ------------------------------------------------------------------ measures
 
+# tests/common/vtkcheck.py, imported when VTK is used (--peers isomend runs without it)
+sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "tests", "common"))
+
+
 def read_poly(path):
-    import vtk
-    r = vtk.vtkPLYReader()
-    r.SetFileName(path)
-    r.Update()
-    return r.GetOutput()
+    from vtkcheck import read_poly as vtk_read
+    return vtk_read(path)
 
 
 def write_poly(poly, path):
@@ -129,19 +130,8 @@ def write_poly(poly, path):
 
 
 def distances(src_poly, dst_poly):
-    import vtk
-    from vtk.util.numpy_support import vtk_to_numpy
-    loc = vtk.vtkCellLocator()
-    loc.SetDataSet(dst_poly)
-    loc.BuildLocator()
-    pts = vtk_to_numpy(src_poly.GetPoints().GetData()).astype(np.float64)
-    p = [0.0, 0.0, 0.0]
-    cid, sid, d2 = vtk.reference(0), vtk.reference(0), vtk.reference(0.0)
-    out = np.empty(len(pts))
-    for i, q in enumerate(pts):
-        loc.FindClosestPoint(q.tolist(), p, cid, sid, d2)
-        out[i] = d2.get()
-    return np.sqrt(out)
+    from vtkcheck import distances as vtk_distances
+    return vtk_distances(src_poly, dst_poly)
 
 
 def ply_positions(path):

@@ -56,6 +56,7 @@ from vtk.util.numpy_support import vtk_to_numpy
 sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "common"))
 sys.dont_write_bytecode = True  # no __pycache__ in the source tree
 import clitest  # noqa: E402
+from vtkcheck import components, distances, feature_edges, read_poly  # noqa: E402
 
 FAILURES = []
 
@@ -107,36 +108,6 @@ def noise(path, n=18, seed=5):
 
 
 # ------------------------------------------------------------------ independent checks
-
-def read_poly(path):
-    r = vtk.vtkPLYReader()
-    r.SetFileName(path)
-    r.Update()
-    return r.GetOutput()
-
-
-def vtk_feature_edges(poly):
-    """(boundary, non-manifold) edge counts by vtkFeatureEdges."""
-    out = []
-    for boundary in (True, False):
-        fe = vtk.vtkFeatureEdges()
-        fe.SetInputData(poly)
-        fe.SetBoundaryEdges(boundary)
-        fe.SetNonManifoldEdges(not boundary)
-        fe.SetFeatureEdges(False)
-        fe.SetManifoldEdges(False)
-        fe.Update()
-        out.append(fe.GetOutput().GetNumberOfLines())
-    return tuple(out)
-
-
-def vtk_components(poly):
-    cf = vtk.vtkPolyDataConnectivityFilter()
-    cf.SetInputData(poly)
-    cf.SetExtractionModeToAllRegions()
-    cf.Update()
-    return cf.GetNumberOfExtractedRegions()
-
 
 def vtk_volume(poly):
     mp = vtk.vtkMassProperties()
@@ -199,21 +170,6 @@ def expected_after_clean(comps, min_component, largest):
     return [(t, e) for _, t, e in kept]
 
 
-def distances(src_poly, dst_poly):
-    """Distance from every vertex of src_poly to the surface dst_poly."""
-    loc = vtk.vtkCellLocator()
-    loc.SetDataSet(dst_poly)
-    loc.BuildLocator()
-    pts = vtk_to_numpy(src_poly.GetPoints().GetData()).astype(np.float64)
-    p = [0.0, 0.0, 0.0]
-    cid, sid, d2 = vtk.reference(0), vtk.reference(0), vtk.reference(0.0)
-    out = np.empty(len(pts))
-    for i, q in enumerate(pts):
-        loc.FindClosestPoint(q.tolist(), p, cid, sid, d2)
-        out[i] = d2.get()
-    return np.sqrt(out)
-
-
 def independent(name, path, want_border=0, want_comps=None):
     """The VTK/numpy verdict on a file; returns (vertices, faces, poly, comps)."""
     verts, faces = clitest.read_ply_arrays(path)
@@ -221,7 +177,7 @@ def independent(name, path, want_border=0, want_comps=None):
     if poly.GetNumberOfCells() != len(faces) or poly.GetNumberOfPoints() != len(verts):
         fail(name, f"VTK read {poly.GetNumberOfPoints()}/{poly.GetNumberOfCells()}, "
                    f"the PLY has {len(verts)}/{len(faces)}")
-    boundary, nonmanifold = vtk_feature_edges(poly)
+    boundary, nonmanifold = feature_edges(poly)
     if boundary != want_border or nonmanifold:
         fail(name, f"vtkFeatureEdges: {boundary} boundary (want {want_border}), "
                    f"{nonmanifold} non-manifold edges")
@@ -229,7 +185,7 @@ def independent(name, path, want_border=0, want_comps=None):
     if es["once"] != want_border or es["many"] or es["same_way"] or es["directed_dup"]:
         fail(name, f"edges (numpy): {es}, want {want_border} used once")
     comps = component_eulers(faces)
-    nvtk = vtk_components(poly)
+    nvtk = components(poly)
     if nvtk != len(comps):
         fail(name, f"vtkPolyDataConnectivityFilter: {nvtk} regions, numpy {len(comps)}")
     if want_comps is not None:
@@ -281,7 +237,7 @@ def self_test_checkers():
     for t in faces[1:]:
         cells.InsertNextCell(3, [int(i) for i in t])
     cut.SetPolys(cells)
-    if vtk_feature_edges(cut) != (3, 0) or vtk_feature_edges(poly) != (0, 0):
+    if feature_edges(cut) != (3, 0) or feature_edges(poly) != (0, 0):
         fail("self-test", "vtkFeatureEdges does not see a removed triangle")
     # distances: a vertex moved by 0.25 away from a sphere of radius 0.5
     moved = vtk.vtkPolyData()

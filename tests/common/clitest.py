@@ -4,8 +4,8 @@ Used by tests/io/test_cli_io.py, tests/io/test_dicom_cli.py,
 tests/cli/test_cli.py, test_stream.py, test_stream_memory.py and
 tests/mpi/test_mpi.py and test_mpi_memory.py, which import it with their own folder's
 ../common on sys.path.  Standard library only (test_cli.py runs in the
-sanitizer build too); read_ply_arrays and busy_slice import numpy when they
-are called.
+sanitizer build too); read_ply_arrays, read_nrrd and busy_slice import numpy
+when they are called.
 """
 import os
 import subprocess
@@ -57,6 +57,20 @@ def read_ply_arrays(path):
     faces = np.frombuffer(data, dtype=np.dtype([("n", "u1"), ("v", "<u4", 3)]), count=nf,
                           offset=end + nv * len(props) * 4)
     return verts, faces["v"]
+
+
+def read_nrrd(path):
+    """samples/anatomical.nrrd (attached, gzip, int16) -> a numpy array [z, y, x]."""
+    import gzip
+
+    import numpy as np
+
+    raw = open(path, "rb").read()
+    head, _, body = raw.partition(b"\n\n")
+    fields = dict(l.split(": ", 1) for l in head.decode().splitlines()[1:] if ": " in l and not l.startswith("#"))
+    sizes = [int(v) for v in fields["sizes"].split()]
+    assert fields["type"] == "int16" and fields["encoding"] == "gzip"
+    return np.frombuffer(gzip.decompress(body), "<i2").reshape(sizes[::-1])
 
 
 def run_measured(peak_rss, args, cwd, env=None, timeout=600):

@@ -33,7 +33,6 @@ cases.json: the same cases for the Python tests, with the geometry of each
 
 Usage: gen_dicom.py OUTDIR SAMPLES_DIR
 """
-import gzip
 import json
 import os
 import re
@@ -43,6 +42,10 @@ import sys
 
 import numpy as np
 import pydicom
+
+sys.dont_write_bytecode = True  # no __pycache__ in the source tree
+sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "common"))
+from clitest import read_nrrd  # noqa: E402
 from pydicom.dataset import Dataset, FileMetaDataset
 from pydicom.sequence import Sequence
 from pydicom.uid import (ExplicitVRLittleEndian, ImplicitVRLittleEndian, RLELossless,
@@ -71,16 +74,6 @@ def d(*parts):
 
 
 # ---------------------------------------------------------------- volumes
-
-def read_nrrd(path):
-    """samples/anatomical.nrrd (attached, gzip): array [z, y, x]."""
-    raw = open(path, "rb").read()
-    head, _, body = raw.partition(b"\n\n")
-    fields = dict(l.split(": ", 1) for l in head.decode().splitlines()[1:] if ": " in l and not l.startswith("#"))
-    sizes = [int(v) for v in fields["sizes"].split()]
-    assert fields["type"] == "int16" and fields["encoding"] == "gzip"
-    return np.frombuffer(gzip.decompress(body), "<i2").reshape(sizes[::-1])
-
 
 def ct_phantom(nx=40, ny=36, nz=30):
     """A head in HU, [z, y, x]: air -1000, skin/soft tissue 40, a bone shell

@@ -33,6 +33,7 @@ import numpy as np
 sys.dont_write_bytecode = True  # no __pycache__ in the source tree
 sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "common"))
 from clitest import check, failures, read_ply_arrays, run as run_cli, summary  # noqa: E402
+from vtkcheck import components, feature_edges, read_poly  # noqa: E402
 
 CLI, DIR = sys.argv[1], os.path.abspath(sys.argv[2])
 CASES = json.load(open(os.path.join(DIR, "cases.json")))
@@ -153,6 +154,11 @@ def main():
             check(ck.get("holes") == 0 and ck.get("border_edges") == 0 and ck.get("continuous") is True and
                   ck.get("nonmanifold_edges") == 0 and ck.get("misoriented_edges") == 0,
                   "%s: the padded mesh is not closed: %s" % (name, ck))
+            poly = read_poly(d)
+            fe = feature_edges(poly)
+            check(fe == (0, 0) and components(poly) == ck.get("components"),
+                  "%s: VTK finds %d boundary and %d non-manifold edges, %d components (checker: %s)"
+                  % (name, fe[0], fe[1], components(poly), ck.get("components")))
             nx, ny, nz = c["dims"]
             rp = os.path.join(tmp, name + ".index.ply")
             r = run(["extract", "--quiet", "--pad", "--iso", isos, "-o", rp, c["expected"],

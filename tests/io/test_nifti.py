@@ -22,7 +22,6 @@ from gen_dicom.py's CT series:
 - a truncated .nii, a cut .nii.gz, a garbage header, a 4D file with two
   volumes, an RGB file and a missing file: exit 1, the file named, no output.
 """
-import gzip
 import json
 import os
 import struct
@@ -34,7 +33,7 @@ import nibabel as nib
 
 sys.dont_write_bytecode = True  # no __pycache__ in the source tree
 sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "common"))
-from clitest import check, failures, read_ply_arrays, run as run_cli  # noqa: E402
+from clitest import check, failures, read_nrrd, read_ply_arrays, run as run_cli  # noqa: E402
 
 CLI, SAMPLES, DICOM = sys.argv[1], os.path.abspath(sys.argv[2]), os.path.abspath(sys.argv[3])
 LPS = np.diag([-1.0, -1.0, 1.0])
@@ -42,16 +41,6 @@ LPS = np.diag([-1.0, -1.0, 1.0])
 
 def run(args):
     return run_cli(CLI, args)
-
-
-def read_nrrd(path):
-    """samples/anatomical.nrrd (attached, gzip, int16): array [z, y, x]."""
-    raw = open(path, "rb").read()
-    head, _, body = raw.partition(b"\n\n")
-    fields = dict(l.split(": ", 1) for l in head.decode().splitlines()[1:] if ": " in l and not l.startswith("#"))
-    sizes = [int(v) for v in fields["sizes"].split()]
-    assert fields["type"] == "int16" and fields["encoding"] == "gzip"
-    return np.frombuffer(gzip.decompress(body), "<i2").reshape(sizes[::-1])
 
 
 def info(path, *extra):
