@@ -380,7 +380,8 @@ ISOMEND_API isomend_status isomend_mesh_copy_transformed(const isomend_mesh *mes
  * layer k is the cubes between slices k and k + 1.  The sink receives
  * slice 0's vertices, then for k = 0, 1, ...: layer k's cube-private
  * vertices (mc33, and facial, gradient, asymptotic where needed) and slice
- * k + 1's vertices (one call), layer k's triangles, and retire(first id of
+ * k + 1's vertices (one call; two where a threaded stream's slabs meet),
+ * layer k's triangles, and retire(first id of
  * slice k + 1).  isomend_extract() numbers its vertices in that order:
  * slice 0, layer 0's private vertices, slice 1, layer 1's, ...
  */
@@ -421,14 +422,20 @@ typedef struct isomend_mesh_sink {
                    const float *positions);
 } isomend_mesh_sink;
 
-/* A streaming extraction (one thread; not to be shared between threads). */
+/* A streaming extraction (one caller thread; not to be shared between threads). */
 typedef struct isomend_stream isomend_stream;
 
 /*
  * Begins a stream of the volume `desc` (its type, dims, spacing, origin and
- * slice origins, which the stream copies; data and strides are ignored) with `opts` (NULL: the defaults; threads,
- * progress and ISOMEND_FLAG_SMALL_PAGES are ignored: the stream runs on the
- * calling thread, and the caller checks for cancellation between pushes).
+ * slice origins, which the stream copies; data and strides are ignored) with
+ * `opts` (NULL: the defaults; progress and ISOMEND_FLAG_SMALL_PAGES are
+ * ignored: the caller checks for cancellation between pushes).
+ * opts->threads (0: all cores) other than 1, on a volume tall enough for two
+ * slabs of slices, extracts slabs of slices on that many worker threads while
+ * the caller pushes the next slices and the sink takes the finished slabs, in
+ * order; the sink is still called only from the thread that calls push or
+ * finish, with the same ids, triangles, floors and bytes as on one thread
+ * (docs/streaming.md, "Threads").
  * The sink is copied; vertices, triangles and retire must not be NULL.
  * The same checks and statuses as isomend_extract(), except that a stream
  * has no limit of 2^32 vertices (ids are 64-bit): ISOMEND_ERR_TOO_LARGE
@@ -466,8 +473,10 @@ ISOMEND_API void isomend_stream_destroy(isomend_stream *s);
  * An upper bound, in bytes, of the memory a stream of `desc` with `opts`
  * holds (isomend_stream_begin()'s arguments; 0 for invalid ones): the slices
  * of samples, signs and vertex ids it keeps and, at their largest possible
- * sizes, one slice's vertices and one layer's triangles.  It depends on
- * dims[0], dims[1], the type and the options, not on dims[2].  The largest
+ * sizes, one slice's vertices and one layer's triangles; with threads, that
+ * for each worker, and the slabs in flight (threads + 2: their slices and
+ * meshes, a mesh estimated as 7 bytes a sample).  It depends on dims[0],
+ * dims[1], the type and the options, not on dims[2].  The largest
  * sizes are reserved as address space and only the part a mesh uses is
  * touched, so the resident memory is usually well below it
  * (docs/streaming.md has the formula and figures).
@@ -476,10 +485,10 @@ ISOMEND_API uint64_t isomend_stream_memory(const isomend_volume *desc,
                                            const isomend_options *opts);
 
 /*
- * The most vertices one push or finish of such a stream hands to the sink
- * (a slice's, and the cube-private ones of the layer below it; 0 for invalid
+ * The most vertices one call of sink.vertices gets from such a stream (a
+ * slice's, and the cube-private ones of the layer below it; 0 for invalid
  * arguments).  A sink that keeps positions until retire() (an STL writer)
- * keeps at most twice as many.
+ * keeps at most twice as many, whatever the threads.
  */
 ISOMEND_API uint64_t isomend_stream_vertex_bound(const isomend_volume *desc,
                                                  const isomend_options *opts);
@@ -605,6 +614,80 @@ ISOMEND_API uint64_t isomend_check_memory(size_t vertex_count, size_t triangle_c
 /* Runs isomend_check on an extracted mesh with its grid box. */
 ISOMEND_API isomend_status isomend_mesh_check(const isomend_mesh *mesh,
                                               isomend_check_report *report);
+
+/*
+ * The streaming continuity check: isomend_check()'s report on a mesh that
+ * is never whole in memory, fed what a stream's sink gets (vertices,
+ * triangles, retire; see isomend_mesh_sink).  The report is isomend_check()'s
+ * on the whole mesh, field for field, with the box given at begin.  It
+ * forgets a vertex once it is retired and holds memory linear in the window
+ * of live vertices and the triangles that use them (about 16 bytes a live
+ * vertex and 200 a live triangle), not in the mesh
+ * (isomend_check_stream_peak_bytes()).  One thread; not to be shared
+ * between threads.  After a failure every later call but destroy returns
+ * that status.
+ */
+typedef struct isomend_check_stream isomend_check_stream;
+
+/* Begins a check with the volume's box (min[3], max[3]; required: the
+ * mesh's own box is known only at its end), as isomend_check()'s `box`.
+ * On failure *out is NULL. */
+ISOMEND_API isomend_status isomend_check_stream_begin(const double box[6],
+                                                      isomend_check_stream **out);
+
+/*
+ * Begins the check of the mesh a stream of `desc` with `opts` delivers
+ * (isomend_stream_begin()'s arguments and checks; data and strides are
+ * ignored): its report is isomend_mesh_check()'s on isomend_extract()'s
+ * mesh of that volume, the grid box included and, with slice origins, the
+ * unsheared frame (the table is copied: 24 bytes a slice).
+ */
+ISOMEND_API isomend_status isomend_check_stream_begin_volume(const isomend_volume *desc,
+                                                             const isomend_options *opts,
+                                                             isomend_check_stream **out);
+
+/*
+ * Vertices first_id .. first_id + count - 1, 3 floats each (copied).  The
+ * first call starts the numbering at any first_id (at least a floor retired
+ * before it); each later one must start where the previous ended.  Gaps or
+ * overlaps: ISOMEND_ERR_INVALID_ARGUMENT.  ISOMEND_ERR_TOO_LARGE when 2^31
+ * or more ids would be live (delivered, not retired) at once.
+ */
+ISOMEND_API isomend_status isomend_check_stream_vertices(isomend_check_stream *s, uint64_t first_id,
+                                                         size_t count, const float *positions);
+
+/* `count` triangles, 3 ids each, every one delivered and not retired
+ * (ISOMEND_ERR_INVALID_ARGUMENT otherwise, the foreign ids of pieces
+ * included; the call then counts none of them). */
+ISOMEND_API isomend_status isomend_check_stream_triangles(isomend_check_stream *s, size_t count,
+                                                          const uint64_t *ids);
+
+/* No later triangle uses an id below floor: those vertices are tested and
+ * forgotten.  floor below an earlier one or above the ids delivered:
+ * ISOMEND_ERR_INVALID_ARGUMENT. */
+ISOMEND_API isomend_status isomend_check_stream_retire(isomend_check_stream *s, uint64_t floor);
+
+/* Retires every vertex and fills the report (zeros on failure).  Once only;
+ * later calls but destroy and peak_bytes return ISOMEND_ERR_INVALID_ARGUMENT. */
+ISOMEND_API isomend_status isomend_check_stream_finish(isomend_check_stream *s,
+                                                       isomend_check_report *report);
+
+/* Accepts NULL. */
+ISOMEND_API void isomend_check_stream_destroy(isomend_check_stream *s);
+
+/* The most bytes the check has held so far (its arrays grow by doubling and
+ * are kept), 0 for NULL. */
+ISOMEND_API uint64_t isomend_check_stream_peak_bytes(const isomend_check_stream *s);
+
+/*
+ * Fills *sink with callbacks that feed the check (vertices, triangles,
+ * retire; foreign NULL: not for pieces), for isomend_stream_begin() or for
+ * a sink that passes what it gets on.  A callback returns non-zero when
+ * the check fails; isomend_check_stream_finish() then says why.  The sink
+ * is valid as long as the check.
+ */
+ISOMEND_API isomend_status isomend_check_stream_sink(isomend_check_stream *s,
+                                                     isomend_mesh_sink *sink);
 
 /* --------------------------------------------------------- post-processing */
 

@@ -39,6 +39,9 @@
 #include "isomend.h"
 #include "tables.h"
 #include "methods.h"
+#define KERNELS_SSE2 0 /* the span helpers of scan_inline.h, in portable C */
+#include "scan_inline.h"
+#include "stream_pool.h"
 
 #include <stdlib.h>
 
@@ -55,6 +58,7 @@ typedef struct staging {
 } staging;
 
 struct isomend_stream {
+    stream_pool *pool; /* threads: slabs on workers (stream_pool.c); NULL: below */
     ctx c;
     worker w;
     isomend_mesh_sink sink;
@@ -70,6 +74,7 @@ struct isomend_stream {
      * owns all: 0, N2, 0, n2. */
     int64_t own_first, own_end, push_first, push_end;
     int piece;
+    int lean;        /* a pool's slab: keys of its first and next slice only */
     uint64_t *keys;  /* a piece's keys of the vertices staged */
     uint32_t *fmap;  /* slice own_end's ids to foreign indices, UINT32_MAX none */
     float *fpos;     /* the foreign vertices' positions */
@@ -194,16 +199,32 @@ static isomend_status stream_init(isomend_stream *s, const isomend_volume *desc,
     return ISOMEND_OK;
 }
 
+static isomend_status bound_setup(ctx *c, const isomend_volume *desc, const isomend_options *opts);
+
 isomend_status isomend_stream_begin(const isomend_volume *desc, const isomend_options *opts,
                                     const isomend_mesh_sink *sink, isomend_stream **out)
 {
     if (!out)
         return ISOMEND_ERR_INVALID_ARGUMENT;
     *out = NULL;
+    isomend_options defaults;
+    isomend_options_init(&defaults);
+    const isomend_options *o = opts ? opts : &defaults;
+    if (!desc || !sink || !sink->vertices || !sink->triangles || !sink->retire)
+        return ISOMEND_ERR_INVALID_ARGUMENT;
+    ctx c;
+    isomend_status status = bound_setup(&c, desc, o);
+    if (status != ISOMEND_OK)
+        return status;
     isomend_stream *s = calloc(1, sizeof(*s));
     if (!s)
         return ISOMEND_ERR_OUT_OF_MEMORY;
-    const isomend_status status = stream_init(s, desc, opts, sink);
+    int64_t slab_layers;
+    const int threads = stream_pool_plan(desc, o, &slab_layers);
+    if (threads > 1)
+        status = stream_pool_begin(desc, o, sink, threads, slab_layers, &s->pool);
+    else
+        status = stream_init(s, desc, o, sink);
     if (status != ISOMEND_OK) {
         isomend_stream_destroy(s);
         return status;
@@ -216,6 +237,7 @@ void isomend_stream_destroy(isomend_stream *s)
 {
     if (!s)
         return;
+    stream_pool_destroy(s->pool);
     free(s->window);
     free(s->slice_origins);
     free(s->ids);
@@ -239,7 +261,9 @@ void isomend_stream_destroy(isomend_stream *s)
 
 void stream_set_first_id(isomend_stream *s, uint64_t first)
 {
-    if (s && s->pushed == s->push_first)
+    if (s && s->pool)
+        stream_pool_set_first_id(s->pool, first);
+    else if (s && s->pushed == s->push_first)
         s->first_id = s->next_id = first;
 }
 
@@ -249,8 +273,9 @@ static isomend_status sink_status(isomend_stream *s, int rc)
     return rc ? (s->failed = ISOMEND_ERR_SINK) : ISOMEND_OK;
 }
 
-/* Hands the n staged vertices (ids from s->next_id) to the sink. */
-static isomend_status deliver_vertices(isomend_stream *s, uint64_t n)
+/* Hands the n staged vertices (ids from s->next_id) to the sink, with their
+ * keys if `keyed`. */
+static isomend_status deliver_vertices(isomend_stream *s, uint64_t n, int keyed)
 {
     if (!n)
         return ISOMEND_OK;
@@ -258,7 +283,7 @@ static isomend_status deliver_vertices(isomend_stream *s, uint64_t n)
     const isomend_status status =
         sink_status(s, s->sink.vertices(s->sink.user, s->next_id, (size_t)n, c->pos,
                                         c->want_normals ? c->nrm : NULL,
-                                        s->piece ? s->keys : NULL));
+                                        keyed ? s->keys : NULL));
     s->next_id += n;
     return status;
 }
@@ -318,13 +343,38 @@ static isomend_status slice_keys(isomend_stream *s, int64_t m, uint64_t first, u
     const grid *g = &c->g;
     worker *w = &s->w;
     const int64_t N0 = g->N[0], N1 = g->N[1], N2 = g->N[2], plane = N0 * N1;
-    const row_span *spans;
-    const uint8_t *t = m + 1 < N2 ? c->kernels->signs(w, m + 1, &spans) : NULL;
-    const uint8_t *sg = c->kernels->signs(w, m, &spans);
+    const row_span *rn = NULL, *ra;
+    const uint8_t *t = m + 1 < N2 ? c->kernels->signs(w, m + 1, &rn) : NULL;
+    const uint8_t *sg = c->kernels->signs(w, m, &ra);
     const uint32_t *map = w->edge_ids[m % 2];
     uint64_t *keys = s->keys + (first - s->next_id);
     const uint32_t low = (uint32_t)first;
-    for (int64_t j = c->cube_lo[1]; j <= c->cube_hi[1]; j++) { /* what scan_slice numbered */
+    for (int64_t j = c->cube_lo[1]; j <= c->cube_hi[1] && !c->tetra; j++) {
+        /* the x, y and z edges where the rows' spans allow a crossing */
+        const uint8_t *a = sg + j * N0, *other[3] = {a + 1, j + 1 < N1 ? a + N0 : NULL,
+                                                     t ? t + j * N0 : NULL};
+        for (int kind = 0; kind < 3; kind++) {
+            if (!other[kind])
+                continue;
+            int64_t sp[4];
+            int n = kind == 0 ? row_spans(&ra[j], N0, sp)
+                              : pair_spans(&ra[j], kind == 1 ? &ra[j + 1] : &rn[j], N0, sp);
+            n = clip_spans(sp, n, c->cube_lo[0], kind == 0 && c->cube_hi[0] == N0 - 1
+                                                      ? N0 - 2
+                                                      : c->cube_hi[0]);
+            const uint8_t *b = other[kind];
+            for (int q = 0; q < n; q++)
+                for (int64_t i = sp[2 * q]; i <= sp[2 * q + 1]; i++) {
+                    if (a[i] == b[i])
+                        continue;
+                    const uint64_t r = (uint32_t)(map[kind * plane + j * N0 + i] - low);
+                    if (r >= nv)
+                        return s->failed = ISOMEND_ERR_INVALID_ARGUMENT; /* not reached */
+                    keys[r] = edge_key(g, i, j, m, kind);
+                }
+        }
+    }
+    for (int64_t j = c->cube_lo[1]; j <= c->cube_hi[1] && c->tetra; j++) { /* every column */
         const uint8_t *a = sg + j * N0, *b = j + 1 < N1 ? a + N0 : NULL;
         const uint8_t *d = t ? t + j * N0 : NULL, *e = t && b ? d + N0 : NULL;
         for (int64_t i = c->cube_lo[0]; i <= c->cube_hi[0]; i++) {
@@ -362,9 +412,10 @@ static isomend_status slice_keys(isomend_stream *s, int64_t m, uint64_t first, u
     s->nforeign = nf;
     if (!nf)
         return ISOMEND_OK;
-    for (uint64_t f = 0; f < nf; f++)
+    for (uint64_t f = 0; f < nf && !s->lean; f++) /* a pool's slab needs the keys only */
         plane_position(s, keys[f], m, s->fpos + 3 * f);
-    return sink_status(s, s->sink.foreign(s->sink.user, 0, (size_t)nf, keys, s->fpos));
+    return sink_status(s, s->sink.foreign(s->sink.user, 0, (size_t)nf, keys,
+                                          s->lean ? NULL : s->fpos));
 }
 
 /* ------------------------------------------------------------ box pieces */
@@ -537,7 +588,10 @@ static isomend_status step(isomend_stream *s, int64_t m)
     if (layer && c->general) /* the private vertices and the triangles */
         (void)kr->march_layer(w, k, PASS_FILL, 0);
     isomend_status status = ISOMEND_OK;
-    if (s->piece) {
+    /* a pool's slab needs the keys of its first slice (the slab below's
+     * foreign vertices) and the foreign table of its next slice only */
+    const int keyed = s->piece && (!s->lean || last || (m == s->own_first && m > 0));
+    if (keyed) {
         for (uint64_t q = 0; q < np; q++)
             s->keys[q] = ISOMEND_KEY_NONE;
         status = slice_keys(s, m, first, nv, last && !s->box);
@@ -545,7 +599,7 @@ static isomend_status step(isomend_stream *s, int64_t m)
     uint64_t floor = 0;
     if (status == ISOMEND_OK)
         status = s->box ? box_vertices(s, m, np, nv, last, &floor)
-                        : deliver_vertices(s, last ? np : np + nv);
+                        : deliver_vertices(s, last ? np : np + nv, keyed);
     if (status != ISOMEND_OK || !layer)
         return status;
     if (!c->general)
@@ -582,6 +636,8 @@ isomend_status isomend_stream_push(isomend_stream *s, const void *slice)
 {
     if (!s || !slice)
         return ISOMEND_ERR_INVALID_ARGUMENT;
+    if (s->pool)
+        return stream_pool_push(s->pool, slice);
     if (s->failed != ISOMEND_OK)
         return s->failed;
     grid *g = &s->c.g;
@@ -605,6 +661,8 @@ isomend_status isomend_stream_finish(isomend_stream *s, isomend_stats *stats)
 {
     if (!s)
         return ISOMEND_ERR_INVALID_ARGUMENT;
+    if (s->pool)
+        return stream_pool_finish(s->pool, stats);
     if (s->failed != ISOMEND_OK)
         return s->failed;
     const grid *g = &s->c.g;
@@ -746,18 +804,82 @@ isomend_status isomend_piece_begin(const isomend_volume *desc, const isomend_opt
     return ISOMEND_OK;
 }
 
+/* One stream's (or piece's) memory, without a pool. */
+static uint64_t single_memory(const ctx *c, int piece)
+{
+    worker w;
+    uint64_t size[4];
+    stream_sizes(c, size);
+    const uint64_t plane = (uint64_t)c->g.n[0] * (uint64_t)c->g.n[1] * isomend_type_size(c->g.type);
+    uint64_t total = sizeof(isomend_stream) + WINDOW * plane + worker_layout(&w, c, NULL) +
+                     3 * sizeof(uint64_t) * TRIANGLE_BATCH;
+    for (int q = 0; q < 4; q++)
+        total += huge_round((size_t)size[q]);
+    if (piece) { /* keys, the foreign map and positions */
+        uint64_t sv, lv, lt;
+        stream_bounds(c, &sv, &lv, &lt);
+        total += 8 * (sv + lv) + 16 * sv;
+    }
+    return total;
+}
+
+/* ------------------------------------------------- a pool's slabs */
+
+isomend_status stream_slab_begin(const isomend_volume *desc, const isomend_options *opts,
+                                 const isomend_mesh_sink *sink, isomend_stream **out)
+{
+    const isomend_piece first = {0, 1, {0, 0}, {0, 0}};
+    const isomend_status status = isomend_piece_begin(desc, opts, &first, sink, out);
+    if (status == ISOMEND_OK)
+        (*out)->lean = 1;
+    return status;
+}
+
+isomend_status stream_slab_run(isomend_stream *s, const char *planes, isomend_stats *stats)
+{
+    grid *g = &s->c.g;
+    g->data = planes; /* read in place: no window */
+    g->z0 = s->push_first;
+    s->pushed = s->push_end;
+    const isomend_status status = advance(s, s->push_end - 1 + g->pad);
+    if (status != ISOMEND_OK)
+        return status;
+    return isomend_stream_finish(s, stats);
+}
+
+isomend_status stream_slab_reset(isomend_stream *s, int64_t owned_first, int64_t owned_end)
+{
+    const isomend_piece piece = {owned_first, owned_end, {0, 0}, {0, 0}};
+    grid *g = &s->c.g;
+    const isomend_status status = piece_range(g, &piece, &s->push_first, &s->push_end);
+    if (status != ISOMEND_OK)
+        return status;
+    s->own_first = s->next_scan = owned_first;
+    s->own_end = owned_end;
+    s->pushed = g->z0 = s->push_first;
+    s->failed = ISOMEND_OK;
+    s->finished = 0;
+    s->first_id = s->next_id = 0;
+    s->slice_first[0] = s->slice_first[1] = 0;
+    s->triangles = s->nforeign = 0;
+    worker *w = &s->w;
+    for (int r = 0; r < SIGN_RING; r++)
+        w->slice_held[r] = -1;
+    memset(&w->stats, 0, sizeof w->stats);
+    memset(w->pending_count, 0, sizeof w->pending_count);
+    w->private_count = w->private_next = 0;
+    return ISOMEND_OK;
+}
+
 uint64_t isomend_stream_memory(const isomend_volume *desc, const isomend_options *opts)
 {
     ctx c;
     if (bound_setup(&c, desc, opts) != ISOMEND_OK)
         return 0;
-    worker w;
-    uint64_t size[4];
-    stream_sizes(&c, size);
-    const uint64_t plane = (uint64_t)c.g.n[0] * (uint64_t)c.g.n[1] * isomend_type_size(c.g.type);
-    uint64_t total = sizeof(isomend_stream) + WINDOW * plane + worker_layout(&w, &c, NULL) +
-                     3 * sizeof(uint64_t) * TRIANGLE_BATCH;
-    for (int q = 0; q < 4; q++)
-        total += huge_round((size_t)size[q]);
-    return total;
+    isomend_options defaults;
+    isomend_options_init(&defaults);
+    const int threads = stream_pool_threads(opts ? opts : &defaults);
+    if (threads > 1) /* whether a pool runs depends on dims[2]; the bound does not */
+        return stream_pool_memory(desc, threads, c.g.pad, single_memory(&c, 1));
+    return single_memory(&c, 0);
 }

@@ -16,6 +16,7 @@
  *                        the bundled MRI; built with io/'s NRRD reader)
  */
 #include "isomend.h"
+#include "stream_pool.h"
 #include "testutil.h"
 #ifdef ISOMEND_TEST_NRRD
 #include "volume_readers.h"
@@ -414,6 +415,50 @@ static void test_all_methods_types(void)
             free(so);
             free(data);
         }
+}
+
+/* Streams on several threads (stream_pool.c): slabs extracted by workers and
+ * handed over in order, tall enough for many slabs; the same bytes as the
+ * in-memory mesh for every thread count. */
+static int pooled;
+static void test_threads(void)
+{
+    static const unsigned flag_sets[] = {0, ISOMEND_FLAG_PAD,
+                                         ISOMEND_FLAG_NO_NORMALS | ISOMEND_FLAG_NO_ORIGINS,
+                                         ISOMEND_FLAG_FLIP | ISOMEND_FLAG_PAD};
+    for (int round = 0; round < 12; round++) {
+        const int shape = round % SHAPES;
+        const isomend_type type = (isomend_type)(rng() % ISOMEND_TYPE_COUNT);
+        const int64_t n[3] = {3 + (int64_t)(rng() % 30), 3 + (int64_t)(rng() % 30),
+                              20 + (int64_t)(rng() % 100)};
+        double iso;
+        isomend_volume vol;
+        void *data = make_volume(shape, type, n, &vol, &iso);
+        vol.spacing[2] = 0.75;
+        double *so = round % 3 == 1 ? shear_slices(&vol) : NULL;
+        for (int m = 0; m < ISOMEND_METHOD_COUNT; m++) {
+            if (!isomend_method_available((isomend_method)m))
+                continue;
+            isomend_options o;
+            isomend_options_init(&o);
+            o.iso = iso;
+            o.method = (isomend_method)m;
+            o.flags = flag_sets[(round + m) % 4];
+            static const int counts[] = {2, 3, 5};
+            o.threads = counts[(round + m) % 3];
+            int64_t slab_layers;
+            pooled += stream_pool_plan(&vol, &o, &slab_layers) > 1;
+            char what[160];
+            snprintf(what, sizeof what, "threads %d: %s %s %lldx%lldx%lld%s %s flags %u",
+                     o.threads, shape_names[shape], isomend_type_name(type), (long long)n[0],
+                     (long long)n[1], (long long)n[2], so ? " sheared" : "",
+                     isomend_method_name((isomend_method)m), o.flags);
+            compare(&vol, &o, 0, what);
+        }
+        free(so);
+        free(data);
+    }
+    CHECK(pooled > 60); /* nearly all of them took the pool */
 }
 
 /* Ids past 2^32: the stream starts numbering just below it (ids are kept
@@ -1249,7 +1294,9 @@ int main(int argc, char **argv)
     test_bad_input();
     test_ids_past_2_32();
     test_all_methods_types();
-    printf("%d streams identical to isomend_extract()\n", compared);
+    test_threads();
+    printf("%d streams identical to isomend_extract() (%d on a pool of threads)\n", compared,
+           pooled);
     test_pieces();
     printf("%d extractions in pieces stitched to isomend_extract()'s mesh\n", pieces_compared);
     printf("%d box pieces stitched to isomend_extract()'s mesh\n", boxes_compared);

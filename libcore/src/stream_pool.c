@@ -1,0 +1,617 @@
+/*
+ * stream_pool.c - a stream on several threads: slabs of the marched grid
+ * extracted by a pool of workers and handed to the sink in order.
+ *
+ *   push (caller)          workers (threads)              sink (caller)
+ *   slice z -> plane  -->  slab s: a piece [a, b)   -->   slab s's calls replayed,
+ *   attached to the        (isomend_piece_begin), its     ids made global by the
+ *   slabs whose halo       planes pushed, its mesh kept   running count: base(s)
+ *   holds it               in the slab's buffers          + local id
+ *
+ * A slab is a piece of the grid (isomend.h, "Pieces"): it numbers its
+ * vertices from 0, in isomend_extract()'s order, and refers to the next
+ * slab's vertices of its last slice b as ISOMEND_FOREIGN | f, f numbering
+ * the in-plane vertices of slice b in id order.  The next slab numbers the
+ * same vertices first, in the same order (the same scan of the same slice),
+ * so f is the f-th in-plane vertex of the next slab's first call (kept as
+ * `lead`; the keys are compared, a mismatch is an error, not a mesh).  Slab
+ * s is delivered once it and slab s + 1 are done: its calls (vertices,
+ * triangles, retire, as the piece made them) replayed with base(s) added,
+ * base(s + 1) = base(s) + its vertices, the next slab's first vertices
+ * delivered just before the triangles that use them.  The sink sees
+ * isomend_stream_push()'s sequence of ids, triangles and floors, whatever
+ * the number of threads: the mesh is the same bytes.
+ *
+ * Memory: at most `inflight` slabs at a time (threads + 2), each holding
+ * its planes (shared with its neighbour where their halos meet) and its
+ * mesh, and one piece per worker (isomend_stream_memory() of a piece).
+ */
+#define _GNU_SOURCE /* _SC_NPROCESSORS_ONLN */
+#include "stream_pool.h"
+
+#include <pthread.h>
+#include <stdlib.h>
+#include <string.h>
+#include <unistd.h>
+
+#define LOCAL_MAX 0x80000000u /* a slab's vertices: fewer (its lead's ids are 32-bit) */
+/* Samples a slab should hold at least (its planes' work amortises a piece's
+ * set-up) and the layers a slab has at least and at most. */
+#define SLAB_SAMPLES ((int64_t)1 << 21)
+#define SLAB_MIN 3
+#define SLAB_MAX 64
+
+typedef enum { EV_VERTICES, EV_TRIANGLES, EV_RETIRE, EV_FOREIGN } event_kind;
+
+typedef struct event {
+    event_kind kind;
+    uint64_t at, count; /* vertices/triangles: first and count; retire: floor in at */
+} event;
+
+typedef enum { SLAB_FREE, SLAB_FILLING, SLAB_QUEUED, SLAB_RUNNING, SLAB_DONE } slab_state;
+
+typedef struct slab {
+    slab_state state;
+    int64_t index, a, b, z_first, z_end; /* owned marched slices, volume slices read */
+    char *input;                         /* its volume slices, contiguous [H + 3 planes] */
+    isomend_status status;
+    isomend_stats stats;
+    uint64_t nv, vcap, ncap, nt, tcap, ocap, nev, evcap, nf, fcap, nlead, leadcap, lidcap;
+    isomend_status sink_status; /* why the slab's sink refused, if it did */
+    float *pos, *nrm;
+    uint64_t *tri; /* the piece's ids (local, ISOMEND_FOREIGN | f), made global in place */
+    uint8_t *org;
+    event *ev;
+    uint64_t *fkeys;               /* the foreign vertices' keys */
+    uint64_t *lead_keys;           /* slice a's in-plane vertices, in id order */
+    uint32_t *lead_ids;            /* ... their local ids */
+    int lead_delivered;            /* the first vertices call went out with the slab below */
+    int saw_vertices;
+} slab;
+
+struct stream_pool {
+    isomend_volume desc;   /* with the pool's copy of the slice origins */
+    double *slice_origins;
+    isomend_options opts;  /* the pieces': one thread, no progress */
+    isomend_mesh_sink sink;
+    int threads, inflight;
+    int64_t H, nslabs, N0, N1, pad;
+    size_t plane_bytes;
+    slab *slabs;          /* [inflight]: slab s in slabs[s % inflight] */
+    pthread_t *workers;
+    int started;
+    pthread_mutex_t lock;
+    pthread_cond_t work, done;
+    int64_t *queue;       /* slabs to run, FIFO [inflight] */
+    int64_t qhead, qcount;
+    int stop;
+    int64_t pushed, next_open, next_deliver; /* volume slices pushed; the next slab to open, to hand over */
+    uint64_t first_id, next_id, triangles;
+    isomend_stats stats;
+    isomend_status failed;
+};
+
+/* ---------------------------------------------------------------- plan */
+
+static int resolve_threads(int threads)
+{
+    if (threads > 0)
+        return threads > 64 ? 64 : threads;
+    long n = sysconf(_SC_NPROCESSORS_ONLN);
+    return n < 1 ? 1 : n > 64 ? 64 : (int)n;
+}
+
+/* The layers of a slab of `plane` samples, before the spread. */
+static int64_t slab_height(int64_t plane)
+{
+    const int64_t h = SLAB_SAMPLES / (plane > 0 ? plane : 1);
+    return h < SLAB_MIN ? SLAB_MIN : h > SLAB_MAX ? SLAB_MAX : h;
+}
+
+int stream_pool_threads(const isomend_options *opts)
+{
+    return resolve_threads(opts ? opts->threads : 0);
+}
+
+int stream_pool_plan(const isomend_volume *desc, const isomend_options *opts, int64_t *slab_layers)
+{
+    const int threads = stream_pool_threads(opts);
+    const int pad = opts && (opts->flags & ISOMEND_FLAG_PAD) ? 1 : 0;
+    const int64_t N2 = desc->dims[2] + 2 * pad;
+    int64_t h = slab_height((desc->dims[0] + 2 * pad) * (desc->dims[1] + 2 * pad));
+    const int64_t spread = N2 / (4 * (int64_t)threads); /* four slabs a thread, if it can */
+    if (h > spread)
+        h = spread < SLAB_MIN ? SLAB_MIN : spread;
+    *slab_layers = h;
+    if (threads < 2 || N2 - 1 < 2 * h) /* fewer than two slabs: the plain stream */
+        return 1;
+    return threads;
+}
+
+uint64_t stream_pool_memory(const isomend_volume *desc, int threads, int pad, uint64_t piece)
+{
+    /* the tallest slab the plan makes for these slices, whatever dims[2] */
+    const uint64_t H = (uint64_t)slab_height((desc->dims[0] + 2 * pad) * (desc->dims[1] + 2 * pad));
+    const uint64_t inflight = (uint64_t)threads + 2;
+    const uint64_t samples = (uint64_t)desc->dims[0] * (uint64_t)desc->dims[1];
+    const uint64_t plane = samples * isomend_type_size(desc->type);
+    /* a slab's mesh, as busy as the in-memory rule's surface: a vertex (24
+     * bytes) every 8 samples, a triangle (13 bytes) every 4, 7 bytes a sample */
+    const uint64_t mesh = samples * H * 7;
+    return sizeof(stream_pool) + (uint64_t)threads * piece + inflight * ((H + 3) * plane + mesh);
+}
+
+/* ----------------------------------------------------------- growth */
+
+static int grow(void **p, uint64_t *cap, uint64_t need, size_t elem)
+{
+    if (need <= *cap)
+        return 1;
+    uint64_t c = *cap ? *cap : 1024;
+    while (c < need)
+        c *= 2;
+    void *q = realloc(*p, (size_t)c * elem);
+    if (!q)
+        return 0;
+    *p = q;
+    *cap = c;
+    return 1;
+}
+
+/* ------------------------------------------------- a slab's own sink */
+
+static int add_event(slab *s, event_kind kind, uint64_t at, uint64_t count)
+{
+    if (kind == EV_TRIANGLES && s->nev && s->ev[s->nev - 1].kind == EV_TRIANGLES) {
+        s->ev[s->nev - 1].count += count; /* a layer's batches: one event */
+        return 0;
+    }
+    if (!grow((void **)&s->ev, &s->evcap, s->nev + 1, sizeof(event)))
+        return 1;
+    s->ev[s->nev++] = (event){kind, at, count};
+    return 0;
+}
+
+/* The piece's pool, for the keys' geometry. */
+typedef struct slab_user {
+    slab *s;
+    const stream_pool *p;
+} slab_user;
+
+static int slab_vertices(void *user, uint64_t first, size_t count, const float *pos,
+                         const float *nrm, const uint64_t *keys)
+{
+    const slab_user *u = user;
+    slab *s = u->s;
+    const stream_pool *p = u->p;
+    if (first != s->nv || s->nv + count >= LOCAL_MAX) {
+        s->sink_status = ISOMEND_ERR_TOO_LARGE;
+        return 1;
+    }
+    if (!grow((void **)&s->pos, &s->vcap, s->nv + count, 3 * sizeof(float)) ||
+        (nrm && !grow((void **)&s->nrm, &s->ncap, s->nv + count, 3 * sizeof(float))))
+        return 1;
+    if (nrm)
+        memcpy(s->nrm + 3 * s->nv, nrm, 3 * sizeof(float) * count);
+    memcpy(s->pos + 3 * s->nv, pos, 3 * sizeof(float) * count);
+    if (!s->saw_vertices && s->index > 0 && keys) { /* slice a's in-plane vertices: the slab below's foreign */
+        const uint64_t plane = (uint64_t)p->N0 * (uint64_t)p->N1;
+        for (size_t r = 0; r < count; r++) {
+            const uint64_t key = keys[r], kind = key & 7u;
+            if (key == ISOMEND_KEY_NONE || (key >> 3) / plane != (uint64_t)s->a ||
+                !(kind == 0 || kind == 1 || kind == 5))
+                continue;
+            if (!grow((void **)&s->lead_keys, &s->leadcap, s->nlead + 1, sizeof(uint64_t)) ||
+                !grow((void **)&s->lead_ids, &s->lidcap, s->nlead + 1, sizeof(uint32_t)))
+                return 1;
+            s->lead_keys[s->nlead] = key;
+            s->lead_ids[s->nlead++] = (uint32_t)(first + r);
+        }
+    }
+    s->saw_vertices = 1;
+    if (add_event(s, EV_VERTICES, s->nv, count))
+        return 1;
+    s->nv += count;
+    return 0;
+}
+
+static int slab_triangles(void *user, size_t count, const uint64_t *ids, const uint8_t *org)
+{
+    slab *s = ((slab_user *)user)->s;
+    if (!grow((void **)&s->tri, &s->tcap, s->nt + count, 3 * sizeof(uint64_t)) ||
+        (org && !grow((void **)&s->org, &s->ocap, s->nt + count, 1)))
+        return 1;
+    if (org)
+        memcpy(s->org + s->nt, org, count);
+    memcpy(s->tri + 3 * s->nt, ids, 3 * sizeof(uint64_t) * count);
+    if (add_event(s, EV_TRIANGLES, s->nt, count))
+        return 1;
+    s->nt += count;
+    return 0;
+}
+
+static int slab_retire(void *user, uint64_t floor)
+{
+    return add_event(((slab_user *)user)->s, EV_RETIRE, floor, 0);
+}
+
+static int slab_foreign(void *user, size_t first, size_t count, const uint64_t *keys,
+                        const float *positions)
+{
+    (void)positions;
+    slab *s = ((slab_user *)user)->s;
+    if (first != s->nf || !grow((void **)&s->fkeys, &s->fcap, s->nf + count, sizeof(uint64_t)))
+        return 1;
+    memcpy(s->fkeys + s->nf, keys, sizeof(uint64_t) * count);
+    s->nf += count;
+    return add_event(s, EV_FOREIGN, first, count);
+}
+
+/* ------------------------------------------------------------ workers */
+
+/* The worker's piece stream, made at its first slab and reused after. */
+typedef struct worker_state {
+    slab_user user; /* the sink's user: the slab the piece runs now */
+    isomend_stream *piece;
+} worker_state;
+
+/* Extracts slab s: its piece, its planes pushed in order. */
+static void run_slab(stream_pool *p, slab *s, worker_state *ws)
+{
+    ws->user.s = s;
+    ws->user.p = p;
+    isomend_status st = ISOMEND_OK;
+    if (!ws->piece) {
+        const isomend_mesh_sink sink = {&ws->user, slab_vertices, slab_triangles, slab_retire,
+                                        slab_foreign};
+        st = stream_slab_begin(&p->desc, &p->opts, &sink, &ws->piece);
+    }
+    if (st == ISOMEND_OK)
+        st = stream_slab_reset(ws->piece, s->a, s->b);
+    if (st == ISOMEND_OK)
+        st = stream_slab_run(ws->piece, s->input, &s->stats);
+    if (st == ISOMEND_ERR_SINK) /* the slab's sink refuses only what it cannot hold */
+        st = s->sink_status != ISOMEND_OK ? s->sink_status : ISOMEND_ERR_OUT_OF_MEMORY;
+    pthread_mutex_lock(&p->lock);
+    s->status = st;
+    s->state = SLAB_DONE;
+    pthread_cond_broadcast(&p->done);
+    pthread_mutex_unlock(&p->lock);
+}
+
+static void *worker_main(void *arg)
+{
+    stream_pool *p = arg;
+    worker_state ws = {{NULL, NULL}, NULL};
+    pthread_mutex_lock(&p->lock);
+    for (;;) {
+        while (!p->stop && p->qcount == 0)
+            pthread_cond_wait(&p->work, &p->lock);
+        if (p->stop)
+            break;
+        const int64_t index = p->queue[p->qhead];
+        p->qhead = (p->qhead + 1) % p->inflight;
+        p->qcount--;
+        slab *s = &p->slabs[index % p->inflight];
+        s->state = SLAB_RUNNING;
+        pthread_mutex_unlock(&p->lock);
+        run_slab(p, s, &ws);
+        pthread_mutex_lock(&p->lock);
+    }
+    pthread_mutex_unlock(&p->lock);
+    isomend_stream_destroy(ws.piece);
+    return NULL;
+}
+
+/* --------------------------------------------------------------- delivery */
+
+static isomend_status fail(stream_pool *p, isomend_status st)
+{
+    if (p->failed == ISOMEND_OK)
+        p->failed = st;
+    return p->failed;
+}
+
+/* Hands the next slab's first vertices call to the sink (ids from base). */
+static isomend_status deliver_lead(stream_pool *p, slab *next, uint64_t base)
+{
+    const event *e = &next->ev[0];
+    if (next->nev == 0 || e->kind != EV_VERTICES)
+        return fail(p, ISOMEND_ERR_INVALID_ARGUMENT); /* not reached */
+    next->lead_delivered = 1;
+    return p->sink.vertices(p->sink.user, base + e->at, (size_t)e->count, next->pos + 3 * e->at,
+                            next->nrm ? next->nrm + 3 * e->at : NULL, NULL)
+               ? fail(p, ISOMEND_ERR_SINK)
+               : ISOMEND_OK;
+}
+
+/* Replays slab s's calls (next: slab s + 1, done, or NULL for the last). */
+static isomend_status deliver(stream_pool *p, slab *s, slab *next)
+{
+    if (s->status != ISOMEND_OK)
+        return fail(p, s->status);
+    const uint64_t base = p->next_id, next_base = base + s->nv;
+    if (s->nf) { /* the foreign vertices are the next slab's lead, key for key */
+        if (!next || next->status != ISOMEND_OK || s->nf > next->nlead)
+            return fail(p, next && next->status != ISOMEND_OK ? next->status
+                                                              : ISOMEND_ERR_INVALID_ARGUMENT);
+        if (memcmp(s->fkeys, next->lead_keys, sizeof(uint64_t) * (size_t)s->nf) != 0)
+            return fail(p, ISOMEND_ERR_INVALID_ARGUMENT);
+    }
+    int lead_due = 0;
+    isomend_status st = ISOMEND_OK;
+    for (uint64_t q = s->lead_delivered ? 1 : 0; q < s->nev && st == ISOMEND_OK; q++) {
+        const event *e = &s->ev[q];
+        switch (e->kind) {
+        case EV_VERTICES:
+            if (p->sink.vertices(p->sink.user, base + e->at, (size_t)e->count,
+                                 s->pos + 3 * e->at, s->nrm ? s->nrm + 3 * e->at : NULL, NULL))
+                st = fail(p, ISOMEND_ERR_SINK);
+            break;
+        case EV_FOREIGN:
+            lead_due = 1;
+            break;
+        case EV_TRIANGLES:
+            if (lead_due) {
+                lead_due = 0;
+                st = deliver_lead(p, next, next_base);
+                if (st != ISOMEND_OK)
+                    break;
+            }
+            if (e->count) {
+                uint64_t *t = s->tri + 3 * e->at;
+                for (uint64_t k = 0; k < 3 * e->count; k++) {
+                    const uint64_t id = t[k], f = id & ~ISOMEND_FOREIGN;
+                    if (!(id & ISOMEND_FOREIGN))
+                        t[k] = base + id;
+                    else if (f < s->nf)
+                        t[k] = next_base + next->lead_ids[f];
+                    else
+                        return fail(p, ISOMEND_ERR_INVALID_ARGUMENT); /* not reached */
+                }
+                if (p->sink.triangles(p->sink.user, (size_t)e->count, t,
+                                      s->org ? s->org + e->at : NULL))
+                    st = fail(p, ISOMEND_ERR_SINK);
+            }
+            break;
+        case EV_RETIRE:
+            if (p->sink.retire(p->sink.user, base + e->at))
+                st = fail(p, ISOMEND_ERR_SINK);
+            break;
+        }
+    }
+    if (st != ISOMEND_OK)
+        return st;
+    p->next_id = next_base;
+    p->triangles += s->nt;
+    uint64_t *sum = (uint64_t *)(void *)&p->stats;
+    const uint64_t *add = (const uint64_t *)(const void *)&s->stats;
+    for (size_t k = 0; k < sizeof(isomend_stats) / sizeof(uint64_t); k++)
+        sum[k] += add[k];
+    return ISOMEND_OK;
+}
+
+/* The slab in slot of index s, if it holds slab s and is done. */
+static slab *done_slab(stream_pool *p, int64_t s)
+{
+    slab *x = &p->slabs[s % p->inflight];
+    return x->index == s && x->state == SLAB_DONE ? x : NULL;
+}
+
+/* Delivers the slabs that can go (with `wait`, until slab `until` has gone,
+ * waiting for the workers).  The lock is not held. */
+static isomend_status deliver_ready(stream_pool *p, int64_t until)
+{
+    while (p->next_deliver < p->nslabs && p->failed == ISOMEND_OK) {
+        const int64_t s = p->next_deliver;
+        pthread_mutex_lock(&p->lock);
+        slab *x, *next = NULL;
+        for (;;) {
+            x = done_slab(p, s);
+            next = s + 1 < p->nslabs ? done_slab(p, s + 1) : NULL;
+            const int ready = x && (s + 1 == p->nslabs || next || x->status != ISOMEND_OK);
+            if (ready || s > until)
+                break;
+            pthread_cond_wait(&p->done, &p->lock);
+        }
+        pthread_mutex_unlock(&p->lock);
+        if (!x || (s + 1 < p->nslabs && !next && x->status == ISOMEND_OK))
+            break; /* not ready, and not waited for */
+        const isomend_status st = deliver(p, x, next);
+        if (st != ISOMEND_OK)
+            return st;
+        pthread_mutex_lock(&p->lock);
+        x->state = SLAB_FREE;
+        x->index = -1;
+        pthread_mutex_unlock(&p->lock);
+        p->next_deliver++;
+    }
+    return p->failed;
+}
+
+/* ------------------------------------------------------------------ API */
+
+isomend_status stream_pool_begin(const isomend_volume *desc, const isomend_options *opts,
+                                 const isomend_mesh_sink *sink, int threads, int64_t slab_layers,
+                                 stream_pool **out)
+{
+    *out = NULL;
+    stream_pool *p = calloc(1, sizeof *p);
+    if (!p)
+        return ISOMEND_ERR_OUT_OF_MEMORY;
+    p->desc = *desc;
+    p->desc.data = NULL;
+    memset(p->desc.strides, 0, sizeof p->desc.strides);
+    p->opts = *opts;
+    p->opts.threads = 1;
+    p->opts.progress = NULL;
+    p->opts.progress_user = NULL;
+    p->sink = *sink;
+    p->threads = threads;
+    p->inflight = threads + 2;
+    p->H = slab_layers;
+    p->pad = (opts->flags & ISOMEND_FLAG_PAD) ? 1 : 0;
+    p->N0 = desc->dims[0] + 2 * p->pad;
+    p->N1 = desc->dims[1] + 2 * p->pad;
+    const int64_t N2 = desc->dims[2] + 2 * p->pad;
+    p->nslabs = (N2 - 1 + p->H - 1) / p->H; /* slabs own layers 0 .. N2 - 2; the last also slice N2 - 1 */
+    p->plane_bytes = (size_t)desc->dims[0] * (size_t)desc->dims[1] * isomend_type_size(desc->type);
+    isomend_status st = ISOMEND_OK;
+    if (desc->slice_origins) {
+        const size_t size = 3 * sizeof(double) * (size_t)desc->dims[2];
+        if ((p->slice_origins = malloc(size)))
+            memcpy(p->slice_origins, desc->slice_origins, size);
+        p->desc.slice_origins = p->slice_origins;
+    }
+    p->slabs = calloc((size_t)p->inflight, sizeof(slab));
+    p->queue = calloc((size_t)p->inflight, sizeof(int64_t));
+    p->workers = calloc((size_t)threads, sizeof(pthread_t));
+    if (!p->slabs || !p->queue || !p->workers ||
+        (desc->slice_origins && !p->slice_origins))
+        st = ISOMEND_ERR_OUT_OF_MEMORY;
+    for (int k = 0; k < p->inflight && st == ISOMEND_OK; k++) {
+        p->slabs[k].index = -1;
+        if (!(p->slabs[k].input = malloc(p->plane_bytes * (size_t)(p->H + 3))))
+            st = ISOMEND_ERR_OUT_OF_MEMORY;
+    }
+    if (st == ISOMEND_OK) {
+        pthread_mutex_init(&p->lock, NULL);
+        pthread_cond_init(&p->work, NULL);
+        pthread_cond_init(&p->done, NULL);
+        p->started = -1; /* the lock and conditions exist */
+        for (int t = 0; t < threads && st == ISOMEND_OK; t++) {
+            if (pthread_create(&p->workers[t], NULL, worker_main, p) != 0)
+                st = ISOMEND_ERR_OUT_OF_MEMORY;
+            else
+                p->started = t + 1;
+        }
+    }
+    if (st != ISOMEND_OK) {
+        stream_pool_destroy(p);
+        return st;
+    }
+    *out = p;
+    return ISOMEND_OK;
+}
+
+void stream_pool_set_first_id(stream_pool *p, uint64_t first)
+{
+    if (p && p->pushed == 0)
+        p->first_id = p->next_id = first;
+}
+
+/* Opens slab s in its slot (which must be free: the caller delivered). */
+static void open_slab(stream_pool *p, int64_t s)
+{
+    slab *x = &p->slabs[s % p->inflight];
+    const int64_t N2 = p->desc.dims[2] + 2 * p->pad;
+    x->state = SLAB_FILLING;
+    x->index = s;
+    x->a = s * p->H;
+    x->b = x->a + p->H < N2 - 1 ? x->a + p->H : N2;
+    x->status = x->sink_status = ISOMEND_OK;
+    memset(&x->stats, 0, sizeof x->stats);
+    x->nv = x->nt = x->nev = x->nf = x->nlead = 0;
+    x->lead_delivered = x->saw_vertices = 0;
+    int64_t lo = x->a - 1 - p->pad, hi = x->b + 2 - p->pad;
+    x->z_first = lo < 0 ? 0 : lo;
+    x->z_end = hi > p->desc.dims[2] ? p->desc.dims[2] : hi;
+}
+
+isomend_status stream_pool_push(stream_pool *p, const void *slice)
+{
+    if (p->failed != ISOMEND_OK)
+        return p->failed;
+    const int64_t z = p->pushed;
+    if (z >= p->desc.dims[2])
+        return fail(p, ISOMEND_ERR_SLICE_COUNT);
+    /* the slabs whose halo holds z: at most one opens here (halos start H apart) */
+    int64_t s0 = (z + p->pad - 2) / p->H - 1;
+    if (s0 < 0)
+        s0 = 0;
+    if (p->next_open < p->nslabs) {
+        const int64_t s = p->next_open, lo = s * p->H - 1 - p->pad;
+        if (z >= (lo < 0 ? 0 : lo)) {
+            /* its slot's previous slab must have gone to the sink */
+            const isomend_status st = deliver_ready(p, s - p->inflight);
+            if (st != ISOMEND_OK)
+                return st;
+            if (p->slabs[s % p->inflight].index != -1)
+                return fail(p, ISOMEND_ERR_INVALID_ARGUMENT); /* not reached */
+            open_slab(p, s);
+            p->next_open++;
+        }
+    }
+    int64_t attach[4];
+    int na = 0;
+    for (int64_t s = s0; s < p->next_open && na < 4; s++) {
+        const slab *x = &p->slabs[s % p->inflight];
+        if (x->index == s && z >= x->z_first && z < x->z_end)
+            attach[na++] = s; /* open and filling: queued only at its last slice */
+    }
+    pthread_mutex_lock(&p->lock); /* (open slabs are the caller's until queued) */
+    for (int k = 0; k < na; k++) {
+        slab *x = &p->slabs[attach[k] % p->inflight];
+        memcpy(x->input + (size_t)(z - x->z_first) * p->plane_bytes, slice, p->plane_bytes);
+        if (z == x->z_end - 1) {
+            x->state = SLAB_QUEUED;
+            p->queue[(p->qhead + p->qcount) % p->inflight] = x->index;
+            p->qcount++;
+            pthread_cond_signal(&p->work);
+        }
+    }
+    pthread_mutex_unlock(&p->lock);
+    p->pushed = z + 1;
+    return deliver_ready(p, -1); /* what is ready, without waiting */
+}
+
+isomend_status stream_pool_finish(stream_pool *p, isomend_stats *stats)
+{
+    if (p->failed != ISOMEND_OK)
+        return p->failed;
+    if (p->pushed != p->desc.dims[2])
+        return fail(p, ISOMEND_ERR_SLICE_COUNT);
+    const isomend_status st = deliver_ready(p, p->nslabs);
+    if (st != ISOMEND_OK)
+        return st;
+    if (stats) {
+        *stats = p->stats;
+        stats->vertices = p->next_id - p->first_id;
+        stats->triangles = p->triangles;
+    }
+    return ISOMEND_OK;
+}
+
+void stream_pool_destroy(stream_pool *p)
+{
+    if (!p)
+        return;
+    if (p->started) {
+        pthread_mutex_lock(&p->lock);
+        p->stop = 1;
+        pthread_cond_broadcast(&p->work);
+        pthread_mutex_unlock(&p->lock);
+        for (int t = 0; t < p->started; t++)
+            pthread_join(p->workers[t], NULL);
+        pthread_mutex_destroy(&p->lock);
+        pthread_cond_destroy(&p->work);
+        pthread_cond_destroy(&p->done);
+    }
+    for (int k = 0; p->slabs && k < p->inflight; k++) {
+        slab *x = &p->slabs[k];
+        free(x->input);
+        free(x->pos);
+        free(x->nrm);
+        free(x->tri);
+        free(x->org);
+        free(x->ev);
+        free(x->fkeys);
+        free(x->lead_keys);
+        free(x->lead_ids);
+    }
+    free(p->slabs);
+    free(p->queue);
+    free(p->workers);
+    free(p->slice_origins);
+    free(p);
+}
