@@ -24,14 +24,8 @@ import sys
 
 sys.dont_write_bytecode = True  # no __pycache__ in the source tree
 sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "common"))
-from clitest import read_ply_header  # noqa: E402
-
-FAILURES = []
-
-
-def fail(name, why):
-    FAILURES.append(f"{name}: {why}")
-    print(f"FAIL {name}: {why}", file=sys.stderr)
+import clitest  # noqa: E402
+from clitest import fail, read_ply_header  # noqa: E402
 
 
 class Runner:
@@ -765,12 +759,9 @@ def main():
     test_interrupt(r)
     test_check_command(r)
     test_errors(r, have_io)
-    if FAILURES:
-        print(f"{len(FAILURES)} failure(s)", file=sys.stderr)
-        return 1
-    shutil.rmtree(a.work)
-    print("ok")
-    return 0
+    if not clitest.failures:
+        shutil.rmtree(a.work)
+    return clitest.summary()
 
 
 if __name__ == "__main__":

@@ -25,12 +25,10 @@ import shutil
 import subprocess
 import sys
 
-FAILURES = []
-
-
-def fail(name, why):
-    FAILURES.append(name)
-    print(f"FAIL {name}: {why}", file=sys.stderr)
+sys.dont_write_bytecode = True  # no __pycache__ in the source tree
+sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "common"))
+import clitest  # noqa: E402
+from clitest import fail  # noqa: E402
 
 
 def check(exe, work, name, path, triangles, vertices=None):
@@ -183,17 +181,14 @@ def main():
     for tool in ("meshlabserver", "xvfb-run", "blender"):
         if not shutil.which(tool):
             fail("tools", f"{tool} not found (bash scripts/deps.sh test installs it)")
-    if not FAILURES:
+    if not clitest.failures:
         exe = os.path.abspath(a.isomend)
         test_meshlab(exe, a.work, os.path.abspath(a.samples))
         test_blender(exe, a.work)
         test_blender_imports(exe, a.work, os.path.abspath(a.samples))
-    if FAILURES:
-        print(f"{len(FAILURES)} failure(s)", file=sys.stderr)
-        return 1
-    shutil.rmtree(a.work)
-    print("ok")
-    return 0
+    if not clitest.failures:
+        shutil.rmtree(a.work)
+    return clitest.summary()
 
 
 if __name__ == "__main__":

@@ -22,12 +22,10 @@ import sys
 import vtk
 from vtk.util.numpy_support import vtk_to_numpy
 
-FAILURES = []
-
-
-def fail(name, why):
-    FAILURES.append(name)
-    print(f"FAIL {name}: {why}", file=sys.stderr)
+sys.dont_write_bytecode = True  # no __pycache__ in the source tree
+sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "common"))
+import clitest  # noqa: E402
+from clitest import fail  # noqa: E402
 
 
 def run(exe, work, *args):
@@ -190,12 +188,9 @@ def main():
     exe = os.path.abspath(a.isomend)
     test_vtk_written(exe, a.work)
     test_isomend_written(exe, a.work, os.path.abspath(a.samples))
-    if FAILURES:
-        print(f"{len(FAILURES)} failure(s)", file=sys.stderr)
-        return 1
-    shutil.rmtree(a.work)
-    print("ok")
-    return 0
+    if not clitest.failures:
+        shutil.rmtree(a.work)
+    return clitest.summary()
 
 
 if __name__ == "__main__":

@@ -56,14 +56,8 @@ from vtk.util.numpy_support import vtk_to_numpy
 sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "common"))
 sys.dont_write_bytecode = True  # no __pycache__ in the source tree
 import clitest  # noqa: E402
+from clitest import fail  # noqa: E402
 from vtkcheck import components, distances, feature_edges, read_poly  # noqa: E402
-
-FAILURES = []
-
-
-def fail(name, why):
-    FAILURES.append(f"{name}: {why}")
-    print(f"FAIL {name}: {why}", file=sys.stderr, flush=True)
 
 
 def run(exe, args, cwd, env=None, timeout=600):
@@ -548,11 +542,7 @@ def main():
     for case in cases:
         test_case(exe, work, case, CONFIGS)
     test_errors(exe, a.isomend_mpi and os.path.abspath(a.isomend_mpi), a.mpirun, work, samples)
-    if FAILURES:
-        print(f"{len(FAILURES)} failure(s)")
-        return 1
-    print("postprocess: ok")
-    return 0
+    return clitest.summary(ok="postprocess: ok")
 
 
 if __name__ == "__main__":

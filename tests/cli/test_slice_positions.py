@@ -46,14 +46,9 @@ import numpy as np
 sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "common"))
 sys.dont_write_bytecode = True  # no __pycache__ in the source tree
 import clitest  # noqa: E402
+from clitest import fail  # noqa: E402
 
-FAILURES = []
 NX, NY, NZ = 27, 23, 19
-
-
-def fail(name, why):
-    FAILURES.append(f"{name}: {why}")
-    print(f"FAIL {name}: {why}", file=sys.stderr)
 
 
 def run(exe, args, cwd):
@@ -549,7 +544,7 @@ def main():
         test_dicom(exe, work, dicom)
     if leftovers(work):
         fail("leftovers", str(leftovers(work)))
-    return clitest.summary(FAILURES)
+    return clitest.summary()
 
 
 if __name__ == "__main__":

@@ -37,14 +37,9 @@ import numpy as np
 sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "common"))
 sys.dont_write_bytecode = True  # no __pycache__ in the source tree
 import clitest  # noqa: E402
+from clitest import fail  # noqa: E402
 
-FAILURES = []
 MEMORY_BOUNDS = True
-
-
-def fail(name, why):
-    FAILURES.append(f"{name}: {why}")
-    print(f"FAIL {name}: {why}", file=sys.stderr)
 
 
 def run(exe, args, cwd, preexec=None, timeout=300):
@@ -349,7 +344,7 @@ def main():
     test_errors(exe, a.work)
     test_interrupt(exe, a.work)
     test_info_memory(exe, a.work)
-    return clitest.summary(FAILURES)
+    return clitest.summary()
 
 
 if __name__ == "__main__":

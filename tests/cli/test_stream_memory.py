@@ -43,17 +43,12 @@ import numpy as np
 sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "common"))
 sys.dont_write_bytecode = True  # no __pycache__ in the source tree
 import clitest  # noqa: E402
+from clitest import fail  # noqa: E402
 
-FAILURES = []
 PEAK_RSS = None
 MIB = 1024 * 1024
 NX, NY, NZ = 512, 512, 256
 ISO = "1000"
-
-
-def fail(name, why):
-    FAILURES.append(f"{name}: {why}")
-    print(f"FAIL {name}: {why}", file=sys.stderr)
 
 
 def run_measured(args, cwd):
@@ -150,7 +145,7 @@ def check_kind(exe, work, kind, src, size):
         for f in (whole, part, f"s64.{fmt}"):
             if os.path.exists(os.path.join(work, f)):
                 os.unlink(os.path.join(work, f))
-        if not any(x.startswith(label) for x in FAILURES):
+        if not clitest.failed(label):
             print(f"ok   {label}")
 
 
@@ -186,7 +181,7 @@ def check_in_memory_limit(exe, work, src):
     for f in ("free.ply", "limited.ply", "tiny.ply"):
         if os.path.exists(os.path.join(work, f)):
             os.unlink(os.path.join(work, f))
-    if not any(x.startswith(label) for x in FAILURES):
+    if not clitest.failed(label):
         print(f"ok   {label}")
 
 
@@ -239,7 +234,7 @@ def check_tall(exe, work):
         fail(label, f"z range {verts[:, 2].min()} .. {verts[:, 2].max()}")
     for f in ("tall.raw", "tall_st.ply", "tall_in.ply"):
         os.unlink(os.path.join(work, f))
-    if not any(x.startswith(label) for x in FAILURES):
+    if not clitest.failed(label):
         print(f"ok   {label}")
 
 
@@ -264,7 +259,7 @@ def main():
     check_in_memory_limit(exe, a.work, sources["raw"])
     check_tall(exe, a.work)
     shutil.rmtree(a.work, ignore_errors=True)
-    return clitest.summary(FAILURES)
+    return clitest.summary()
 
 
 if __name__ == "__main__":

@@ -1,14 +1,18 @@
 """What the Python tests that drive the `isomend` command line share.
 
-Used by tests/io/test_cli_io.py, tests/io/test_dicom_cli.py,
-tests/cli/test_cli.py, test_stream.py, test_stream_memory.py and
-tests/mpi/test_mpi.py and test_mpi_memory.py, which import it with their own folder's
+Used by the Python tests of tests/cli, tests/io and tests/mpi and by
+tests/blender/validate_extension.py, which import it with their own folder's
 ../common on sys.path.  Standard library only (test_cli.py runs in the
 sanitizer build too); read_ply_arrays, read_nrrd and busy_slice import numpy
 when they are called.
+
+A test's verdict: check() and fail() record failures in `failures` and the test
+goes on; its main returns summary(), the exit code (1 with any failure), which
+is what CTest judges (no PASS_REGULAR_EXPRESSION: that would ignore it).
 """
 import os
 import subprocess
+import sys
 
 failures = []
 
@@ -18,6 +22,19 @@ def check(cond, what):
     if not cond:
         failures.append(what)
         print("FAIL:", what, flush=True)
+
+
+def fail(name, why):
+    """Records the failure `name: why` and prints it on standard error
+    (after what standard output holds so far); the test goes on."""
+    failures.append(f"{name}: {why}")
+    sys.stdout.flush()
+    print(f"FAIL {name}: {why}", file=sys.stderr, flush=True)
+
+
+def failed(name):
+    """Whether a failure of `name` (fail(name, ...)) has been recorded."""
+    return any(x.startswith(name) for x in failures)
 
 
 def run(cli, args):
@@ -122,10 +139,12 @@ def mpi_env():
     return env
 
 
-def summary(failures):
-    """The last line of a test: the number of failures, or ok; the exit code."""
-    if failures:
-        print(f"{len(failures)} failure(s)")
+def summary(recorded=None, ok="ok"):
+    """The last line of a test: the number of failures (of `recorded`, by
+    default the ones check() and fail() recorded), or `ok`; the exit code."""
+    recorded = failures if recorded is None else recorded
+    if recorded:
+        print(f"{len(recorded)} failure(s)", flush=True)
         return 1
-    print("ok")
+    print(ok, flush=True)
     return 0

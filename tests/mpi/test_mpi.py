@@ -35,17 +35,12 @@ import tifffile
 sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "common"))
 sys.dont_write_bytecode = True  # no __pycache__ in the source tree
 import clitest  # noqa: E402
+from clitest import fail  # noqa: E402
 
-FAILURES = []
 ENV = clitest.mpi_env()
 STATS = ("vertices", "triangles", "triangles_by_origin", "cubes", "case_histogram",
          "ambiguous_faces", "inverted_combinations", "nan_samples", "iso", "iso_suggested",
          "geometry", "warnings")
-
-
-def fail(name, why):
-    FAILURES.append(f"{name}: {why}")
-    print(f"FAIL {name}: {why}", file=sys.stderr)
 
 
 class Tools:
@@ -274,11 +269,7 @@ def main():
     t = Tools(a)
     test_same_files(t, os.path.abspath(a.samples), a.dicom)
     test_failures(t)
-    if FAILURES:
-        print(f"{len(FAILURES)} failure(s)")
-        return 1
-    print("ok")
-    return 0
+    return clitest.summary()
 
 
 if __name__ == "__main__":

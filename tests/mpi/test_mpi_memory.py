@@ -31,18 +31,13 @@ import sys
 sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "common"))
 sys.dont_write_bytecode = True  # no __pycache__ in the source tree
 import clitest  # noqa: E402
+from clitest import fail  # noqa: E402
 
-FAILURES = []
 MIB = 1024 * 1024
 NX, NY, NZ = 512, 512, 256
 ISO = "1000"
 SIZE = "192M"
 ENV = clitest.mpi_env()
-
-
-def fail(name, why):
-    FAILURES.append(f"{name}: {why}")
-    print(f"FAIL {name}: {why}", file=sys.stderr)
 
 
 class Runs:
@@ -140,7 +135,7 @@ def check_ranks(r, limit, fmt, ns):
                 label += f"; 64 slices {peak64 / MIB:.1f} MiB"
             r.remove("s64." + fmt)
         r.remove("tiny." + fmt)
-        if not any(x.startswith(label) for x in FAILURES):
+        if not clitest.failed(label):
             print(f"ok   {label}")
     r.remove(ref)
 
@@ -186,7 +181,7 @@ def main():
     check_ranks(r, limit, "stl", (2,))
     check_refusal(r)
     shutil.rmtree(a.work, ignore_errors=True)
-    return clitest.summary(FAILURES)
+    return clitest.summary()
 
 
 if __name__ == "__main__":
