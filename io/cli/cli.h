@@ -4,11 +4,20 @@
  *   main.c      the commands (extract, check, info, sample)
  *   args.c      the options of every command (shared with isomend-mpi)
  *   cli_util.c  messages, number parsing, timing, the progress bar
- *   source.c    SOURCE -> isomend_volume: raw, NRRD, built-in F1/F2 and, when
- *               built with the importer (ISOMEND_HAVE_IO), slice stacks;
- *               value range, histogram and suggested iso level
+ *   source.c    an opened SOURCE (cli_source): which kind it is, the options
+ *               checked against it, read slice by slice or loaded, closed;
+ *               the kinds' own files:
+ *     source_volume.c    raw, NRRD (io/common) and the built-in F1/F2
+ *     source_importer.c  image stacks, DICOM, NIfTI through the importer
+ *                        (ISOMEND_HAVE_IO)
+ *     importer.c         the importer libisomend_io, loaded with dlopen()
+ *     source_geometry.c  --slice-positions and where the slices lie
+ *     source_summary.c   value range, histogram, suggested iso level
+ *     source_report.c    a DICOM series' and a NIfTI volume's facts
+ *               (source_internal.h is what these files share)
  *   stream.c    the --max-memory rule, the mesh sink, the streaming extraction
  *   report.c    the Table-2 statistics, the check summary and the JSON object
+ *   postprocess.c  clean-up, smoothing, decimation after the extraction
  *
  * Exit codes: 0 success, 1 failure (a file cannot be read or written, the
  * extraction fails, `check` finds a defect), 2 usage error (unknown option,
@@ -62,6 +71,9 @@ const char *cli_bytes_text(uint64_t bytes, char *buf, size_t size);
  * /proc/meminfo, "VmHWM:" of /proc/self/status); 0 if unknown. */
 uint64_t cli_proc_kib(const char *path, const char *key);
 
+/* MemAvailable from /proc/meminfo in bytes, 0 if unknown. */
+uint64_t cli_memory_available(void);
+
 double cli_now_ms(void);
 
 /* Progress bar on stderr; inactive unless enabled (stderr a TTY, not --quiet). */
@@ -95,7 +107,7 @@ void cli_install_signal_handlers(void);
 /* Writes a JSON string literal (with quotes) for `s`. */
 void cli_json_string(FILE *fp, const char *s);
 
-/* ---- source.c ---- */
+/* ---- the source: source.c and the files it names ---- */
 
 typedef struct cli_source_opts {
     int have_raw;
@@ -117,7 +129,7 @@ typedef struct cli_source_opts {
     int ras;                /* --ras: a NIfTI volume in its RAS axes (not LPS) */
     int list_series;        /* `info`: several series and no choice lists them */
     /* --slice-positions as given ("z0,z1,..." or "@FILE"), NULL = none; parsed
-     * by cli_slices_open() (the count is only known once SOURCE is open) */
+     * by cli_source_open() (the count is only known once SOURCE is open) */
     const char *slice_positions;
     cli_progress *progress;
 } cli_source_opts;
@@ -142,7 +154,8 @@ typedef struct cli_geometry {
     char warning[512];
 } cli_geometry;
 
-/* The geometry of slices at z[0..n) (strictly increasing, x and y shared). */
+/* source_geometry.c: the geometry of slices at z[0..n) (strictly increasing,
+ * x and y shared). */
 void cli_geometry_of_positions(const double *z, int64_t n, cli_geometry *g);
 
 /*
@@ -155,7 +168,7 @@ int cli_parse_slice_positions(const char *value, double **out, int64_t *count);
 
 /* "isomend: warning: LABEL: TEXT" on stderr when g->warning is not empty. */
 void cli_print_geometry_warning(const char *label, const cli_geometry *g);
-/* `, "geometry": {...}, "warnings": [...]` (the JSON of info and extract). */
+/* `, "geometry": {...}, "warnings": [...]` (the JSON of info and extract; report.c). */
 void cli_json_geometry(FILE *fp, const cli_geometry *g);
 
 typedef struct cli_summary {
@@ -167,17 +180,42 @@ typedef struct cli_summary {
 } cli_summary;
 
 /*
- * An opened SOURCE whose samples have not been read: what it is, and its
- * slices on demand.  `desc` describes the volume (dims, type, spacing and
- * origin as the extraction uses them; data NULL).  Slices come in z order,
- * each contiguous, x fastest, machine byte order, oriented as the whole
- * volume would be presented (reversed NRRD axes already turned), so memory
- * stays O(one slice): raw and NRRD through isomend_fileio_slices_*, image
- * stacks through the importer's isomend_io_read_slice(), built-ins from
- * their 64 samples.
+ * An opened SOURCE: what it is, and its samples in one of two modes.
+ *
+ *   CLI_SOURCE_SLICES  opened (cli_source_open), no sample read: `desc`
+ *                      describes the volume with data NULL, and the slices
+ *                      come on demand (cli_slices_next), so memory stays
+ *                      O(one slice).  What `extract` streams, what `info`
+ *                      analyses when the volume exceeds the memory limit.
+ *   CLI_SOURCE_LOADED  the samples in memory (cli_source_load): desc.data.
+ *
+ * Everything else (kind, where the spacing came from, DICOM, the world map,
+ * the slices' geometry) is the same in both modes, and the slices can be read
+ * in either.  Slices come in z order, each contiguous, x fastest, machine
+ * byte order, oriented as the loaded volume is presented (reversed NRRD axes
+ * already turned).  What delivers them (`reader`): raw and NRRD through
+ * isomend_fileio_slices_* (source_volume.c), built-ins from their 64 samples
+ * (source_volume.c), image stacks, DICOM and NIfTI through the importer's
+ * isomend_io_read_slice() (source_importer.c).  Not shared between threads.
+ *
+ * Use: cli_source_open(); then either cli_stream_extract(s, ...) on the
+ * slices, or cli_source_load(s) and isomend_extract(&s->desc, ...);
+ * cli_source_summary() and cli_source_level() work in both modes;
+ * cli_source_close() in every case.
  */
-typedef struct cli_slices {
+typedef enum cli_source_mode { CLI_SOURCE_SLICES, CLI_SOURCE_LOADED } cli_source_mode;
+typedef enum cli_source_reader {
+    CLI_READER_BUILTIN,  /* builtin:f1, builtin:f2                        */
+    CLI_READER_FILE,     /* raw and NRRD through io/common                */
+    CLI_READER_IMPORTER  /* libisomend_io (dlopen'ed): stacks, DICOM, NIfTI */
+} cli_source_reader;
+
+typedef struct cli_source {
+    cli_source_mode mode;
+    /* dims, type, spacing, origin and slice origins as the extraction uses
+     * them; data NULL while read slice by slice, the samples once loaded */
     isomend_volume desc;
+    char label[1024];        /* SOURCE as given (first path)                   */
     char kind[16];           /* raw, nrrd, builtin, folder, glob, pattern, ... */
     char format[32];
     const char *spacing_from[3];
@@ -188,38 +226,55 @@ typedef struct cli_slices {
     int has_world;           /* the mesh maps to the world by `world`          */
     double world[12];        /* 3x4 row-major (isomend_io_world_transform)     */
     cli_geometry geometry;   /* where the slices lie                           */
-    double *origins_owned;   /* desc.slice_origins when we built them (raw,    */
-                             /* NRRD, built-in with --slice-positions)         */
-    char label[1024];        /* SOURCE as given (first path)                   */
-    uint64_t slice_bytes;
-    int64_t next;            /* the slice the next call delivers               */
-    double read_ms;          /* time spent in cli_slices_next()                */
-    /* what delivers them: one of */
-    int is_builtin;
-    float builtin[64];
-    int is_fileio;
-    isomend_fileio_info info;
-    isomend_fileio_slices *reader; /* opened at the first slice */
-    void *io;                /* isomend_io_source* (image stacks)             */
+    uint64_t slice_bytes;    /* one slice: nx * ny * sample size               */
+    double read_ms;          /* time spent reading samples (slices, the load)  */
     cli_progress *progress;
-} cli_slices;
+    /* what delivers the samples */
+    cli_source_reader reader;
+    int64_t next;            /* the slice cli_slices_next() delivers           */
+    float builtin[64];       /* CLI_READER_BUILTIN                             */
+    isomend_fileio_info info;             /* CLI_READER_FILE                   */
+    isomend_fileio_slices *file_slices;   /* its slice reader, opened at the first slice */
+    void *io;                /* isomend_io_source* (CLI_READER_IMPORTER); a
+                              * volume it loaded belongs to it                 */
+    void *owned;             /* samples we loaded (raw, NRRD, built-in)        */
+    double *origins_owned;   /* desc.slice_origins when we built them (raw,   */
+                             /* NRRD, built-in with --slice-positions)         */
+} cli_source;
 
-/* Opens SOURCE (paths[0..n)) without reading samples (an image stack's
- * headers are all checked).  Exit code; on failure the message is printed
- * and nothing needs closing. */
-int cli_slices_open(const char *const *paths, int n, const cli_source_opts *o, cli_slices *s);
-/* Slice s->next into `buffer` (s->slice_bytes); exit code, message printed. */
-int cli_slices_next(cli_slices *s, void *buffer);
+/* Opens SOURCE (paths[0..n)) in mode CLI_SOURCE_SLICES, reading no sample
+ * (an image stack's headers are all checked).  Exit code; on failure the
+ * message is printed and nothing needs closing. */
+int cli_source_open(const char *const *paths, int n, const cli_source_opts *o, cli_source *s);
+/* Reads the samples into memory (mode CLI_SOURCE_LOADED; nothing to do when
+ * loaded).  Exit code, the message printed; on failure s stays opened. */
+int cli_source_load(cli_source *s);
+/* Frees the samples of a loaded raw, NRRD or built-in source once they are
+ * used (desc.data becomes NULL, the mode CLI_SOURCE_SLICES; the description
+ * stays).  An importer's volume stays until cli_source_close(). */
+void cli_source_drop_samples(cli_source *s);
+void cli_source_close(cli_source *s); /* accepts NULL and a closed source */
+
+/* Slice s->next into `buffer` (s->slice_bytes), in either mode; exit code,
+ * message printed. */
+int cli_slices_next(cli_source *s, void *buffer);
 /* The next call delivers slice 0 again / slice k. */
-void cli_slices_rewind(cli_slices *s);
-int cli_slices_seek(cli_slices *s, int64_t k);
-void cli_slices_close(cli_slices *s);
-/* cli_source_summary's numbers, reading the slices (twice) instead of a
- * loaded volume; rewinds at the end. */
-int cli_slices_summary(cli_slices *s, cli_summary *sum);
+void cli_slices_rewind(cli_source *s);
+int cli_slices_seek(cli_source *s, int64_t k);
+
+/* source_summary.c: value range, 16-bin histogram, Otsu suggestion (the
+ * importer's rule): from the samples when loaded, else reading the slices
+ * twice (rewound at the end); an importer's source is analysed by the
+ * importer. */
+int cli_source_summary(cli_source *s, cli_summary *sum);
+/* The level named "otsu", "bone" or "skin" (an importer's source: its rule;
+ * bone/skin only for CT in HU).  Returns an exit code, the message printed. */
+int cli_source_level(cli_source *s, const char *name, double *value);
+/* "bone" for a CT DICOM series in HU, else "otsu": what a missing --iso uses. */
+const char *cli_source_suggested_level(const cli_source *s);
 /* 1 and *level when the source suggests a fixed level rather than Otsu's
  * (a CT series in HU: the bone level, as cli_source_suggested_level says). */
-int cli_slices_fixed_level(cli_slices *s, double *level);
+int cli_source_fixed_level(cli_source *s, double *level);
 
 /*
  * The summary's two passes over planes, for callers that see the volume in
@@ -241,64 +296,35 @@ void cli_summary_plane(cli_summary_acc *a, int pass, const char *base, int64_t s
 int cli_summary_range_done(cli_summary_acc *a);
 void cli_summary_finish(cli_summary_acc *a);
 
-typedef struct cli_source {
-    isomend_volume vol;
-    void *owned;             /* samples we allocated (raw, NRRD, built-in)   */
-    void *io;                /* isomend_io_source* when loaded by the importer */
-    char kind[16];           /* raw, nrrd, builtin, folder, glob, pattern, ... */
-    char format[32];
-    const char *spacing_from[3];
-    int oblique;             /* NRRD space directions not axis aligned        */
-    int dicom;               /* a DICOM series (the importer's kind "dicom")   */
-    int series_listed;       /* several series, none chosen: only the list     */
-    int grid_axes;           /* --grid-axes was given                          */
-    int has_world;           /* the mesh maps to the world by `world`          */
-    double world[12];        /* 3x4 row-major (isomend_io_world_transform)     */
-    cli_geometry geometry;   /* where the slices lie                           */
-    double *origins_owned;   /* vol.slice_origins when we built them           */
-    double read_ms;
-    char label[1024];        /* SOURCE as given (first path)                   */
-} cli_source;
-
-/* Loads an opened source whole into `src` (s is closed in every case). */
-int cli_source_load(cli_slices *s, cli_source *src);
-void cli_source_close(cli_source *src);
-
-/* Frees the samples of a raw, NRRD or built-in source once they are used
- * (vol.data becomes NULL; the description stays).  An importer's volume
- * stays until cli_source_close(). */
-void cli_source_drop_samples(cli_source *src);
-/* Value range, 16-bin histogram, Otsu suggestion (the importer's rule). */
-int cli_source_summary(cli_source *src, cli_summary *sum);
-
 /* One sample of type t (machine byte order) as a double. */
 double cli_sample_value(const void *sample, isomend_type t);
 
-/* MemAvailable from /proc/meminfo in bytes, 0 if unknown. */
-uint64_t cli_memory_available(void);
+/* source_report.c: what a DICOM series or a NIfTI volume says about itself
+ * (text lines for `info`, JSON objects or null); no-ops / null for other
+ * sources and without the importer. */
+void cli_print_dicom(FILE *fp, cli_source *s);
+void cli_json_dicom(FILE *fp, cli_source *s);
+void cli_print_nifti(FILE *fp, const cli_source *s);
+void cli_json_nifti(FILE *fp, const cli_source *s);
+void cli_print_series(FILE *fp, const cli_source *s);
+void cli_json_series(FILE *fp, const cli_source *s);
 
-/* An opened, not loaded source seen as a cli_source for the functions below
- * (the importer's handle and the DICOM facts are shared, vol has no data);
- * never closed. */
-void cli_source_view(const cli_slices *s, cli_source *view);
-
-/* DICOM reporting (source.c; no-ops without the importer). */
-void cli_print_dicom(FILE *fp, cli_source *src, const cli_summary *sum);
-void cli_json_dicom(FILE *fp, cli_source *src, const cli_summary *sum);
-/* NIfTI reporting: the header's facts and the transform used (text lines;
- * the JSON object or null); no-ops / null for other sources. */
-void cli_print_nifti(FILE *fp, const cli_source *src);
-void cli_json_nifti(FILE *fp, const cli_source *src);
-void cli_print_series(FILE *fp, const cli_source *src);
-void cli_json_series(FILE *fp, const cli_source *src);
-/* The level named "otsu", "bone" or "skin" (an importer's source: its rule;
- * bone/skin only for CT in HU).  Returns an exit code, the message printed. */
-int cli_source_level(cli_source *src, const char *name, double *value);
-/* "bone" for a CT DICOM series in HU, else "otsu": what a missing --iso uses. */
-const char *cli_source_suggested_level(const cli_source *src);
-
-/* Fills the built-in F1/F2 of the thesis (4x4x4 f32, 0..3).  Returns 1 if `name` is one. */
+/* source_volume.c: fills the built-in F1/F2 of the thesis (4x4x4 f32, 0..3).
+ * Returns 1 if `name` is one. */
 int cli_builtin_volume(const char *name, float out[64]);
+
+/* The names isomend-mpi (io/mpi) uses for the same type and calls. */
+typedef cli_source cli_slices;
+static inline int cli_slices_open(const char *const *paths, int n, const cli_source_opts *o,
+                                  cli_source *s)
+{
+    return cli_source_open(paths, n, o, s);
+}
+static inline void cli_slices_close(cli_source *s) { cli_source_close(s); }
+static inline int cli_slices_fixed_level(cli_source *s, double *level)
+{
+    return cli_source_fixed_level(s, level);
+}
 
 /* ---- args.c ---- */
 
@@ -361,7 +387,6 @@ void cli_extract_options(const cli_args *a, cli_progress *bar, isomend_options *
 typedef struct cli_memory_plan {
     uint64_t limit;       /* --max-memory, else MemAvailable; 0 = unknown (never stream) */
     int limit_given;      /* --max-memory was given                                      */
-    uint64_t volume;      /* bytes of the samples                                        */
     uint64_t in_memory;   /* volume + mesh + working set of the in-memory path           */
     uint64_t streaming;   /* the most streaming holds (the rule at the top of stream.c)  */
     int stream;           /* in_memory > limit                                           */
@@ -418,7 +443,7 @@ void cli_world_free(cli_world *w); /* accepts NULL */
  * mesh to `sink`, in the order isomend_extract() numbers it.  Exit code; the
  * message is printed.  `stats` as isomend_extract()'s.
  */
-int cli_stream_extract(cli_slices *s, const isomend_options *opts, const cli_sink *sink,
+int cli_stream_extract(cli_source *s, const isomend_options *opts, const cli_sink *sink,
                        isomend_stats *stats);
 
 /* ---- report.c ---- */

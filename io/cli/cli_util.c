@@ -160,6 +160,11 @@ uint64_t cli_proc_kib(const char *path, const char *key)
     return (uint64_t)kib;
 }
 
+uint64_t cli_memory_available(void)
+{
+    return cli_proc_kib("/proc/meminfo", "MemAvailable:") * 1024u;
+}
+
 double cli_now_ms(void)
 {
     struct timespec ts;

@@ -159,8 +159,9 @@ static const char *const usage_sample =
     "  F2 = 4(y-1)^2 + 2(x-z)^2 - 2(x+z-3)^2 + 1\n"
     "Extract at --iso 0.  The same volumes are available as SOURCE builtin:f1 / builtin:f2.\n";
 
-static void print_source_line(FILE *fp, const cli_slices *s, const isomend_volume *v)
+static void print_source_line(FILE *fp, const cli_source *s)
 {
+    const isomend_volume *v = &s->desc;
     fprintf(fp, "%s: %s (%s), %lld x %lld x %lld %s, spacing %g x %g x %g (%s), origin %g, %g, %g\n",
             s->label, s->kind, s->format, (long long)v->dims[0], (long long)v->dims[1],
             (long long)v->dims[2], isomend_type_name(v->type), v->spacing[0], v->spacing[1],
@@ -215,14 +216,14 @@ static void print_geometry(FILE *fp, const cli_geometry *g, int64_t nz)
  * is left open and the exit code is returned.
  */
 static int open_source_for(cli_args *a, int quiet, cli_json_out *jo, cli_progress *bar,
-                           cli_slices *s)
+                           cli_source *s)
 {
     int rc = cli_json_prepare(jo, a->json);
     if (rc) return rc;
     cli_progress_init(bar, !quiet && isatty(STDERR_FILENO));
     cli_active_progress = bar;
     a->src.progress = bar;
-    rc = cli_slices_open(a->positional, a->npositional, &a->src, s);
+    rc = cli_source_open(a->positional, a->npositional, &a->src, s);
     if (rc)
         cli_json_abort(jo);
     else /* uneven gaps, a missing slice: said once, the mesh is still made */
@@ -231,7 +232,7 @@ static int open_source_for(cli_args *a, int quiet, cli_json_out *jo, cli_progres
 }
 
 /* Refuses a plan whose streaming path does not fit the limit either. */
-static int plan_fits(const cli_memory_plan *p, const cli_slices *s)
+static int plan_fits(const cli_memory_plan *p, const cli_source *s)
 {
     if (!p->stream || p->streaming <= p->limit) return CLI_EXIT_OK;
     char need[32], limit[32];
@@ -308,83 +309,60 @@ static int cmd_extract(int argc, char **argv)
     isomend_atomic_abort(&probe);
     cli_json_out jo;
     cli_progress bar;
-    cli_slices sl;
-    rc = open_source_for(&a, quiet, &jo, &bar, &sl);
+    cli_source src;
+    rc = open_source_for(&a, quiet, &jo, &bar, &src);
     if (rc) return rc;
 
     isomend_options opts;
     cli_extract_options(&a, &bar, &opts);
     const int small_pages = a.pages == CLI_PAGES_SMALL;
     cli_memory_plan plan;
-    cli_memory_plan_make(&sl.desc, &opts, fmt, a.max_memory, &plan);
-    rc = plan_fits(&plan, &sl);
+    cli_memory_plan_make(&src.desc, &opts, fmt, a.max_memory, &plan);
+    rc = plan_fits(&plan, &src);
     if (!rc && (a.seen & OPT_POST) && plan.stream) {
         char need[32], limit[32];
         cli_error("%s: --decimate, --smooth, --min-component and --largest work on the mesh in "
                   "memory, which needs about %s, more than %s (%s); post-processing a streamed "
                   "mesh is not built yet",
-                  sl.label, cli_bytes_text(plan.in_memory, need, sizeof need),
+                  src.label, cli_bytes_text(plan.in_memory, need, sizeof need),
                   plan.limit_given ? "--max-memory" : "the memory available",
                   cli_bytes_text(plan.limit, limit, sizeof limit));
         rc = CLI_EXIT_FAIL;
     }
-    if (rc) {
-        cli_json_abort(&jo);
-        cli_slices_close(&sl);
-        return rc;
-    }
+    if (rc) goto fail_source;
 
     /* in memory: the volume is loaded, the mesh checked, then written at once;
      * streamed: the slices go through the extraction and the mesh straight to
      * the writer, and the continuity check is left to `isomend check` */
-    cli_source src;
-    memset(&src, 0, sizeof src);
-    cli_slices info = sl; /* what the report prints (the labels stay valid) */
-    info.io = NULL;
-    info.reader = NULL;
-    info.origins_owned = NULL;
-    info.desc.slice_origins = NULL;
     if (!plan.stream) {
-        rc = cli_source_load(&sl, &src); /* closes sl */
-        if (rc) {
-            cli_json_abort(&jo);
-            return rc;
-        }
+        rc = cli_source_load(&src);
+        if (rc) goto fail_source;
     }
-    const isomend_volume *vol = plan.stream ? &sl.desc : &src.vol;
-    cli_source view; /* the streamed source, for the DICOM functions */
-    cli_source_view(&sl, &view);
-    cli_source *meta = plan.stream ? &view : &src;
     int iso_suggested = 0;
     a.iso = (a.seen & OPT_ISO) ? a.iso : 0;
-    if (a.iso_name && (!plan.stream || meta->io || strcmp(a.iso_name, "otsu") != 0)) {
-        rc = cli_source_level(meta, a.iso_name, &a.iso);
+    if (a.iso_name) {
+        rc = cli_source_level(&src, a.iso_name, &a.iso);
         if (rc) goto fail_source;
-    } else if (a.iso_name) { /* --iso otsu of a raw/NRRD volume read slice by slice */
-        cli_summary sum;
-        rc = cli_slices_summary(&sl, &sum);
-        if (rc) goto fail_source;
-        a.iso = sum.suggested_iso;
     } else if (!(a.seen & OPT_ISO)) {
         cli_summary sum;
-        rc = plan.stream ? cli_slices_summary(&sl, &sum) : cli_source_summary(&src, &sum);
+        rc = cli_source_summary(&src, &sum);
         if (rc) goto fail_source;
         if (!sum.has_suggestion) {
             cli_error("--iso is required: %s has no suggested level (all finite samples equal %g)",
-                      info.label, sum.min);
+                      src.label, sum.min);
             rc = CLI_EXIT_USAGE;
             goto fail_source;
         }
         a.iso = sum.suggested_iso;
         iso_suggested = 1;
-        if (!quiet && strcmp(cli_source_suggested_level(meta), "bone") == 0)
+        if (!quiet && strcmp(cli_source_suggested_level(&src), "bone") == 0)
             fprintf(stderr, "isomend: no --iso given: using %.9g HU, the bone level of the CT series "
                             "%s (--iso skin or --iso otsu for the others, see 'isomend info')\n",
-                    a.iso, info.label);
+                    a.iso, src.label);
         else if (!quiet)
             fprintf(stderr, "isomend: no --iso given: using %.9g, the suggested level of %s "
                             "(Otsu, see 'isomend info')\n",
-                    a.iso, info.label);
+                    a.iso, src.label);
     }
     opts.iso = a.iso;
 
@@ -407,9 +385,9 @@ static int cmd_extract(int argc, char **argv)
         cli_sink sink, world_sink;
         cli_sink_for_writer(&sink, w);
         cli_world world;
-        if (meta->has_world) { /* a DICOM series in patient space: mapped as it goes */
-            if (!cli_world_init(&world, meta->world, &sink)) {
-                cli_error("%s: the series' patient transform is not invertible", info.label);
+        if (src.has_world) { /* a DICOM series in patient space: mapped as it goes */
+            if (!cli_world_init(&world, src.world, &sink)) {
+                cli_error("%s: the series' patient transform is not invertible", src.label);
                 isomend_mesh_writer_abort(w);
                 rc = CLI_EXIT_FAIL;
                 goto fail_source;
@@ -417,14 +395,14 @@ static int cmd_extract(int argc, char **argv)
             cli_sink_for_world(&world_sink, &world);
         }
         double t0 = cli_now_ms();
-        rc = cli_stream_extract(&sl, &opts, meta->has_world ? &world_sink : &sink, &stats);
-        cli_world_free(meta->has_world ? &world : NULL);
+        rc = cli_stream_extract(&src, &opts, src.has_world ? &world_sink : &sink, &stats);
+        cli_world_free(src.has_world ? &world : NULL);
         cli_progress_clear(&bar);
         /* the extraction's time includes the writes made meanwhile */
-        tm.read_ms = sl.read_ms;
-        tm.extract_ms = cli_now_ms() - t0 - sl.read_ms;
+        tm.read_ms = src.read_ms;
+        tm.extract_ms = cli_now_ms() - t0 - src.read_ms;
         if (!rc && cli_interrupted) { /* nothing is visible until the commit */
-            cli_error("%s: interrupted", info.label);
+            cli_error("%s: interrupted", src.label);
             rc = CLI_EXIT_INTERRUPTED;
         }
         if (rc) {
@@ -441,7 +419,7 @@ static int cmd_extract(int argc, char **argv)
     } else {
         tm.read_ms = src.read_ms;
         double t0 = cli_now_ms();
-        isomend_status st = isomend_extract(&src.vol, &opts, &mesh, &stats);
+        isomend_status st = isomend_extract(&src.desc, &opts, &mesh, &stats);
         cli_progress_clear(&bar);
         tm.extract_ms = cli_now_ms() - t0;
         if (st == ISOMEND_ERR_CANCELLED) {
@@ -514,7 +492,7 @@ static int cmd_extract(int argc, char **argv)
     }
 
     if (!quiet) {
-        print_source_line(text, &info, vol);
+        print_source_line(text, &src);
         fprintf(text, "%s at iso %.9g%s%s%s%s%s\n", isomend_method_name(a.method), a.iso,
                 iso_suggested ? " (suggested)" : "", (a.seen & OPT_PAD) ? ", padded" : "",
                 (a.seen & OPT_FLIP) ? ", flipped" : "", (a.seen & OPT_NO_NORMALS) ? ", no normals" : "",
@@ -546,18 +524,18 @@ static int cmd_extract(int argc, char **argv)
     FILE *jf = cli_json_stream(&jo);
     if (jf) {
         fprintf(jf, "{\"command\": \"extract\", \"version\": \"%s\", ", isomend_version());
-        cli_json_run(jf, info.label, info.kind, a.output, vol, &opts, iso_suggested);
-        cli_json_geometry(jf, &info.geometry);
+        cli_json_run(jf, src.label, src.kind, a.output, &src.desc, &opts, iso_suggested);
+        cli_json_geometry(jf, &src.geometry);
         fprintf(jf, ", \"world_transform\": ");
-        if (meta->has_world)
-            cli_json_doubles(jf, meta->world, 12);
+        if (src.has_world)
+            cli_json_doubles(jf, src.world, 12);
         else
             fprintf(jf, "null");
         fprintf(jf, ", \"dicom\": ");
-        cli_json_dicom(jf, meta, NULL);
+        cli_json_dicom(jf, &src);
         fprintf(jf, ", \"iso_level\": ");
         if (a.iso_name || iso_suggested)
-            cli_json_string(jf, a.iso_name ? a.iso_name : cli_source_suggested_level(meta));
+            cli_json_string(jf, a.iso_name ? a.iso_name : cli_source_suggested_level(&src));
         else
             fprintf(jf, "null");
         fprintf(jf, ", \"pages\": \"%s\"", small_pages ? "small" : "huge");
@@ -582,7 +560,6 @@ static int cmd_extract(int argc, char **argv)
     }
     isomend_mesh_destroy(mesh);
     cli_source_close(&src);
-    cli_slices_close(&sl);
     return CLI_EXIT_OK;
 
 fail_mesh:
@@ -590,7 +567,6 @@ fail_mesh:
 fail_source:
     cli_json_abort(&jo);
     cli_source_close(&src);
-    cli_slices_close(&sl);
     return rc;
 }
 
@@ -694,14 +670,12 @@ static int cmd_info(int argc, char **argv)
     int quiet = (a.seen & OPT_QUIET) != 0;
     cli_json_out jo;
     cli_progress bar;
-    cli_slices sl;
-    a.src.list_series = 1;
-    rc = open_source_for(&a, quiet, &jo, &bar, &sl);
-    if (rc) return rc;
     cli_source src;
-    if (sl.series_listed) {
+    a.src.list_series = 1;
+    rc = open_source_for(&a, quiet, &jo, &bar, &src);
+    if (rc) return rc;
+    if (src.series_listed) {
         /* several series, none chosen: the list is the answer */
-        cli_source_view(&sl, &src);
         cli_progress_clear(&bar);
         FILE *text = jo.to_stdout ? stderr : stdout;
         if (!quiet) {
@@ -716,29 +690,22 @@ static int cmd_info(int argc, char **argv)
             cli_json_series(jf, &src);
             fprintf(jf, ", \"series_chosen\": null}\n");
         }
-        cli_slices_close(&sl);
+        cli_source_close(&src);
         return cli_json_finish(&jo);
     }
     /* a volume larger than the limit is analysed slice by slice (read twice) */
     uint64_t limit = a.max_memory ? a.max_memory : cli_memory_available();
-    int streamed = limit && sl.slice_bytes * (uint64_t)sl.desc.dims[2] > limit;
-    /* streamed, src only views the opened source (closed with sl at the end) */
+    int streamed = limit && src.slice_bytes * (uint64_t)src.desc.dims[2] > limit;
     cli_summary sum;
-    if (streamed) {
-        rc = cli_slices_summary(&sl, &sum);
-        cli_source_view(&sl, &src);
-    } else {
-        rc = cli_source_load(&sl, &src); /* closes sl */
-        if (!rc) rc = cli_source_summary(&src, &sum);
-    }
+    rc = streamed ? CLI_EXIT_OK : cli_source_load(&src);
+    if (!rc) rc = cli_source_summary(&src, &sum);
     cli_progress_clear(&bar);
     if (rc) {
         cli_json_abort(&jo);
-        if (!streamed) cli_source_close(&src);
-        cli_slices_close(&sl);
+        cli_source_close(&src);
         return rc;
     }
-    const isomend_volume *v = &src.vol;
+    const isomend_volume *v = &src.desc;
     FILE *text = jo.to_stdout ? stderr : stdout;
     if (!quiet) {
         fprintf(text, "%s: %s (%s)\n", src.label, src.kind, src.format);
@@ -763,7 +730,7 @@ static int cmd_info(int argc, char **argv)
                 src.spacing_from[2]);
         fprintf(text, "  origin:      %g, %g, %g\n", v->origin[0], v->origin[1], v->origin[2]);
         print_geometry(text, &src.geometry, v->dims[2]);
-        cli_print_dicom(text, &src, &sum);
+        cli_print_dicom(text, &src);
         cli_print_nifti(text, &src);
         if (sum.has_suggestion && strcmp(cli_source_suggested_level(&src), "bone") == 0)
             fprintf(text, "  suggested iso: %.9g (the bone level, HU)\n", sum.suggested_iso);
@@ -771,7 +738,7 @@ static int cmd_info(int argc, char **argv)
             fprintf(text, "  suggested iso: %.9g (Otsu threshold)\n", sum.suggested_iso);
         else
             fprintf(text, "  suggested iso: none (all finite samples are equal: no surface)\n");
-        fprintf(text, "  read time:   %.1f ms%s\n", streamed ? sl.read_ms : src.read_ms,
+        fprintf(text, "  read time:   %.1f ms%s\n", src.read_ms,
                 streamed ? " (read slice by slice, twice: larger than the memory limit)" : "");
     }
     FILE *jf = cli_json_stream(&jo);
@@ -821,13 +788,12 @@ static int cmd_info(int argc, char **argv)
             fprintf(jf, "null");
         }
         fprintf(jf, ", \"dicom\": ");
-        cli_json_dicom(jf, &src, &sum);
+        cli_json_dicom(jf, &src);
         fprintf(jf, ", \"nifti\": ");
         cli_json_nifti(jf, &src);
-        fprintf(jf, ", \"timings_ms\": {\"read\": %.3f}}\n", streamed ? sl.read_ms : src.read_ms);
+        fprintf(jf, ", \"timings_ms\": {\"read\": %.3f}}\n", src.read_ms);
     }
-    if (!streamed) cli_source_close(&src);
-    cli_slices_close(&sl);
+    cli_source_close(&src);
     return cli_json_finish(&jo);
 }
 

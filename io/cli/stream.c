@@ -78,7 +78,6 @@ void cli_memory_plan_make(const isomend_volume *desc, const isomend_options *opt
         streaming += 2.0 * 12.0 * (double)isomend_stream_vertex_bound(&v, opts);
     if (core == 0.0) streaming = 1.8e19; /* dims the core refuses: in memory, to say why */
     const double cap = 1.8e19;
-    p->volume = volume < cap ? (uint64_t)volume : UINT64_MAX;
     p->in_memory = in_memory < cap ? (uint64_t)in_memory : UINT64_MAX;
     p->streaming = streaming < cap ? (uint64_t)streaming : UINT64_MAX;
     p->limit_given = max_memory != 0;
@@ -259,7 +258,7 @@ void cli_sink_for_world(cli_sink *sink, cli_world *w)
 
 /* ------------------------------------------------------------------ extraction */
 
-int cli_stream_extract(cli_slices *s, const isomend_options *opts, const cli_sink *sink,
+int cli_stream_extract(cli_source *s, const isomend_options *opts, const cli_sink *sink,
                        isomend_stats *stats)
 {
     /* The core's stream (isomend_stream_*): one slice in this buffer at a
