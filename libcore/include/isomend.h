@@ -621,11 +621,13 @@ ISOMEND_API isomend_status isomend_mesh_check(const isomend_mesh *mesh,
  * triangles, retire; see isomend_mesh_sink).  The report is isomend_check()'s
  * on the whole mesh, field for field, with the box given at begin.  It
  * forgets a vertex once it is retired and holds memory linear in the window
- * of live vertices and the triangles that use them (about 16 bytes a live
- * vertex and 200 a live triangle), not in the mesh
- * (isomend_check_stream_peak_bytes()).  One thread; not to be shared
- * between threads.  After a failure every later call but destroy returns
- * that status.
+ * of live vertices (about 200 bytes a live vertex), not in the mesh
+ * (isomend_check_stream_peak_bytes()).  It works as triangles arrive and
+ * as vertices retire (no sorting, no batching): constant work a triangle.
+ * One object fed by one thread at a time: it may run on a worker thread
+ * other than the one that made it or that runs the stream (the caller
+ * passing batches on in order), but calls on one check must not overlap.
+ * After a failure every later call but destroy returns that status.
  */
 typedef struct isomend_check_stream isomend_check_stream;
 

@@ -8,39 +8,58 @@
  *
  * What is complete when a vertex v retires:
  *   - the edges filed under v, their lower end (every triangle using such an
- *     edge uses v): each is counted, classified (border, hole, non-manifold,
- *     misoriented) by check.c's rules, its triangles' sets joined;
+ *     edge uses v): each is counted and classified (border, hole,
+ *     non-manifold, misoriented) by check.c's rules;
  *   - v's fan (every triangle around v): the non-manifold vertex test, and
  *     whether v counts at all (referenced by a triangle).
  * The edge's other end is above v, so not retired yet: its position, needed
  * by the border test, is still in the window.
  *
- * Method.  Every triangle appends three half-edge records (lower id, the
- * other's offset from it and the direction, the triangle's set node) and
- * three corner records (the corner's id, the two other corners' offsets)
- * to two pending arrays, and is tested for degeneracy at once (its
- * positions are live).  retire(floor) takes the records of the vertices
- * below floor out of the pending arrays with one counting sort by id
- * (the rest is compacted in place), then walks those vertices in id order
- * as check.c walks its rows.  With retire called once per layer, as a
- * stream does, a record is moved about twice; a caller retiring one id at
- * a time is batched (work is done once the retired vertices are 1/16 of the
- * pending records), so the cost stays linear.
+ * Method: edges are matched as triangles arrive; nothing is sorted.  Every
+ * live vertex v has a small table of its neighbours w, keyed by w - v (a
+ * block of 8 entries, compared at once with SSE2; 16 and 32 scanned;
+ * larger ones hashed).  At each corner x of a triangle the next and the
+ * previous corner are looked up in x's table (added when new), then
+ *   - the fan: the two entries are joined in the table's own union-find
+ *     (check.c's count_fans() joins x's corners through shared neighbours:
+ *     the same pieces; a block of 8 keeps every entry at its root).  x's
+ *     count of pieces grows with each new neighbour and each corner whose
+ *     other two corners are x itself, and drops with each join of two
+ *     pieces: more than one piece at retirement is a non-manifold vertex,
+ *     none an unreferenced one;
+ *   - the edges: each directed edge counts on its lower end's entry for the
+ *     higher one (self-edges under the key 0): triangles using it, how many
+ *     run lower -> higher (counting stops at 3: classification needs no
+ *     more), and its component;
+ *   - the degeneracy test, its positions being live.
+ * retire(floor) walks the vertices below floor in id order: each edge in
+ * its table (keys >= 0) is classified and its component reference dropped,
+ * and the block goes back to a free list.  The work is constant per
+ * triangle and per retired neighbour (a high-degree vertex's table is
+ * hashed), whatever the order of the triangles or how often retire is
+ * called.
  *
  * Components and hole loops need sets whose members stream past: a
- * union-find whose nodes carry a reference count (the half-edge records or
- * live vertices naming the node, plus the nodes whose parent it is).  A
- * node whose count drops to zero is freed and releases its parent; a root
- * that is freed is a set with no live member left, one that can never grow
- * again: one component (triangle nodes) or one hole loop (vertex nodes,
- * joined by hole edges, made only for vertices on a hole edge).  Path
- * halving moves references from a parent to the grandparent.
+ * union-find whose nodes carry a reference count (the live edges or live
+ * vertices naming the node, plus the nodes whose parent it is).  A triangle
+ * joins the sets of its edges already seen (triangles sharing an edge are
+ * one component) and names the result on its new edges; a triangle with no
+ * edge seen starts a node.  A node whose count drops to zero is freed and
+ * releases its parent; a root that is freed is a set with no live member
+ * left, one that can never grow again: one component (edge sets) or one
+ * hole loop (vertex nodes, joined by hole edges, made only for vertices on
+ * a hole edge).  Path halving moves references from a parent to the
+ * grandparent.
  *
- * Memory: positions (16 bytes a live vertex, in a ring indexed by id), the
- * pending records (32 bytes a live triangle corner), the set nodes of live
- * triangles and hole vertices, and scratch of the largest batch retired: all
- * linear in the window, none in the mesh.  Nothing is allocated per
- * triangle; the arrays grow by doubling and are kept for reuse.
+ * Memory: the ring of live vertices (40 bytes each, indexed by id & mask:
+ * position, hole node, table), their tables (16 bytes a neighbour, blocks
+ * at most twice the size needed, kept on free lists by size for reuse),
+ * the set nodes the live edges name and their parents: all linear in the
+ * window, none in the mesh.  Nothing is allocated per triangle once the
+ * window has been seen; arrays grow by doubling and are kept.
+ *
+ * One object, fed by one thread at a time (any thread: the stream's, or a
+ * worker the caller hands batches to); nothing in it is shared.
  *
  * Sheared and uneven slices (isomend_volume.slice_origins):
  * isomend_check_stream_begin_volume() keeps the marched slices' origins
@@ -56,29 +75,37 @@
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
+#if defined(__SSE2__)
+#include <emmintrin.h>
+#endif
 
 #define NONE UINT32_MAX
-/* The most live ids at once: offsets between ids of a triangle are kept in
- * 32 bits. */
+/* The most live ids at once: the offset between two live ids fits an
+ * int32_t (never INT32_MIN, the key of an empty entry). */
 #define WINDOW_LIMIT ((uint64_t)1 << 31)
+#define NO_KEY INT32_MIN
+/* Neighbour tables: class c holds 8 << c entries; up to SCAN_MAX looked up
+ * by comparing keys, larger ones hashed (2 slots an entry). */
+#define CLASSES 28
+#define SCAN_MAX 32u
 
 typedef struct vslot { /* a live vertex, at ring[id & mask] */
-    float p[3];        /* in the frame of the check              */
-    uint32_t hole;     /* its hole-loop node, or NONE            */
+    float p[3];        /* in the frame of the check                        */
+    uint32_t hole;     /* its hole-loop node, or NONE                      */
+    int32_t *key;      /* its neighbours' keys, w - v (NULL before any)    */
+    struct nbr *e;     /* and entries, in the same block (see table_grow)  */
+    uint32_t n;        /* neighbours in the table                          */
+    uint32_t fans;     /* pieces of its fan so far; 0: no triangle uses it */
 } vslot;
 
-/* A directed triangle edge, filed under its lower id. */
-typedef struct hrec {
-    uint64_t lo;
-    uint32_t d;   /* (other - lo) << 1 | (1 when it runs lower -> higher) */
-    uint32_t tri; /* the triangle's set node                              */
-} hrec;
-
-/* A triangle's corner. */
-typedef struct crec {
-    uint64_t v;
-    uint32_t a, b; /* the two other corners minus v (mod 2^32; 0: v itself) */
-} crec;
+/* A neighbour w of vertex v (its key, w - v, is kept apart: lookups read
+ * keys only). */
+typedef struct nbr {
+    uint32_t up;   /* the fan union-find's parent, an index in the table    */
+    uint32_t set;  /* edge (v, w), w >= v: its component node, NONE before  */
+    uint8_t uses;  /* triangles on the edge, up to 3                        */
+    uint8_t fwd;   /* of those, running v -> w                              */
+} nbr;
 
 /* A union-find of reference-counted nodes (see the overview). */
 typedef struct ufnode {
@@ -93,30 +120,18 @@ typedef struct ufpool {
     uint64_t finished; /* sets whose root was freed */
 } ufpool;
 
-/* Scratch of the per-vertex tests. */
-typedef struct pair {
-    uint32_t key, idx;
-} pair;
-
 struct isomend_check_stream {
     isomend_status status; /* sticky: the first failure                       */
     int started, finished;
     double box[6], extent;
     double *so; /* sheared frame: marched slice origins (3 a slice), or NULL  */
     int64_t n2;
-    uint64_t next, floor, done; /* delivered [.., next); retired below floor;
-                                 * processed below done (done <= floor)      */
+    uint64_t next, floor; /* delivered [.., next); retired below floor        */
     vslot *ring;
     uint64_t mask; /* ring capacity - 1 (a power of two)                     */
-    hrec *half, *hs;
-    crec *corner, *cs;
-    size_t nhalf, hcap, hscap, ncorner, ccap, cscap;
-    size_t *hoff, *coff; /* per vertex of a batch                            */
-    size_t hoffcap, coffcap;
-    pair *pairs;
-    uint32_t *fan; /* a vertex's fan union-find                            */
-    size_t paircap, fancap;
-    ufpool tri, hole;
+    void *free_blocks[CLASSES]; /* tables' blocks, by class, for reuse: the
+                                 * next free one in their first bytes      */
+    ufpool tri, hole; /* components (of edges), hole loops (of vertices)    */
     isomend_check_report r;
     uint64_t bytes, peak;
 };
@@ -131,13 +146,13 @@ static void account(isomend_check_stream *s, size_t old_bytes, size_t new_bytes)
 }
 
 /* Grows the array whose pointer is at `where` (*cap elements of `size`) to
- * hold `need`, doubling.  The pointer is read and written with memcpy: any
- * object pointer type. */
+ * hold `need`, doubling from about 4 KB.  The pointer is read and written
+ * with memcpy: any object pointer type. */
 static int grow(isomend_check_stream *s, void *where, size_t *cap, size_t need, size_t size)
 {
     if (need <= *cap)
         return 1;
-    size_t n = *cap ? *cap : 64;
+    size_t n = *cap ? *cap : size < 4096 ? 4096 / size : 1;
     while (n < need)
         n *= 2;
     if (n > SIZE_MAX / size)
@@ -206,12 +221,11 @@ static uint32_t uf_find(ufpool *u, uint32_t x)
     }
 }
 
-static void uf_union(ufpool *u, uint32_t a, uint32_t b)
+/* Joins the sets of roots a and b; the root of the union. */
+static uint32_t uf_link(ufpool *u, uint32_t a, uint32_t b)
 {
-    a = uf_find(u, a);
-    b = uf_find(u, b);
     if (a == b)
-        return;
+        return a;
     ufnode *n = u->n;
     if (n[a].rank < n[b].rank) {
         const uint32_t t = a;
@@ -222,6 +236,7 @@ static void uf_union(ufpool *u, uint32_t a, uint32_t b)
     n[a].ref++;
     if (n[a].rank == n[b].rank)
         n[a].rank++;
+    return a;
 }
 
 /* Drops one reference to x; nodes left with none are freed up the tree,
@@ -238,6 +253,229 @@ static void uf_release(ufpool *u, uint32_t x)
         }
         x = p;
     }
+}
+
+/* ------------------------------------------------- neighbour tables */
+
+/* The class of a table holding n >= 1 neighbours (one grows when full). */
+static uint32_t class_of(uint32_t n)
+{
+    uint32_t cls = 0;
+    while ((8u << cls) < n)
+        cls++;
+    return cls;
+}
+
+/* Bytes of a class cls block: keys, entries, then for hashed classes the
+ * hash (2 slots an entry: entry index + 1, 0 when empty). */
+static size_t block_bytes(uint32_t cls)
+{
+    const size_t cap = (size_t)8 << cls;
+    return (sizeof(int32_t) + sizeof(nbr)) * cap + (cap > SCAN_MAX ? 2 * sizeof(uint32_t) * cap : 0);
+}
+
+static uint32_t *hash_of(const vslot *v, uint32_t cls)
+{
+    return (uint32_t *)(void *)(v->e + ((size_t)8 << cls));
+}
+
+/* The first hash slot of key in a class cls table (16 << cls slots). */
+static uint32_t hash_slot(int32_t key, uint32_t cls)
+{
+    return ((uint32_t)key * 0x9E3779B1u) >> (32 - (cls + 4));
+}
+
+/* Gives v's table back to its class's free list. */
+static void table_free(isomend_check_stream *s, vslot *v)
+{
+    if (!v->key)
+        return;
+    void **head = &s->free_blocks[class_of(v->n)];
+    memcpy(v->key, head, sizeof *head);
+    *head = v->key;
+    v->key = NULL;
+    v->e = NULL;
+}
+
+/* Makes v's (full or missing) table twice as large, from a free block or a
+ * new one; 0 when out of memory. */
+static int table_grow(isomend_check_stream *s, vslot *v)
+{
+    const uint32_t cls = v->key ? class_of(v->n) + 1 : 0;
+    if (cls >= CLASSES)
+        return 0;
+    void *blk = s->free_blocks[cls];
+    if (blk) {
+        memcpy(&s->free_blocks[cls], blk, sizeof blk);
+    } else {
+        blk = malloc(block_bytes(cls));
+        if (!blk)
+            return 0;
+        account(s, 0, block_bytes(cls));
+    }
+    const size_t cap = (size_t)8 << cls;
+    int32_t *key = blk;
+    nbr *e = (nbr *)(void *)(key + cap);
+    if (v->key) {
+        memcpy(key, v->key, sizeof(int32_t) * v->n);
+        memcpy(e, v->e, sizeof(nbr) * v->n);
+        table_free(s, v);
+    }
+    v->key = key;
+    v->e = e;
+    if (cls == 0) { /* match8() reads all 8 keys */
+        for (size_t i = v->n; i < cap; i++)
+            key[i] = NO_KEY;
+    } else if (cap > SCAN_MAX) {
+        uint32_t *hash = hash_of(v, cls);
+        memset(hash, 0, 2 * sizeof(uint32_t) * cap);
+        for (uint32_t i = 0; i < v->n; i++) {
+            uint32_t h = hash_slot(key[i], cls);
+            while (hash[h])
+                h = (h + 1) & (uint32_t)(2 * cap - 1);
+            hash[h] = i + 1;
+        }
+    }
+    return 1;
+}
+
+/* Adds neighbour key to v's table, which has room: a piece of v's fan of
+ * its own (the self-edge's key 0 is no neighbour).  Its index. */
+static uint32_t table_add(vslot *v, int32_t key)
+{
+    const uint32_t at = v->n++;
+    v->key[at] = key;
+    v->e[at].up = at;
+    v->e[at].set = NONE;
+    v->e[at].uses = v->e[at].fwd = 0;
+    v->fans += key != 0;
+    return at;
+}
+
+/* neighbour() beyond a block of 8 with room. */
+static uint32_t neighbour_slow(isomend_check_stream *s, vslot *v, int32_t key)
+{
+    if (v->n > 8) {
+        const uint32_t cls = class_of(v->n), cap = 8u << cls;
+        if (cap <= SCAN_MAX) {
+            for (uint32_t i = 0; i < v->n; i++)
+                if (v->key[i] == key)
+                    return i;
+        } else {
+            const uint32_t *hash = hash_of(v, cls);
+            for (uint32_t h = hash_slot(key, cls); hash[h]; h = (h + 1) & (2 * cap - 1))
+                if (v->key[hash[h] - 1] == key)
+                    return hash[h] - 1;
+        }
+    }
+    if ((!v->key || v->n == 8u << class_of(v->n)) && !table_grow(s, v))
+        return NONE;
+    const uint32_t at = table_add(v, key), cls = class_of(v->n);
+    if (8u << cls > SCAN_MAX) {
+        uint32_t *hash = hash_of(v, cls);
+        uint32_t h = hash_slot(key, cls);
+        while (hash[h])
+            h = (h + 1) & ((16u << cls) - 1);
+        hash[h] = at + 1;
+    }
+    return at;
+}
+
+/* Bit i set when k[i] == key, i < 8. */
+static inline uint32_t match8(const int32_t *k, int32_t key)
+{
+#if defined(__SSE2__)
+    const __m128i x = _mm_set1_epi32(key);
+    const __m128i lo = _mm_cmpeq_epi32(_mm_loadu_si128((const __m128i *)(const void *)k), x);
+    const __m128i hi = _mm_cmpeq_epi32(_mm_loadu_si128((const __m128i *)(const void *)(k + 4)), x);
+    return (uint32_t)_mm_movemask_ps(_mm_castsi128_ps(lo)) |
+           (uint32_t)_mm_movemask_ps(_mm_castsi128_ps(hi)) << 4;
+#else
+    uint32_t hit = 0;
+    for (uint32_t i = 0; i < 8; i++)
+        hit |= (uint32_t)(k[i] == key) << i;
+    return hit;
+#endif
+}
+
+/* The index of neighbour key (w - v) in v's table, added when new; NONE
+ * when out of memory.  Most tables are a block of 8, compared at once
+ * (NO_KEY past the end). */
+static inline uint32_t neighbour(isomend_check_stream *s, vslot *v, int32_t key)
+{
+    if (v->n - 1u < 8u) {
+        const uint32_t hit = match8(v->key, key);
+        if (hit)
+            return (uint32_t)__builtin_ctz(hit);
+        if (v->n < 8)
+            return table_add(v, key);
+    }
+    return neighbour_slow(s, v, key);
+}
+
+static uint32_t fan_find(nbr *e, uint32_t x)
+{
+    while (e[x].up != x) {
+        e[x].up = e[e[x].up].up;
+        x = e[x].up;
+    }
+    return x;
+}
+
+/* Neighbours a and b of v are in one piece of its fan (a corner joins
+ * them).  A block of 8 keeps every entry's `up` at its root (the join
+ * renames a piece: no search); larger tables halve paths. */
+static void fan_join(vslot *v, uint32_t a, uint32_t b)
+{
+    nbr *e = v->e;
+    if (v->n <= 8) {
+        a = e[a].up;
+        b = e[b].up;
+    } else {
+        a = fan_find(e, a);
+        b = fan_find(e, b);
+    }
+    if (a == b)
+        return;
+    const uint32_t keep = a < b ? a : b, gone = a < b ? b : a;
+    if (v->n <= 8)
+        for (uint32_t i = 0; i < v->n; i++)
+            e[i].up = e[i].up == gone ? keep : e[i].up;
+    else
+        e[gone].up = keep;
+    v->fans--;
+}
+
+/* A triangle's corner at v, the next corner at key ky from v and the
+ * previous one at kz: their entries in v's table into *ny, *nz (NONE when
+ * kz is 0: that edge is the previous corner's self-edge), the corner's
+ * join in v's fan.  0 when out of memory.  With two neighbours and a block
+ * of 8, the two keys are looked up in one pass. */
+static inline int corner(isomend_check_stream *s, vslot *v, int32_t ky, int32_t kz, uint32_t *ny,
+                         uint32_t *nz)
+{
+    if (ky && kz) {
+        uint32_t a, b;
+        if (v->n - 1u < 6u) { /* room for both */
+            const uint32_t hy = match8(v->key, ky), hz = match8(v->key, kz);
+            a = hy ? (uint32_t)__builtin_ctz(hy) : table_add(v, ky);
+            b = hz ? (uint32_t)__builtin_ctz(hz) : ky == kz ? a : table_add(v, kz);
+        } else {
+            a = neighbour(s, v, ky);
+            b = neighbour(s, v, kz);
+        }
+        *ny = a;
+        *nz = b;
+        if (a == NONE || b == NONE)
+            return 0;
+        fan_join(v, a, b);
+        return 1;
+    }
+    *ny = neighbour(s, v, ky); /* ky == 0: the self-edge */
+    *nz = kz ? neighbour(s, v, kz) : NONE;
+    if (!ky && !kz)
+        v->fans++; /* a corner with no neighbour: a piece of its own */
+    return *ny != NONE && (!kz || *nz != NONE);
 }
 
 /* ----------------------------------------------- check.c's two tests */
@@ -352,15 +590,16 @@ void isomend_check_stream_destroy(isomend_check_stream *s)
     if (!s)
         return;
     free(s->so);
+    if (s->started)
+        for (uint64_t id = s->floor; id < s->next; id++)
+            table_free(s, &s->ring[id & s->mask]);
+    for (int c = 0; c < CLASSES; c++)
+        while (s->free_blocks[c]) {
+            void *blk = s->free_blocks[c];
+            memcpy(&s->free_blocks[c], blk, sizeof blk);
+            free(blk);
+        }
     free(s->ring);
-    free(s->half);
-    free(s->hs);
-    free(s->corner);
-    free(s->cs);
-    free(s->hoff);
-    free(s->coff);
-    free(s->pairs);
-    free(s->fan);
     free(s->tri.n);
     free(s->hole.n);
     free(s);
@@ -380,87 +619,6 @@ static isomend_status fail(isomend_check_stream *s, isomend_status status)
 
 /* ------------------------------------------------- retiring: the tests */
 
-static void sort_pairs(pair *p, size_t n)
-{
-    for (size_t i = 1; i < n; i++) { /* short lists: insertion sort */
-        pair x = p[i];
-        size_t j = i;
-        while (j > 0 && p[j - 1].key > x.key) {
-            p[j] = p[j - 1];
-            j--;
-        }
-        p[j] = x;
-    }
-}
-
-static int pair_cmp(const void *a, const void *b)
-{
-    const uint32_t x = ((const pair *)a)->key, y = ((const pair *)b)->key;
-    return x < y ? -1 : x > y;
-}
-
-static uint32_t fan_find(uint32_t *parent, uint32_t x)
-{
-    while (parent[x] != x) {
-        parent[x] = parent[parent[x]];
-        x = parent[x];
-    }
-    return x;
-}
-
-/* check.c's count_fans() > 1 on v's corners c[0..n): entries joined by a
- * shared corner other than v. */
-static int several_fans(isomend_check_stream *s, const crec *c, size_t n)
-{
-    pair *p = s->pairs;
-    uint32_t *parent = s->fan;
-    size_t m = 0;
-    for (size_t i = 0; i < n; i++) {
-        parent[i] = (uint32_t)i;
-        if (c[i].a) {
-            p[m].key = c[i].a;
-            p[m++].idx = (uint32_t)i;
-        }
-        if (c[i].b) {
-            p[m].key = c[i].b;
-            p[m++].idx = (uint32_t)i;
-        }
-    }
-    if (m > 64)
-        qsort(p, m, sizeof *p, pair_cmp);
-    else
-        sort_pairs(p, m);
-    size_t fans = n;
-    for (size_t i = 1; i < m; i++)
-        if (p[i].key == p[i - 1].key) {
-            const uint32_t a = fan_find(parent, p[i].idx), b = fan_find(parent, p[i - 1].idx);
-            if (a != b) {
-                parent[a < b ? b : a] = a < b ? a : b;
-                fans--;
-            }
-        }
-    return fans > 1;
-}
-
-static void sort_halves(hrec *h, size_t n)
-{
-    for (size_t i = 1; i < n; i++) {
-        hrec x = h[i];
-        size_t j = i;
-        while (j > 0 && (h[j - 1].d >> 1) > (x.d >> 1)) {
-            h[j] = h[j - 1];
-            j--;
-        }
-        h[j] = x;
-    }
-}
-
-static int half_cmp(const void *a, const void *b)
-{
-    const uint32_t x = ((const hrec *)a)->d >> 1, y = ((const hrec *)b)->d >> 1;
-    return x < y ? -1 : x > y;
-}
-
 /* The hole-loop node of live vertex id, made on first use. */
 static isomend_status hole_node(isomend_check_stream *s, uint64_t id, uint32_t *out)
 {
@@ -474,136 +632,58 @@ static isomend_status hole_node(isomend_check_stream *s, uint64_t id, uint32_t *
     return ISOMEND_OK;
 }
 
-/* Vertex v's edges h[0..n) (filed under it) are complete: check.c's loop
- * over a row. */
-static isomend_status vertex_edges(isomend_check_stream *s, uint64_t v, hrec *h, size_t n)
+/* Vertex id retires: its fan and the edges filed under it are complete
+ * (check.c's loop over a row, and count_fans()). */
+static isomend_status retire_vertex(isomend_check_stream *s, uint64_t id)
 {
-    if (n > 64)
-        qsort(h, n, sizeof *h, half_cmp);
-    else
-        sort_halves(h, n);
     isomend_check_report *r = &s->r;
-    const float *p = s->ring[v & s->mask].p;
-    for (size_t i = 0; i < n;) {
-        const uint32_t other = h[i].d >> 1;
-        size_t j = i + 1;
-        unsigned fwd = h[i].d & 1;
-        while (j < n && (h[j].d >> 1) == other) {
-            fwd += h[j].d & 1;
-            uf_union(&s->tri, h[i].tri, h[j].tri);
-            j++;
-        }
-        const size_t uses = j - i;
-        r->edges++;
-        if (uses == 1) {
-            const uint64_t w = v + other;
-            if (on_box_face(p, s->ring[w & s->mask].p, s->box, s->extent)) {
-                r->border_edges++;
+    vslot *v = &s->ring[id & s->mask];
+    r->vertices += v->fans > 0;
+    r->nonmanifold_vertices += v->fans > 1;
+    if (v->key) {
+        const int32_t *key = v->key;
+        const nbr *e = v->e;
+        for (uint32_t i = 0; i < v->n; i++) {
+            if (key[i] < 0) /* filed under the lower neighbour */
+                continue;
+            r->edges++;
+            if (e[i].uses == 1) {
+                const uint64_t w = id + (uint32_t)key[i];
+                if (on_box_face(v->p, s->ring[w & s->mask].p, s->box, s->extent)) {
+                    r->border_edges++;
+                } else {
+                    r->hole_edges++;
+                    uint32_t a, b;
+                    isomend_status st = hole_node(s, id, &a);
+                    if (st == ISOMEND_OK)
+                        st = hole_node(s, w, &b);
+                    if (st != ISOMEND_OK)
+                        return st;
+                    uf_link(&s->hole, uf_find(&s->hole, a), uf_find(&s->hole, b));
+                }
+            } else if (e[i].uses == 2) {
+                r->misoriented_edges += e[i].fwd != 1;
             } else {
-                r->hole_edges++;
-                uint32_t a, b;
-                isomend_status st = hole_node(s, v, &a);
-                if (st == ISOMEND_OK)
-                    st = hole_node(s, w, &b);
-                if (st != ISOMEND_OK)
-                    return st;
-                uf_union(&s->hole, a, b);
+                r->nonmanifold_edges++;
             }
-        } else if (uses == 2) {
-            if (fwd != 1)
-                r->misoriented_edges++;
-        } else {
-            r->nonmanifold_edges++;
+            uf_release(&s->tri, e[i].set);
         }
-        i = j;
+        table_free(s, v);
     }
-    for (size_t i = 0; i < n; i++)
-        uf_release(&s->tri, h[i].tri);
-    return ISOMEND_OK;
-}
-
-/* The records of ids below `floor` in rec[0..n), sorted by id into out
- * (grown to fit), the others compacted in place; off[i] ends up as the end
- * of id base + i's records.  One function per record type. */
-#define TAKE_BELOW(name, type, key)                                                                \
-    static int name(isomend_check_stream *s, type *rec, size_t *n, type **out, size_t *outcap,     \
-                    size_t *off, uint64_t base, uint64_t floor)                                    \
-    {                                                                                              \
-        const size_t m = (size_t)(floor - base);                                                   \
-        memset(off, 0, sizeof(size_t) * (m + 1));                                                  \
-        for (size_t i = 0; i < *n; i++)                                                            \
-            if (rec[i].key < floor)                                                                \
-                off[rec[i].key - base + 1]++;                                                      \
-        for (size_t i = 0; i < m; i++)                                                             \
-            off[i + 1] += off[i];                                                                  \
-        if (!grow(s, out, outcap, off[m], sizeof(type)))                                           \
-            return 0;                                                                              \
-        type *o = *out;                                                                            \
-        size_t kept = 0;                                                                           \
-        for (size_t i = 0; i < *n; i++) {                                                          \
-            const type r = rec[i];                                                                 \
-            if (r.key < floor)                                                                     \
-                o[off[r.key - base]++] = r;                                                        \
-            else                                                                                   \
-                rec[kept++] = r;                                                                   \
-        }                                                                                          \
-        *n = kept;                                                                                 \
-        return 1;                                                                                  \
+    v->n = v->fans = 0;
+    if (v->hole != NONE) {
+        uf_release(&s->hole, v->hole);
+        v->hole = NONE;
     }
-TAKE_BELOW(take_halves, hrec, lo)
-TAKE_BELOW(take_corners, crec, v)
-#undef TAKE_BELOW
-
-/* Every vertex below s->floor is tested and forgotten. */
-static isomend_status process(isomend_check_stream *s)
-{
-    const uint64_t base = s->done, floor = s->floor;
-    if (floor == base)
-        return ISOMEND_OK;
-    const size_t m = (size_t)(floor - base);
-    if (!grow(s, &s->hoff, &s->hoffcap, m + 1, sizeof(size_t)) ||
-        !grow(s, &s->coff, &s->coffcap, m + 1, sizeof(size_t)))
-        return ISOMEND_ERR_OUT_OF_MEMORY;
-    size_t *hoff = s->hoff, *coff = s->coff;
-    if (!take_halves(s, s->half, &s->nhalf, &s->hs, &s->hscap, hoff, base, floor) ||
-        !take_corners(s, s->corner, &s->ncorner, &s->cs, &s->cscap, coff, base, floor))
-        return ISOMEND_ERR_OUT_OF_MEMORY;
-    /* off[i] is now the end of vertex base + i's records */
-    isomend_check_report *r = &s->r;
-    size_t h0 = 0, c0 = 0;
-    for (size_t i = 0; i < m; i++) {
-        const uint64_t v = base + i;
-        const size_t h1 = hoff[i], c1 = coff[i], nv = c1 - c0;
-        if (nv) {
-            r->vertices++;
-            if (nv > 1) {
-                if (!grow(s, &s->pairs, &s->paircap, 2 * nv, sizeof(pair)) ||
-                    !grow(s, &s->fan, &s->fancap, nv, sizeof(uint32_t)))
-                    return ISOMEND_ERR_OUT_OF_MEMORY;
-                r->nonmanifold_vertices += (uint64_t)several_fans(s, s->cs + c0, nv);
-            }
-        }
-        isomend_status st = vertex_edges(s, v, s->hs + h0, h1 - h0);
-        if (st != ISOMEND_OK)
-            return st;
-        vslot *slot = &s->ring[v & s->mask];
-        if (slot->hole != NONE) {
-            uf_release(&s->hole, slot->hole);
-            slot->hole = NONE;
-        }
-        h0 = h1;
-        c0 = c1;
-    }
-    s->done = floor;
     return ISOMEND_OK;
 }
 
 /* ------------------------------------------------------------ feeding */
 
-/* Makes the ring hold ids [s->done, end). */
+/* Makes the ring hold ids [s->floor, end). */
 static isomend_status ring_fit(isomend_check_stream *s, uint64_t end)
 {
-    const uint64_t need = end - s->done;
+    const uint64_t need = end - s->floor;
     if (s->ring && need <= s->mask + 1)
         return ISOMEND_OK;
     uint64_t cap = s->ring ? 2 * (s->mask + 1) : 1024;
@@ -614,7 +694,7 @@ static isomend_status ring_fit(isomend_check_stream *s, uint64_t end)
     vslot *ring = malloc(sizeof(vslot) * (size_t)cap);
     if (!ring)
         return ISOMEND_ERR_OUT_OF_MEMORY;
-    for (uint64_t id = s->done; id < s->next; id++)
+    for (uint64_t id = s->floor; id < s->next; id++)
         ring[id & (cap - 1)] = s->ring[id & s->mask];
     account(s, s->ring ? sizeof(vslot) * (size_t)(s->mask + 1) : 0, sizeof(vslot) * (size_t)cap);
     free(s->ring);
@@ -659,18 +739,13 @@ isomend_status isomend_check_stream_vertices(isomend_check_stream *s, uint64_t f
         if (first_id < s->floor)
             return fail(s, ISOMEND_ERR_INVALID_ARGUMENT);
         s->started = 1;
-        s->next = s->floor = s->done = first_id;
+        s->next = s->floor = first_id;
     }
     if (first_id != s->next || count > UINT64_MAX - first_id)
         return fail(s, ISOMEND_ERR_INVALID_ARGUMENT);
     const uint64_t end = first_id + count;
     if (end - s->floor >= WINDOW_LIMIT)
         return fail(s, ISOMEND_ERR_TOO_LARGE);
-    if (s->done < s->floor && s->ring && end - s->done > s->mask + 1) {
-        isomend_status st = process(s); /* rather than growing the ring */
-        if (st != ISOMEND_OK)
-            return fail(s, st);
-    }
     isomend_status st = ring_fit(s, end);
     if (st != ISOMEND_OK)
         return fail(s, st);
@@ -681,9 +756,18 @@ isomend_status isomend_check_stream_vertices(isomend_check_stream *s, uint64_t f
         else
             memcpy(v->p, positions + 3 * i, sizeof v->p);
         v->hole = NONE;
+        v->key = NULL;
+        v->e = NULL;
+        v->n = v->fans = 0;
     }
     s->next = end;
     return ISOMEND_OK;
+}
+
+/* to - from, both live ids. */
+static int32_t offset(uint64_t to, uint64_t from)
+{
+    return to >= from ? (int32_t)(to - from) : -(int32_t)(from - to);
 }
 
 isomend_status isomend_check_stream_triangles(isomend_check_stream *s, size_t count,
@@ -699,36 +783,59 @@ isomend_status isomend_check_stream_triangles(isomend_check_stream *s, size_t co
     for (size_t i = 0; i < 3 * count; i++)
         if (ids[i] < lo || ids[i] >= hi) /* retired, not delivered, or foreign */
             return fail(s, ISOMEND_ERR_INVALID_ARGUMENT);
-    if (!grow(s, &s->half, &s->hcap, s->nhalf + 3 * count, sizeof(hrec)) ||
-        !grow(s, &s->corner, &s->ccap, s->ncorner + 3 * count, sizeof(crec)))
-        return fail(s, ISOMEND_ERR_OUT_OF_MEMORY);
-    hrec *h = s->half + s->nhalf;
-    crec *c = s->corner + s->ncorner;
-    const vslot *ring = s->ring;
+    vslot *const ring = s->ring;
     const uint64_t mask = s->mask;
     for (size_t t = 0; t < count; t++) {
-        const uint64_t *v = ids + 3 * t;
-        uint32_t node;
-        isomend_status st = uf_new(s, &s->tri, 3, &node);
-        if (st != ISOMEND_OK)
-            return fail(s, st);
+        const uint64_t *id = ids + 3 * t;
+        vslot *v[3];
+        uint32_t nx[3], pv[3]; /* corner k's entries for the next, previous corner */
+        for (int k = 0; k < 3; k++)
+            v[k] = &ring[id[k] & mask];
         for (int k = 0; k < 3; k++) {
-            const uint64_t a = v[k], b = v[(k + 1) % 3], x = v[(k + 2) % 3];
-            h->lo = a < b ? a : b;
-            h->d = (uint32_t)((a < b ? b - a : a - b) << 1) | (a < b);
-            h->tri = node;
-            h++;
-            c->v = a;
-            c->a = (uint32_t)(b - a);
-            c->b = (uint32_t)(x - a);
-            c++;
+            const uint64_t x = id[k], y = id[k == 2 ? 0 : k + 1], z = id[k == 0 ? 2 : k - 1];
+            if (!corner(s, v[k], offset(y, x), offset(z, x), &nx[k], &pv[k]))
+                return fail(s, ISOMEND_ERR_OUT_OF_MEMORY);
         }
+        /* edge k runs id[k] -> id[k + 1]: counted on the lower end's entry */
+        nbr *e[3];
+        uint32_t root = NONE;
+        for (int k = 0; k < 3; k++) {
+            const int k1 = k == 2 ? 0 : k + 1;
+            const unsigned fwd = id[k] < id[k1], lower = id[k] <= id[k1];
+            e[k] = (lower ? v[k] : v[k1])->e + (lower ? nx[k] : pv[k1]);
+            const unsigned more = e[k]->uses < 3;
+            e[k]->uses = (uint8_t)(e[k]->uses + more);
+            e[k]->fwd = (uint8_t)(e[k]->fwd + (fwd & more));
+            if (e[k]->set != NONE) { /* an edge seen before: join its set */
+                const uint32_t r = uf_find(&s->tri, e[k]->set);
+                root = root == NONE ? r : uf_link(&s->tri, root, r);
+            }
+        }
+        for (int k = 0; k < 3; k++)
+            if (e[k]->set == NONE) { /* a new edge (maybe twice in e): names the set */
+                if (root == NONE) {
+                    isomend_status st = uf_new(s, &s->tri, 0, &root);
+                    if (st != ISOMEND_OK)
+                        return fail(s, st);
+                }
+                e[k]->set = root;
+                s->tri.n[root].ref++;
+            }
         s->r.degenerate_triangles +=
-            (uint64_t)degenerate(ring[v[0] & mask].p, ring[v[1] & mask].p, ring[v[2] & mask].p, v);
+            (uint64_t)degenerate(v[0]->p, v[1]->p, v[2]->p, id);
+        s->r.triangles++;
     }
-    s->nhalf += 3 * count;
-    s->ncorner += 3 * count;
-    s->r.triangles += count;
+    return ISOMEND_OK;
+}
+
+/* Every vertex below floor, not yet retired, is tested and forgotten. */
+static isomend_status retire_to(isomend_check_stream *s, uint64_t floor)
+{
+    for (; s->floor < floor; s->floor++) {
+        isomend_status st = retire_vertex(s, s->floor);
+        if (st != ISOMEND_OK)
+            return st;
+    }
     return ISOMEND_OK;
 }
 
@@ -744,14 +851,8 @@ isomend_status isomend_check_stream_retire(isomend_check_stream *s, uint64_t flo
         s->floor = floor;
         return ISOMEND_OK;
     }
-    s->floor = floor;
-    /* Batched: the work of a batch is linear in the pending records. */
-    if ((floor - s->done) * 16 >= (uint64_t)(s->nhalf + s->ncorner)) {
-        isomend_status st = process(s);
-        if (st != ISOMEND_OK)
-            return fail(s, st);
-    }
-    return ISOMEND_OK;
+    isomend_status st = retire_to(s, floor);
+    return st == ISOMEND_OK ? ISOMEND_OK : fail(s, st);
 }
 
 isomend_status isomend_check_stream_finish(isomend_check_stream *s, isomend_check_report *report)
@@ -763,8 +864,7 @@ isomend_status isomend_check_stream_finish(isomend_check_stream *s, isomend_chec
         return s->status;
     if (s->finished)
         return fail(s, ISOMEND_ERR_INVALID_ARGUMENT);
-    s->floor = s->next;
-    isomend_status st = process(s);
+    isomend_status st = retire_to(s, s->next);
     if (st != ISOMEND_OK)
         return fail(s, st);
     s->finished = 1;

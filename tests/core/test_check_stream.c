@@ -9,7 +9,8 @@
  *   - the same meshes fed from memory in random batches with random retire
  *     floors (batching and deferred work), against isomend_check();
  *   - hand-made meshes (a non-manifold vertex, flipped faces, degenerate
- *     triangles, several components and hole loops, an edge used 3 times)
+ *     triangles, several components and hole loops, an edge used 3 times,
+ *     two cones on one apex of 300 neighbours)
  *     and random triangle soups on a coarse grid (collinear points, repeated
  *     indices, border edges), against isomend_check().
  * The cases must include each defect (else the test fails); bad input is
@@ -392,6 +393,45 @@ static void test_hand_made(void)
     CHECK_EQ_INT(isomend_check(book, 5, bt, 3, box, &want), ISOMEND_OK);
     CHECK_EQ_INT(want.nonmanifold_edges, 1);
     compare_fed(book, 5, bt, 3, box, 1, "book", &compared_hand);
+
+    /* Two cones of 150 triangles on one apex (ids 0 and 1: the apex in the
+     * middle of the ids, one cone flipped): the apex's table is hashed, its
+     * fan in 2 pieces; then one open cone alone. */
+    {
+        enum { RIM = 150 };
+        float cone[3 * (2 * RIM + 1)];
+        uint32_t ct[3 * 2 * RIM];
+        size_t cv = 0, cn = 0;
+        for (int c = 0; c < 2; c++)
+            for (int i = 0; i < RIM; i++) {
+                const double a = 2.0 * 3.14159265358979 * i / RIM;
+                cone[3 * cv] = (float)(3.0 * cos(a));
+                cone[3 * cv + 1] = (float)(3.0 * sin(a));
+                cone[3 * cv + 2] = c ? 2.0f : -2.0f;
+                cv++;
+                if (c == 0 && i == RIM / 2) { /* the apex */
+                    cone[3 * cv] = cone[3 * cv + 1] = cone[3 * cv + 2] = 0.0f;
+                    cv++;
+                }
+            }
+        const uint32_t apex = RIM / 2 + 1;
+        for (int c = 0; c < 2; c++)
+            for (uint32_t i = 0; i < RIM; i++) {
+                uint32_t r0 = (uint32_t)c * RIM + i, r1 = (uint32_t)c * RIM + (i + 1) % RIM;
+                r0 += r0 >= apex;
+                r1 += r1 >= apex;
+                ct[3 * cn] = apex;
+                ct[3 * cn + 1] = c ? r1 : r0;
+                ct[3 * cn + 2] = c ? r0 : r1;
+                cn++;
+            }
+        CHECK_EQ_INT(isomend_check(cone, cv, ct, cn, box, &want), ISOMEND_OK);
+        CHECK_EQ_INT(want.nonmanifold_vertices, 1);
+        CHECK_EQ_INT(want.hole_loops, 2);
+        compare_fed(cone, cv, ct, cn, box, 7, "two cones on one apex", &compared_hand);
+        compare_fed(cone, cv, ct, cn, box, 300, "two cones on one apex", &compared_hand);
+        compare_fed(cone, cv, ct, RIM, box, 40, "one cone", &compared_hand);
+    }
 
     /* No triangles; vertices only. */
     compare_fed(tet, 4, tri, 0, box, 1, "no triangles", &compared_hand);
