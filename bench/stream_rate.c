@@ -22,22 +22,27 @@
 
 typedef struct digest {
     uint64_t h, nv, nt;
-    int full; /* fold every byte (the check run), else only the counts (timed runs) */
+    int full; /* hash every word (the check run), else only the counts (timed runs) */
 } digest;
 
-/* A cheap digest (the sink must cost little next to the extraction): words
- * folded in four lanes.  n is a multiple of 4. */
-static void fold(digest *d, const void *p, size_t n)
+static uint64_t mix(uint64_t x)
+{
+    x ^= x >> 31;
+    x *= 0x7fb5d329728ea185ull;
+    x ^= x >> 27;
+    x *= 0x81dadef4bc2dd44dull;
+    return x ^ (x >> 33);
+}
+
+/* Adds each 32-bit word with its index in its stream: a digest that does not
+ * depend on how the sink's calls cut the mesh. */
+static void fold(digest *d, const void *p, size_t words, uint64_t first, uint64_t stream)
 {
     const uint32_t *w = p;
-    uint64_t lane[4] = {d->h, d->h + 1, d->h + 2, d->h + 3};
-    size_t i = 0;
-    for (; i + 4 <= n / 4; i += 4)
-        for (int k = 0; k < 4; k++)
-            lane[k] = (lane[k] ^ w[i + (size_t)k]) * 1099511628211ull;
-    for (; i < n / 4; i++)
-        lane[0] = (lane[0] ^ w[i]) * 1099511628211ull;
-    d->h = lane[0] ^ (lane[1] << 1) ^ (lane[2] << 2) ^ (lane[3] << 3);
+    uint64_t h = 0;
+    for (size_t i = 0; i < words; i++)
+        h += mix(((first + i) << 34) ^ (stream << 32) ^ w[i]);
+    d->h += h;
 }
 
 static int on_vertices(void *u, uint64_t first, size_t count, const float *pos, const float *nrm,
@@ -48,9 +53,9 @@ static int on_vertices(void *u, uint64_t first, size_t count, const float *pos, 
     if (first != d->nv)
         return 1;
     if (d->full) {
-        fold(d, pos, 12 * count);
+        fold(d, pos, 3 * count, 3 * first, 0);
         if (nrm)
-            fold(d, nrm, 12 * count);
+            fold(d, nrm, 3 * count, 3 * first, 1);
     }
     d->nv += count;
     return 0;
@@ -61,9 +66,7 @@ static int on_triangles(void *u, size_t count, const uint64_t *ids, const uint8_
     (void)org;
     digest *d = u;
     if (d->full)
-        fold(d, ids, 24 * count);
-    else
-        d->h += ids[3 * count - 1];
+        fold(d, ids, 6 * count, 6 * d->nt, 2);
     d->nt += count;
     return 0;
 }

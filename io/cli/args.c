@@ -16,7 +16,7 @@
 
 static const struct {
     const char *name;
-    unsigned id;
+    uint64_t id;
     int takes_value;
 } options[] = {
     {"-o", OPT_OUTPUT, 1},       {"--output", OPT_OUTPUT, 1}, {"--iso", OPT_ISO, 1},
@@ -27,7 +27,7 @@ static const struct {
     {"--box", OPT_BOX, 1},       {"--first", OPT_FIRST, 1},   {"--count", OPT_COUNT, 1},
     {"--step", OPT_STEP, 1},     {"--channel", OPT_CHANNEL, 1}, {"--gzip", OPT_GZIP, 0},
     {"--help", OPT_HELP, 0},     {"-h", OPT_HELP, 0},         {"--pages", OPT_PAGES, 1},
-    {"--max-memory", OPT_MAX_MEMORY, 1},
+    {"--max-memory", OPT_MAX_MEMORY, 1}, {"--in-memory", OPT_IN_MEMORY, 0},
     {"--series", OPT_SERIES, 1}, {"--grid-axes", OPT_GRID_AXES, 0}, {"--ras", OPT_RAS, 0},
     {"--slice-positions", OPT_SLICE_POSITIONS, 1},
     {"--decimate", OPT_DECIMATE, 1},   {"--target-triangles", OPT_TARGET_TRIANGLES, 1},
@@ -100,7 +100,7 @@ static int parse_count_option(const char *flag, const char *v, int64_t min, int6
 }
 
 /* Parses argv[first..argc) for a command allowing `allowed`.  Returns an exit code. */
-int cli_parse_args(int argc, char **argv, int first, const char *command, unsigned allowed,
+int cli_parse_args(int argc, char **argv, int first, const char *command, uint64_t allowed,
                    cli_args *a)
 {
     memset(a, 0, sizeof *a);
@@ -135,7 +135,7 @@ int cli_parse_args(int argc, char **argv, int first, const char *command, unsign
                       command);
             return CLI_EXIT_USAGE;
         }
-        unsigned id = options[k].id;
+        uint64_t id = options[k].id;
         if (options[k].takes_value) {
             if (eq)
                 value = eq + 1;

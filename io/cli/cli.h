@@ -257,6 +257,8 @@ void cli_source_close(cli_source *s); /* accepts NULL and a closed source */
 
 /* Slice s->next into `buffer` (s->slice_bytes), in either mode; exit code,
  * message printed. */
+/* Whether the source can be read slice by slice (not: gzip NRRD with a reversed z axis). */
+int cli_source_reads_by_slice(const cli_source *s);
 int cli_slices_next(cli_source *s, void *buffer);
 /* The next call delivers slice 0 again / slice k. */
 void cli_slices_rewind(cli_source *s);
@@ -340,8 +342,9 @@ enum {
     OPT_TARGET_TRIANGLES = 1u << 26, OPT_MAX_ERROR = 1u << 27, OPT_SMOOTH = 1u << 28,
     OPT_MIN_COMPONENT = 1u << 29, OPT_LARGEST = 1u << 30
 };
-/* --ras: NIfTI in the file's RAS axes (the enum's int range is full) */
-#define OPT_RAS (1u << 31)
+/* past the enum's int range (cli_args.seen is 64-bit) */
+#define OPT_RAS (1u << 31)                      /* --ras: NIfTI in the file's RAS axes        */
+#define OPT_IN_MEMORY ((uint64_t)1 << 32)       /* --in-memory: the whole mesh, then written */
 #define OPT_POST \
     (OPT_DECIMATE | OPT_TARGET_TRIANGLES | OPT_MAX_ERROR | OPT_SMOOTH | OPT_MIN_COMPONENT | OPT_LARGEST)
 
@@ -358,7 +361,7 @@ typedef struct cli_post {
 #define CLI_MAX_SOURCES 4096
 
 typedef struct cli_args {
-    unsigned seen;
+    uint64_t seen;
     const char *output, *json, *method_name;
     const char *positional[CLI_MAX_SOURCES];
     int npositional;
@@ -374,7 +377,7 @@ typedef struct cli_args {
 
 /* Parses argv[first..argc) for `command` allowing the options in `allowed`.
  * Returns an exit code (the message is printed). */
-int cli_parse_args(int argc, char **argv, int first, const char *command, unsigned allowed,
+int cli_parse_args(int argc, char **argv, int first, const char *command, uint64_t allowed,
                    cli_args *a);
 
 /* The extraction options `extract` takes from its arguments (the iso as
@@ -385,18 +388,27 @@ void cli_extract_options(const cli_args *a, cli_progress *bar, isomend_options *
 
 /* Which memory path `extract` takes (the rule is at the top of stream.c). */
 typedef struct cli_memory_plan {
-    uint64_t limit;       /* --max-memory, else MemAvailable; 0 = unknown (never stream) */
+    uint64_t limit;       /* --max-memory, else MemAvailable; 0 = unknown                */
     int limit_given;      /* --max-memory was given                                      */
-    uint64_t in_memory;   /* volume + mesh + working set of the in-memory path           */
+    uint64_t volume;      /* the samples                                                 */
+    uint64_t in_memory;   /* volume + mesh + working set of the whole-mesh path          */
     uint64_t streaming;   /* the most streaming holds (the rule at the top of stream.c)  */
-    int stream;           /* in_memory > limit                                           */
+    uint64_t check_queue; /* bytes of calls the streaming check may queue                */
+    uint64_t check_need;  /* what the streaming check holds, queue included              */
+    int check;            /* the streamed mesh is checked (0: it does not fit the limit)  */
+    int threads;          /* the stream's threads: opts', or 1 when several do not fit   */
+    int over_limit;       /* in_memory > limit                                           */
+    int stream;           /* the mesh streamed: always, but for a whole-mesh run that fits */
 } cli_memory_plan;
 
 /* The writer's stdio buffers, MiB (mesh_writer.c: the file and two scratch files). */
 #define CLI_WRITER_BUFFERS 3
 
+/* The plan of an extraction; `whole_mesh`: the run needs the mesh in memory
+ * (--in-memory, post-processing, --pages), streamed only when it does not fit. */
 void cli_memory_plan_make(const isomend_volume *desc, const isomend_options *opts,
-                          isomend_mesh_format format, uint64_t max_memory, cli_memory_plan *p);
+                          isomend_mesh_format format, uint64_t max_memory, int whole_mesh,
+                          cli_memory_plan *p);
 
 /* The process's peak resident memory (VmHWM), bytes; 0 if unknown. */
 uint64_t cli_peak_memory(void);
@@ -443,6 +455,19 @@ void cli_world_free(cli_world *w); /* accepts NULL */
  * mesh to `sink`, in the order isomend_extract() numbers it.  Exit code; the
  * message is printed.  `stats` as isomend_extract()'s.
  */
+/*
+ * The continuity check of a streamed mesh (check_sink.c): a tee in front of
+ * `next` that feeds the core's streaming checker on a thread of its own,
+ * queueing at most `queue` bytes of calls.  cli_checker_finish waits for it
+ * and gives isomend_mesh_check()'s report of the whole mesh.
+ */
+typedef struct cli_checker cli_checker;
+int cli_checker_begin(const isomend_volume *desc, const isomend_options *opts, uint64_t queue,
+                      const cli_sink *next, cli_checker **out, cli_sink *tee);
+int cli_checker_finish(cli_checker *k, isomend_check_report *report);
+uint64_t cli_checker_peak_bytes(const cli_checker *k);
+void cli_checker_destroy(cli_checker *k); /* accepts NULL */
+
 int cli_stream_extract(cli_source *s, const isomend_options *opts, const cli_sink *sink,
                        isomend_stats *stats);
 

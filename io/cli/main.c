@@ -90,9 +90,13 @@ static const char *const usage_extract =
     "                           the triangles come from (table / mending / Durst)\n"
     "  --json FILE|-            write statistics, check and timings as one JSON object\n"
     "  --quiet                  no progress bar, no summary (errors and --stats still print)\n"
-    "  --max-memory SIZE        stream (slices in, mesh out as it is made) when the\n"
-    "                           in-memory path would need more than SIZE (512M, 4G,\n"
-    "                           1.5G, bytes); default: the memory available\n"
+    "  --max-memory SIZE        the memory to stay within (512M, 4G, 1.5G, bytes);\n"
+    "                           default: the memory available. The mesh is written as\n"
+    "                           it is made (and checked on the way); the volume is read\n"
+    "                           slice by slice when it does not fit, and fewer threads\n"
+    "                           are used when theirs do not\n"
+    "  --in-memory              hold the whole mesh, then check and write it (what the\n"
+    "                           steps below do anyway); streamed when it does not fit\n"
     "  --slice-positions Z0,Z1,...|@FILE\n"
     "                           the z of every slice (FILE: one a line, # comments),\n"
     "                           strictly increasing, for slices not evenly spaced;\n"
@@ -247,19 +251,21 @@ static int plan_fits(const cli_memory_plan *p, const cli_source *s)
 static void print_plan(FILE *fp, const cli_memory_plan *p)
 {
     char need[32], limit[32];
-    if (p->stream)
+    if (p->stream && p->over_limit)
         fprintf(fp, "streamed: the in-memory path would need about %s, more than %s of %s\n",
                 cli_bytes_text(p->in_memory, need, sizeof need),
                 p->limit_given ? "--max-memory" : "the memory available",
                 cli_bytes_text(p->limit, limit, sizeof limit));
 }
 
-static void json_plan(FILE *jf, const cli_memory_plan *p)
+static void json_plan(FILE *jf, const cli_memory_plan *p, int volume_loaded)
 {
-    fprintf(jf, ", \"streamed\": %s, \"memory_limit\": %" PRIu64
+    fprintf(jf, ", \"streamed\": %s, \"volume_loaded\": %s, \"stream_threads\": %d",
+            p->stream ? "true" : "false", volume_loaded ? "true" : "false",
+            p->stream ? p->threads : 0);
+    fprintf(jf, ", \"memory_limit\": %" PRIu64
                 ", \"memory_limit_from\": \"%s\", \"memory_estimate\": %" PRIu64
                 ", \"memory_streaming\": %" PRIu64 ", \"peak_memory\": %" PRIu64,
-            p->stream ? "true" : "false",
             p->limit, p->limit_given ? "option" : "MemAvailable", p->in_memory, p->streaming,
             cli_peak_memory());
 }
@@ -267,11 +273,11 @@ static void json_plan(FILE *jf, const cli_memory_plan *p)
 static int cmd_extract(int argc, char **argv)
 {
     cli_args a;
-    unsigned allowed = OPT_OUTPUT | OPT_ISO | OPT_METHOD | OPT_RAW | OPT_SPACING | OPT_ORIGIN |
+    uint64_t allowed = OPT_OUTPUT | OPT_ISO | OPT_METHOD | OPT_RAW | OPT_SPACING | OPT_ORIGIN |
                        OPT_PAD | OPT_NO_NORMALS | OPT_FLIP | OPT_STATS | OPT_JSON | OPT_QUIET |
                        OPT_THREADS | OPT_FIRST | OPT_COUNT | OPT_STEP | OPT_CHANNEL | OPT_HELP |
                        OPT_PAGES | OPT_MAX_MEMORY | OPT_SERIES | OPT_GRID_AXES | OPT_RAS |
-                       OPT_SLICE_POSITIONS | OPT_POST;
+                       OPT_SLICE_POSITIONS | OPT_POST | OPT_IN_MEMORY;
     int rc = cli_parse_args(argc, argv, 2, "extract", allowed, &a);
     if (rc) return rc;
     if (a.seen & OPT_HELP) {
@@ -316,8 +322,11 @@ static int cmd_extract(int argc, char **argv)
     isomend_options opts;
     cli_extract_options(&a, &bar, &opts);
     const int small_pages = a.pages == CLI_PAGES_SMALL;
+    /* the mesh goes to the file as it is made, checked on the way, unless the
+     * run needs it whole: post-processing, --in-memory, --pages */
+    const int whole_mesh = (a.seen & (OPT_POST | OPT_IN_MEMORY | OPT_PAGES)) != 0;
     cli_memory_plan plan;
-    cli_memory_plan_make(&src.desc, &opts, fmt, a.max_memory, &plan);
+    cli_memory_plan_make(&src.desc, &opts, fmt, a.max_memory, whole_mesh, &plan);
     rc = plan_fits(&plan, &src);
     if (!rc && (a.seen & OPT_POST) && plan.stream) {
         char need[32], limit[32];
@@ -331,10 +340,15 @@ static int cmd_extract(int argc, char **argv)
     }
     if (rc) goto fail_source;
 
-    /* in memory: the volume is loaded, the mesh checked, then written at once;
-     * streamed: the slices go through the extraction and the mesh straight to
-     * the writer, and the continuity check is left to `isomend check` */
-    if (!plan.stream) {
+    /* The whole mesh: the volume is loaded, the mesh checked, then written.
+     * Streamed: the slices go through the extraction and the mesh to the
+     * writer and the continuity check as it is made; the volume is loaded
+     * first only when a level is computed from it (no --iso, or a named one)
+     * and it fits beside the stream, else read slice by slice as it goes. */
+    const int needs_level = a.iso_name || !(a.seen & OPT_ISO);
+    const int fits = !plan.limit || plan.volume + plan.streaming <= plan.limit;
+    const int load = !plan.stream || ((needs_level || !cli_source_reads_by_slice(&src)) && fits);
+    if (load) {
         rc = cli_source_load(&src);
         if (rc) goto fail_source;
     }
@@ -394,8 +408,28 @@ static int cmd_extract(int argc, char **argv)
             }
             cli_sink_for_world(&world_sink, &world);
         }
+        /* the check sees the grid's frame, the writer the world's */
+        cli_checker *checker = NULL;
+        cli_sink tee;
+        isomend_options stream_opts = opts;
+        stream_opts.threads = plan.threads;
+        if (plan.check && cli_checker_begin(&src.desc, &stream_opts, plan.check_queue,
+                                            src.has_world ? &world_sink : &sink, &checker, &tee)) {
+            cli_world_free(src.has_world ? &world : NULL);
+            isomend_mesh_writer_abort(w);
+            rc = CLI_EXIT_FAIL;
+            goto fail_source;
+        }
         double t0 = cli_now_ms();
-        rc = cli_stream_extract(&src, &opts, src.has_world ? &world_sink : &sink, &stats);
+        rc = cli_stream_extract(&src, &stream_opts,
+                                plan.check ? &tee : src.has_world ? &world_sink : &sink, &stats);
+        if (!rc && plan.check) {
+            rc = cli_checker_finish(checker, &check) ? CLI_EXIT_FAIL : CLI_EXIT_OK;
+            checked = !rc;
+        } else if (!plan.check) {
+            check_skipped = plan.check_need; /* did not fit beside the stream */
+        }
+        cli_checker_destroy(checker);
         cli_world_free(src.has_world ? &world : NULL);
         cli_progress_clear(&bar);
         /* the extraction's time includes the writes made meanwhile */
@@ -513,10 +547,6 @@ static int cmd_extract(int argc, char **argv)
                     cli_bytes_text(check_skipped, need, sizeof need),
                     plan.limit_given ? "--max-memory" : "the memory available",
                     cli_bytes_text(plan.limit, limit, sizeof limit), a.output);
-        else
-            fprintf(text, "%s: %" PRIu64 " vertices, %" PRIu64 " triangles; the continuity check "
-                          "is not run on a streamed mesh (run 'isomend check %s')\n",
-                    a.output, stats.vertices, stats.triangles, a.output);
         fprintf(text, "time: read %.1f ms, extract %.1f ms, write %.1f ms\n", tm.read_ms,
                 tm.extract_ms, tm.write_ms);
     }
@@ -539,15 +569,14 @@ static int cmd_extract(int argc, char **argv)
         else
             fprintf(jf, "null");
         fprintf(jf, ", \"pages\": \"%s\"", small_pages ? "small" : "huge");
-        json_plan(jf, &plan);
+        json_plan(jf, &plan, load);
         cli_json_stats(jf, &stats);
         fprintf(jf, ", \"check\": ");
         if (checked)
             cli_json_check(jf, &check);
         else
             fprintf(jf, "null");
-        fprintf(jf, ", \"check_skipped\": %s",
-                checked ? "null" : check_skipped ? "\"memory\"" : "\"streamed\"");
+        fprintf(jf, ", \"check_skipped\": %s", checked ? "null" : "\"memory\"");
         cli_json_post(jf, &post);
         fprintf(jf, ", \"timings_ms\": {\"read\": %.3f, \"extract\": %.3f, \"write\": %.3f}}\n",
                 tm.read_ms, tm.extract_ms, tm.write_ms);
@@ -654,7 +683,7 @@ static int cmd_check(int argc, char **argv)
 static int cmd_info(int argc, char **argv)
 {
     cli_args a;
-    unsigned allowed = OPT_RAW | OPT_SPACING | OPT_ORIGIN | OPT_JSON | OPT_QUIET | OPT_FIRST |
+    uint64_t allowed = OPT_RAW | OPT_SPACING | OPT_ORIGIN | OPT_JSON | OPT_QUIET | OPT_FIRST |
                        OPT_COUNT | OPT_STEP | OPT_CHANNEL | OPT_HELP | OPT_MAX_MEMORY |
                        OPT_SERIES | OPT_GRID_AXES | OPT_RAS | OPT_SLICE_POSITIONS;
     int rc = cli_parse_args(argc, argv, 2, "info", allowed, &a);

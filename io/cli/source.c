@@ -168,11 +168,42 @@ void cli_source_close(cli_source *s)
 
 /* ------------------------------------------------------------------ slice by slice */
 
+/* Slice s->next of the loaded samples into `buffer`, x fastest, through the
+ * volume's strides (a reversed axis runs backwards in memory). */
+static void copy_loaded_slice(const cli_source *s, void *buffer)
+{
+    const isomend_volume *d = &s->desc;
+    const size_t size = isomend_type_size(d->type);
+    int64_t st[3] = {d->strides[0], d->strides[1], d->strides[2]};
+    if (!st[0] && !st[1] && !st[2]) {
+        st[0] = (int64_t)size;
+        st[1] = st[0] * d->dims[0];
+        st[2] = st[1] * d->dims[1];
+    }
+    const char *plane = (const char *)d->data + s->next * st[2];
+    char *out = buffer;
+    for (int64_t j = 0; j < d->dims[1]; j++) {
+        const char *row = plane + j * st[1];
+        if (st[0] == (int64_t)size) {
+            memcpy(out, row, size * (size_t)d->dims[0]);
+            out += size * (size_t)d->dims[0];
+        } else {
+            for (int64_t i = 0; i < d->dims[0]; i++, out += size)
+                memcpy(out, row + i * st[0], size);
+        }
+    }
+}
+
 int cli_slices_next(cli_source *s, void *buffer)
 {
     if (s->next >= s->desc.dims[2]) {
         cli_error("%s: no slice %lld (internal error)", s->label, (long long)s->next);
         return CLI_EXIT_FAIL;
+    }
+    if (s->mode == CLI_SOURCE_LOADED) { /* from memory, as isomend_extract() reads it */
+        copy_loaded_slice(s, buffer);
+        s->next++;
+        return CLI_EXIT_OK;
     }
     double t0 = cli_now_ms();
     int rc;

@@ -140,6 +140,13 @@ int cli_volume_load(cli_source *s)
     return CLI_EXIT_OK;
 }
 
+int cli_source_reads_by_slice(const cli_source *s)
+{
+    /* gzip read backwards (a reversed z axis) is the one thing a file cannot do */
+    return !(s->reader == CLI_READER_FILE && s->info.encoding == ISOMEND_FILEIO_ENC_GZIP &&
+             s->info.axis_negative[2] && !s->info.oblique && s->info.dims[2] > 1);
+}
+
 int cli_volume_read_slice(cli_source *s, void *buffer)
 {
     if (s->reader == CLI_READER_BUILTIN) {

@@ -1,9 +1,14 @@
 /*
- * stream.c - extraction that does not hold the volume or the mesh: the
- * memory rule of --max-memory, the mesh sink, and the streaming extraction
+ * stream.c - extraction that does not hold the mesh (nor, when it does not
+ * fit, the volume): the memory rule of --max-memory, the mesh sink, and the
+ * streaming extraction
  *
- * The memory rule (README "Volumes larger than memory, and clusters";
- * docs/streaming.md).  `isomend extract` holds, on the in-memory path,
+ * The paths (README "Volumes larger than memory, and clusters";
+ * docs/streaming.md).  By default `isomend extract` streams the mesh: the
+ * slices go through the core's stream (on all cores, isomend_stream_*) and
+ * the mesh to the writer and the continuity check (check_sink.c) as it is
+ * made.  The whole mesh is held only where a step needs it (post-processing,
+ * --in-memory, --pages); that path holds
  *   volume   nx * ny * nz * sample size                       (the samples)
  *   mesh     6.25 bytes per marched sample with normals, 4.75 without:
  *            one triangle (12 bytes + 1 origin byte) for every 4 samples
@@ -12,23 +17,31 @@
  *   working  the sign cache (1 bit per sample), the id maps of two slices
  *            (3 x 4 bytes per slice sample each) and 64 MiB (threads,
  *            tables, the writer's buffers)
- * and streams whenever their sum exceeds the limit: --max-memory SIZE, or
- * MemAvailable without it.  A volume larger than memory is then streamed
- * instead of refused.  The mesh is the same either way, byte for byte.
+ * and streams when their sum exceeds the limit (--max-memory SIZE, or
+ * MemAvailable without it), unless a step cannot work on a stream.  The
+ * mesh is the same either way, byte for byte.
  *
  * Streaming holds at most (cli_memory_plan_make())
  *   core     isomend_stream_memory(): the window of samples, signs and id
  *            maps, and one slice's vertices and one layer's triangles at
  *            their largest possible sizes (reserved; only what the mesh uses
- *            is touched, typically a quarter of it)
+ *            is touched, typically a quarter of it), for each thread, and
+ *            the slabs in flight of a stream on several threads
  *   source   one slice, twice (an image is decoded, then converted)
  *   writer   CLI_WRITER_BUFFERS MiB of stdio buffers; PLY/OBJ faces wait in
  *            a scratch file on the output's disk, and STL keeps the
  *            positions of at most twice isomend_stream_vertex_bound()
- * and a limit below that sum is refused.  So a streamed run's peak resident
- * memory is within the limit plus what the program holds before it reads a
- * sample (its code, libraries and their heaps; docs/streaming.md has the
- * figures), whatever the number of slices.
+ *   check    the streaming check's window (CLI_CHECK_BYTES_PER_SAMPLE a
+ *            slice sample) and its queue (CLI_CHECK_QUEUE_MIB)
+ * When that exceeds the limit, the stream runs on one thread; if it still
+ * does, without the check (said so, as the whole-mesh path says when the
+ * check's tables do not fit); and a limit below what remains is refused.
+ * The volume itself is loaded first only when a level is computed from it
+ * (no --iso, or a named level) or it cannot be read slice by slice, and
+ * then only if it fits beside the stream.  So a run's peak resident memory
+ * is within the limit plus what the program holds before it reads a sample
+ * (its code, libraries and their heaps; docs/streaming.md has the figures),
+ * whatever the number of slices.
  *
  * cli_stream_extract() is the core's streaming extraction
  * (isomend_stream_begin/push/finish): one slice read at a time into one
@@ -43,15 +56,42 @@
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
+#include <unistd.h>
 
 #include "mesh_writer.h"
 
 #define MIB (1024.0 * 1024.0)
+/* The streaming check's window (check_stream.c: the live vertices of about
+ * two slices with their neighbour tables and records, ~100 bytes each, on the
+ * in-memory rule's surface of a vertex every 8 samples), per slice sample,
+ * and the queue of calls waiting for it (about 300 000 triangles, 15 ms). */
+#define CLI_CHECK_BYTES_PER_SAMPLE 25.0
+#define CLI_CHECK_QUEUE_MIB 8.0
 
 /* ------------------------------------------------------------------ the memory rule */
 
+/* What streaming holds with `opts`: the core's bound, one slice read (twice:
+ * an image is decoded, then converted), the writer's stdio buffers, for STL
+ * the positions it keeps until retire(), and the continuity check's window
+ * and queue. */
+static double streaming_need(const isomend_volume *v, const isomend_options *opts,
+                             isomend_mesh_format format, int check)
+{
+    const double queue = check ? CLI_CHECK_QUEUE_MIB * MIB : 0.0;
+    const double ts = (double)isomend_type_size(v->type);
+    const double core = (double)isomend_stream_memory(v, opts);
+    if (core == 0.0) return 1.8e19; /* dims the core refuses: in memory, to say why */
+    const double bound = (double)isomend_stream_vertex_bound(v, opts);
+    const double plane = (double)v->dims[0] * (double)v->dims[1];
+    double need = core + 2.0 * plane * ts + CLI_WRITER_BUFFERS * MIB + queue +
+                  (check ? CLI_CHECK_BYTES_PER_SAMPLE * plane : 0.0);
+    if (format == ISOMEND_MESH_STL) need += 2.0 * 12.0 * bound;
+    return need;
+}
+
 void cli_memory_plan_make(const isomend_volume *desc, const isomend_options *opts,
-                          isomend_mesh_format format, uint64_t max_memory, cli_memory_plan *p)
+                          isomend_mesh_format format, uint64_t max_memory, int whole_mesh,
+                          cli_memory_plan *p)
 {
     memset(p, 0, sizeof *p);
     const int pad = (opts->flags & ISOMEND_FLAG_PAD) != 0;
@@ -67,22 +107,42 @@ void cli_memory_plan_make(const isomend_volume *desc, const isomend_options *opt
     double mesh = samples * (normals ? 6.25 : 4.75);
     double working = samples / 8.0 + 24.0 * plane + 64.0 * MIB;
     double in_memory = volume + mesh + working;
-    /* streaming: the core's bound, one slice read (twice: an image is
-     * decoded, then converted), the writer's stdio buffers and, for STL, the
-     * positions it keeps until retire() */
-    isomend_volume v = *desc;
-    v.data = NULL;
-    const double core = (double)isomend_stream_memory(&v, opts);
-    double streaming = core + 2.0 * n[0] * n[1] * ts + CLI_WRITER_BUFFERS * MIB;
-    if (format == ISOMEND_MESH_STL)
-        streaming += 2.0 * 12.0 * (double)isomend_stream_vertex_bound(&v, opts);
-    if (core == 0.0) streaming = 1.8e19; /* dims the core refuses: in memory, to say why */
-    const double cap = 1.8e19;
-    p->in_memory = in_memory < cap ? (uint64_t)in_memory : UINT64_MAX;
-    p->streaming = streaming < cap ? (uint64_t)streaming : UINT64_MAX;
     p->limit_given = max_memory != 0;
     p->limit = max_memory ? max_memory : cli_memory_available();
-    p->stream = p->limit != 0 && p->in_memory > p->limit;
+    p->check_queue = (uint64_t)(CLI_CHECK_QUEUE_MIB * MIB);
+    p->check_need = p->check_queue + (uint64_t)(CLI_CHECK_BYTES_PER_SAMPLE * n[0] * n[1]);
+    isomend_volume v = *desc;
+    v.data = NULL;
+    if (opts->threads > 0) {
+        p->threads = opts->threads;
+    } else { /* all cores, as the core counts them */
+        const long cores = sysconf(_SC_NPROCESSORS_ONLN);
+        p->threads = cores < 1 ? 1 : cores > 64 ? 64 : (int)cores;
+    }
+    /* under a tight limit: first one thread, then no check (said so) */
+    p->check = 1;
+    double streaming = streaming_need(&v, opts, format, 1);
+    isomend_options one = *opts;
+    one.threads = 1;
+    for (int step = 0; p->limit && streaming > (double)p->limit && step < 2; step++) {
+        const int check = step == 0;
+        if (step == 0 && p->threads == 1)
+            continue;
+        const double need = streaming_need(&v, &one, format, check);
+        if (need <= (double)p->limit || step == 1) {
+            streaming = need;
+            p->threads = 1;
+            p->check = check;
+        }
+    }
+    const double cap = 1.8e19;
+    p->volume = volume < cap ? (uint64_t)volume : UINT64_MAX;
+    p->in_memory = in_memory < cap ? (uint64_t)in_memory : UINT64_MAX;
+    p->streaming = streaming < cap ? (uint64_t)streaming : UINT64_MAX;
+    p->over_limit = p->limit != 0 && p->in_memory > p->limit;
+    /* a volume the core refuses goes the whole-mesh way, which says why */
+    const int refused = isomend_stream_memory(&v, opts) == 0;
+    p->stream = whole_mesh || refused ? p->over_limit : 1;
 }
 
 uint64_t cli_peak_memory(void)

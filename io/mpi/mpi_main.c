@@ -220,7 +220,7 @@ static int run(int argc, char **argv)
         return CLI_EXIT_OK;
     }
     cli_args a;
-    unsigned allowed = OPT_OUTPUT | OPT_ISO | OPT_METHOD | OPT_RAW | OPT_SPACING | OPT_ORIGIN |
+    uint64_t allowed = OPT_OUTPUT | OPT_ISO | OPT_METHOD | OPT_RAW | OPT_SPACING | OPT_ORIGIN |
                        OPT_PAD | OPT_NO_NORMALS | OPT_FLIP | OPT_STATS | OPT_JSON | OPT_QUIET |
                        OPT_THREADS | OPT_FIRST | OPT_COUNT | OPT_STEP | OPT_CHANNEL | OPT_HELP |
                        OPT_PAGES | OPT_MAX_MEMORY | OPT_SLICE_POSITIONS;

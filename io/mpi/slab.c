@@ -36,8 +36,10 @@ uint64_t slab_memory(const cli_slices *s, const isomend_options *opts, isomend_m
 {
     isomend_volume v = s->desc;
     v.data = NULL;
-    const uint64_t core = isomend_stream_memory(&v, opts);
-    const uint64_t vb = isomend_stream_vertex_bound(&v, opts);
+    isomend_options one = *opts; /* a rank's piece runs on its own thread */
+    one.threads = 1;
+    const uint64_t core = isomend_stream_memory(&v, &one);
+    const uint64_t vb = isomend_stream_vertex_bound(&v, &one);
     if (!core || !vb) return 0;
     /* per vertex of a slice's bound: the piece's keys (24, isomend.h), the
      * shared pairs (16) and, in the exchange, the pairs sent (16), the pairs

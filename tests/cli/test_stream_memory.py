@@ -5,8 +5,8 @@ A 512 x 512 x 256 u16 volume with a busy, smooth surface (19 M triangles),
 as raw samples and as a folder of 256 TIFF slices (when the importer is
 built), is extracted three ways:
 
-- in memory, without a limit: the peak resident memory measured here (the
-  child's ru_maxrss from os.wait4) must be at least 8 x SIZE;
+- in memory (--in-memory), without a limit: the peak resident memory
+  measured here (the child's ru_maxrss from os.wait4) must be at least 8 x SIZE;
 - with --max-memory SIZE, PLY and STL: the run streams, writes the in-memory
   run's bytes, and its peak, measured the same way, is within SIZE plus the
   program's fixed overhead, which is measured too: the peak of the same
@@ -18,7 +18,7 @@ built), is extracted three ways:
 - streamed again on the first 64 slices: the peak does not depend on the
   number of slices (within 4 MiB).
 
-And the in-memory path under a limit: with a SIZE that holds the volume and
+And the in-memory path (--in-memory) under a limit: with a SIZE that holds the volume and
 the mesh but not the continuity check's tables, the check is skipped (JSON
 `check_skipped: "memory"`, the summary says so), the mesh is the same, and
 the peak stays within SIZE plus the overhead.
@@ -111,7 +111,7 @@ def check_kind(exe, work, kind, src, size):
     limit = int(size[:-1]) * MIB
     for fmt in ("ply", "stl"):
         whole, part = f"mem.{fmt}", f"streamed.{fmt}"
-        rc, err, peak_mem, jm = extract(exe, work, src[NZ], whole)
+        rc, err, peak_mem, jm = extract(exe, work, src[NZ], whole, ["--in-memory"])
         if rc:
             fail(f"{name} {fmt} in memory", err.strip())
             continue
@@ -151,16 +151,17 @@ def check_kind(exe, work, kind, src, size):
 
 def check_in_memory_limit(exe, work, src):
     """A limit that holds the in-memory extraction but not the check: no check, within it."""
-    rc, err, peak_free, jm = extract(exe, work, src[NZ], "free.ply")
+    rc, err, peak_free, jm = extract(exe, work, src[NZ], "free.ply", ["--in-memory"])
     if rc:
         fail("check skipped", err.strip())
         return
-    rc, err, overhead, _ = extract(exe, work, src[2], "tiny.ply")
+    rc, err, overhead, _ = extract(exe, work, src[2], "tiny.ply", ["--in-memory"])
     check_need = 52 * jm["triangles"] + 37 * jm["vertices"]
     # the in-memory estimate fits, the check's tables do not
     size_mib = int((jm["memory_estimate"] + 64 * MIB) / MIB)
     size = f"{size_mib}M"
-    rc, err, peak, js = extract(exe, work, src[NZ], "limited.ply", ["--max-memory", size])
+    rc, err, peak, js = extract(exe, work, src[NZ], "limited.ply",
+                                ["--max-memory", size, "--in-memory"])
     label = (f"in memory under --max-memory {size}: peak {peak / MIB:.1f} MiB "
              f"(without a limit {peak_free / MIB:.1f} MiB; the check needs ~{check_need / MIB:.0f} MiB)")
     if rc:
@@ -175,7 +176,7 @@ def check_in_memory_limit(exe, work, src):
     if not same_file(os.path.join(work, "free.ply"), os.path.join(work, "limited.ply")):
         fail(label, "the meshes differ")
     rc, out, err, _ = run_measured([exe, "extract", *src[NZ], "--iso", ISO, "-o", "limited.ply",
-                                    "--max-memory", size], work)
+                                    "--max-memory", size, "--in-memory"], work)
     if "continuity check was not run" not in out or "--max-memory" not in out:
         fail(label, f"the summary does not say the check was skipped: {out!r}")
     for f in ("free.ply", "limited.ply", "tiny.ply"):
@@ -206,7 +207,8 @@ def check_tall(exe, work):
     results = {}
     # the in-memory run touches 2 GiB; its estimate (15 GiB, a mesh of 6.25 bytes a sample)
     # must not exceed the limit, so it is given rather than left to MemAvailable
-    for name, extra in (("streamed", ["--max-memory", "64M"]), ("in memory", ["--max-memory", "32G"])):
+    for name, extra in (("streamed", ["--max-memory", "64M"]),
+                        ("in memory", ["--max-memory", "32G", "--in-memory"])):
         args = [exe, "extract", *src, "--iso", "100", "-o", f"tall_{name[:2]}.ply", "-q",
                 "--json", "j.json", *extra]
         rc, _, err, peak = run_measured(args, work)
@@ -225,6 +227,8 @@ def check_tall(exe, work):
         fail(label, "the streamed mesh differs from the in-memory one")
     if jm["check"] is None or not (jm["check"]["continuous"] and jm["check"]["components"] == 2):
         fail(label, f"in-memory check: {jm['check']}")
+    if js["check"] != jm["check"]:
+        fail(label, f"the streamed check {js['check']} is not the in-memory one")
     # the top blob's vertices sit above z = 2^19 (positions are float32: exact at this size)
     with open(os.path.join(work, "tall_st.ply"), "rb") as f:
         data = f.read()

@@ -102,7 +102,7 @@ with tempfile.TemporaryDirectory() as tmp:
         a, b = os.path.join(tmp, name + "_stack.ply"), os.path.join(tmp, name + "_raw.ply")
         common = ["--iso", repr(iso), "--pad", "--quiet", "--spacing", spacing_arg, "--origin", "0,0,0"]
         ja = os.path.join(tmp, name + "_stack.json")
-        r1 = run(["extract"] + srcs + opts + ["-o", a, "--json", ja] + common)
+        r1 = run(["extract"] + srcs + opts + ["-o", a, "--json", ja, "--in-memory"] + common)
         r2 = run(["extract", os.path.join(STACKS, exp), "--raw", "%d,%d,%d:%s" % (nx, ny, nz, tname),
                   "-o", b, "--iso", repr(iso), "--pad", "--quiet", "--spacing", spacing_arg,
                   "--origin", "0,0,0"])
@@ -111,19 +111,18 @@ with tempfile.TemporaryDirectory() as tmp:
             da, db = open(a, "rb").read(), open(b, "rb").read()
             body = lambda x: x[x.index(b"end_header\n"):]
             check(body(da) == body(db), "%s: the stack's mesh differs from the raw volume's" % name)
-            # streamed (slices read one by one through isomend_io_read_slice): the same bytes
+            # streamed (the default; slices read one by one through isomend_io_read_slice):
+            # the same bytes and the same continuity check
             j = json.load(open(ja))
             c = os.path.join(tmp, name + "_streamed.ply")
-            r3 = run(["extract"] + srcs + opts + ["-o", c, "--json", "-", "--max-memory",
-                                                  str((j["memory_estimate"] + j["memory_streaming"]) // 2)] + common)
+            r3 = run(["extract"] + srcs + opts + ["-o", c, "--json", "-"] + common)
             check(r3.returncode == 0, "%s: streamed extract failed: %s" % (name, r3.stderr))
             if r3.returncode == 0:
-                # a stack of two or three tiny slices of 8-byte samples needs less in memory than
-                # the stream's window of planes: then the limit between the two keeps it in memory
-                streams = j["memory_streaming"] < j["memory_estimate"]
-                check(json.loads(r3.stdout)["streamed"] == streams and not j["streamed"],
-                      "%s: streamed flags (streaming %d, in memory %d bytes)"
-                      % (name, j["memory_streaming"], j["memory_estimate"]))
+                js = json.loads(r3.stdout)
+                check(js["streamed"] and not js["volume_loaded"] and not j["streamed"],
+                      "%s: streamed flags %s / %s" % (name, js["streamed"], j["streamed"]))
+                check(js["check"] == j["check"] and j["check"] is not None,
+                      "%s: the streamed check differs: %s vs %s" % (name, js["check"], j["check"]))
                 check(open(c, "rb").read() == da, "%s: the streamed stack's mesh differs" % name)
             print("ok   %-18s info %s %s %s; mesh at iso %g equals the raw volume's and streamed (%d bytes)"
                   % (name, kind, tname, info["dims"], iso, len(da)))

@@ -90,7 +90,8 @@ with tempfile.TemporaryDirectory() as tmp:
         iso = "300" if j["dicom"]["hounsfield"] else "%g" % (0.5 + np.floor(np.median(
             np.fromfile(c["expected"], TYPES[c["type"]]))))
         dmesh, rmesh = os.path.join(tmp, name + ".ply"), os.path.join(tmp, name + ".raw.ply")
-        r1 = run(["extract", "--quiet", "--pad", "--iso", iso, "-o", dmesh] + series_args(c) + axes + c["sources"])
+        r1 = run(["extract", "--quiet", "--pad", "--in-memory", "--iso", iso, "-o", dmesh] +
+                 series_args(c) + axes + c["sources"])
         nx, ny, nz = c["dims"]
         r2 = run(["extract", "--quiet", "--pad", "--iso", iso, "-o", rmesh, c["expected"],
                   "--raw", "%d,%d,%d:%s" % (nx, ny, nz, c["type"]),

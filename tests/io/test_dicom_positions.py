@@ -141,7 +141,8 @@ def main():
                 np.median(np.fromfile(c["expected"], TYPES[c["type"]])))
             isos = "%.17g" % iso
             d = os.path.join(tmp, name + ".ply")
-            r = run(["extract", "--pad", "--iso", isos, "-o", d, "--json", "-"] + c["sources"])
+            r = run(["extract", "--pad", "--in-memory", "--iso", isos, "-o", d, "--json", "-"] +
+                    c["sources"])
             check(r.returncode == 0, "%s: extract exit %d: %s" % (name, r.returncode, r.stderr))
             if r.returncode:
                 continue

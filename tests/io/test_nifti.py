@@ -141,7 +141,7 @@ with tempfile.TemporaryDirectory() as tmp:
                   (axes, got.tolist(), want.tolist()))
 
     # ---- (b) vertices on the grid's edges through nibabel's affine ----
-    m_lps = extract(nii, p("mri.ply"), iso)
+    m_lps = extract(nii, p("mri.ply"), iso, "--in-memory")
     on_grid_edges(m_lps[0], Af, LPS, "mri.nii (LPS)")
     m_ras = extract(nii, p("mri_ras.ply"), iso, "--ras")
     on_grid_edges(m_ras[0], Af, np.eye(3), "mri.nii --ras")
