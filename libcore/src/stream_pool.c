@@ -66,6 +66,8 @@ typedef struct slab {
     uint64_t *lead_keys;           /* slice a's in-plane vertices, in id order */
     uint32_t *lead_ids;            /* ... their local ids */
     int lead_delivered;            /* the first vertices call went out with the slab below */
+    uint64_t base;                 /* its first vertex's global id, once the slabs below are done */
+    int global;                    /* its local ids made global (by a worker) */
     int saw_vertices;
 } slab;
 
@@ -86,6 +88,8 @@ struct stream_pool {
     int64_t qhead, qcount;
     int stop;
     int64_t pushed, next_open, next_deliver; /* volume slices pushed; the next slab to open, to hand over */
+    int64_t based;     /* slabs [0, based) have their base (lock) */
+    uint64_t base_next; /* the base of slab `based` */
     uint64_t first_id, next_id, triangles;
     isomend_stats stats;
     isomend_status failed;
@@ -275,6 +279,31 @@ static void run_slab(stream_pool *p, slab *s, worker_state *ws)
     pthread_mutex_lock(&p->lock);
     s->status = st;
     s->state = SLAB_DONE;
+    /* the slabs whose base is known now: from the first without one, while done */
+    const int64_t first = p->based;
+    while (p->based < p->nslabs) {
+        slab *x = &p->slabs[p->based % p->inflight];
+        if (x->index != p->based || x->state != SLAB_DONE)
+            break;
+        x->base = p->base_next;
+        p->base_next += x->nv;
+        p->based++;
+    }
+    const int64_t end = p->based;
+    pthread_mutex_unlock(&p->lock);
+    /* their ids made global here, off the caller's thread (foreign ones wait for the
+     * next slab's lead: deliver()) */
+    for (int64_t k = first; k < end; k++) {
+        slab *x = &p->slabs[k % p->inflight];
+        const uint64_t base = x->base;
+        uint64_t *t = x->tri;
+        for (uint64_t q = 0; q < 3 * x->nt; q++)
+            if (!(t[q] & ISOMEND_FOREIGN))
+                t[q] += base;
+    }
+    pthread_mutex_lock(&p->lock);
+    for (int64_t k = first; k < end; k++)
+        p->slabs[k % p->inflight].global = 1;
     pthread_cond_broadcast(&p->done);
     pthread_mutex_unlock(&p->lock);
 }
@@ -331,6 +360,8 @@ static isomend_status deliver(stream_pool *p, slab *s, slab *next)
     if (s->status != ISOMEND_OK)
         return fail(p, s->status);
     const uint64_t base = p->next_id, next_base = base + s->nv;
+    if (!s->global || s->base != base)
+        return fail(p, ISOMEND_ERR_INVALID_ARGUMENT); /* not reached */
     if (s->nf) { /* the foreign vertices are the next slab's lead, key for key */
         if (!next || next->status != ISOMEND_OK || s->nf > next->nlead)
             return fail(p, next && next->status != ISOMEND_OK ? next->status
@@ -338,7 +369,7 @@ static isomend_status deliver(stream_pool *p, slab *s, slab *next)
         if (memcmp(s->fkeys, next->lead_keys, sizeof(uint64_t) * (size_t)s->nf) != 0)
             return fail(p, ISOMEND_ERR_INVALID_ARGUMENT);
     }
-    int lead_due = 0;
+    int lead_due = 0, after_foreign = 0; /* only the last layer refers to the next slab */
     isomend_status st = ISOMEND_OK;
     for (uint64_t q = s->lead_delivered ? 1 : 0; q < s->nev && st == ISOMEND_OK; q++) {
         const event *e = &s->ev[q];
@@ -349,7 +380,7 @@ static isomend_status deliver(stream_pool *p, slab *s, slab *next)
                 st = fail(p, ISOMEND_ERR_SINK);
             break;
         case EV_FOREIGN:
-            lead_due = 1;
+            lead_due = after_foreign = 1;
             break;
         case EV_TRIANGLES:
             if (lead_due) {
@@ -360,14 +391,13 @@ static isomend_status deliver(stream_pool *p, slab *s, slab *next)
             }
             if (e->count) {
                 uint64_t *t = s->tri + 3 * e->at;
-                for (uint64_t k = 0; k < 3 * e->count; k++) {
+                for (uint64_t k = 0; k < 3 * e->count && after_foreign; k++) {
                     const uint64_t id = t[k], f = id & ~ISOMEND_FOREIGN;
                     if (!(id & ISOMEND_FOREIGN))
-                        t[k] = base + id;
-                    else if (f < s->nf)
-                        t[k] = next_base + next->lead_ids[f];
-                    else
+                        continue; /* made global by the workers */
+                    if (f >= s->nf)
                         return fail(p, ISOMEND_ERR_INVALID_ARGUMENT); /* not reached */
+                    t[k] = next_base + next->lead_ids[f];
                 }
                 if (p->sink.triangles(p->sink.user, (size_t)e->count, t,
                                       s->org ? s->org + e->at : NULL))
@@ -409,13 +439,14 @@ static isomend_status deliver_ready(stream_pool *p, int64_t until)
         for (;;) {
             x = done_slab(p, s);
             next = s + 1 < p->nslabs ? done_slab(p, s + 1) : NULL;
-            const int ready = x && (s + 1 == p->nslabs || next || x->status != ISOMEND_OK);
+            const int ready = x && (x->status != ISOMEND_OK ||
+                                    (x->global && (s + 1 == p->nslabs || next)));
             if (ready || s > until)
                 break;
             pthread_cond_wait(&p->done, &p->lock);
         }
         pthread_mutex_unlock(&p->lock);
-        if (!x || (s + 1 < p->nslabs && !next && x->status == ISOMEND_OK))
+        if (!x || (x->status == ISOMEND_OK && (!x->global || (s + 1 < p->nslabs && !next))))
             break; /* not ready, and not waited for */
         const isomend_status st = deliver(p, x, next);
         if (st != ISOMEND_OK)
@@ -497,7 +528,7 @@ isomend_status stream_pool_begin(const isomend_volume *desc, const isomend_optio
 void stream_pool_set_first_id(stream_pool *p, uint64_t first)
 {
     if (p && p->pushed == 0)
-        p->first_id = p->next_id = first;
+        p->first_id = p->next_id = p->base_next = first;
 }
 
 /* Opens slab s in its slot (which must be free: the caller delivered). */
@@ -512,7 +543,7 @@ static void open_slab(stream_pool *p, int64_t s)
     x->status = x->sink_status = ISOMEND_OK;
     memset(&x->stats, 0, sizeof x->stats);
     x->nv = x->nt = x->nev = x->nf = x->nlead = 0;
-    x->lead_delivered = x->saw_vertices = 0;
+    x->lead_delivered = x->saw_vertices = x->global = 0;
     int64_t lo = x->a - 1 - p->pad, hi = x->b + 2 - p->pad;
     x->z_first = lo < 0 ? 0 : lo;
     x->z_end = hi > p->desc.dims[2] ? p->desc.dims[2] : hi;
