@@ -1116,6 +1116,58 @@ static void test_bad_input(void)
     }
     CHECK(total_calls > 10);
     free(data);
+
+    /* The same on a pool of threads (a volume tall enough for several slabs),
+     * and a pool destroyed part way, with slabs queued, running and done. */
+    const int64_t tall[3] = {9, 8, 60};
+    double tiso;
+    isomend_volume tv;
+    void *tdata = make_volume(GYROID, ISOMEND_F32, tall, &tv, &tiso);
+    isomend_options to;
+    isomend_options_init(&to);
+    to.iso = tiso;
+    to.threads = 2;
+    int64_t slab_layers;
+    CHECK(stream_pool_plan(&tv, &to, &slab_layers) == 2);
+    const size_t tplane = 9 * 8 * sizeof(float);
+    long pool_calls = 0;
+    for (long stop = 1;; stop += 1 + stop / 8) {
+        memset(&c, 0, sizeof c);
+        c.stop_at = stop;
+        sink = sink_of(&c);
+        CHECK_EQ_INT(isomend_stream_begin(&tv, &to, &sink, &s), ISOMEND_OK);
+        isomend_status st = ISOMEND_OK;
+        for (int z = 0; z < 60 && st == ISOMEND_OK; z++)
+            st = isomend_stream_push(s, (const char *)tdata + (size_t)z * tplane);
+        if (st == ISOMEND_OK)
+            st = isomend_stream_finish(s, NULL);
+        if (c.calls < stop) {
+            CHECK_EQ_INT(st, ISOMEND_OK);
+            pool_calls = c.calls;
+            isomend_stream_destroy(s);
+            collect_free(&c);
+            break;
+        }
+        CHECK_EQ_INT(st, ISOMEND_ERR_SINK);
+        CHECK_EQ_INT(isomend_stream_push(s, tdata), ISOMEND_ERR_SINK);
+        CHECK_EQ_INT(isomend_stream_finish(s, NULL), ISOMEND_ERR_SINK);
+        CHECK_EQ_INT(c.calls_after_stop, 0);
+        isomend_stream_destroy(s);
+        collect_free(&c);
+    }
+    CHECK(pool_calls > 20);
+    for (int pushed = 0; pushed <= 60; pushed += 7) { /* destroyed after `pushed` slices */
+        memset(&c, 0, sizeof c);
+        sink = sink_of(&c);
+        CHECK_EQ_INT(isomend_stream_begin(&tv, &to, &sink, &s), ISOMEND_OK);
+        for (int z = 0; z < pushed; z++)
+            CHECK_EQ_INT(isomend_stream_push(s, (const char *)tdata + (size_t)z * tplane),
+                         ISOMEND_OK);
+        CHECK_EQ_INT(c.order_errors, 0);
+        isomend_stream_destroy(s);
+        collect_free(&c);
+    }
+    free(tdata);
 }
 
 /* ------------------------------------------------------------------ the tall volume */
