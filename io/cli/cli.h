@@ -416,20 +416,9 @@ uint64_t cli_peak_memory(void);
 /* The process's resident memory now (VmRSS), bytes; 0 if unknown. */
 uint64_t cli_resident_memory(void);
 
-/*
- * Where a streaming extraction puts the mesh (the sink of docs/streaming.md,
- * until the core declares its own): vertices with consecutive ids from
- * `first` (keys may be NULL), triangles of 64-bit ids of vertices already
- * delivered, and retire(floor): no later triangle uses an id below floor.
- * A callback returns non-zero to stop, after printing the message.
- */
-typedef struct cli_sink {
-    void *user;
-    int (*vertices)(void *user, uint64_t first, size_t count, const float *positions,
-                    const float *normals, const uint64_t *keys);
-    int (*triangles)(void *user, size_t count, const uint64_t *ids, const uint8_t *origins);
-    int (*retire)(void *user, uint64_t floor);
-} cli_sink;
+/* Where a streaming extraction puts the mesh: the core's sink (isomend.h);
+ * the CLI's sinks print their message before they return non-zero. */
+typedef isomend_mesh_sink cli_sink;
 
 /* A sink that writes to `w` (mesh_writer.h). */
 void cli_sink_for_writer(cli_sink *sink, isomend_mesh_writer *w);

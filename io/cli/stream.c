@@ -191,6 +191,7 @@ static int sink_retire(void *user, uint64_t floor)
 
 void cli_sink_for_writer(cli_sink *sink, isomend_mesh_writer *w)
 {
+    memset(sink, 0, sizeof *sink);
     sink->user = w;
     sink->vertices = sink_vertices;
     sink->triangles = sink_triangles;
@@ -310,6 +311,7 @@ static int world_retire(void *user, uint64_t floor)
 
 void cli_sink_for_world(cli_sink *sink, cli_world *w)
 {
+    memset(sink, 0, sizeof *sink);
     sink->user = w;
     sink->vertices = world_vertices;
     sink->triangles = world_triangles;
@@ -323,7 +325,8 @@ int cli_stream_extract(cli_source *s, const isomend_options *opts, const cli_sin
 {
     /* The core's stream (isomend_stream_*): one slice in this buffer at a
      * time, the mesh handed to the sink as the slices complete it. */
-    isomend_mesh_sink core = {sink->user, sink->vertices, sink->triangles, sink->retire, NULL};
+    isomend_mesh_sink core = *sink;
+    core.foreign = NULL; /* a stream, not a piece */
     char *slice = malloc(s->slice_bytes ? (size_t)s->slice_bytes : 1);
     if (!slice) {
         cli_error("%s: cannot allocate %.1f MiB for a slice", s->label,
