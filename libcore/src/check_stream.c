@@ -69,7 +69,7 @@
  */
 #include "isomend.h"
 
-#include "extract_internal.h"
+#include "extract_internal.h" /* the grid of isomend_check_stream_begin_volume */
 
 #include <float.h>
 #include <math.h>

@@ -3,9 +3,10 @@
  * shared vertices) and isomend_mesh_clean(), which drops the small ones or
  * keeps the largest: the noise islands of a CT or microscopy surface.
  */
-#include "extract_internal.h"
+#include "mesh_internal.h"
 
 #include <stdlib.h>
+#include <string.h>
 
 static uint32_t find(uint32_t *parent, uint32_t x)
 {

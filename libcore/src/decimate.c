@@ -31,10 +31,12 @@
  * into a's list, and the corners of dead triangles are unlinked as lists
  * are walked.
  */
-#include "extract_internal.h"
+#include "mesh_internal.h"
 
 #include <float.h>
+#include <math.h>
 #include <stdlib.h>
+#include <string.h>
 
 #define NONE UINT32_MAX
 

@@ -10,9 +10,11 @@
  * the ring is farther than the nearest triangle found.  Points outside the
  * grid start from the nearest cell.
  */
-#include "extract_internal.h"
+#include "mesh_internal.h"
 
+#include <math.h>
 #include <stdlib.h>
+#include <string.h>
 
 /* Squared distance from p to triangle (a, b, c) (Ericson, "Real-Time Collision
  * Detection", 5.1.5: the closest point by Voronoi regions). */

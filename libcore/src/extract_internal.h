@@ -32,39 +32,13 @@
 #define ISOMEND_EXTRACT_INTERNAL_H
 
 #include "isomend.h"
+#include "mesh_internal.h"
 
 #include <math.h>
 #include <stdatomic.h>
 #include <stddef.h>
 #include <stdint.h>
 #include <string.h>
-
-/* ------------------------------------------------------- slice origins */
-
-/* The slices' own origins (isomend_volume.slice_origins, slice_geometry.c):
- * so NULL for a uniform grid. */
-typedef struct slice_table {
-    const double *so; /* 3 doubles a volume slice, or NULL                 */
-    int64_t n;        /* the volume's slices                               */
-    int64_t pad;      /* 0 or 1: marched slice m is volume slice m - pad  */
-    double gap;       /* the padding's gap when the volume has one slice   */
-} slice_table;
-
-/* ------------------------------------------------------------- the mesh */
-
-struct isomend_mesh {
-    size_t nv, nt;
-    float *pos;
-    float *nrm;
-    uint32_t *tri;
-    uint8_t *org;
-    double box[6];
-    size_t mapped[4]; /* bytes mapped for pos, nrm, tri, org; 0: malloc'ed */
-    slice_table slices; /* the grid's, for the check; so: slice_store  */
-    double *slice_store;
-    double h[2];        /* in-plane spacing and marched grid, likewise     */
-    int64_t N[3];
-};
 
 /* ------------------------------------------------------------ the grid */
 
@@ -311,30 +285,6 @@ void sheared_vertex(const grid *g, int flip, const int64_t p0[3], const int64_t 
                     float *nrm);
 void sheared_box(const grid *g, double box[6]);
 isomend_status mesh_keep_slices(isomend_mesh *mesh, const grid *g);
-isomend_status sheared_check(const isomend_mesh *mesh, isomend_check_report *report);
-
-/* mesh_build.c: a post-processed mesh's frame (box, slice table) copied from
- * the mesh it comes from; vertex normals from the triangles. */
-isomend_status mesh_copy_frame(isomend_mesh *dst, const isomend_mesh *src);
-void mesh_area_normals(isomend_mesh *m, const float *keep);
-int mesh_free_vertices(const isomend_mesh *m, uint8_t *free_flag, uint32_t **first,
-                       uint32_t **corners);
-/* fn(arg, lo, hi) over [0, n) in ranges on up to 8 threads (one below 32768
- * items, or where threads cannot start); returns when all are done. */
-void parallel_for(size_t n, void (*fn)(void *arg, size_t lo, size_t hi), void *arg);
-
-/* distance.c: the squared distance from p to triangle (a, b, c); the largest
- * and mean distance from np points to a triangle mesh (0 without memory). */
-double point_triangle_distance2(const double p[3], const double a[3], const double b[3],
-                                const double c[3]);
-int mesh_distances(const float *pts, size_t np, const float *pos, const uint32_t *tri, size_t nt,
-                   double *max_out, double *mean_out);
-
-/* components.c: each vertex's component (triangles joined through shared
- * vertices), numbered in vertex order; returns their count (isolated
- * vertices count as components of their own). */
-int64_t mesh_components(const isomend_mesh *m, uint32_t *label);
-
 /* march_general.c */
 unsigned method_cube(worker *w, int64_t i, int64_t j, int64_t k, unsigned cfg, pass_kind pass,
                      const uint32_t *const ep[12], const uint32_t *ids0, const uint32_t *ids1,
@@ -358,21 +308,6 @@ isomend_status run_two_passes(ctx *c, worker *ws, int nw, isomend_mesh **out, ui
  * reservations are refused, for the two passes to take over. */
 isomend_status run_one_pass(ctx *c, worker *ws, int nw, isomend_mesh **out, uint64_t *nv,
                             uint64_t *nt);
-
-/* mesh_memory.c */
-#define HUGE_PAGE ((size_t)2 << 20) /* the transparent huge page of x86-64 (and of
-                                     * arm64 with 4 KiB pages) */
-static inline size_t huge_round(size_t size) /* up to whole huge pages */
-{
-    return (size + HUGE_PAGE - 1) & ~(HUGE_PAGE - 1);
-}
-void *output_alloc(size_t size, int small_pages);
-void *scratch_alloc(size_t size);
-void *reserve_output(size_t size, size_t huge_from);
-size_t trim_output(void *p, size_t size, size_t used);
-void release_output(void *p, size_t mapped);
-void release_pages(void *p, size_t size);
-void adopt_output(void *p, size_t size, void *old, size_t mapped);
 
 /* 8 bytes at p as a little-endian word, and back. */
 static inline uint64_t load8(const uint8_t *p)

@@ -6,10 +6,12 @@
  * a loop split over threads (for work whose result does not depend on the
  * split).
  */
-#include "extract_internal.h"
+#include "mesh_internal.h"
 
+#include <math.h>
 #include <pthread.h>
 #include <stdlib.h>
+#include <string.h>
 #include <unistd.h>
 
 isomend_status mesh_copy_frame(isomend_mesh *dst, const isomend_mesh *src)

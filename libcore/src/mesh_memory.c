@@ -21,10 +21,11 @@
  * measurements behind the choices.
  */
 #define _GNU_SOURCE /* madvise, posix_memalign, mremap */
-#include "extract_internal.h"
+#include "mesh_internal.h"
 
 #include <stdlib.h>
 #include <unistd.h>
+
 #if defined(__linux__)
 #include <sys/mman.h>
 #endif

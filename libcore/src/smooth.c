@@ -18,9 +18,11 @@
  * non-manifold places) never move, and the triangles are the input's, so
  * the surface stays closed and oriented.
  */
-#include "extract_internal.h"
+#include "mesh_internal.h"
 
+#include <math.h>
 #include <stdlib.h>
+#include <string.h>
 
 #define LAMBDA 0.5
 #define MU (-0.53)

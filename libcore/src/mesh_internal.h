@@ -1,0 +1,83 @@
+/*
+ * mesh_internal.h - the mesh object and what the steps on a mesh share
+ * (private): the extraction makes meshes (extract_internal.h includes this),
+ * the checks and the post-processing (check_stream.c, decimate.c, smooth.c,
+ * components.c, distance.c, mesh_build.c) work on them and need nothing of
+ * the extraction's grid, context or kernels.
+ */
+#ifndef ISOMEND_MESH_INTERNAL_H
+#define ISOMEND_MESH_INTERNAL_H
+
+#include "isomend.h"
+
+#include <stddef.h>
+#include <stdint.h>
+
+/* ------------------------------------------------------- slice origins */
+
+/* The slices' own origins (isomend_volume.slice_origins, slice_geometry.c):
+ * so NULL for a uniform grid. */
+typedef struct slice_table {
+    const double *so; /* 3 doubles a volume slice, or NULL                 */
+    int64_t n;        /* the volume's slices                               */
+    int64_t pad;      /* 0 or 1: marched slice m is volume slice m - pad  */
+    double gap;       /* the padding's gap when the volume has one slice   */
+} slice_table;
+
+/* ------------------------------------------------------------- the mesh */
+
+struct isomend_mesh {
+    size_t nv, nt;
+    float *pos;
+    float *nrm;
+    uint32_t *tri;
+    uint8_t *org;
+    double box[6];
+    size_t mapped[4]; /* bytes mapped for pos, nrm, tri, org; 0: malloc'ed */
+    slice_table slices; /* the grid's, for the check; so: slice_store  */
+    double *slice_store;
+    double h[2];        /* in-plane spacing and marched grid, likewise     */
+    int64_t N[3];
+};
+
+/* slice_geometry.c: the check of a mesh on a sheared grid, in its unsheared frame */
+isomend_status sheared_check(const isomend_mesh *mesh, isomend_check_report *report);
+
+/* mesh_build.c: a post-processed mesh's frame (box, slice table) copied from
+ * the mesh it comes from; vertex normals from the triangles. */
+isomend_status mesh_copy_frame(isomend_mesh *dst, const isomend_mesh *src);
+void mesh_area_normals(isomend_mesh *m, const float *keep);
+int mesh_free_vertices(const isomend_mesh *m, uint8_t *free_flag, uint32_t **first,
+                       uint32_t **corners);
+/* fn(arg, lo, hi) over [0, n) in ranges on up to 8 threads (one below 32768
+ * items, or where threads cannot start); returns when all are done. */
+void parallel_for(size_t n, void (*fn)(void *arg, size_t lo, size_t hi), void *arg);
+
+/* distance.c: the squared distance from p to triangle (a, b, c); the largest
+ * and mean distance from np points to a triangle mesh (0 without memory). */
+double point_triangle_distance2(const double p[3], const double a[3], const double b[3],
+                                const double c[3]);
+int mesh_distances(const float *pts, size_t np, const float *pos, const uint32_t *tri, size_t nt,
+                   double *max_out, double *mean_out);
+
+/* components.c: each vertex's component (triangles joined through shared
+ * vertices), numbered in vertex order; returns their count (isolated
+ * vertices count as components of their own). */
+int64_t mesh_components(const isomend_mesh *m, uint32_t *label);
+
+/* mesh_memory.c */
+#define HUGE_PAGE ((size_t)2 << 20) /* the transparent huge page of x86-64 (and of
+                                     * arm64 with 4 KiB pages) */
+static inline size_t huge_round(size_t size) /* up to whole huge pages */
+{
+    return (size + HUGE_PAGE - 1) & ~(HUGE_PAGE - 1);
+}
+void *output_alloc(size_t size, int small_pages);
+void *scratch_alloc(size_t size);
+void *reserve_output(size_t size, size_t huge_from);
+size_t trim_output(void *p, size_t size, size_t used);
+void release_output(void *p, size_t mapped);
+void release_pages(void *p, size_t size);
+void adopt_output(void *p, size_t size, void *old, size_t mapped);
+
+#endif /* ISOMEND_MESH_INTERNAL_H */
