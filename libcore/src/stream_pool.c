@@ -2,11 +2,11 @@
  * stream_pool.c - a stream on several threads: slabs of the marched grid
  * extracted by a pool of workers and handed to the sink in order.
  *
- *   push (caller)          workers (threads)              sink (caller)
- *   slice z -> plane  -->  slab s: a piece [a, b)   -->   slab s's calls replayed,
- *   attached to the        (isomend_piece_begin), its     ids made global by the
- *   slabs whose halo       planes pushed, its mesh kept   running count: base(s)
- *   holds it               in the slab's buffers          + local id
+ *   push (caller)            workers (threads)               sink (caller)
+ *   slice z copied into the  slab s: a piece [a, b) run on   slab s's calls replayed
+ *   input of each slab whose its input, read in place; its   in order, its ids global
+ *   halo holds it (1 or 2);  mesh and calls kept; the ids    (only the last layer's
+ *   a slab complete: queued  made global once s has a base   foreign ids mended here)
  *
  * A slab is a piece of the grid (isomend.h, "Pieces"): it numbers its
  * vertices from 0, in isomend_extract()'s order, and refers to the next
@@ -14,17 +14,18 @@
  * the in-plane vertices of slice b in id order.  The next slab numbers the
  * same vertices first, in the same order (the same scan of the same slice),
  * so f is the f-th in-plane vertex of the next slab's first call (kept as
- * `lead`; the keys are compared, a mismatch is an error, not a mesh).  Slab
- * s is delivered once it and slab s + 1 are done: its calls (vertices,
- * triangles, retire, as the piece made them) replayed with base(s) added,
- * base(s + 1) = base(s) + its vertices, the next slab's first vertices
- * delivered just before the triangles that use them.  The sink sees
- * isomend_stream_push()'s sequence of ids, triangles and floors, whatever
- * the number of threads: the mesh is the same bytes.
+ * `lead`; the keys are compared, a mismatch is an error, not a mesh).
+ * base(s + 1) = base(s) + slab s's vertices: the worker that completes the
+ * slabs below a slab gives it its base and adds it to the slab's local ids.
+ * Slab s is delivered once it and slab s + 1 are done: its calls (vertices,
+ * triangles, retire, as the piece made them) replayed, the next slab's first
+ * vertices delivered just before the triangles that use them.  The sink
+ * sees isomend_stream_push()'s sequence of ids, triangles and floors,
+ * whatever the number of threads: the mesh is the same bytes.
  *
  * Memory: at most `inflight` slabs at a time (threads + 2), each holding
- * its planes (shared with its neighbour where their halos meet) and its
- * mesh, and one piece per worker (isomend_stream_memory() of a piece).
+ * its slices (H + 3 planes) and its mesh, and one piece per worker
+ * (isomend_stream_memory() of a piece).
  */
 #define _GNU_SOURCE /* _SC_NPROCESSORS_ONLN */
 #include "stream_pool.h"
