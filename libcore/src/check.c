@@ -15,6 +15,7 @@
  * endpoints of hole edges (hole loops).  Memory is linear in the mesh.
  */
 #include "isomend.h"
+#include "check_rules.h"
 
 #include <float.h>
 #include <math.h>
@@ -61,32 +62,11 @@ static void sort_halves(half *h, size_t n)
     }
 }
 
-static int on_box_face(const float *p, const float *q, const double *box, double extent)
+/* degenerate_triangle() of triangle t (3 indices into pos). */
+static int degenerate_of(const float *pos, const uint32_t *t)
 {
-    for (int a = 0; a < 3; a++)
-        for (int side = 0; side < 2; side++) {
-            double plane = box[3 * side + a];
-            double tol = 1e-6 * extent + 4.0 * FLT_EPSILON * fabs(plane);
-            if (fabs((double)p[a] - plane) <= tol && fabs((double)q[a] - plane) <= tol)
-                return 1;
-        }
-    return 0;
-}
-
-static int degenerate(const float *pos, const uint32_t *t)
-{
-    if (t[0] == t[1] || t[1] == t[2] || t[0] == t[2])
-        return 1;
-    const float *a = pos + 3 * (size_t)t[0], *b = pos + 3 * (size_t)t[1],
-                *c = pos + 3 * (size_t)t[2];
-    double u[3], v[3];
-    for (int i = 0; i < 3; i++) {
-        u[i] = (double)b[i] - a[i];
-        v[i] = (double)c[i] - a[i];
-    }
-    double x = u[1] * v[2] - u[2] * v[1], y = u[2] * v[0] - u[0] * v[2],
-           z = u[0] * v[1] - u[1] * v[0];
-    return x == 0.0 && y == 0.0 && z == 0.0;
+    return degenerate_triangle(t[0], t[1], t[2], pos + 3 * (size_t)t[0], pos + 3 * (size_t)t[1],
+                               pos + 3 * (size_t)t[2]);
 }
 
 /* Number of fans the triangles `tris[0..n)` around vertex v form. */
@@ -280,7 +260,7 @@ isomend_status isomend_check(const float *positions, size_t vertex_count,
 
     for (size_t t = 0; t < nt; t++) {
         report->components += uf_find(tparent, (uint32_t)t) == t;
-        report->degenerate_triangles += (uint64_t)degenerate(positions, triangles + 3 * t);
+        report->degenerate_triangles += (uint64_t)degenerate_of(positions, triangles + 3 * t);
     }
 
     lparent = malloc(sizeof(uint32_t) * (maxdeg ? maxdeg : 1));

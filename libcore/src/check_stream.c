@@ -69,6 +69,7 @@
  */
 #include "isomend.h"
 
+#include "check_rules.h"
 #include "extract_internal.h" /* the grid of isomend_check_stream_begin_volume */
 
 #include <float.h>
@@ -478,36 +479,6 @@ static inline int corner(isomend_check_stream *s, vslot *v, int32_t ky, int32_t 
     return *ny != NONE && (!kz || *nz != NONE);
 }
 
-/* ----------------------------------------------- check.c's two tests */
-
-/* check.c's on_box_face(), the same arithmetic (the reports must agree). */
-static int on_box_face(const float *p, const float *q, const double *box, double extent)
-{
-    for (int a = 0; a < 3; a++)
-        for (int side = 0; side < 2; side++) {
-            double plane = box[3 * side + a];
-            double tol = 1e-6 * extent + 4.0 * FLT_EPSILON * fabs(plane);
-            if (fabs((double)p[a] - plane) <= tol && fabs((double)q[a] - plane) <= tol)
-                return 1;
-        }
-    return 0;
-}
-
-/* check.c's degenerate(): a repeated index or a zero cross product. */
-static int degenerate(const float *a, const float *b, const float *c, const uint64_t *t)
-{
-    if (t[0] == t[1] || t[1] == t[2] || t[0] == t[2])
-        return 1;
-    double u[3], v[3];
-    for (int i = 0; i < 3; i++) {
-        u[i] = (double)b[i] - a[i];
-        v[i] = (double)c[i] - a[i];
-    }
-    double x = u[1] * v[2] - u[2] * v[1], y = u[2] * v[0] - u[0] * v[2],
-           z = u[0] * v[1] - u[1] * v[0];
-    return x == 0.0 && y == 0.0 && z == 0.0;
-}
-
 /* ------------------------------------------------------------ begin */
 
 static isomend_status begin_box(const double box[6], isomend_check_stream **out)
@@ -703,29 +674,6 @@ static isomend_status ring_fit(isomend_check_stream *s, uint64_t end)
     return ISOMEND_OK;
 }
 
-/* sheared_check()'s move into the unsheared frame, the same arithmetic. */
-static void unshear(const isomend_check_stream *s, const float *in, float *p)
-{
-    const double *o = s->so;
-    const int64_t N2 = s->n2;
-    const double z = in[2];
-    int64_t lo = 0, hi = N2 - 1;
-    while (hi - lo > 1) {
-        const int64_t mid = (lo + hi) / 2;
-        if (o[3 * mid + 2] <= z)
-            lo = mid;
-        else
-            hi = mid;
-    }
-    double t = N2 > 1 ? (z - o[3 * lo + 2]) / (o[3 * hi + 2] - o[3 * lo + 2]) : 0.0;
-    t = t < 0.0 ? 0.0 : t > 1.0 ? 1.0 : t;
-    for (int a = 0; a < 2; a++) {
-        const double shift = (1.0 - t) * o[3 * lo + a] + t * o[3 * hi + a];
-        p[a] = (float)((double)in[a] - shift);
-    }
-    p[2] = in[2];
-}
-
 isomend_status isomend_check_stream_vertices(isomend_check_stream *s, uint64_t first_id,
                                              size_t count, const float *positions)
 {
@@ -752,7 +700,7 @@ isomend_status isomend_check_stream_vertices(isomend_check_stream *s, uint64_t f
     for (size_t i = 0; i < count; i++) {
         vslot *v = &s->ring[(first_id + i) & s->mask];
         if (s->so)
-            unshear(s, positions + 3 * i, v->p);
+            unshear_point(s->so, s->n2, positions + 3 * i, v->p);
         else
             memcpy(v->p, positions + 3 * i, sizeof v->p);
         v->hole = NONE;
@@ -822,7 +770,7 @@ isomend_status isomend_check_stream_triangles(isomend_check_stream *s, size_t co
                 s->tri.n[root].ref++;
             }
         s->r.degenerate_triangles +=
-            (uint64_t)degenerate(v[0]->p, v[1]->p, v[2]->p, id);
+            (uint64_t)degenerate_triangle(id[0], id[1], id[2], v[0]->p, v[1]->p, v[2]->p);
         s->r.triangles++;
     }
     return ISOMEND_OK;

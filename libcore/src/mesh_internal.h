@@ -40,7 +40,9 @@ struct isomend_mesh {
     int64_t N[3];
 };
 
-/* slice_geometry.c: the check of a mesh on a sheared grid, in its unsheared frame */
+/* slice_geometry.c: the check of a mesh on a sheared grid, in its unsheared
+ * frame; a point moved into that frame (o: the n marched slices' origins). */
+void unshear_point(const double *o, int64_t n, const float in[3], float out[3]);
 isomend_status sheared_check(const isomend_mesh *mesh, isomend_check_report *report);
 
 /* mesh_build.c: a post-processed mesh's frame (box, slice table) copied from

@@ -159,6 +159,27 @@ isomend_status mesh_keep_slices(isomend_mesh *mesh, const grid *g)
     return ISOMEND_OK;
 }
 
+void unshear_point(const double *o, int64_t n, const float in[3], float out[3])
+{
+    /* the shift interpolated between the slices around the point's z */
+    const double z = in[2];
+    int64_t lo = 0, hi = n - 1;
+    while (hi - lo > 1) {
+        const int64_t mid = (lo + hi) / 2;
+        if (o[3 * mid + 2] <= z)
+            lo = mid;
+        else
+            hi = mid;
+    }
+    double s = n > 1 ? (z - o[3 * lo + 2]) / (o[3 * hi + 2] - o[3 * lo + 2]) : 0.0;
+    s = s < 0.0 ? 0.0 : s > 1.0 ? 1.0 : s;
+    for (int a = 0; a < 2; a++) {
+        const double shift = (1.0 - s) * o[3 * lo + a] + s * o[3 * hi + a];
+        out[a] = (float)((double)in[a] - shift);
+    }
+    out[2] = in[2];
+}
+
 isomend_status sheared_check(const isomend_mesh *mesh, isomend_check_report *report)
 {
     const slice_table *t = &mesh->slices;
@@ -172,25 +193,8 @@ isomend_status sheared_check(const isomend_mesh *mesh, isomend_check_report *rep
     }
     for (int64_t m = 0; m < N2; m++)
         slice_origin(t, m, o + 3 * m);
-    /* Each vertex's shift, interpolated between the slices around its z. */
-    for (size_t v = 0; v < mesh->nv; v++) {
-        const double z = mesh->pos[3 * v + 2];
-        int64_t lo = 0, hi = N2 - 1;
-        while (hi - lo > 1) {
-            const int64_t mid = (lo + hi) / 2;
-            if (o[3 * mid + 2] <= z)
-                lo = mid;
-            else
-                hi = mid;
-        }
-        double s = N2 > 1 ? (z - o[3 * lo + 2]) / (o[3 * hi + 2] - o[3 * lo + 2]) : 0.0;
-        s = s < 0.0 ? 0.0 : s > 1.0 ? 1.0 : s;
-        for (int a = 0; a < 2; a++) {
-            const double shift = (1.0 - s) * o[3 * lo + a] + s * o[3 * hi + a];
-            p[3 * v + a] = (float)((double)mesh->pos[3 * v + a] - shift);
-        }
-        p[3 * v + 2] = mesh->pos[3 * v + 2];
-    }
+    for (size_t v = 0; v < mesh->nv; v++)
+        unshear_point(o, N2, mesh->pos + 3 * v, p + 3 * v);
     double box[6];
     for (int a = 0; a < 2; a++) {
         box[a] = -(double)t->pad * mesh->h[a];

@@ -963,6 +963,42 @@ static void test_memory_bound(void)
     CHECK_EQ_INT(isomend_stream_vertex_bound(NULL, &o), 0);
 }
 
+/* Streams vol (its data in `data`, `plane` bytes a slice) into a sink that
+ * stops at its first call, then at each later one (stride 0) or at calls
+ * further apart (stride s: the next stop 1 + stop / s later): ISOMEND_ERR_SINK
+ * from that push or finish on,
+ * and no callback after it.  Returns the calls of the whole mesh. */
+static long check_sink_stops(const isomend_volume *vol, const isomend_options *o,
+                             const void *data, size_t plane, long stride)
+{
+    for (long stop = 1;; stop += stride ? 1 + stop / stride : 1) {
+        collect c;
+        memset(&c, 0, sizeof c);
+        c.stop_at = stop;
+        isomend_mesh_sink sink = sink_of(&c);
+        isomend_stream *s = NULL;
+        CHECK_EQ_INT(isomend_stream_begin(vol, o, &sink, &s), ISOMEND_OK);
+        isomend_status st = ISOMEND_OK;
+        for (int64_t z = 0; z < vol->dims[2] && st == ISOMEND_OK; z++)
+            st = isomend_stream_push(s, (const char *)data + (size_t)z * plane);
+        if (st == ISOMEND_OK)
+            st = isomend_stream_finish(s, NULL);
+        const long calls = c.calls;
+        if (calls < stop) { /* fewer calls than stop: the whole mesh went through */
+            CHECK_EQ_INT(st, ISOMEND_OK);
+            isomend_stream_destroy(s);
+            collect_free(&c);
+            return calls;
+        }
+        CHECK_EQ_INT(st, ISOMEND_ERR_SINK);
+        CHECK_EQ_INT(isomend_stream_push(s, data), ISOMEND_ERR_SINK);
+        CHECK_EQ_INT(isomend_stream_finish(s, NULL), ISOMEND_ERR_SINK);
+        CHECK_EQ_INT(c.calls_after_stop, 0);
+        isomend_stream_destroy(s);
+        collect_free(&c);
+    }
+}
+
 static void test_bad_input(void)
 {
     const int64_t n[3] = {9, 8, 7};
@@ -1089,31 +1125,7 @@ static void test_bad_input(void)
 
     /* A sink that stops at its first, second, ... call: ISOMEND_ERR_SINK from
      * that push or finish on, and no callback after it. */
-    long total_calls = 0;
-    for (long stop = 1;; stop++) {
-        memset(&c, 0, sizeof c);
-        c.stop_at = stop;
-        sink = sink_of(&c);
-        CHECK_EQ_INT(isomend_stream_begin(&vol, &o, &sink, &s), ISOMEND_OK);
-        isomend_status st = ISOMEND_OK;
-        for (int z = 0; z < 7 && st == ISOMEND_OK; z++)
-            st = isomend_stream_push(s, data + z * 72);
-        if (st == ISOMEND_OK)
-            st = isomend_stream_finish(s, NULL);
-        if (c.calls < stop) { /* fewer calls than stop: the whole mesh went through */
-            CHECK_EQ_INT(st, ISOMEND_OK);
-            total_calls = c.calls;
-            isomend_stream_destroy(s);
-            collect_free(&c);
-            break;
-        }
-        CHECK_EQ_INT(st, ISOMEND_ERR_SINK);
-        CHECK_EQ_INT(isomend_stream_push(s, data), ISOMEND_ERR_SINK);
-        CHECK_EQ_INT(isomend_stream_finish(s, NULL), ISOMEND_ERR_SINK);
-        CHECK_EQ_INT(c.calls_after_stop, 0);
-        isomend_stream_destroy(s);
-        collect_free(&c);
-    }
+    const long total_calls = check_sink_stops(&vol, &o, data, 72, 0);
     CHECK(total_calls > 10);
     free(data);
 
@@ -1130,31 +1142,7 @@ static void test_bad_input(void)
     int64_t slab_layers;
     CHECK(stream_pool_plan(&tv, &to, &slab_layers) == 2);
     const size_t tplane = 9 * 8 * sizeof(float);
-    long pool_calls = 0;
-    for (long stop = 1;; stop += 1 + stop / 8) {
-        memset(&c, 0, sizeof c);
-        c.stop_at = stop;
-        sink = sink_of(&c);
-        CHECK_EQ_INT(isomend_stream_begin(&tv, &to, &sink, &s), ISOMEND_OK);
-        isomend_status st = ISOMEND_OK;
-        for (int z = 0; z < 60 && st == ISOMEND_OK; z++)
-            st = isomend_stream_push(s, (const char *)tdata + (size_t)z * tplane);
-        if (st == ISOMEND_OK)
-            st = isomend_stream_finish(s, NULL);
-        if (c.calls < stop) {
-            CHECK_EQ_INT(st, ISOMEND_OK);
-            pool_calls = c.calls;
-            isomend_stream_destroy(s);
-            collect_free(&c);
-            break;
-        }
-        CHECK_EQ_INT(st, ISOMEND_ERR_SINK);
-        CHECK_EQ_INT(isomend_stream_push(s, tdata), ISOMEND_ERR_SINK);
-        CHECK_EQ_INT(isomend_stream_finish(s, NULL), ISOMEND_ERR_SINK);
-        CHECK_EQ_INT(c.calls_after_stop, 0);
-        isomend_stream_destroy(s);
-        collect_free(&c);
-    }
+    const long pool_calls = check_sink_stops(&tv, &to, tdata, tplane, 8);
     CHECK(pool_calls > 20);
     for (int pushed = 0; pushed <= 60; pushed += 7) { /* destroyed after `pushed` slices */
         memset(&c, 0, sizeof c);
