@@ -791,6 +791,76 @@ ISOMEND_API isomend_status isomend_mesh_clean(const isomend_mesh *mesh, uint64_t
                                               uint64_t keep_largest, isomend_mesh **out,
                                               isomend_clean_report *report);
 
+/*
+ * Streamed decimation: isomend_mesh_decimate()'s collapses on a mesh that is
+ * never whole in memory, between a stream (isomend_stream_begin(), any
+ * thread count) and a sink (a writer, the streaming check).  The stream's
+ * layers are cut into chunks of `chunk_layers` layers (0: the default,
+ * isomend_decimate_stream_layers()).  Each chunk is decimated on its own
+ * as it completes, with the vertices it shares with its neighbours (its two
+ * slice planes) locked; then the band around each plane (the triangles
+ * within a few rings of it on both sides) is decimated again with the plane
+ * free and the band's own edge locked.  Every stage is a decimation of a
+ * piece of the surface whose cut vertices are locked, so the pieces still
+ * fit: a closed, oriented 2-manifold stays one, with its components and
+ * Euler characteristic (docs/postprocess.md, "Streamed").
+ *
+ * The output: vertices numbered from 0 in the order they are first used,
+ * each delivered once every triangle around it is final (its normal, unless
+ * ISOMEND_FLAG_NO_NORMALS, the area-weighted normal of those triangles),
+ * triangles in a fixed order, retire() as vertices are done.  The mesh
+ * depends on the volume, the options, the decimation's options and
+ * chunk_layers only: not on the stream's threads.  Targets: ratio only
+ * (target_triangles and max_error need the whole mesh:
+ * ISOMEND_ERR_INVALID_ARGUMENT); each chunk keeps ratio of its triangles,
+ * each band what keeps the running total at ratio of the triangles so far.
+ * Memory: a chunk's triangles and the bands', isomend_decimate_stream_memory().
+ */
+typedef struct isomend_decimate_stream isomend_decimate_stream;
+
+/* The default chunk height for a volume (about 2^22 marched samples a
+ * chunk, 4 to 64 layers), or the most layers whose chunk fits max_bytes
+ * (0: no limit) if that is less; 0 for invalid arguments. */
+ISOMEND_API int64_t isomend_decimate_stream_layers(const isomend_volume *desc,
+                                                   const isomend_options *opts,
+                                                   uint64_t max_bytes);
+
+/* An estimate of the memory the decimation holds with chunks of
+ * chunk_layers layers (a surface as busy as a 256^3 gyroid: one triangle
+ * every 4 marched samples), 0 for invalid arguments. */
+ISOMEND_API uint64_t isomend_decimate_stream_memory(const isomend_volume *desc,
+                                                    const isomend_options *opts,
+                                                    int64_t chunk_layers);
+
+/* Begins a streamed decimation of what a stream of desc with opts delivers
+ * (their checks as isomend_stream_begin()), passing the result to `out`
+ * (copied; vertices, triangles and retire required).  On failure *ds is
+ * NULL. */
+ISOMEND_API isomend_status isomend_decimate_stream_begin(const isomend_volume *desc,
+                                                         const isomend_options *opts,
+                                                         const isomend_decimate_options *dopts,
+                                                         int64_t chunk_layers,
+                                                         const isomend_mesh_sink *out,
+                                                         isomend_decimate_stream **ds);
+
+/* The sink to give isomend_stream_begin() (vertices, triangles, retire;
+ * foreign NULL).  A callback returns non-zero when the decimation or the
+ * out sink failed (isomend_decimate_stream_finish() then says which). */
+ISOMEND_API isomend_status isomend_decimate_stream_sink(isomend_decimate_stream *ds,
+                                                        isomend_mesh_sink *sink);
+
+/* After the stream's finish: decimates and delivers the rest and fills the
+ * report (report may be NULL): counts before and after, target
+ * ratio * triangles, reached, collapses, and errors measured stage by stage
+ * (each stage's input vertices to its result; the distance from an input
+ * vertex to the final surface is within the sum of its two stages').
+ * ISOMEND_ERR_SINK when `out` stopped it. */
+ISOMEND_API isomend_status isomend_decimate_stream_finish(isomend_decimate_stream *ds,
+                                                          isomend_decimate_report *report);
+
+/* Accepts NULL. */
+ISOMEND_API void isomend_decimate_stream_destroy(isomend_decimate_stream *ds);
+
 /* ------------------------------------------------------------ case tables */
 
 /*

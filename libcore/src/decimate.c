@@ -444,7 +444,10 @@ static int sort_candidates(cand *c, size_t n)
 
 /* ---------------------------------------------------------- the output */
 
-static isomend_status build_output(const dec *d, const isomend_mesh *in, isomend_mesh **out)
+/* The live triangles and the vertices they use, in the input's order;
+ * kept (if not NULL) gets each output vertex's input index. */
+static isomend_status build_output(const dec *d, const isomend_mesh *in, isomend_mesh **out,
+                                   uint32_t **kept)
 {
     uint32_t *remap = malloc((d->nv ? d->nv : 1) * sizeof(uint32_t));
     isomend_mesh *m = calloc(1, sizeof(*m));
@@ -468,6 +471,17 @@ static isomend_status build_output(const dec *d, const isomend_mesh *in, isomend
     for (size_t v = 0; v < d->nv; v++)
         if (remap[v] != NONE)
             remap[v] = (uint32_t)nv++;
+    if (kept) {
+        *kept = malloc((nv ? nv : 1) * sizeof(uint32_t));
+        if (!*kept) {
+            free(remap);
+            free(m);
+            return ISOMEND_ERR_OUT_OF_MEMORY;
+        }
+        for (size_t v = 0; v < d->nv; v++)
+            if (remap[v] != NONE)
+                (*kept)[remap[v]] = (uint32_t)v;
+    }
     m->nv = nv;
     m->nt = nt;
     m->pos = malloc(12 * (nv ? nv : 1));
@@ -476,6 +490,10 @@ static isomend_status build_output(const dec *d, const isomend_mesh *in, isomend
     if (!m->pos || !m->tri || (in->nrm && !m->nrm)) {
         free(remap);
         isomend_mesh_destroy(m);
+        if (kept) {
+            free(*kept);
+            *kept = NULL;
+        }
         return ISOMEND_ERR_OUT_OF_MEMORY;
     }
     for (size_t v = 0; v < d->nv; v++)
@@ -492,6 +510,10 @@ static isomend_status build_output(const dec *d, const isomend_mesh *in, isomend
         mesh_area_normals(m, NULL);
     if (mesh_copy_frame(m, in) != ISOMEND_OK) {
         isomend_mesh_destroy(m);
+        if (kept) {
+            free(*kept);
+            *kept = NULL;
+        }
         return ISOMEND_ERR_OUT_OF_MEMORY;
     }
     *out = m;
@@ -515,6 +537,21 @@ isomend_status isomend_mesh_decimate(const isomend_mesh *mesh, const isomend_dec
     if (!mesh || !o || !(o->ratio >= 0.0 && o->ratio <= 1.0) || !(o->max_error >= 0.0) ||
         !isfinite(o->max_error) || (o->ratio == 0.0 && o->target_triangles == 0 && o->max_error == 0.0))
         return ISOMEND_ERR_INVALID_ARGUMENT;
+    uint64_t target = 0;
+    if (o->ratio > 0)
+        target = (uint64_t)ceil(o->ratio * (double)mesh->nt);
+    if (o->target_triangles > target)
+        target = o->target_triangles;
+    return mesh_decimate_to(mesh, target, o->max_error, 1, out, NULL, report);
+}
+
+isomend_status mesh_decimate_to(const isomend_mesh *mesh, uint64_t target, double max_error,
+                                int measure, isomend_mesh **out, uint32_t **kept,
+                                isomend_decimate_report *report)
+{
+    *out = NULL;
+    if (kept)
+        *kept = NULL;
     isomend_decimate_report rep;
     memset(&rep, 0, sizeof rep);
     dec d;
@@ -525,11 +562,6 @@ isomend_status isomend_mesh_decimate(const isomend_mesh *mesh, const isomend_dec
     d.alive = mesh->nt;
     if (d.nt > (size_t)UINT32_MAX / 3 || d.nv >= (size_t)UINT32_MAX)
         return ISOMEND_ERR_TOO_LARGE;
-    uint64_t target = 0;
-    if (o->ratio > 0)
-        target = (uint64_t)ceil(o->ratio * (double)d.nt);
-    if (o->target_triangles > target)
-        target = o->target_triangles;
     rep.triangles_before = d.nt;
     rep.vertices_before = d.nv;
     rep.target_triangles = target;
@@ -548,7 +580,7 @@ isomend_status isomend_mesh_decimate(const isomend_mesh *mesh, const isomend_dec
     d.members = malloc(nv * sizeof(uint32_t));
     d.member_next = malloc(nv * sizeof(uint32_t));
     d.orig = mesh->pos;
-    d.max_dist = o->max_error;
+    d.max_dist = max_error;
     isomend_status status = ISOMEND_ERR_OUT_OF_MEMORY;
     if (!d.p || !d.q || !d.tv || !d.tdead || !d.head || !d.next || !d.vf || !d.pass_mark || !d.mark ||
         !d.parent || !d.members || !d.member_next)
@@ -640,15 +672,19 @@ isomend_status isomend_mesh_decimate(const isomend_mesh *mesh, const isomend_dec
         }
     }
     rep.reached = d.alive <= target;
-    status = build_output(&d, mesh, out);
+    status = build_output(&d, mesh, out, kept);
     if (status == ISOMEND_OK) {
         rep.triangles_after = (*out)->nt;
         rep.vertices_after = (*out)->nv;
         /* how far the input's vertices lie from the result */
-        if (!mesh_distances(mesh->pos, mesh->nv, (*out)->pos, (*out)->tri, (*out)->nt,
+        if (measure && !mesh_distances(mesh->pos, mesh->nv, (*out)->pos, (*out)->tri, (*out)->nt,
                             &rep.max_error, &rep.mean_error)) {
             isomend_mesh_destroy(*out);
             *out = NULL;
+            if (kept) {
+                free(*kept);
+                *kept = NULL;
+            }
             status = ISOMEND_ERR_OUT_OF_MEMORY;
         }
     }

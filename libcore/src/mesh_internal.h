@@ -55,6 +55,15 @@ int mesh_free_vertices(const isomend_mesh *m, uint8_t *free_flag, uint32_t **fir
  * items, or where threads cannot start); returns when all are done. */
 void parallel_for(size_t n, void (*fn)(void *arg, size_t lo, size_t hi), void *arg);
 
+/* decimate.c: isomend_mesh_decimate() to `target` triangles (0: as far as
+ * the surface allows) with max_error (0: none); the report's distances only
+ * if `measure`; kept (if not NULL) gets each output vertex's input index
+ * (malloc'ed, the output's vertex count; locked vertices keep their
+ * position). */
+isomend_status mesh_decimate_to(const isomend_mesh *mesh, uint64_t target, double max_error,
+                                int measure, isomend_mesh **out, uint32_t **kept,
+                                isomend_decimate_report *report);
+
 /* distance.c: the squared distance from p to triangle (a, b, c); the largest
  * and mean distance from np points to a triangle mesh (0 without memory). */
 double point_triangle_distance2(const double p[3], const double a[3], const double b[3],

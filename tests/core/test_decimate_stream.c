@@ -1,0 +1,425 @@
+/*
+ * The streamed decimation (isomend_decimate_stream_*) between a stream and a
+ * sink, on a sphere, a gyroid (genus), random noise (hundreds of components,
+ * every ambiguous case), a tall gyroid and the thesis's F1/F2, by the
+ * hole-free methods and by MC (holes, which must stay), padded and not, with
+ * chunks of 1, 2, 3, 5 layers and the default:
+ *   - the result (collected from the sink, which the streaming check is fed
+ *     too, so the protocol is checked: ids in order, triangles on delivered
+ *     and not retired vertices, floors) is a closed, oriented 2-manifold with
+ *     the input's components and Euler characteristic (isomend_check and
+ *     the streaming check agree), or keeps the input's border and holes;
+ *   - its triangle count is at most 1.25 x the in-memory decimation's at the
+ *     same ratio and the report's counts are the mesh's;
+ *   - the same bytes from streams on 1, 2 and 3 threads;
+ *   - the reported max_error bounds the distance from the extracted mesh's
+ *     vertices to the result (measured here, brute force);
+ *   - bad arguments are refused and a sink that stops stops the stream.
+ */
+#include "isomend.h"
+#include "mesh_internal.h" /* point_triangle_distance2 */
+#include "testutil.h"
+
+#include <math.h>
+#include <stdint.h>
+#include <stdlib.h>
+#include <string.h>
+
+static uint64_t rng_state = 0x9e3779b97f4a7c15ull;
+static double urand(void)
+{
+    rng_state = rng_state * 6364136223846793005ull + 1442695040888963407ull;
+    return (double)(rng_state >> 11) / 9007199254740992.0;
+}
+
+enum { SPHERE, GYROID, NOISE, TALL, F1, F2, SHAPES };
+static const char *names[SHAPES] = {"sphere", "gyroid", "noise", "tall gyroid", "F1", "F2"};
+
+static float *make(int shape, int64_t n[3])
+{
+    if (shape >= F1)
+        n[0] = n[1] = n[2] = 4;
+    else if (shape == NOISE)
+        n[0] = 14, n[1] = 12, n[2] = 20;
+    else if (shape == TALL)
+        n[0] = 24, n[1] = 20, n[2] = 90;
+    else
+        n[0] = 40, n[1] = 36, n[2] = 33;
+    float *f = malloc(sizeof(float) * (size_t)(n[0] * n[1] * n[2]));
+    for (int64_t k = 0; k < n[2]; k++)
+        for (int64_t j = 0; j < n[1]; j++)
+            for (int64_t i = 0; i < n[0]; i++) {
+                const double x = (double)i, y = (double)j, z = (double)k;
+                double v;
+                switch (shape) {
+                case SPHERE:
+                    v = 17.5 - sqrt((x - 19.5) * (x - 19.5) + (y - 17.2) * (y - 17.2) +
+                                    (z - 16.1) * (z - 16.1));
+                    break;
+                case GYROID:
+                case TALL: {
+                    const double s = shape == TALL ? 0.5 : 0.35;
+                    v = sin(s * x) * cos(s * y) + sin(s * y) * cos(s * z) + sin(s * z) * cos(s * x);
+                    break;
+                }
+                case NOISE: v = urand() - 0.5; break;
+                case F1: v = 4 * y + 4 * (x - z) * (x - z) - 5; break;
+                default:
+                    v = 4 * (y - 1) * (y - 1) + 2 * (x - z) * (x - z) - 2 * (x + z - 3) * (x + z - 3) + 1;
+                }
+                f[(k * n[1] + j) * n[0] + i] = (float)v;
+            }
+    return f;
+}
+
+/* ------------------------------------------------------------------ a collecting sink */
+
+typedef struct collected {
+    float *pos, *nrm;
+    uint32_t *tri;
+    size_t nv, nt, cap_v, cap_t;
+    uint64_t floor;
+    int normals, stop_at, calls;
+    isomend_check_stream *check;
+} collected;
+
+static int c_vertices(void *user, uint64_t first, size_t count, const float *pos, const float *nrm,
+                      const uint64_t *keys)
+{
+    collected *c = user;
+    if (++c->calls == c->stop_at)
+        return 1;
+    if (first != c->nv || keys || (c->normals != (nrm != NULL)))
+        return 1;
+    if (c->nv + count > c->cap_v) {
+        c->cap_v = 2 * (c->nv + count);
+        c->pos = realloc(c->pos, 12 * c->cap_v);
+        c->nrm = realloc(c->nrm, 12 * c->cap_v);
+    }
+    memcpy(c->pos + 3 * c->nv, pos, 12 * count);
+    if (nrm) {
+        memcpy(c->nrm + 3 * c->nv, nrm, 12 * count);
+        for (size_t i = 0; i < count; i++) {
+            const float *n = nrm + 3 * i;
+            const double len = sqrt((double)n[0] * n[0] + (double)n[1] * n[1] + (double)n[2] * n[2]);
+            if (fabs(len - 1.0) > 1e-5)
+                return 1;
+        }
+    }
+    c->nv += count;
+    return isomend_check_stream_vertices(c->check, first, count, pos) != ISOMEND_OK;
+}
+
+static int c_triangles(void *user, size_t count, const uint64_t *ids, const uint8_t *origins)
+{
+    collected *c = user;
+    if (++c->calls == c->stop_at || origins)
+        return 1;
+    if (c->nt + count > c->cap_t) {
+        c->cap_t = 2 * (c->nt + count);
+        c->tri = realloc(c->tri, 12 * c->cap_t);
+    }
+    for (size_t i = 0; i < 3 * count; i++) {
+        if (ids[i] < c->floor || ids[i] >= c->nv)
+            return 1;
+        c->tri[3 * c->nt + i] = (uint32_t)ids[i];
+    }
+    c->nt += count;
+    return isomend_check_stream_triangles(c->check, count, ids) != ISOMEND_OK;
+}
+
+static int c_retire(void *user, uint64_t floor)
+{
+    collected *c = user;
+    if (++c->calls == c->stop_at || floor < c->floor || floor > c->nv)
+        return 1;
+    c->floor = floor;
+    return isomend_check_stream_retire(c->check, floor) != ISOMEND_OK;
+}
+
+static void collected_free(collected *c)
+{
+    free(c->pos);
+    free(c->nrm);
+    free(c->tri);
+    isomend_check_stream_destroy(c->check);
+    memset(c, 0, sizeof *c);
+}
+
+/* Streams vol with o through a streamed decimation into c; the status of
+ * the first failing call. */
+static isomend_status stream_decimated(const isomend_volume *vol, const isomend_options *o,
+                                       double ratio, int64_t layers, collected *c,
+                                       isomend_decimate_report *rep, isomend_check_report *sr)
+{
+    memset(c, 0, sizeof *c);
+    c->normals = !(o->flags & ISOMEND_FLAG_NO_NORMALS);
+    double box[6];
+    isomend_status st = isomend_check_stream_begin_volume(vol, o, &c->check);
+    (void)box;
+    if (st != ISOMEND_OK)
+        return st;
+    const isomend_mesh_sink out = {c, c_vertices, c_triangles, c_retire, NULL};
+    isomend_decimate_options d;
+    isomend_decimate_options_init(&d);
+    d.ratio = ratio;
+    isomend_decimate_stream *ds = NULL;
+    st = isomend_decimate_stream_begin(vol, o, &d, layers, &out, &ds);
+    if (st != ISOMEND_OK)
+        return st;
+    isomend_mesh_sink in;
+    isomend_decimate_stream_sink(ds, &in);
+    isomend_stream *s = NULL;
+    st = isomend_stream_begin(vol, o, &in, &s);
+    const size_t plane = (size_t)(vol->dims[0] * vol->dims[1]);
+    for (int64_t k = 0; st == ISOMEND_OK && k < vol->dims[2]; k++)
+        st = isomend_stream_push(s, (const float *)vol->data + plane * (size_t)k);
+    if (st == ISOMEND_OK)
+        st = isomend_stream_finish(s, NULL);
+    isomend_stream_destroy(s);
+    const isomend_status fs = isomend_decimate_stream_finish(ds, rep);
+    isomend_decimate_stream_destroy(ds);
+    if (st == ISOMEND_OK)
+        st = fs;
+    if (st == ISOMEND_OK)
+        st = isomend_check_stream_finish(c->check, sr);
+    return st;
+}
+
+static int same(const collected *a, const collected *b)
+{
+    return a->nv == b->nv && a->nt == b->nt && !memcmp(a->pos, b->pos, 12 * a->nv) &&
+           !memcmp(a->tri, b->tri, 12 * a->nt) &&
+           (!a->normals || !memcmp(a->nrm, b->nrm, 12 * a->nv));
+}
+
+/* The largest distance from the mesh m's vertices to the triangles of c (all
+ * of them: the report measures against a subset). */
+static double brute_distance(const isomend_mesh *m, const collected *c)
+{
+    const float *p = isomend_mesh_positions(m);
+    double worst = 0;
+    for (size_t v = 0; v < isomend_mesh_vertex_count(m); v++) {
+        const double q[3] = {p[3 * v], p[3 * v + 1], p[3 * v + 2]};
+        double best = INFINITY;
+        for (size_t t = 0; t < c->nt && best > 0; t++) {
+            double x[3][3];
+            for (int k = 0; k < 3; k++)
+                for (int i = 0; i < 3; i++)
+                    x[k][i] = c->pos[3 * (size_t)c->tri[3 * t + (size_t)k] + (size_t)i];
+            const double d2 = point_triangle_distance2(q, x[0], x[1], x[2]);
+            best = d2 < best ? d2 : best;
+        }
+        worst = best > worst ? best : worst;
+    }
+    return sqrt(worst);
+}
+
+static int windows;
+
+int main(void)
+{
+    static const isomend_method methods[] = {ISOMEND_METHOD_DMC, ISOMEND_METHOD_TETRA,
+                                              ISOMEND_METHOD_MC33, ISOMEND_METHOD_ASYMPTOTIC,
+                                              ISOMEND_METHOD_MC};
+    static const int64_t layer_sets[] = {1, 2, 3, 5, 0};
+    for (int shape = 0; shape < SHAPES; shape++)
+        for (size_t mi = 0; mi < sizeof methods / sizeof methods[0]; mi++)
+            for (int padded = 1; padded >= 0; padded--) {
+                const int holes = methods[mi] == ISOMEND_METHOD_MC;
+                if ((holes || !padded) && shape != GYROID && shape != NOISE)
+                    continue;
+                int64_t n[3];
+                float *f = make(shape, n);
+                isomend_volume vol;
+                isomend_volume_init(&vol, f, ISOMEND_F32, n[0], n[1], n[2]);
+                vol.spacing[2] = 1.5;
+                isomend_options o;
+                isomend_options_init(&o);
+                o.method = methods[mi];
+                o.flags = padded ? ISOMEND_FLAG_PAD : 0;
+                o.threads = 1;
+                isomend_mesh *m = NULL;
+                CHECK_EQ_INT(isomend_extract(&vol, &o, &m, NULL), ISOMEND_OK);
+                isomend_check_report rin;
+                CHECK_EQ_INT(isomend_mesh_check(m, &rin), ISOMEND_OK);
+                char what[160];
+                for (int r = 0; r < 2; r++) {
+                    const double ratio = r ? 0.3 : 0.1;
+                    isomend_decimate_options d;
+                    isomend_decimate_options_init(&d);
+                    d.ratio = ratio;
+                    isomend_mesh *inmem = NULL;
+                    isomend_decimate_report irep;
+                    CHECK_EQ_INT(isomend_mesh_decimate(m, &d, &inmem, &irep), ISOMEND_OK);
+                    for (size_t li = 0; li < sizeof layer_sets / sizeof layer_sets[0]; li++) {
+                        const int dmc = methods[mi] == ISOMEND_METHOD_DMC;
+                        if (!dmc && (r == 1 || (layer_sets[li] != 2 && layer_sets[li] != 0)))
+                            continue; /* the other methods: one ratio, two chunk heights */
+                        snprintf(what, sizeof what, "%s %s%s ratio %g, %lld layers", names[shape],
+                                 isomend_method_name(methods[mi]), padded ? " padded" : "", ratio,
+                                 (long long)layer_sets[li]);
+                        collected c1, c2;
+                        isomend_decimate_report rep;
+                        isomend_check_report sr, r1;
+                        o.threads = 1;
+                        CHECK_EQ_INT(stream_decimated(&vol, &o, ratio, layer_sets[li], &c1, &rep, &sr),
+                                     ISOMEND_OK);
+                        double box[6];
+                        isomend_mesh_grid_box(m, box);
+                        CHECK_EQ_INT(isomend_check(c1.pos, c1.nv, c1.tri, c1.nt, box, &r1), ISOMEND_OK);
+                        CHECK(!memcmp(&r1, &sr, sizeof sr));
+                        windows++;
+                        const int ok = r1.nonmanifold_edges == rin.nonmanifold_edges &&
+                                       r1.misoriented_edges == rin.misoriented_edges &&
+                                       r1.nonmanifold_vertices == rin.nonmanifold_vertices &&
+                                       r1.hole_edges == rin.hole_edges &&
+                                       r1.border_edges == rin.border_edges &&
+                                       r1.degenerate_triangles <= rin.degenerate_triangles &&
+                                       r1.components == rin.components && r1.euler == rin.euler;
+                        if (!ok) {
+                            fprintf(stderr,
+                                    "%s: %llu triangles: %llu hole (was %llu), %llu non-manifold, "
+                                    "%llu misoriented edges, %llu non-manifold vertices, %llu "
+                                    "border edges (was %llu), %llu degenerate; components %llu "
+                                    "(was %llu), euler %lld (was %lld)\n",
+                                    what, (unsigned long long)r1.triangles,
+                                    (unsigned long long)r1.hole_edges, (unsigned long long)rin.hole_edges,
+                                    (unsigned long long)r1.nonmanifold_edges,
+                                    (unsigned long long)r1.misoriented_edges,
+                                    (unsigned long long)r1.nonmanifold_vertices,
+                                    (unsigned long long)r1.border_edges,
+                                    (unsigned long long)rin.border_edges,
+                                    (unsigned long long)r1.degenerate_triangles,
+                                    (unsigned long long)r1.components, (unsigned long long)rin.components,
+                                    (long long)r1.euler, (long long)rin.euler);
+                            CHECK(0);
+                        }
+                        CHECK_EQ_INT(rep.triangles_after, c1.nt);
+                        CHECK_EQ_INT(rep.vertices_after, c1.nv);
+                        CHECK_EQ_INT(rep.triangles_before, isomend_mesh_triangle_count(m));
+                        CHECK_EQ_INT(rep.vertices_before, isomend_mesh_vertex_count(m));
+                        if (!holes && padded && (double)c1.nt > 1.25 * (double)irep.triangles_after + 8) {
+                            fprintf(stderr, "%s: %zu triangles streamed, %llu in memory\n", what,
+                                    c1.nt, (unsigned long long)irep.triangles_after);
+                            CHECK(0);
+                        }
+                        if (shape == SPHERE && layer_sets[li] == 3) {
+                            const double e = brute_distance(m, &c1);
+                            if (!(e <= rep.max_error * (1 + 1e-3) + 1e-4)) {
+                                fprintf(stderr, "%s: distance %g, reported %g\n", what, e, rep.max_error);
+                                CHECK(0);
+                            }
+                        }
+                        if (dmc && padded && r == 0 && layer_sets[li] == 0)
+                            printf("%-12s ratio %.1f: %6zu triangles streamed (mean distance %.4f), "
+                                   "%6llu in memory (%.4f)\n",
+                                   names[shape], ratio, c1.nt, rep.mean_error,
+                                   (unsigned long long)irep.triangles_after, irep.mean_error);
+                        /* the same bytes on 2 and 3 threads */
+                        for (int th = 2; th <= (dmc ? 3 : 2); th++) {
+                            o.threads = th;
+                            isomend_check_report sr2;
+                            CHECK_EQ_INT(stream_decimated(&vol, &o, ratio, layer_sets[li], &c2, NULL, &sr2),
+                                         ISOMEND_OK);
+                            if (!same(&c1, &c2)) {
+                                fprintf(stderr, "%s: %d threads: another mesh\n", what, th);
+                                CHECK(0);
+                            }
+                            collected_free(&c2);
+                        }
+                        o.threads = 1;
+                        collected_free(&c1);
+                    }
+                    isomend_mesh_destroy(inmem);
+                }
+                isomend_mesh_destroy(m);
+                free(f);
+            }
+    /* bad arguments and a sink that stops */
+    {
+        int64_t n[3];
+        float *f = make(TALL, n);
+        isomend_volume vol;
+        isomend_volume_init(&vol, f, ISOMEND_F32, n[0], n[1], n[2]);
+        isomend_options o;
+        isomend_options_init(&o);
+        o.flags = ISOMEND_FLAG_PAD;
+        collected c;
+        memset(&c, 0, sizeof c);
+        const isomend_mesh_sink out = {&c, c_vertices, c_triangles, c_retire, NULL};
+        isomend_decimate_options d;
+        isomend_decimate_options_init(&d);
+        isomend_decimate_stream *ds = (isomend_decimate_stream *)&c;
+        CHECK_EQ_INT(isomend_decimate_stream_begin(&vol, &o, &d, 0, &out, &ds),
+                     ISOMEND_ERR_INVALID_ARGUMENT);
+        CHECK(ds == NULL);
+        d.ratio = 0.1;
+        d.target_triangles = 10;
+        CHECK_EQ_INT(isomend_decimate_stream_begin(&vol, &o, &d, 0, &out, &ds),
+                     ISOMEND_ERR_INVALID_ARGUMENT);
+        d.target_triangles = 0;
+        d.max_error = 0.5;
+        CHECK_EQ_INT(isomend_decimate_stream_begin(&vol, &o, &d, 0, &out, &ds),
+                     ISOMEND_ERR_INVALID_ARGUMENT);
+        d.max_error = 0;
+        d.ratio = 1.5;
+        CHECK_EQ_INT(isomend_decimate_stream_begin(&vol, &o, &d, 0, &out, &ds),
+                     ISOMEND_ERR_INVALID_ARGUMENT);
+        d.ratio = 0.1;
+        CHECK_EQ_INT(isomend_decimate_stream_begin(&vol, &o, &d, -1, &out, &ds),
+                     ISOMEND_ERR_INVALID_ARGUMENT);
+        CHECK_EQ_INT(isomend_decimate_stream_begin(NULL, &o, &d, 0, &out, &ds),
+                     ISOMEND_ERR_INVALID_ARGUMENT);
+        CHECK(isomend_decimate_stream_layers(&vol, &o, 0) >= 4);
+        CHECK_EQ_INT(isomend_decimate_stream_layers(NULL, &o, 0), 0);
+        CHECK(isomend_decimate_stream_layers(&vol, &o, 1) == 1);
+        CHECK(isomend_decimate_stream_memory(&vol, &o, 8) > isomend_decimate_stream_memory(&vol, &o, 2));
+        isomend_decimate_stream_destroy(NULL);
+        /* the out sink stops at its k-th call: the stream stops with ISOMEND_ERR_SINK */
+        int stops = 0;
+        for (int k = 1; k < 400; k += 7) {
+            collected s;
+            isomend_decimate_report rep;
+            isomend_check_report sr;
+            memset(&s, 0, sizeof s);
+            s.stop_at = k;
+            /* stream_decimated clears c; set stop_at through a second pass */
+            (void)s;
+            collected t;
+            memset(&t, 0, sizeof t);
+            t.normals = 1;
+            CHECK_EQ_INT(isomend_check_stream_begin_volume(&vol, &o, &t.check), ISOMEND_OK);
+            t.stop_at = k;
+            const isomend_mesh_sink tout = {&t, c_vertices, c_triangles, c_retire, NULL};
+            isomend_decimate_stream *x = NULL;
+            CHECK_EQ_INT(isomend_decimate_stream_begin(&vol, &o, &d, 2, &tout, &x), ISOMEND_OK);
+            isomend_mesh_sink in;
+            isomend_decimate_stream_sink(x, &in);
+            isomend_stream *st = NULL;
+            o.threads = 2;
+            isomend_status r = isomend_stream_begin(&vol, &o, &in, &st);
+            for (int64_t z = 0; r == ISOMEND_OK && z < n[2]; z++)
+                r = isomend_stream_push(st, f + (size_t)(n[0] * n[1] * z));
+            if (r == ISOMEND_OK)
+                r = isomend_stream_finish(st, NULL);
+            isomend_stream_destroy(st);
+            const isomend_status fr = isomend_decimate_stream_finish(x, &rep);
+            isomend_decimate_stream_destroy(x);
+            if (t.calls >= k) {
+                stops++;
+                CHECK(r == ISOMEND_ERR_SINK || fr == ISOMEND_ERR_SINK);
+                CHECK_EQ_INT(fr, ISOMEND_ERR_SINK);
+            } else {
+                CHECK_EQ_INT(r, ISOMEND_OK);
+                CHECK_EQ_INT(fr, ISOMEND_OK);
+            }
+            (void)sr;
+            collected_free(&t);
+        }
+        CHECK(stops > 3);
+        free(f);
+    }
+    printf("%d streamed decimations checked\n", windows);
+    TEST_EXIT();
+}
