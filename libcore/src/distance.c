@@ -18,8 +18,36 @@
 
 /* Squared distance from p to triangle (a, b, c) (Ericson, "Real-Time Collision
  * Detection", 5.1.5: the closest point by Voronoi regions). */
+/* The squared distance from p to the segment (a, b). */
+static double point_segment_distance2(const double p[3], const double a[3], const double b[3])
+{
+    double ab[3], ap[3];
+    for (int i = 0; i < 3; i++) {
+        ab[i] = b[i] - a[i];
+        ap[i] = p[i] - a[i];
+    }
+    const double len2 = ab[0] * ab[0] + ab[1] * ab[1] + ab[2] * ab[2];
+    double t = len2 > 0 ? (ab[0] * ap[0] + ab[1] * ap[1] + ab[2] * ap[2]) / len2 : 0;
+    t = t < 0 ? 0 : t > 1 ? 1 : t;
+    double d = 0;
+    for (int i = 0; i < 3; i++) {
+        const double x = ap[i] - t * ab[i];
+        d += x * x;
+    }
+    return d;
+}
+
+/* A triangle of (nearly) no area: the nearest of its three edges. */
+static double degenerate_distance2(const double p[3], const double a[3], const double b[3],
+                                   const double c[3])
+{
+    const double d0 = point_segment_distance2(p, a, b), d1 = point_segment_distance2(p, b, c),
+                 d2 = point_segment_distance2(p, c, a);
+    return d0 < d1 ? (d0 < d2 ? d0 : d2) : (d1 < d2 ? d1 : d2);
+}
+
 double point_triangle_distance2(const double p[3], const double a[3], const double b[3],
-                              const double c[3])
+                                const double c[3])
 {
     double ab[3], ac[3], ap[3], q[3];
     for (int i = 0; i < 3; i++) {
@@ -64,7 +92,9 @@ double point_triangle_distance2(const double p[3], const double a[3], const doub
     }
 #undef DOT
     const double dx = p[0] - q[0], dy = p[1] - q[1], dz = p[2] - q[2];
-    return dx * dx + dy * dy + dz * dz;
+    const double d = dx * dx + dy * dy + dz * dz;
+    /* a zero-area triangle divides 0 by 0 above: its edges instead */
+    return isfinite(d) ? d : degenerate_distance2(p, a, b, c);
 }
 
 
