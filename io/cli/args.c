@@ -33,6 +33,7 @@ static const struct {
     {"--decimate", OPT_DECIMATE, 1},   {"--target-triangles", OPT_TARGET_TRIANGLES, 1},
     {"--max-error", OPT_MAX_ERROR, 1}, {"--smooth", OPT_SMOOTH, 1},
     {"--min-component", OPT_MIN_COMPONENT, 1}, {"--largest", OPT_LARGEST, 1},
+    {"--stream", OPT_STREAM, 0}, {"--chunk-layers", OPT_CHUNK_LAYERS, 1},
 };
 
 static int parse_raw(const char *v, cli_source_opts *o)
@@ -298,6 +299,12 @@ int cli_parse_args(int argc, char **argv, int first, const char *command, uint64
                 return CLI_EXIT_USAGE;
             }
             a->post.smooth = (int)n;
+            break;
+        }
+        case OPT_CHUNK_LAYERS: {
+            int64_t n;
+            if (!parse_count_option("--chunk-layers", value, 1, &n)) return CLI_EXIT_USAGE;
+            a->post.chunk_layers = n;
             break;
         }
         case OPT_MIN_COMPONENT: {

@@ -345,6 +345,8 @@ enum {
 /* past the enum's int range (cli_args.seen is 64-bit) */
 #define OPT_RAS (1u << 31)                      /* --ras: NIfTI in the file's RAS axes        */
 #define OPT_IN_MEMORY ((uint64_t)1 << 32)       /* --in-memory: the whole mesh, then written */
+#define OPT_STREAM ((uint64_t)1 << 33)          /* --stream: streamed even when it would fit */
+#define OPT_CHUNK_LAYERS ((uint64_t)1 << 34)    /* --chunk-layers: the streamed decimation's */
 #define OPT_POST \
     (OPT_DECIMATE | OPT_TARGET_TRIANGLES | OPT_MAX_ERROR | OPT_SMOOTH | OPT_MIN_COMPONENT | OPT_LARGEST)
 
@@ -356,6 +358,7 @@ typedef struct cli_post {
     int smooth;             /* --smooth        */
     uint64_t min_component; /* --min-component */
     uint64_t largest;       /* --largest       */
+    int64_t chunk_layers;   /* --chunk-layers (streamed decimation), 0: the default */
 } cli_post;
 
 #define CLI_MAX_SOURCES 4096
@@ -399,16 +402,20 @@ typedef struct cli_memory_plan {
     int threads;          /* the stream's threads: opts', or 1 when several do not fit   */
     int over_limit;       /* in_memory > limit                                           */
     int stream;           /* the mesh streamed: always, but for a whole-mesh run that fits */
+    int64_t decimate_layers; /* a streamed decimation's chunk height (0: none)           */
+    uint64_t decimate_need;  /* what it holds (isomend_decimate_stream_memory)           */
 } cli_memory_plan;
 
 /* The writer's stdio buffers, MiB (mesh_writer.c: the file and two scratch files). */
 #define CLI_WRITER_BUFFERS 3
 
 /* The plan of an extraction; `whole_mesh`: the run needs the mesh in memory
- * (--in-memory, post-processing, --pages), streamed only when it does not fit. */
+ * (--in-memory, post-processing, --pages), streamed only when it does not fit;
+ * `decimate`: a streamed run is decimated as it goes, in chunks of
+ * chunk_layers layers (0: the core's default, fewer where that does not fit). */
 void cli_memory_plan_make(const isomend_volume *desc, const isomend_options *opts,
                           isomend_mesh_format format, uint64_t max_memory, int whole_mesh,
-                          cli_memory_plan *p);
+                          int decimate, int64_t chunk_layers, cli_memory_plan *p);
 
 /* The process's peak resident memory (VmHWM), bytes; 0 if unknown. */
 uint64_t cli_peak_memory(void);
@@ -470,6 +477,8 @@ typedef struct cli_timings {
 
 typedef struct cli_post_report {
     int cleaned, smoothed, decimated;
+    int streamed;         /* the decimation ran on the stream, in chunks of: */
+    int64_t chunk_layers;
     isomend_clean_report clean;
     isomend_smooth_report smooth;
     isomend_decimate_report decimate;
@@ -479,6 +488,15 @@ typedef struct cli_post_report {
 /* Runs the steps `p` asks for on *mesh (replaced by the result); an exit
  * code, the message printed naming `label`. */
 int cli_postprocess(isomend_mesh **mesh, const cli_post *p, cli_post_report *r, const char *label);
+
+/* A sink that times the calls it passes on to `next` (ms: their sum): around
+ * a streamed decimation and around what follows it, the difference is the
+ * decimation's own time. */
+typedef struct cli_timed_sink {
+    cli_sink next;
+    double ms;
+} cli_timed_sink;
+void cli_sink_timed(cli_sink *sink, cli_timed_sink *t, const cli_sink *next);
 void cli_print_post(FILE *fp, const cli_post_report *r);
 void cli_json_post(FILE *fp, const cli_post_report *r);
 

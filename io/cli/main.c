@@ -97,6 +97,8 @@ static const char *const usage_extract =
     "                           are used when theirs do not\n"
     "  --in-memory              hold the whole mesh, then check and write it (what the\n"
     "                           steps below do anyway); streamed when it does not fit\n"
+    "  --stream                 stream even when the whole mesh would fit (with\n"
+    "                           --decimate: the streamed decimation below)\n"
     "  --slice-positions Z0,Z1,...|@FILE\n"
     "                           the z of every slice (FILE: one a line, # comments),\n"
     "                           strictly increasing, for slices not evenly spaced;\n"
@@ -109,6 +111,10 @@ static const char *const usage_extract =
     "  --target-triangles N     keep N triangles\n"
     "  --max-error E            no collapse farther than E (world units) from the surface\n"
     "                           it replaces; alone: decimate as far as that allows\n"
+    "A streamed run (--stream, or a mesh larger than --max-memory) can be decimated\n"
+    "as it is made, chunk by chunk, still closed: --decimate RATIO only\n"
+    "  --chunk-layers N         the streamed decimation's chunks of N layers (default:\n"
+    "                           from the slice size, fewer under a tight --max-memory)\n"
 #ifdef ISOMEND_HAVE_IO
     "  --first N --count N --step N   printf-pattern slice range\n"
     "  --channel N|luma         channel of multi-channel images\n"
@@ -277,7 +283,8 @@ static int cmd_extract(int argc, char **argv)
                        OPT_PAD | OPT_NO_NORMALS | OPT_FLIP | OPT_STATS | OPT_JSON | OPT_QUIET |
                        OPT_THREADS | OPT_FIRST | OPT_COUNT | OPT_STEP | OPT_CHANNEL | OPT_HELP |
                        OPT_PAGES | OPT_MAX_MEMORY | OPT_SERIES | OPT_GRID_AXES | OPT_RAS |
-                       OPT_SLICE_POSITIONS | OPT_POST | OPT_IN_MEMORY;
+                       OPT_SLICE_POSITIONS | OPT_POST | OPT_IN_MEMORY | OPT_STREAM |
+                       OPT_CHUNK_LAYERS;
     int rc = cli_parse_args(argc, argv, 2, "extract", allowed, &a);
     if (rc) return rc;
     if (a.seen & OPT_HELP) {
@@ -299,6 +306,15 @@ static int cmd_extract(int argc, char **argv)
     }
     if (a.json && strcmp(a.json, a.output) == 0) {
         cli_error("--json %s: same file as -o", a.json);
+        return CLI_EXIT_USAGE;
+    }
+    if ((a.seen & OPT_STREAM) && (a.seen & (OPT_IN_MEMORY | OPT_PAGES))) {
+        cli_error("--stream: not with %s (the whole mesh in memory)",
+                  (a.seen & OPT_IN_MEMORY) ? "--in-memory" : "--pages");
+        return CLI_EXIT_USAGE;
+    }
+    if ((a.seen & OPT_CHUNK_LAYERS) && !(a.seen & OPT_DECIMATE)) {
+        cli_error("--chunk-layers: only with --decimate (the streamed decimation's chunks)");
         return CLI_EXIT_USAGE;
     }
     int quiet = (a.seen & OPT_QUIET) != 0;
@@ -323,19 +339,32 @@ static int cmd_extract(int argc, char **argv)
     cli_extract_options(&a, &bar, &opts);
     const int small_pages = a.pages == CLI_PAGES_SMALL;
     /* the mesh goes to the file as it is made, checked on the way, unless the
-     * run needs it whole: post-processing, --in-memory, --pages */
-    const int whole_mesh = (a.seen & (OPT_POST | OPT_IN_MEMORY | OPT_PAGES)) != 0;
+     * run needs it whole: post-processing, --in-memory, --pages (and fits;
+     * --stream: never); a streamed --decimate works chunk by chunk */
+    const int whole_mesh =
+        !(a.seen & OPT_STREAM) && (a.seen & (OPT_POST | OPT_IN_MEMORY | OPT_PAGES)) != 0;
     cli_memory_plan plan;
-    cli_memory_plan_make(&src.desc, &opts, fmt, a.max_memory, whole_mesh, &plan);
+    cli_memory_plan_make(&src.desc, &opts, fmt, a.max_memory, whole_mesh,
+                         (a.seen & OPT_DECIMATE) != 0, a.post.chunk_layers, &plan);
     rc = plan_fits(&plan, &src);
-    if (!rc && (a.seen & OPT_POST) && plan.stream) {
+    const uint64_t whole_only = OPT_POST & ~(uint64_t)OPT_DECIMATE;
+    if (!rc && (a.seen & whole_only) && plan.stream) {
+        const char *flag = (a.seen & OPT_SMOOTH)           ? "--smooth"
+                           : (a.seen & OPT_MIN_COMPONENT)  ? "--min-component"
+                           : (a.seen & OPT_LARGEST)        ? "--largest"
+                           : (a.seen & OPT_TARGET_TRIANGLES) ? "--target-triangles"
+                                                           : "--max-error";
         char need[32], limit[32];
-        cli_error("%s: --decimate, --smooth, --min-component and --largest work on the mesh in "
-                  "memory, which needs about %s, more than %s (%s); post-processing a streamed "
-                  "mesh is not built yet",
-                  src.label, cli_bytes_text(plan.in_memory, need, sizeof need),
-                  plan.limit_given ? "--max-memory" : "the memory available",
-                  cli_bytes_text(plan.limit, limit, sizeof limit));
+        if (a.seen & OPT_STREAM)
+            cli_error("%s: %s works on the whole mesh in memory, not with --stream; a streamed "
+                      "mesh can be decimated by --decimate RATIO only",
+                      src.label, flag);
+        else
+            cli_error("%s: %s works on the whole mesh in memory, which needs about %s, more than "
+                      "%s (%s); a streamed mesh can be decimated by --decimate RATIO only",
+                      src.label, flag, cli_bytes_text(plan.in_memory, need, sizeof need),
+                      plan.limit_given ? "--max-memory" : "the memory available",
+                      cli_bytes_text(plan.limit, limit, sizeof limit));
         rc = CLI_EXIT_FAIL;
     }
     if (rc) goto fail_source;
@@ -420,9 +449,49 @@ static int cmd_extract(int argc, char **argv)
             rc = CLI_EXIT_FAIL;
             goto fail_source;
         }
+        /* a streamed decimation sits between the stream and the rest */
+        const cli_sink *after = plan.check ? &tee : src.has_world ? &world_sink : &sink;
+        isomend_decimate_stream *dstream = NULL;
+        cli_sink dsink, timed_in, timed_out;
+        cli_timed_sink t_in, t_out; /* around the decimation and around what follows */
+        if (plan.decimate_layers) {
+            cli_sink_timed(&timed_out, &t_out, after);
+            after = &timed_out;
+            isomend_decimate_options dopts;
+            isomend_decimate_options_init(&dopts);
+            dopts.ratio = a.post.ratio;
+            isomend_status dst = isomend_decimate_stream_begin(&src.desc, &stream_opts, &dopts,
+                                                               plan.decimate_layers, after, &dstream);
+            if (dst != ISOMEND_OK) {
+                cli_error("%s: decimation failed: %s", src.label, isomend_status_string(dst));
+                cli_checker_destroy(checker);
+                cli_world_free(src.has_world ? &world : NULL);
+                isomend_mesh_writer_abort(w);
+                rc = CLI_EXIT_FAIL;
+                goto fail_source;
+            }
+            isomend_decimate_stream_sink(dstream, &dsink);
+            cli_sink_timed(&timed_in, &t_in, &dsink);
+            after = &timed_in;
+        }
         double t0 = cli_now_ms();
-        rc = cli_stream_extract(&src, &stream_opts,
-                                plan.check ? &tee : src.has_world ? &world_sink : &sink, &stats);
+        rc = cli_stream_extract(&src, &stream_opts, after, &stats);
+        if (dstream) {
+            const double d0 = cli_now_ms();
+            isomend_status dst = isomend_decimate_stream_finish(dstream, &post.decimate);
+            if (!rc && dst != ISOMEND_OK && dst != ISOMEND_ERR_SINK) {
+                cli_error("%s: decimation failed: %s", src.label, isomend_status_string(dst));
+                rc = CLI_EXIT_FAIL;
+            } else if (!rc && dst == ISOMEND_ERR_SINK) {
+                rc = CLI_EXIT_FAIL; /* the sink said why */
+            }
+            isomend_decimate_stream_destroy(dstream);
+            post.decimated = !rc;
+            post.streamed = 1;
+            post.chunk_layers = plan.decimate_layers;
+            /* its own time: its calls, less those of the sinks after it */
+            post.decimate_ms = t_in.ms + (cli_now_ms() - d0) - t_out.ms;
+        }
         if (!rc && plan.check) {
             rc = cli_checker_finish(checker, &check) ? CLI_EXIT_FAIL : CLI_EXIT_OK;
             checked = !rc;

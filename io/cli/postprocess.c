@@ -62,6 +62,45 @@ int cli_postprocess(isomend_mesh **mesh, const cli_post *p, cli_post_report *r, 
     return CLI_EXIT_OK;
 }
 
+static int timed_vertices(void *user, uint64_t first, size_t count, const float *pos,
+                          const float *nrm, const uint64_t *keys)
+{
+    cli_timed_sink *t = user;
+    const double t0 = cli_now_ms();
+    const int r = t->next.vertices(t->next.user, first, count, pos, nrm, keys);
+    t->ms += cli_now_ms() - t0;
+    return r;
+}
+
+static int timed_triangles(void *user, size_t count, const uint64_t *ids, const uint8_t *origins)
+{
+    cli_timed_sink *t = user;
+    const double t0 = cli_now_ms();
+    const int r = t->next.triangles(t->next.user, count, ids, origins);
+    t->ms += cli_now_ms() - t0;
+    return r;
+}
+
+static int timed_retire(void *user, uint64_t floor)
+{
+    cli_timed_sink *t = user;
+    const double t0 = cli_now_ms();
+    const int r = t->next.retire(t->next.user, floor);
+    t->ms += cli_now_ms() - t0;
+    return r;
+}
+
+void cli_sink_timed(cli_sink *sink, cli_timed_sink *t, const cli_sink *next)
+{
+    t->next = *next;
+    t->ms = 0;
+    memset(sink, 0, sizeof *sink);
+    sink->user = t;
+    sink->vertices = timed_vertices;
+    sink->triangles = timed_triangles;
+    sink->retire = timed_retire;
+}
+
 void cli_print_post(FILE *fp, const cli_post_report *r)
 {
     if (r->cleaned)
@@ -84,8 +123,11 @@ void cli_print_post(FILE *fp, const cli_post_report *r)
             fprintf(fp, " (target %" PRIu64 "%s)", d->target_triangles,
                     d->reached ? "" : ", not reached: further collapses would break the surface "
                                       "or exceed --max-error");
-        fprintf(fp, ", largest error %.4g, %" PRIu64 " locked vertices (%.1f ms)\n", d->max_error,
-                d->locked_vertices, r->decimate_ms);
+        fprintf(fp, ", largest error %.4g, %" PRIu64 " locked vertices", d->max_error,
+                d->locked_vertices);
+        if (r->streamed)
+            fprintf(fp, ", streamed in chunks of %lld layers", (long long)r->chunk_layers);
+        fprintf(fp, " (%.1f ms)\n", r->decimate_ms);
     }
 }
 
@@ -117,11 +159,12 @@ void cli_json_post(FILE *fp, const cli_post_report *r)
                     ", \"mean_error\": %.9g, \"collapses\": %" PRIu64
                     ", \"locked_vertices\": %" PRIu64 ", \"refused_topology\": %" PRIu64
                     ", \"refused_geometry\": %" PRIu64 ", \"refused_error\": %" PRIu64
-                    ", \"ms\": %.3f}",
+                    ", \"streamed\": %s, \"chunk_layers\": %lld, \"ms\": %.3f}",
                 d->triangles_before, d->triangles_after, d->vertices_before, d->vertices_after,
                 d->target_triangles, d->reached ? "true" : "false", d->max_error, d->mean_error,
                 d->collapses, d->locked_vertices, d->refused_topology, d->refused_geometry,
-                d->refused_error, r->decimate_ms);
+                d->refused_error, r->streamed ? "true" : "false", (long long)r->chunk_layers,
+                r->decimate_ms);
     } else {
         fprintf(fp, "null");
     }

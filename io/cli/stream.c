@@ -91,7 +91,7 @@ static double streaming_need(const isomend_volume *v, const isomend_options *opt
 
 void cli_memory_plan_make(const isomend_volume *desc, const isomend_options *opts,
                           isomend_mesh_format format, uint64_t max_memory, int whole_mesh,
-                          cli_memory_plan *p)
+                          int decimate, int64_t chunk_layers, cli_memory_plan *p)
 {
     memset(p, 0, sizeof *p);
     const int pad = (opts->flags & ISOMEND_FLAG_PAD) != 0;
@@ -134,6 +134,16 @@ void cli_memory_plan_make(const isomend_volume *desc, const isomend_options *opt
             p->threads = 1;
             p->check = check;
         }
+    }
+    /* a streamed decimation: chunks of the layers that fit what is left */
+    if (decimate && isomend_stream_memory(&v, opts) != 0) {
+        const double left = p->limit ? (double)p->limit - streaming : 0.0;
+        p->decimate_layers = chunk_layers ? chunk_layers
+                             : isomend_decimate_stream_layers(&v, opts, !p->limit ? 0
+                                                                        : left > 1.0 ? (uint64_t)left
+                                                                                     : 1);
+        p->decimate_need = isomend_decimate_stream_memory(&v, opts, p->decimate_layers);
+        streaming += (double)p->decimate_need;
     }
     const double cap = 1.8e19;
     p->volume = volume < cap ? (uint64_t)volume : UINT64_MAX;
