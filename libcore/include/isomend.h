@@ -796,14 +796,16 @@ ISOMEND_API isomend_status isomend_mesh_clean(const isomend_mesh *mesh, uint64_t
  * never whole in memory, between a stream (isomend_stream_begin(), any
  * thread count) and a sink (a writer, the streaming check).  The stream's
  * layers are cut into chunks of `chunk_layers` layers (0: the default,
- * isomend_decimate_stream_layers()).  Each chunk is decimated on its own
- * as it completes, with the vertices it shares with its neighbours (its two
- * slice planes) locked; then the band around each plane (the triangles
- * within a few rings of it on both sides) is decimated again with the plane
- * free and the band's own edge locked.  Every stage is a decimation of a
- * piece of the surface whose cut vertices are locked, so the pieces still
- * fit: a closed, oriented 2-manifold stays one, with its components and
- * Euler characteristic (docs/postprocess.md, "Streamed").
+ * isomend_decimate_stream_layers()).  As each chunk completes, it is
+ * decimated together with the band held back from the previous one (a
+ * window), with the vertices the window shares with the rest (below: final
+ * triangles; above: the next chunk) locked; the triangles within a few rings
+ * of the new top plane are held back for the next window, where that plane
+ * is free, and the rest is final.  Every window is a decimation of a piece
+ * of the surface whose cut is locked, so the pieces still fit: a closed,
+ * oriented 2-manifold stays one, with its components and Euler
+ * characteristic; held vertices keep their quadrics from window to window
+ * (docs/postprocess.md, "Streamed").
  *
  * The output: vertices numbered from 0 in the order they are first used,
  * each delivered once every triangle around it is final (its normal, unless
@@ -851,9 +853,9 @@ ISOMEND_API isomend_status isomend_decimate_stream_sink(isomend_decimate_stream 
 
 /* After the stream's finish: decimates and delivers the rest and fills the
  * report (report may be NULL): counts before and after, target
- * ratio * triangles, reached, collapses, and errors measured stage by stage
- * (each stage's input vertices to its result; the distance from an input
- * vertex to the final surface is within the sum of its two stages').
+ * ratio * triangles, reached, collapses, and the distances from the
+ * stream's vertices to the result, each measured a few chunks after its own
+ * against the surface near it as it then stands (docs/postprocess.md).
  * ISOMEND_ERR_SINK when `out` stopped it. */
 ISOMEND_API isomend_status isomend_decimate_stream_finish(isomend_decimate_stream *ds,
                                                           isomend_decimate_report *report);

@@ -542,14 +542,16 @@ isomend_status isomend_mesh_decimate(const isomend_mesh *mesh, const isomend_dec
         target = (uint64_t)ceil(o->ratio * (double)mesh->nt);
     if (o->target_triangles > target)
         target = o->target_triangles;
-    return mesh_decimate_to(mesh, target, o->max_error, 1, out, NULL, report);
+    return mesh_decimate_to(mesh, target, o->max_error, 1, out, NULL, NULL, report);
 }
 
 isomend_status mesh_decimate_to(const isomend_mesh *mesh, uint64_t target, double max_error,
                                 int measure, isomend_mesh **out, uint32_t **kept,
-                                isomend_decimate_report *report)
+                                decimate_carry *carry, isomend_decimate_report *report)
 {
     *out = NULL;
+    if (carry)
+        carry->q_out = NULL;
     if (kept)
         *kept = NULL;
     isomend_decimate_report rep;
@@ -605,7 +607,7 @@ isomend_status mesh_decimate_to(const isomend_mesh *mesh, uint64_t target, doubl
         d.vf[v] = d.vf[v] ? 0 : V_LOCKED; /* unused vertices are locked too */
         rep.locked_vertices += d.vf[v] && d.head[v] != NONE;
     }
-    for (size_t t = 0; t < d.nt; t++) {
+    for (size_t t = carry ? carry->planes_from : 0; t < d.nt; t++) {
         double n[3];
         tri_normal(&d, (uint32_t)t, NONE, NONE, NULL, n, NULL);
         const double len = sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
@@ -618,6 +620,9 @@ isomend_status mesh_decimate_to(const isomend_mesh *mesh, uint64_t target, doubl
         for (int k = 0; k < 3; k++)
             quadric_add_plane(d.q + 10 * (size_t)d.tv[3 * t + (size_t)k], n, dd);
     }
+    if (carry && carry->q_in)
+        for (size_t i = 0; i < 10 * d.nv; i++)
+            d.q[i] += carry->q_in[i];
     /*
      * Passes.  Each gathers the live edges, costs them (on threads: a pure
      * function of the mesh), sorts them, and collapses them cheapest first,
@@ -673,6 +678,34 @@ isomend_status mesh_decimate_to(const isomend_mesh *mesh, uint64_t target, doubl
     }
     rep.reached = d.alive <= target;
     status = build_output(&d, mesh, out, kept);
+    if (status == ISOMEND_OK && carry) { /* the kept vertices' quadrics, in output order */
+        carry->q_out = malloc(10 * sizeof(double) * ((*out)->nv + 1));
+        size_t o = 0;
+        if (!carry->q_out) {
+            isomend_mesh_destroy(*out);
+            *out = NULL;
+            status = ISOMEND_ERR_OUT_OF_MEMORY;
+        } else {
+            /* build_output numbers the used vertices in input order */
+            uint8_t *used = calloc(d.nv + 1, 1);
+            if (!used) {
+                free(carry->q_out);
+                carry->q_out = NULL;
+                isomend_mesh_destroy(*out);
+                *out = NULL;
+                status = ISOMEND_ERR_OUT_OF_MEMORY;
+            } else {
+                for (size_t t = 0; t < d.nt; t++)
+                    if (!d.tdead[t])
+                        for (int k = 0; k < 3; k++)
+                            used[d.tv[3 * t + (size_t)k]] = 1;
+                for (size_t v = 0; v < d.nv; v++)
+                    if (used[v])
+                        memcpy(carry->q_out + 10 * o++, d.q + 10 * v, 10 * sizeof(double));
+                free(used);
+            }
+        }
+    }
     if (status == ISOMEND_OK) {
         rep.triangles_after = (*out)->nt;
         rep.vertices_after = (*out)->nv;

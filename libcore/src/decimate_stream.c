@@ -34,12 +34,19 @@
  * count from 0 in the order vertices are first delivered; retire() follows
  * the lowest id a waiting triangle still uses.
  *
+ * Quadrics.  A held vertex keeps its quadric (decimate_carry): the planes of
+ * every stream triangle it stands for, so that the next window costs its
+ * collapses as one decimation of the whole mesh would; only the chunk's new
+ * triangles add planes.
+ *
  * Vertices are slots in a table keyed by the stream's vertex id: a window's
  * vertices and the held and waiting triangles' (O(chunk) memory).  The
  * distance from each stream vertex to the result is measured per chunk,
- * once the windows that finish its triangles are done (MEASURE_LAG), against
- * the final triangles of those windows and the one before: a subset of the
- * result, so an upper bound of the true distance.
+ * MEASURE_LAYERS layers later, against the surface as it then stands near it
+ * (the final triangles of the windows since the one before the chunk's, and
+ * the band still held): the held band may still change, so this is a
+ * measurement of the surface at that time, which tests compare with the
+ * distance to the written mesh.
  */
 #include "mesh_internal.h"
 
@@ -53,7 +60,10 @@
  * plane's vertices. */
 #define RINGS 3
 /* A chunk's vertices are measured when this many more windows are done. */
-#define MEASURE_LAG 2
+/* A chunk's vertices are measured once this many more layers are done (the
+ * held band, re-decimated window after window, is final by then), and at
+ * least 2 windows. */
+#define MEASURE_LAYERS 48
 /* The memory estimate: bytes a stream triangle costs in a window (its ids,
  * the stream's positions, the window's mesh, decimate.c's tables and
  * candidates, the result) and stream triangles a marched sample. */
@@ -68,6 +78,7 @@ typedef struct slot {
     uint64_t id;      /* the stream's id                                   */
     uint64_t out;     /* the delivered id, NO_ID before                    */
     double n[3];      /* the final triangles' area-weighted normal sum     */
+    double q[10];     /* a held vertex's quadric: its triangles' planes so far */
 } slot;
 
 /* A growable array of elements of `size` bytes. */
@@ -139,9 +150,10 @@ struct isomend_decimate_stream {
     uint64_t out_floor;
 
     /* measuring */
-    measured pend[MEASURE_LAG + 1]; /* chunks not yet measured, oldest first */
+    int lag;                        /* windows before a chunk is measured  */
+    measured *pend;                 /* lag + 1: chunks not yet measured, oldest first */
     int npend;
-    vec soup[MEASURE_LAG + 2];      /* floats x 9: final triangles of the last windows */
+    vec *soup;                      /* lag + 2, floats x 9: final triangles of the last windows */
     double err_max, err_sum;
     uint64_t err_n;
 
@@ -394,8 +406,8 @@ static isomend_status measure(isomend_decimate_stream *d, const measured *m)
 {
     if (!m->n)
         return ISOMEND_OK;
-    size_t nt = 0;
-    for (int j = 0; j < MEASURE_LAG + 2; j++)
+    size_t nt = d->held.n;
+    for (int j = 0; j < d->lag + 2; j++)
         nt += d->soup[j].n;
     if (!nt)
         return ISOMEND_OK; /* nothing final near them: no surface left */
@@ -407,10 +419,14 @@ static isomend_status measure(isomend_decimate_stream *d, const measured *m)
         return fail(d, ISOMEND_ERR_OUT_OF_MEMORY);
     }
     size_t at = 0;
-    for (int j = 0; j < MEASURE_LAG + 2; j++) {
+    for (int j = 0; j < d->lag + 2; j++) {
         memcpy(pos + 9 * at, d->soup[j].p, d->soup[j].n * 36);
         at += d->soup[j].n;
     }
+    const uint32_t *h = d->held.p; /* the band still held, as it stands */
+    for (size_t t = 0; t < d->held.n; t++, at++)
+        for (int k = 0; k < 3; k++)
+            memcpy(pos + 9 * at + 3 * k, d->slots[h[3 * t + (size_t)k]].p, 12);
     for (size_t i = 0; i < 3 * nt; i++)
         tri[i] = (uint32_t)i;
     double mx = 0, mean = 0;
@@ -495,8 +511,8 @@ static isomend_status run_window(isomend_decimate_stream *d, int last)
 {
     const uint64_t top_lo = last ? d->next_id : d->floor, top_hi = d->next_id;
     /* a new soup for this window's final triangles; the oldest is dropped */
-    vec old = d->soup[MEASURE_LAG + 1];
-    memmove(d->soup + 1, d->soup, (MEASURE_LAG + 1) * sizeof d->soup[0]);
+    vec old = d->soup[d->lag + 1];
+    memmove(d->soup + 1, d->soup, (size_t)(d->lag + 1) * sizeof d->soup[0]);
     d->soup[0] = old;
     d->soup[0].n = 0;
 
@@ -506,6 +522,8 @@ static isomend_status run_window(isomend_decimate_stream *d, int last)
     uint32_t *wt = malloc((3 * nt + 1) * sizeof *wt), *lv = malloc((3 * nt + 1) * sizeof *lv);
     uint32_t *kept = NULL, *out_slot = NULL;
     uint8_t *dist = NULL;
+    double *q_in = NULL;
+    decimate_carry carry = {NULL, 0, NULL};
     if (!m || !wt || !lv)
         goto oom;
     /* the window's triangles as slots: the held ones, then the chunk's */
@@ -553,8 +571,19 @@ static isomend_status run_window(isomend_decimate_stream *d, int last)
     const double least = ceil(0.5 * d->ratio * (double)nt);
     target = target < least ? least : target;
     isomend_decimate_report wr;
+    /* the held vertices' quadrics carry the planes of their earlier triangles
+     * (the held ones' included); the chunk's triangles add theirs */
+    q_in = malloc((10 * nv + 1) * sizeof *q_in);
+    carry.q_in = q_in;
+    carry.planes_from = nheld;
+    if (!q_in)
+        goto oom;
+    for (size_t v = 0; v < nv; v++)
+        memcpy(q_in + 10 * v, d->slots[lv[v]].q, sizeof d->slots[0].q);
     if (nt) {
-        st = mesh_decimate_to(m, (uint64_t)target, 0.0, 0, &r, &kept, &wr);
+        st = mesh_decimate_to(m, (uint64_t)target, 0.0, 0, &r, &kept, &carry, &wr);
+        free(q_in);
+        q_in = NULL;
         if (st != ISOMEND_OK)
             goto done;
         d->rep.collapses += wr.collapses;
@@ -574,6 +603,7 @@ static isomend_status run_window(isomend_decimate_stream *d, int last)
     for (size_t v = 0; v < rv; v++) {
         out_slot[v] = lv[kept[v]];
         memcpy(d->slots[out_slot[v]].p, r->pos + 3 * v, 12);
+        memcpy(d->slots[out_slot[v]].q, carry.q_out + 10 * v, sizeof d->slots[0].q);
     }
     if (rv && !rings(r, out_slot, d->slots, top_lo, top_hi, dist))
         goto oom;
@@ -611,7 +641,7 @@ static isomend_status run_window(isomend_decimate_stream *d, int last)
             goto oom;
         memcpy(pm->p, (const float *)d->raw.p + 3 * (d->own_first - d->raw_base), pm->n * 12);
         d->own_first = d->next_id;
-        if (d->npend > MEASURE_LAG && (st = measure_oldest(d)) != ISOMEND_OK)
+        if (d->npend > d->lag && (st = measure_oldest(d)) != ISOMEND_OK)
             goto done;
     }
     /* the stream's positions below the top plane are no longer needed */
@@ -626,6 +656,8 @@ static isomend_status run_window(isomend_decimate_stream *d, int last)
 oom:
     st = ISOMEND_ERR_OUT_OF_MEMORY;
 done:
+    free(q_in);
+    free(carry.q_out);
     isomend_mesh_destroy(m);
     isomend_mesh_destroy(r);
     free(wt);
@@ -759,7 +791,16 @@ isomend_status isomend_decimate_stream_begin(const isomend_volume *desc,
     d->held.size = d->waiting.size = 12;
     d->vbuf.size = 24;
     d->tbuf.size = 24;
-    for (int j = 0; j < MEASURE_LAG + 2; j++)
+    d->lag = (int)((MEASURE_LAYERS + d->K - 1) / d->K);
+    d->lag = d->lag < 2 ? 2 : d->lag;
+    d->pend = calloc((size_t)d->lag + 1, sizeof *d->pend);
+    d->soup = calloc((size_t)d->lag + 2, sizeof *d->soup);
+    if (!d->pend || !d->soup) {
+        isomend_decimate_stream_destroy(d);
+        *ds = NULL;
+        return ISOMEND_ERR_OUT_OF_MEMORY;
+    }
+    for (int j = 0; j < d->lag + 2; j++)
         d->soup[j].size = 36;
     *ds = d;
     return ISOMEND_OK;
@@ -819,10 +860,12 @@ void isomend_decimate_stream_destroy(isomend_decimate_stream *d)
     free(d->hval);
     free(d->held.p);
     free(d->waiting.p);
-    for (int j = 0; j < MEASURE_LAG + 1; j++)
+    for (int j = 0; d->pend && j < d->lag + 1; j++)
         free(d->pend[j].p);
-    for (int j = 0; j < MEASURE_LAG + 2; j++)
+    for (int j = 0; d->soup && j < d->lag + 2; j++)
         free(d->soup[j].p);
+    free(d->pend);
+    free(d->soup);
     free(d->vbuf.p);
     free(d->tbuf.p);
     free(d);

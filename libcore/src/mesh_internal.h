@@ -60,9 +60,17 @@ void parallel_for(size_t n, void (*fn)(void *arg, size_t lo, size_t hi), void *a
  * if `measure`; kept (if not NULL) gets each output vertex's input index
  * (malloc'ed, the output's vertex count; locked vertices keep their
  * position). */
+typedef struct decimate_carry {
+    const double *q_in;  /* 10 an input vertex, added to its quadric (NULL: none)    */
+    size_t planes_from;  /* only triangles from this one on add their planes         */
+    double *q_out;       /* out: 10 an output vertex, malloc'ed (the caller frees)  */
+} decimate_carry;
+/* carry (may be NULL): quadrics carried in and out, for a decimation in
+ * pieces whose earlier triangles' planes are already in their vertices'
+ * quadrics (decimate_stream.c). */
 isomend_status mesh_decimate_to(const isomend_mesh *mesh, uint64_t target, double max_error,
                                 int measure, isomend_mesh **out, uint32_t **kept,
-                                isomend_decimate_report *report);
+                                decimate_carry *carry, isomend_decimate_report *report);
 
 /* distance.c: the squared distance from p to triangle (a, b, c); the largest
  * and mean distance from np points to a triangle mesh (0 without memory). */
