@@ -30,7 +30,8 @@ they are.  For each, every option alone and in combinations:
 - bad values (--decimate 0, 1.5, x, --max-error -1, --smooth 0, 20000,
   --min-component 0, ...) are usage errors (exit 2) with one line naming the
   flag and no output file; isomend-mpi refuses the flags (exit 2); a
-  --max-memory that forces streaming is refused with exit 1, the message and
+  --max-memory that forces streaming refuses the steps that need the whole
+  mesh (all but --decimate RATIO) with exit 1, the message naming the flag and
   no file.
 
 The independent checkers are first run on deliberately broken meshes (a
@@ -500,15 +501,20 @@ def test_errors(exe, mpi, mpirun, work, samples):
         fail("--max-memory alone", f"the streamed run failed: exit {rc}, {err.strip()}")
     if os.path.exists(out):
         os.remove(out)
+    # the steps that need the whole mesh are refused on a streamed run (the
+    # streamed --decimate is test_postprocess_stream.py's)
     before = sorted(os.listdir(work))
-    for flags in (["--decimate", "0.1"], ["--smooth", "5"], ["--min-component", "20"], ["--largest", "2"]):
+    for flags in (["--smooth", "5"], ["--min-component", "20"], ["--largest", "2"],
+                  ["--decimate", "0.1", "--target-triangles", "100"],
+                  ["--decimate", "0.1", "--max-error", "0.5"]):
         rc, o, err = run(exe, ["extract", anat, "--pad", "-o", out, "--max-memory", limit, *flags], work)
         lines = err.strip().splitlines()
-        if rc != 1 or "not built yet" not in err or "--max-memory" not in err or \
-                sorted(os.listdir(work)) != before:
-            fail(f"streamed {flags[0]}", f"exit {rc}, stderr {err.strip()!r}")
-        elif len([ln for ln in lines if ln.startswith("isomend:") and "not built yet" in ln]) != 1:
-            fail(f"streamed {flags[0]}", f"not one message line: {lines}")
+        flag = flags[-2]
+        if rc != 1 or "--decimate RATIO only" not in err or "--max-memory" not in err or \
+                flag not in err or sorted(os.listdir(work)) != before:
+            fail(f"streamed {flag}", f"exit {rc}, stderr {err.strip()!r}")
+        elif len([ln for ln in lines if ln.startswith("isomend:") and "RATIO only" in ln]) != 1:
+            fail(f"streamed {flag}", f"not one message line: {lines}")
 
 
 def main():
