@@ -89,8 +89,8 @@ typedef struct vec {
 
 static int vec_reserve(vec *v, size_t n)
 {
-    if (n <= v->cap)
-        return 1;
+    if (n <= v->cap && v->p)
+        return 1; /* (allocated once even for nothing: vec_push never returns NULL on success) */
     size_t cap = v->cap ? v->cap : 256;
     while (cap < n)
         cap *= 2;
@@ -420,7 +420,8 @@ static isomend_status measure(isomend_decimate_stream *d, const measured *m)
     }
     size_t at = 0;
     for (int j = 0; j < d->lag + 2; j++) {
-        memcpy(pos + 9 * at, d->soup[j].p, d->soup[j].n * 36);
+        if (d->soup[j].n)
+            memcpy(pos + 9 * at, d->soup[j].p, d->soup[j].n * 36);
         at += d->soup[j].n;
     }
     const uint32_t *h = d->held.p; /* the band still held, as it stands */
@@ -527,7 +528,8 @@ static isomend_status run_window(isomend_decimate_stream *d, int last)
     if (!m || !wt || !lv)
         goto oom;
     /* the window's triangles as slots: the held ones, then the chunk's */
-    memcpy(wt, d->held.p, 3 * nheld * sizeof *wt);
+    if (nheld)
+        memcpy(wt, d->held.p, 3 * nheld * sizeof *wt);
     const uint64_t *ct = d->chunk.p;
     uint64_t n_top = 0;
     for (size_t t = 0; t < nchunk; t++) {
@@ -639,7 +641,8 @@ static isomend_status run_window(isomend_decimate_stream *d, int last)
         pm->p = malloc(pm->n * 12 + 1);
         if (!pm->p)
             goto oom;
-        memcpy(pm->p, (const float *)d->raw.p + 3 * (d->own_first - d->raw_base), pm->n * 12);
+        if (pm->n)
+            memcpy(pm->p, (const float *)d->raw.p + 3 * (d->own_first - d->raw_base), pm->n * 12);
         d->own_first = d->next_id;
         if (d->npend > d->lag && (st = measure_oldest(d)) != ISOMEND_OK)
             goto done;
@@ -647,7 +650,8 @@ static isomend_status run_window(isomend_decimate_stream *d, int last)
     /* the stream's positions below the top plane are no longer needed */
     {
         const size_t drop = (size_t)(top_lo - d->raw_base);
-        memmove(d->raw.p, (const float *)d->raw.p + 3 * drop, (d->raw.n - drop) * 12);
+        if (d->raw.n > drop)
+            memmove(d->raw.p, (const float *)d->raw.p + 3 * drop, (d->raw.n - drop) * 12);
         d->raw.n -= drop;
         d->raw_base = top_lo;
     }
@@ -683,7 +687,8 @@ static int on_vertices(void *user, uint64_t first, size_t count, const float *po
     float *p = vec_push(&d->raw, count);
     if (!p)
         return fail(d, ISOMEND_ERR_OUT_OF_MEMORY), 1;
-    memcpy(p, pos, count * 12);
+    if (count)
+        memcpy(p, pos, count * 12);
     d->next_id += count;
     return 0;
 }
@@ -700,7 +705,8 @@ static int on_triangles(void *user, size_t count, const uint64_t *ids, const uin
     uint64_t *t = vec_push(&d->chunk, count);
     if (!t)
         return fail(d, ISOMEND_ERR_OUT_OF_MEMORY), 1;
-    memcpy(t, ids, count * 24);
+    if (count)
+        memcpy(t, ids, count * 24);
     d->triangles_in += count;
     return 0;
 }
