@@ -44,6 +44,7 @@
 #include "atomic_file.h"
 #include "cli.h"
 #include "mesh_writer.h"
+#include "mpi_decimate.h"
 #include "mpi_writer.h"
 #include "slab.h"
 
@@ -208,6 +209,176 @@ static int exchange_plane(const slab_piece *p, int64_t nz_marched, uint64_t firs
     return rc;
 }
 
+/*
+ * --decimate RATIO: every rank records its slab's piece (mpi_decimate.h);
+ * rank 0 replays them as one stream into the streamed decimation, the
+ * continuity check and one writer, as `isomend extract --stream --decimate`
+ * does (the same bytes), and reports.
+ */
+static int run_decimated(const cli_args *a, cli_slices *sl, const isomend_options *opts,
+                         isomend_mesh_format fmt, int64_t first, int64_t end, int iso_suggested,
+                         cli_json_out *jo, double t_start, FILE *text)
+{
+    const int quiet = (a->seen & OPT_QUIET) != 0;
+    const int64_t pad = (opts->flags & ISOMEND_FLAG_PAD) ? 1 : 0;
+    const uint64_t plane =
+        (uint64_t)(sl->desc.dims[0] + 2 * pad) * (uint64_t)(sl->desc.dims[1] + 2 * pad);
+    double t0 = MPI_Wtime();
+    dec_spool sp;
+    isomend_stats stats;
+    memset(&stats, 0, sizeof stats);
+    int rc = dec_spool_open(&sp, a->output, plane, first);
+    sp.nonempty = first < end;
+    if (!rc) {
+        isomend_mesh_sink rec;
+        dec_spool_sink(&sp, &rec);
+        rc = slab_stream(sl, opts, first, end, &rec, &sp.failed, &stats);
+    }
+    const double extract_s = MPI_Wtime() - t0;
+    if ((rc = agree(rc)) != 0) {
+        dec_spool_close(&sp);
+        return rc;
+    }
+    /* rank 0: decimation -> check -> (patient space) -> writer */
+    t0 = MPI_Wtime();
+    char msg[ISOMEND_FILEIO_MSG_SIZE];
+    isomend_mesh_writer *w = NULL;
+    cli_sink wsink, world_sink, tee, dsink;
+    cli_world world;
+    int has_world = 0;
+    cli_checker *checker = NULL;
+    isomend_decimate_stream *ds = NULL;
+    cli_post_report post;
+    memset(&post, 0, sizeof post);
+    isomend_check_report check;
+    memset(&check, 0, sizeof check);
+    cli_memory_plan plan;
+    memset(&plan, 0, sizeof plan);
+    const int normals = !(opts->flags & ISOMEND_FLAG_NO_NORMALS);
+    if (rank == 0) {
+        cli_memory_plan_make(&sl->desc, opts, fmt, a->max_memory, 0, 1, a->post.chunk_layers,
+                             &plan);
+        if (isomend_mesh_writer_begin(a->output, fmt, normals, 0, &w, msg, sizeof msg) !=
+            ISOMEND_FILEIO_OK) {
+            cli_error("%s", msg);
+            rc = CLI_EXIT_FAIL;
+        }
+        const cli_sink *after = &wsink;
+        if (!rc) {
+            cli_sink_for_writer(&wsink, w);
+            if (sl->has_world) {
+                if (!cli_world_init(&world, sl->world, &wsink)) {
+                    cli_error("%s: the series' patient transform is not invertible", sl->label);
+                    rc = CLI_EXIT_FAIL;
+                } else {
+                    has_world = 1;
+                    cli_sink_for_world(&world_sink, &world);
+                    after = &world_sink;
+                }
+            }
+        }
+        if (!rc && cli_checker_begin(&sl->desc, opts, plan.check_queue, after, &checker, &tee))
+            rc = CLI_EXIT_FAIL;
+        if (!rc) {
+            isomend_decimate_options d;
+            isomend_decimate_options_init(&d);
+            d.ratio = a->post.ratio;
+            const isomend_status st =
+                isomend_decimate_stream_begin(&sl->desc, opts, &d, plan.decimate_layers, &tee, &ds);
+            if (st != ISOMEND_OK) {
+                cli_error("%s: decimation failed: %s", sl->label, isomend_status_string(st));
+                rc = CLI_EXIT_FAIL;
+            } else {
+                isomend_decimate_stream_sink(ds, &dsink);
+            }
+        }
+    }
+    /* the replay is collective: every rank takes part, also after a failure */
+    int failed0 = rc;
+    MPI_Bcast(&failed0, 1, MPI_INT, 0, comm);
+    if (!failed0)
+        rc = dec_replay(comm, &sp, rank == 0 ? &dsink : NULL);
+    dec_spool_close(&sp);
+    if (rank == 0 && ds) {
+        const isomend_status st = isomend_decimate_stream_finish(ds, &post.decimate);
+        if (!rc && st != ISOMEND_OK) {
+            if (st != ISOMEND_ERR_SINK) /* else the sink said why */
+                cli_error("%s: decimation failed: %s", sl->label, isomend_status_string(st));
+            rc = CLI_EXIT_FAIL;
+        }
+        post.decimated = !rc;
+        post.streamed = 1;
+        post.chunk_layers = plan.decimate_layers;
+    }
+    isomend_decimate_stream_destroy(ds);
+    if (rank == 0 && checker && !rc && cli_checker_finish(checker, &check))
+        rc = CLI_EXIT_FAIL;
+    cli_checker_destroy(checker);
+    if (has_world)
+        cli_world_free(&world);
+    if (rank == 0 && w) {
+        if (!rc && cli_interrupted) {
+            cli_error("%s: interrupted", sl->label);
+            rc = CLI_EXIT_INTERRUPTED;
+        }
+        if (rc) {
+            isomend_mesh_writer_abort(w);
+        } else if (isomend_mesh_writer_commit(w, msg, sizeof msg) != ISOMEND_FILEIO_OK) {
+            cli_error("%s", msg);
+            rc = CLI_EXIT_FAIL;
+        }
+    }
+    post.decimate_ms = (MPI_Wtime() - t0) * 1e3; /* the replay, decimation, check and write */
+    if ((rc = agree(rc)) != 0)
+        return rc;
+
+    isomend_stats total;
+    MPI_Reduce(&stats, &total, (int)(sizeof total / sizeof(uint64_t)), MPI_UINT64_T, MPI_SUM, 0,
+               comm);
+    uint64_t peak = cli_peak_memory(), peak_max = 0;
+    MPI_Reduce(&peak, &peak_max, 1, MPI_UINT64_T, MPI_MAX, 0, comm);
+    double times[2] = {sl->read_ms, extract_s * 1e3 - sl->read_ms}, tmax[2];
+    MPI_Reduce(times, tmax, 2, MPI_DOUBLE, MPI_MAX, 0, comm);
+    if (rank == 0) {
+        const isomend_volume *v = &sl->desc;
+        if (!quiet) {
+            fprintf(text, "%s: %s (%s), %lld x %lld x %lld %s, %d rank%s\n", sl->label, sl->kind,
+                    sl->format, (long long)v->dims[0], (long long)v->dims[1], (long long)v->dims[2],
+                    isomend_type_name(v->type), ranks, ranks > 1 ? "s" : "");
+            fprintf(text, "%s at iso %.9g%s%s%s%s\n", isomend_method_name(a->method), a->iso,
+                    iso_suggested ? " (suggested)" : "", pad ? ", padded" : "",
+                    (a->seen & OPT_FLIP) ? ", flipped" : "", normals ? "" : ", no normals");
+        }
+        if (a->seen & OPT_STATS) cli_print_table2(text, &total, a->method);
+        if (!quiet) {
+            cli_print_post(text, &post);
+            cli_print_check(text, a->output, &check);
+            fprintf(text, "time: read %.1f ms, extract %.1f ms (slowest rank), decimate and write "
+                          "%.1f ms (rank 0), total %.1f ms; peak memory %.1f MiB (largest rank)\n",
+                    tmax[0], tmax[1], post.decimate_ms, (MPI_Wtime() - t_start) * 1e3,
+                    (double)peak_max / 1048576.0);
+        }
+        FILE *jf = cli_json_stream(jo);
+        if (jf) {
+            fprintf(jf, "{\"command\": \"extract\", \"program\": \"isomend-mpi\", \"version\": "
+                        "\"%s\", \"ranks\": %d, ", isomend_version(), ranks);
+            cli_json_run(jf, sl->label, sl->kind, a->output, v, opts, iso_suggested);
+            cli_json_geometry(jf, &sl->geometry);
+            fprintf(jf, ", \"peak_memory\": %" PRIu64, peak_max);
+            cli_json_stats(jf, &total);
+            cli_json_post(jf, &post);
+            fprintf(jf, ", \"check\": ");
+            cli_json_check(jf, &check);
+            fprintf(jf, ", \"timings_ms\": {\"read\": %.3f, \"extract\": %.3f, \"write\": %.3f}}\n",
+                    tmax[0], tmax[1], post.decimate_ms);
+        }
+        rc = cli_json_finish(jo);
+        if (rc) unlink(a->output); /* the JSON was asked for: no mesh without it */
+    }
+    MPI_Bcast(&rc, 1, MPI_INT, 0, comm);
+    return rc;
+}
+
 static int run(int argc, char **argv)
 {
     if (argc < 2 || (strcmp(argv[1], "extract") != 0 && strcmp(argv[1], "--help") != 0 &&
@@ -223,7 +394,8 @@ static int run(int argc, char **argv)
     uint64_t allowed = OPT_OUTPUT | OPT_ISO | OPT_METHOD | OPT_RAW | OPT_SPACING | OPT_ORIGIN |
                        OPT_PAD | OPT_NO_NORMALS | OPT_FLIP | OPT_STATS | OPT_JSON | OPT_QUIET |
                        OPT_THREADS | OPT_FIRST | OPT_COUNT | OPT_STEP | OPT_CHANNEL | OPT_HELP |
-                       OPT_PAGES | OPT_MAX_MEMORY | OPT_SLICE_POSITIONS;
+                       OPT_PAGES | OPT_MAX_MEMORY | OPT_SLICE_POSITIONS | OPT_DECIMATE |
+                       OPT_CHUNK_LAYERS;
     int rc = cli_parse_args(argc, argv, 2, "extract", allowed, &a);
     if (!rc && (a.seen & OPT_HELP)) {
         if (rank == 0) fputs(usage, stdout);
@@ -241,6 +413,9 @@ static int run(int argc, char **argv)
         rc = CLI_EXIT_USAGE;
     } else if (!rc && a.json && strcmp(a.json, a.output) == 0) {
         cli_error("--json %s: same file as -o", a.json);
+        rc = CLI_EXIT_USAGE;
+    } else if (!rc && (a.seen & OPT_CHUNK_LAYERS) && !(a.seen & OPT_DECIMATE)) {
+        cli_error("--chunk-layers: only with --decimate (the streamed decimation's chunks)");
         rc = CLI_EXIT_USAGE;
     }
     if ((rc = agree(rc)) != 0) return rc;
@@ -321,6 +496,12 @@ static int run(int argc, char **argv)
                             "(Otsu, see 'isomend info')\n", a.iso, sl.label);
     }
     opts.iso = a.iso;
+    if (a.seen & OPT_DECIMATE) {
+        rc = run_decimated(&a, &sl, &opts, fmt, first, end, iso_suggested, &jo, t_start, text);
+        if (rc) cli_json_abort(&jo);
+        cli_slices_close(&sl);
+        return rc;
+    }
 
     /* the mesh goes to this rank's scratch files beside MESH as the slab streams */
     double t0 = MPI_Wtime();

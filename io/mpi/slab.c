@@ -171,30 +171,19 @@ static int compare_pairs(const void *a, const void *b)
     return x < y ? -1 : x > y;
 }
 
-int slab_extract(cli_slices *src, const isomend_options *opts, const cli_world *world,
-                 int64_t first, int64_t end, mpi_writer *w, slab_piece *p)
+int slab_stream(cli_slices *src, const isomend_options *opts, int64_t first, int64_t end,
+                const isomend_mesh_sink *sink, const int *sink_failed, isomend_stats *stats)
 {
-    memset(p, 0, sizeof *p);
-    p->first = first;
-    p->end = end;
+    memset(stats, 0, sizeof *stats);
     if (first >= end)
         return CLI_EXIT_OK;
     const isomend_volume *d = &src->desc;
-    const int pad = (opts->flags & ISOMEND_FLAG_PAD) != 0;
     const isomend_piece piece = {.owned_first = first, .owned_end = end};
     int64_t a = 0, b = 0;
     isomend_status st = isomend_piece_halo(d, opts, &piece, &a, &b);
-    slab_sink fill;
-    memset(&fill, 0, sizeof fill);
-    fill.p = p;
-    fill.w = w;
-    fill.world = world;
-    fill.plane = (uint64_t)(d->dims[0] + 2 * pad) * (uint64_t)(d->dims[1] + 2 * pad);
-    const isomend_mesh_sink sink = {&fill, sink_vertices, sink_triangles, sink_retire,
-                                    sink_foreign};
     isomend_stream *stream = NULL;
     if (st == ISOMEND_OK)
-        st = isomend_piece_begin(d, opts, &piece, &sink, &stream);
+        st = isomend_piece_begin(d, opts, &piece, sink, &stream);
     char *slice = st == ISOMEND_OK ? malloc(src->slice_bytes ? (size_t)src->slice_bytes : 1) : NULL;
     int rc = CLI_EXIT_OK;
     if (st == ISOMEND_OK && !slice) {
@@ -214,17 +203,39 @@ int slab_extract(cli_slices *src, const isomend_options *opts, const cli_world *
             st = isomend_stream_push(stream, slice);
     }
     if (st == ISOMEND_OK && !rc)
-        st = isomend_stream_finish(stream, &p->stats);
+        st = isomend_stream_finish(stream, stats);
     isomend_stream_destroy(stream);
     free(slice);
-    free(fill.mapped);
-    free(fill.swapped);
     if (!rc && st != ISOMEND_OK) {
-        if (!(st == ISOMEND_ERR_SINK && fill.failed)) /* else the sink said why */
+        if (!(st == ISOMEND_ERR_SINK && *sink_failed)) /* else the sink said why */
             cli_error("%s: extraction of marched slices %lld..%lld failed: %s", src->label,
                       (long long)first, (long long)end - 1, isomend_status_string(st));
         rc = CLI_EXIT_FAIL;
     }
+    return rc;
+}
+
+int slab_extract(cli_slices *src, const isomend_options *opts, const cli_world *world,
+                 int64_t first, int64_t end, mpi_writer *w, slab_piece *p)
+{
+    memset(p, 0, sizeof *p);
+    p->first = first;
+    p->end = end;
+    if (first >= end)
+        return CLI_EXIT_OK;
+    const isomend_volume *d = &src->desc;
+    const int pad = (opts->flags & ISOMEND_FLAG_PAD) != 0;
+    slab_sink fill;
+    memset(&fill, 0, sizeof fill);
+    fill.p = p;
+    fill.w = w;
+    fill.world = world;
+    fill.plane = (uint64_t)(d->dims[0] + 2 * pad) * (uint64_t)(d->dims[1] + 2 * pad);
+    const isomend_mesh_sink sink = {&fill, sink_vertices, sink_triangles, sink_retire,
+                                    sink_foreign};
+    int rc = slab_stream(src, opts, first, end, &sink, &fill.failed, &p->stats);
+    free(fill.mapped);
+    free(fill.swapped);
     if (!rc) /* the pairs come in id order; the rank below looks keys up */
         qsort(p->shared, p->nshared, 2 * sizeof(uint64_t), compare_pairs);
     if (rc)

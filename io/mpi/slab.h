@@ -65,6 +65,12 @@ uint64_t slab_memory(const cli_slices *s, const isomend_options *opts, isomend_m
 int slab_extract(cli_slices *s, const isomend_options *opts, const cli_world *world,
                  int64_t first, int64_t end, mpi_writer *w, slab_piece *p);
 
+/* The same streaming of marched slices [first, end) into any piece sink
+ * (mpi_decimate.c's recorder); *sink_failed: the sink printed why it
+ * stopped.  Exit code; *stats the piece's. */
+int slab_stream(cli_slices *s, const isomend_options *opts, int64_t first, int64_t end,
+                const isomend_mesh_sink *sink, const int *sink_failed, isomend_stats *stats);
+
 void slab_piece_free(slab_piece *p);
 
 #endif /* ISOMEND_MPI_SLAB_H */
