@@ -55,7 +55,11 @@ static const char *const usage =
     "Each of the N ranks reads its own slab of slices and writes its part of MESH\n"
     "(.ply, .obj or .stl) with MPI-IO; the file is the one 'isomend extract' writes.\n"
     "Every method splits between ranks.  The continuity check is not run: use\n"
-    "isomend check.\n";
+    "isomend check.\n"
+    "\n"
+    "--decimate RATIO [--chunk-layers N]: rank 0 decimates the ranks' slabs as one\n"
+    "stream, checks and writes the mesh: the file 'isomend extract --stream\n"
+    "--decimate RATIO' writes, for any number of ranks.\n";
 
 static MPI_Comm comm = MPI_COMM_WORLD;
 static int rank, ranks;

@@ -29,7 +29,9 @@ they are.  For each, every option alone and in combinations:
 - the same bytes with --threads 1 and --threads 2, and the same bytes twice;
 - bad values (--decimate 0, 1.5, x, --max-error -1, --smooth 0, 20000,
   --min-component 0, ...) are usage errors (exit 2) with one line naming the
-  flag and no output file; isomend-mpi refuses the flags (exit 2); a
+  flag and no output file; isomend-mpi refuses the flags but --decimate
+  (exit 2); `mpirun -n N isomend-mpi extract --decimate R` writes the bytes of
+  `isomend extract --stream --decimate R` for N = 1, 2, 3, closed; a
   --max-memory that forces streaming refuses the steps that need the whole
   mesh (all but --decimate RATIO) with exit 1, the message naming the flag and
   no file.
@@ -485,7 +487,9 @@ def test_errors(exe, mpi, mpirun, work, samples):
             fail(f"bad {' '.join(flags)}", f"exit {rc}, stderr {err.strip()!r}, file {os.path.exists(out)}")
     if mpi:
         env = clitest.mpi_env()
-        for flags in (["--decimate", "0.1"], ["--smooth", "10"], ["--min-component", "20"],
+        # isomend-mpi decimates (as the streamed run: test_postprocess_stream.py and
+        # mpi_decimate below); the steps that need the whole mesh it does not take
+        for flags in (["--smooth", "10"], ["--min-component", "20"],
                       ["--largest", "1"], ["--max-error", "1"], ["--target-triangles", "100"]):
             p = subprocess.run([mpirun, "-n", "1", mpi, "extract", anat, "--pad", "-o", out, *flags],
                                cwd=work, capture_output=True, text=True, env=env, timeout=120)
@@ -515,6 +519,47 @@ def test_errors(exe, mpi, mpirun, work, samples):
             fail(f"streamed {flag}", f"exit {rc}, stderr {err.strip()!r}")
         elif len([ln for ln in lines if ln.startswith("isomend:") and "RATIO only" in ln]) != 1:
             fail(f"streamed {flag}", f"not one message line: {lines}")
+
+
+def mpi_decimate(exe, mpi, mpirun, work, cases):
+    """mpirun -n N isomend-mpi extract --decimate: the bytes of isomend extract
+    --stream --decimate, for N = 1, 2, 3, chunks of 3 layers and the default;
+    its JSON check closed and equal to the streamed run's."""
+    env = clitest.mpi_env()
+    for case in cases:
+        for chunk in (["--chunk-layers", "3"], []):
+            ref = os.path.join(work, f"{case.name}_dec_stream.ply")
+            rc, o, err = run(exe, ["extract", *case.args, "--decimate", "0.1", "--stream", *chunk,
+                                   "-q", "-o", ref, "--json", "-"], work)
+            if rc:
+                fail(f"{case.name} streamed decimation", err.strip())
+                continue
+            jref = json.loads(o)
+            for n in (1, 2, 3):
+                out = os.path.join(work, f"{case.name}_dec_mpi{n}.ply")
+                p = subprocess.run([mpirun, "--oversubscribe", "-n", str(n), mpi, "extract",
+                                    *case.args, "--decimate", "0.1", *chunk, "-q", "-o", out,
+                                    "--json", "-"], cwd=work, capture_output=True, text=True,
+                                   env=env, timeout=300)
+                what = f"{case.name} isomend-mpi -n {n} --decimate 0.1 {' '.join(chunk)}"
+                if p.returncode:
+                    fail(what, f"exit {p.returncode}: {p.stderr.strip()}")
+                    continue
+                j = json.loads(p.stdout)
+                with open(ref, "rb") as f1, open(out, "rb") as f2:
+                    same = f1.read() == f2.read()
+                if not same:
+                    fail(what, "not the bytes of isomend extract --stream --decimate")
+                elif j["check"] != jref["check"] or not (case.border or j["check"]["continuous"]):
+                    fail(what, f"check {j['check']} vs {jref['check']}")
+                elif j["postprocess"]["decimate"]["triangles_after"] != \
+                        jref["postprocess"]["decimate"]["triangles_after"]:
+                    fail(what, "another triangle count in the report")
+                else:
+                    print(f"ok   {what}: the streamed bytes, "
+                          f"{j['postprocess']['decimate']['triangles_after']} triangles")
+                os.remove(out)
+            os.remove(ref)
 
 
 def main():
@@ -548,6 +593,9 @@ def main():
     for case in cases:
         test_case(exe, work, case, CONFIGS)
     test_errors(exe, a.isomend_mpi and os.path.abspath(a.isomend_mpi), a.mpirun, work, samples)
+    if a.isomend_mpi:
+        mpi_decimate(exe, os.path.abspath(a.isomend_mpi), a.mpirun, work,
+                     [c for c in cases if c.name in ("mri", "ct", "noise", "mri_open")])
     return clitest.summary(ok="postprocess: ok")
 
 
