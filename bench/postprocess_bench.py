@@ -9,6 +9,8 @@ soft tissue, noise) and a busy gyroid (about 2.9 M triangles at 256^3).
 Decimation to 10 % of the triangles with
   isomend        `isomend extract ... --decimate 0.1` (the decimation step's
                  time from --json postprocess.decimate.ms)
+  isomend-stream the same on the stream (--stream --chunk-layers 8: the
+                 streamed decimation, chunks of 8 layers; its own calls' time)
   vtk-quadric    vtkQuadricDecimation (TargetReduction 0.9)
   vtk-pro        vtkDecimatePro (TargetReduction 0.9, PreserveTopologyOn,
                  SplittingOff, BoundaryVertexDeletionOff)
@@ -162,9 +164,10 @@ def check(exe, path):
 
 # ------------------------------------------------------------------ tools
 
-def run_isomend(a, src_args, out):
-    p = subprocess.run([a.isomend, "extract", *src_args, "-q", "--decimate", "0.1", "-o", out,
-                        "--json", "-"], capture_output=True, text=True)
+def run_isomend(a, src_args, out, streamed=False):
+    extra = ["--stream", "--chunk-layers", "8"] if streamed else []
+    p = subprocess.run([a.isomend, "extract", *src_args, "-q", "--decimate", "0.1", *extra, "-o",
+                        out, "--json", "-"], capture_output=True, text=True)
     if p.returncode:
         raise RuntimeError(p.stderr.strip())
     j = json.loads(p.stdout)
@@ -255,7 +258,7 @@ def main():
         (f"gyroid {n_gy}^3 f32", [os.path.join(work, "gyroid.raw"), "--raw", f"{n_gy},{n_gy},{n_gy}:f32",
                                    "--iso", "0", "--pad"]),
     ]
-    tools = ["isomend"]
+    tools = ["isomend", "isomend-stream"]
     if a.peers == "all":
         tools += ["vtk-quadric", "vtk-pro"]
         if a.meshopt:
@@ -285,8 +288,8 @@ def main():
         for tool in tools:
             out = os.path.join(work, f"out_{tool}.ply")
             try:
-                if tool == "isomend":
-                    ms, j = run_isomend(a, src, out)
+                if tool.startswith("isomend"):
+                    ms, j = run_isomend(a, src, out, streamed=tool == "isomend-stream")
                 elif tool.startswith("vtk"):
                     ms = run_vtk(tool, inp, out)
                 elif tool == "meshopt":
@@ -313,7 +316,7 @@ def main():
             rows.append((label, tool, ms, nout, dmean, dmax, c, verdict))
             print(f"  {tool:12s} {fmt_ms(ms):>9s} {nout:8d} tri  mean {dmean:.2e} "
                   f"max {dmax:.2e}  holes/nm/mis/comp/euler {verdict}", flush=True)
-            if tool == "isomend" and ("error" in c or c["holes"] or c["nonmanifold_edges"] or
+            if tool.startswith("isomend") and ("error" in c or c["holes"] or c["nonmanifold_edges"] or
                                       c["misoriented_edges"] or c["components"] != c0["components"] or
                                       c["euler"] != c0["euler"]):
                 problems.append(f"{label} isomend decimated mesh not closed or topology changed: {c}")
