@@ -111,6 +111,102 @@ static int64_t cell_of(const cell_grid *g, double x, int a)
     return c < 0 ? 0 : c >= g->n[a] ? g->n[a] - 1 : c;
 }
 
+/* The points of a query, in blocks of DIST_BLOCK: each block's largest
+ * distance and sum, so that the result does not depend on how the blocks
+ * are shared among threads. */
+#define DIST_BLOCK 4096
+typedef struct dist_job {
+    const cell_grid *g;
+    const float *pts, *pos;
+    const uint32_t *tri;
+    size_t np;
+    double *block_max, *block_sum;
+} dist_job;
+
+static void dist_blocks(void *arg, size_t lo_block, size_t hi_block)
+{
+    const dist_job *j = arg;
+    const cell_grid g = *j->g;
+    const float *pts = j->pts, *pos = j->pos;
+    const uint32_t *tri = j->tri;
+    for (size_t b = lo_block; b < hi_block; b++) {
+        double worst = 0, sum = 0;
+        size_t last = 0; /* the triangle nearest to the previous point: points come
+                          * in mesh order, so it is usually near, and its distance
+                          * lets the search stop at the point's own cell */
+        const size_t end = (b + 1) * DIST_BLOCK < j->np ? (b + 1) * DIST_BLOCK : j->np;
+        for (size_t i = b * DIST_BLOCK; i < end; i++) {
+            const double p[3] = {pts[3 * i], pts[3 * i + 1], pts[3 * i + 2]};
+            int64_t c[3];
+            for (int a = 0; a < 3; a++)
+                c[a] = cell_of(&g, p[a], a);
+            double best;
+            {
+                const uint32_t *v = tri + 3 * last;
+                double q[3][3];
+                for (int m = 0; m < 3; m++)
+                    for (int a = 0; a < 3; a++)
+                        q[m][a] = pos[3 * (size_t)v[m] + (size_t)a];
+                best = point_triangle_distance2(p, q[0], q[1], q[2]);
+            }
+            int64_t maxr = g.n[0] > g.n[1] ? g.n[0] : g.n[1];
+            maxr = g.n[2] > maxr ? g.n[2] : maxr;
+            for (int64_t r = 0; r <= maxr; r++) {
+                /* every cell of ring r (the shell of the cube of radius r) */
+                for (int64_t z = c[2] - r; z <= c[2] + r; z++) {
+                    if (z < 0 || z >= g.n[2])
+                        continue;
+                    for (int64_t y = c[1] - r; y <= c[1] + r; y++) {
+                        if (y < 0 || y >= g.n[1])
+                            continue;
+                        const int shell = z == c[2] - r || z == c[2] + r || y == c[1] - r || y == c[1] + r;
+                        for (int64_t x = c[0] - r; x <= c[0] + r; x += shell ? 1 : 2 * r) {
+                            if (x >= 0 && x < g.n[0]) {
+                                const size_t cell = (size_t)((z * g.n[1] + y) * g.n[0] + x);
+                                for (uint32_t k = g.first[cell]; k < g.first[cell + 1]; k++) {
+                                    const uint32_t *v = tri + 3 * (size_t)g.tris[k];
+                                    double q[3][3];
+                                    for (int m = 0; m < 3; m++)
+                                        for (int a = 0; a < 3; a++)
+                                            q[m][a] = pos[3 * (size_t)v[m] + (size_t)a];
+                                    const double e = point_triangle_distance2(p, q[0], q[1], q[2]);
+                                    if (e < best) {
+                                        best = e;
+                                        last = g.tris[k];
+                                    }
+                                }
+                            }
+                            if (r == 0)
+                                break;
+                        }
+                    }
+                }
+                /* the cells not searched yet lie beyond the faces of the cube of
+                 * rings 0 .. r that have cells beyond them */
+                double reach = INFINITY;
+                for (int a = 0; a < 3; a++) {
+                    if (c[a] - r > 0) {
+                        const double dlo = p[a] - (g.lo[a] + (double)(c[a] - r) * g.size);
+                        reach = dlo < reach ? dlo : reach;
+                    }
+                    if (c[a] + r + 1 < g.n[a]) {
+                        const double dhi = g.lo[a] + (double)(c[a] + r + 1) * g.size - p[a];
+                        reach = dhi < reach ? dhi : reach;
+                    }
+                }
+                if (best < INFINITY && (reach == INFINITY || (reach > 0 && reach * reach >= best)))
+                    break;
+            }
+
+            const double d = sqrt(best);
+            worst = d > worst ? d : worst;
+            sum += d;
+        }
+        j->block_max[b] = worst;
+        j->block_sum[b] = sum;
+    }
+}
+
 int mesh_distances(const float *pts, size_t np, const float *pos, const uint32_t *tri, size_t nt,
                    double *max_out, double *mean_out)
 {
@@ -197,76 +293,22 @@ int mesh_distances(const float *pts, size_t np, const float *pos, const uint32_t
             g.first[0] = 0;
         }
     }
-    double worst = 0, sum = 0;
-    size_t last = 0; /* the triangle nearest to the previous point: points come
-                      * in mesh order, so it is usually near, and its distance
-                      * lets the search stop at the point's own cell */
-    for (size_t i = 0; i < np; i++) {
-        const double p[3] = {pts[3 * i], pts[3 * i + 1], pts[3 * i + 2]};
-        int64_t c[3];
-        for (int a = 0; a < 3; a++)
-            c[a] = cell_of(&g, p[a], a);
-        double best;
-        {
-            const uint32_t *v = tri + 3 * last;
-            double q[3][3];
-            for (int m = 0; m < 3; m++)
-                for (int a = 0; a < 3; a++)
-                    q[m][a] = pos[3 * (size_t)v[m] + (size_t)a];
-            best = point_triangle_distance2(p, q[0], q[1], q[2]);
-        }
-        int64_t maxr = g.n[0] > g.n[1] ? g.n[0] : g.n[1];
-        maxr = g.n[2] > maxr ? g.n[2] : maxr;
-        for (int64_t r = 0; r <= maxr; r++) {
-            /* every cell of ring r (the shell of the cube of radius r) */
-            for (int64_t z = c[2] - r; z <= c[2] + r; z++) {
-                if (z < 0 || z >= g.n[2])
-                    continue;
-                for (int64_t y = c[1] - r; y <= c[1] + r; y++) {
-                    if (y < 0 || y >= g.n[1])
-                        continue;
-                    const int shell = z == c[2] - r || z == c[2] + r || y == c[1] - r || y == c[1] + r;
-                    for (int64_t x = c[0] - r; x <= c[0] + r; x += shell ? 1 : 2 * r) {
-                        if (x >= 0 && x < g.n[0]) {
-                            const size_t cell = (size_t)((z * g.n[1] + y) * g.n[0] + x);
-                            for (uint32_t k = g.first[cell]; k < g.first[cell + 1]; k++) {
-                                const uint32_t *v = tri + 3 * (size_t)g.tris[k];
-                                double q[3][3];
-                                for (int m = 0; m < 3; m++)
-                                    for (int a = 0; a < 3; a++)
-                                        q[m][a] = pos[3 * (size_t)v[m] + (size_t)a];
-                                const double e = point_triangle_distance2(p, q[0], q[1], q[2]);
-                                if (e < best) {
-                                    best = e;
-                                    last = g.tris[k];
-                                }
-                            }
-                        }
-                        if (r == 0)
-                            break;
-                    }
-                }
-            }
-            /* the cells not searched yet lie beyond the faces of the cube of
-             * rings 0 .. r that have cells beyond them */
-            double reach = INFINITY;
-            for (int a = 0; a < 3; a++) {
-                if (c[a] - r > 0) {
-                    const double dlo = p[a] - (g.lo[a] + (double)(c[a] - r) * g.size);
-                    reach = dlo < reach ? dlo : reach;
-                }
-                if (c[a] + r + 1 < g.n[a]) {
-                    const double dhi = g.lo[a] + (double)(c[a] + r + 1) * g.size - p[a];
-                    reach = dhi < reach ? dhi : reach;
-                }
-            }
-            if (best < INFINITY && (reach == INFINITY || (reach > 0 && reach * reach >= best)))
-                break;
-        }
-        const double d = sqrt(best);
-        worst = d > worst ? d : worst;
-        sum += d;
+    /* the points in blocks, on threads; the blocks' results summed in order */
+    const size_t nblocks = (np + DIST_BLOCK - 1) / DIST_BLOCK;
+    double *bmax = malloc(2 * nblocks * sizeof(double));
+    if (!bmax) {
+        free(g.first);
+        free(g.tris);
+        return 0;
     }
+    dist_job job = {&g, pts, pos, tri, np, bmax, bmax + nblocks};
+    parallel_for_from(nblocks, 8, dist_blocks, &job); /* threads from 32768 points on */
+    double worst = 0, sum = 0;
+    for (size_t b = 0; b < nblocks; b++) {
+        worst = bmax[b] > worst ? bmax[b] : worst;
+        sum += bmax[nblocks + b];
+    }
+    free(bmax);
     free(g.first);
     free(g.tris);
     *max_out = worst;

@@ -162,8 +162,14 @@ static void *parallel_thread(void *p)
 
 void parallel_for(size_t n, void (*fn)(void *arg, size_t lo, size_t hi), void *arg)
 {
+    parallel_for_from(n, 32768, fn, arg);
+}
+
+void parallel_for_from(size_t n, size_t min_items, void (*fn)(void *arg, size_t lo, size_t hi),
+                       void *arg)
+{
     int nthreads = 1;
-    if (n >= 32768) {
+    if (n >= min_items && n >= 2) {
         const long cores = sysconf(_SC_NPROCESSORS_ONLN);
         nthreads = cores < 1 ? 1 : cores > 8 ? 8 : (int)cores;
     }

@@ -54,6 +54,9 @@ int mesh_free_vertices(const isomend_mesh *m, uint8_t *free_flag, uint32_t **fir
 /* fn(arg, lo, hi) over [0, n) in ranges on up to 8 threads (one below 32768
  * items, or where threads cannot start); returns when all are done. */
 void parallel_for(size_t n, void (*fn)(void *arg, size_t lo, size_t hi), void *arg);
+/* The same with threads from min_items items on (items that are blocks). */
+void parallel_for_from(size_t n, size_t min_items, void (*fn)(void *arg, size_t lo, size_t hi),
+                       void *arg);
 
 /* decimate.c: isomend_mesh_decimate() to `target` triangles (0: as far as
  * the surface allows) with max_error (0: none); the report's distances only
