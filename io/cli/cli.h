@@ -464,6 +464,53 @@ int cli_checker_finish(cli_checker *k, isomend_check_report *report);
 uint64_t cli_checker_peak_bytes(const cli_checker *k);
 void cli_checker_destroy(cli_checker *k); /* accepts NULL */
 
+/* A sink that times the calls it passes on to `next` (ms: their sum): around
+ * a streamed decimation and around what follows it, the difference is the
+ * decimation's own time. */
+typedef struct cli_timed_sink {
+    cli_sink next;
+    double ms;
+} cli_timed_sink;
+void cli_sink_timed(cli_sink *sink, cli_timed_sink *t, const cli_sink *next);
+
+/*
+ * Where a streamed mesh goes (isomend extract, isomend-mpi --decimate): the
+ * streamed decimation (ratio > 0, chunks of `layers`), then the continuity
+ * check (check_queue > 0: the queue's bytes; it sees the grid's frame), then
+ * the patient map (world: a 3x4 affine, or NULL), then the writer of path.
+ * `sink` is the head of that chain.  The struct points into itself: it must
+ * not move between begin and commit/abort.
+ */
+typedef struct cli_outputs {
+    isomend_mesh_writer *w;
+    cli_world world;
+    int has_world;
+    cli_checker *checker;
+    isomend_decimate_stream *decimate;
+    int64_t layers;
+    cli_timed_sink t_in, t_out; /* around the decimation and around what follows */
+    cli_sink writer, mapped, tee, dsink, timed_in, timed_out;
+    const cli_sink *sink;
+} cli_outputs;
+
+/* 0, or 1 with the message printed (label names the source) and nothing left open. */
+int cli_outputs_begin(cli_outputs *o, const char *path, isomend_mesh_format fmt, int normals,
+                      const double *world, const char *label, const isomend_volume *desc,
+                      const isomend_options *opts, uint64_t check_queue, double ratio,
+                      int64_t layers);
+
+/* After the stream (rc its exit code): ends the decimation (into post: its
+ * report, streamed, chunk_layers, its own time) and the check (*checked: it
+ * ran to its report); frees all but the writer.  Returns rc, or the failure
+ * of either. */
+struct cli_post_report; /* postprocess.c */
+int cli_outputs_finish(cli_outputs *o, int rc, const char *label, struct cli_post_report *post,
+                       isomend_check_report *check, int *checked);
+
+/* The file made visible (an exit code; the message printed), or dropped. */
+int cli_outputs_commit(cli_outputs *o);
+void cli_outputs_abort(cli_outputs *o);
+
 int cli_stream_extract(cli_source *s, const isomend_options *opts, const cli_sink *sink,
                        isomend_stats *stats);
 
@@ -489,14 +536,6 @@ typedef struct cli_post_report {
  * code, the message printed naming `label`. */
 int cli_postprocess(isomend_mesh **mesh, const cli_post *p, cli_post_report *r, const char *label);
 
-/* A sink that times the calls it passes on to `next` (ms: their sum): around
- * a streamed decimation and around what follows it, the difference is the
- * decimation's own time. */
-typedef struct cli_timed_sink {
-    cli_sink next;
-    double ms;
-} cli_timed_sink;
-void cli_sink_timed(cli_sink *sink, cli_timed_sink *t, const cli_sink *next);
 void cli_print_post(FILE *fp, const cli_post_report *r);
 void cli_json_post(FILE *fp, const cli_post_report *r);
 

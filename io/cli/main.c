@@ -418,88 +418,21 @@ static int cmd_extract(int argc, char **argv)
     uint64_t check_skipped = 0; /* the check's need, when it did not fit the limit */
     cli_timings tm = {0, 0, 0};
     if (plan.stream) {
-        isomend_mesh_writer *w;
-        if (isomend_mesh_writer_begin(a.output, fmt, !(opts.flags & ISOMEND_FLAG_NO_NORMALS), 0,
-                                      &w, msg, sizeof msg) != ISOMEND_FILEIO_OK) {
-            cli_error("%s", msg);
-            rc = CLI_EXIT_FAIL;
-            goto fail_source;
-        }
-        cli_sink sink, world_sink;
-        cli_sink_for_writer(&sink, w);
-        cli_world world;
-        if (src.has_world) { /* a DICOM series in patient space: mapped as it goes */
-            if (!cli_world_init(&world, src.world, &sink)) {
-                cli_error("%s: the series' patient transform is not invertible", src.label);
-                isomend_mesh_writer_abort(w);
-                rc = CLI_EXIT_FAIL;
-                goto fail_source;
-            }
-            cli_sink_for_world(&world_sink, &world);
-        }
-        /* the check sees the grid's frame, the writer the world's */
-        cli_checker *checker = NULL;
-        cli_sink tee;
+        /* the mesh through [the decimation], [the check], [the patient map] to the file */
         isomend_options stream_opts = opts;
         stream_opts.threads = plan.threads;
-        if (plan.check && cli_checker_begin(&src.desc, &stream_opts, plan.check_queue,
-                                            src.has_world ? &world_sink : &sink, &checker, &tee)) {
-            cli_world_free(src.has_world ? &world : NULL);
-            isomend_mesh_writer_abort(w);
+        cli_outputs out;
+        if (cli_outputs_begin(&out, a.output, fmt, !(opts.flags & ISOMEND_FLAG_NO_NORMALS),
+                              src.has_world ? src.world : NULL, src.label, &src.desc, &stream_opts,
+                              plan.check ? plan.check_queue : 0,
+                              plan.decimate_layers ? a.post.ratio : 0.0, plan.decimate_layers)) {
             rc = CLI_EXIT_FAIL;
             goto fail_source;
         }
-        /* a streamed decimation sits between the stream and the rest */
-        const cli_sink *after = plan.check ? &tee : src.has_world ? &world_sink : &sink;
-        isomend_decimate_stream *dstream = NULL;
-        cli_sink dsink, timed_in, timed_out;
-        cli_timed_sink t_in, t_out; /* around the decimation and around what follows */
-        if (plan.decimate_layers) {
-            cli_sink_timed(&timed_out, &t_out, after);
-            after = &timed_out;
-            isomend_decimate_options dopts;
-            isomend_decimate_options_init(&dopts);
-            dopts.ratio = a.post.ratio;
-            isomend_status dst = isomend_decimate_stream_begin(&src.desc, &stream_opts, &dopts,
-                                                               plan.decimate_layers, after, &dstream);
-            if (dst != ISOMEND_OK) {
-                cli_error("%s: decimation failed: %s", src.label, isomend_status_string(dst));
-                cli_checker_destroy(checker);
-                cli_world_free(src.has_world ? &world : NULL);
-                isomend_mesh_writer_abort(w);
-                rc = CLI_EXIT_FAIL;
-                goto fail_source;
-            }
-            isomend_decimate_stream_sink(dstream, &dsink);
-            cli_sink_timed(&timed_in, &t_in, &dsink);
-            after = &timed_in;
-        }
         double t0 = cli_now_ms();
-        rc = cli_stream_extract(&src, &stream_opts, after, &stats);
-        if (dstream) {
-            const double d0 = cli_now_ms();
-            isomend_status dst = isomend_decimate_stream_finish(dstream, &post.decimate);
-            if (!rc && dst != ISOMEND_OK && dst != ISOMEND_ERR_SINK) {
-                cli_error("%s: decimation failed: %s", src.label, isomend_status_string(dst));
-                rc = CLI_EXIT_FAIL;
-            } else if (!rc && dst == ISOMEND_ERR_SINK) {
-                rc = CLI_EXIT_FAIL; /* the sink said why */
-            }
-            isomend_decimate_stream_destroy(dstream);
-            post.decimated = !rc;
-            post.streamed = 1;
-            post.chunk_layers = plan.decimate_layers;
-            /* its own time: its calls, less those of the sinks after it */
-            post.decimate_ms = t_in.ms + (cli_now_ms() - d0) - t_out.ms;
-        }
-        if (!rc && plan.check) {
-            rc = cli_checker_finish(checker, &check) ? CLI_EXIT_FAIL : CLI_EXIT_OK;
-            checked = !rc;
-        } else if (!plan.check) {
-            check_skipped = plan.check_need; /* did not fit beside the stream */
-        }
-        cli_checker_destroy(checker);
-        cli_world_free(src.has_world ? &world : NULL);
+        rc = cli_stream_extract(&src, &stream_opts, out.sink, &stats);
+        rc = cli_outputs_finish(&out, rc, src.label, &post, &check, &checked);
+        if (!plan.check) check_skipped = plan.check_need; /* did not fit beside the stream */
         cli_progress_clear(&bar);
         /* the extraction's time includes the writes made meanwhile */
         tm.read_ms = src.read_ms;
@@ -509,15 +442,12 @@ static int cmd_extract(int argc, char **argv)
             rc = CLI_EXIT_INTERRUPTED;
         }
         if (rc) {
-            isomend_mesh_writer_abort(w);
+            cli_outputs_abort(&out);
             goto fail_source;
         }
         t0 = cli_now_ms();
-        if (isomend_mesh_writer_commit(w, msg, sizeof msg) != ISOMEND_FILEIO_OK) {
-            cli_error("%s", msg);
-            rc = CLI_EXIT_FAIL;
-            goto fail_source;
-        }
+        rc = cli_outputs_commit(&out);
+        if (rc) goto fail_source;
         tm.write_ms = cli_now_ms() - t0;
     } else {
         tm.read_ms = src.read_ms;

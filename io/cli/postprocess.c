@@ -62,45 +62,6 @@ int cli_postprocess(isomend_mesh **mesh, const cli_post *p, cli_post_report *r, 
     return CLI_EXIT_OK;
 }
 
-static int timed_vertices(void *user, uint64_t first, size_t count, const float *pos,
-                          const float *nrm, const uint64_t *keys)
-{
-    cli_timed_sink *t = user;
-    const double t0 = cli_now_ms();
-    const int r = t->next.vertices(t->next.user, first, count, pos, nrm, keys);
-    t->ms += cli_now_ms() - t0;
-    return r;
-}
-
-static int timed_triangles(void *user, size_t count, const uint64_t *ids, const uint8_t *origins)
-{
-    cli_timed_sink *t = user;
-    const double t0 = cli_now_ms();
-    const int r = t->next.triangles(t->next.user, count, ids, origins);
-    t->ms += cli_now_ms() - t0;
-    return r;
-}
-
-static int timed_retire(void *user, uint64_t floor)
-{
-    cli_timed_sink *t = user;
-    const double t0 = cli_now_ms();
-    const int r = t->next.retire(t->next.user, floor);
-    t->ms += cli_now_ms() - t0;
-    return r;
-}
-
-void cli_sink_timed(cli_sink *sink, cli_timed_sink *t, const cli_sink *next)
-{
-    t->next = *next;
-    t->ms = 0;
-    memset(sink, 0, sizeof *sink);
-    sink->user = t;
-    sink->vertices = timed_vertices;
-    sink->triangles = timed_triangles;
-    sink->retire = timed_retire;
-}
-
 void cli_print_post(FILE *fp, const cli_post_report *r)
 {
     if (r->cleaned)

@@ -328,6 +328,151 @@ void cli_sink_for_world(cli_sink *sink, cli_world *w)
     sink->retire = world_retire;
 }
 
+/* ------------------------------------------------------------------ a timed sink */
+
+static int timed_vertices(void *user, uint64_t first, size_t count, const float *pos,
+                          const float *nrm, const uint64_t *keys)
+{
+    cli_timed_sink *t = user;
+    const double t0 = cli_now_ms();
+    const int r = t->next.vertices(t->next.user, first, count, pos, nrm, keys);
+    t->ms += cli_now_ms() - t0;
+    return r;
+}
+
+static int timed_triangles(void *user, size_t count, const uint64_t *ids, const uint8_t *origins)
+{
+    cli_timed_sink *t = user;
+    const double t0 = cli_now_ms();
+    const int r = t->next.triangles(t->next.user, count, ids, origins);
+    t->ms += cli_now_ms() - t0;
+    return r;
+}
+
+static int timed_retire(void *user, uint64_t floor)
+{
+    cli_timed_sink *t = user;
+    const double t0 = cli_now_ms();
+    const int r = t->next.retire(t->next.user, floor);
+    t->ms += cli_now_ms() - t0;
+    return r;
+}
+
+void cli_sink_timed(cli_sink *sink, cli_timed_sink *t, const cli_sink *next)
+{
+    t->next = *next;
+    t->ms = 0;
+    *sink = (cli_sink){t, timed_vertices, timed_triangles, timed_retire, NULL};
+}
+
+/* ------------------------------------------------------------------ the outputs of a stream */
+
+static void outputs_free(cli_outputs *o)
+{
+    isomend_decimate_stream_destroy(o->decimate);
+    cli_checker_destroy(o->checker);
+    cli_world_free(o->has_world ? &o->world : NULL);
+    o->decimate = NULL;
+    o->checker = NULL;
+    o->has_world = 0;
+}
+
+void cli_outputs_abort(cli_outputs *o)
+{
+    outputs_free(o);
+    if (o->w) isomend_mesh_writer_abort(o->w);
+    o->w = NULL;
+}
+
+int cli_outputs_commit(cli_outputs *o)
+{
+    outputs_free(o);
+    char msg[ISOMEND_FILEIO_MSG_SIZE];
+    const isomend_fileio_status st = isomend_mesh_writer_commit(o->w, msg, sizeof msg);
+    o->w = NULL;
+    if (st == ISOMEND_FILEIO_OK) return CLI_EXIT_OK;
+    cli_error("%s", msg);
+    return CLI_EXIT_FAIL;
+}
+
+int cli_outputs_begin(cli_outputs *o, const char *path, isomend_mesh_format fmt, int normals,
+                      const double *world, const char *label, const isomend_volume *desc,
+                      const isomend_options *opts, uint64_t check_queue, double ratio,
+                      int64_t layers)
+{
+    memset(o, 0, sizeof *o);
+    char msg[ISOMEND_FILEIO_MSG_SIZE];
+    if (isomend_mesh_writer_begin(path, fmt, normals, 0, &o->w, msg, sizeof msg) !=
+        ISOMEND_FILEIO_OK) {
+        cli_error("%s", msg);
+        o->w = NULL;
+        return 1;
+    }
+    cli_sink_for_writer(&o->writer, o->w);
+    o->sink = &o->writer;
+    if (world) { /* a DICOM series in patient space: mapped as it goes */
+        if (!cli_world_init(&o->world, world, &o->writer)) {
+            cli_error("%s: the series' patient transform is not invertible", label);
+            cli_outputs_abort(o);
+            return 1;
+        }
+        o->has_world = 1;
+        cli_sink_for_world(&o->mapped, &o->world);
+        o->sink = &o->mapped;
+    }
+    if (check_queue) {
+        if (cli_checker_begin(desc, opts, check_queue, o->sink, &o->checker, &o->tee)) {
+            cli_outputs_abort(o);
+            return 1;
+        }
+        o->sink = &o->tee;
+    }
+    if (ratio > 0) {
+        cli_sink_timed(&o->timed_out, &o->t_out, o->sink);
+        isomend_decimate_options d;
+        isomend_decimate_options_init(&d);
+        d.ratio = ratio;
+        const isomend_status st =
+            isomend_decimate_stream_begin(desc, opts, &d, layers, &o->timed_out, &o->decimate);
+        if (st != ISOMEND_OK) {
+            cli_error("%s: decimation failed: %s", label, isomend_status_string(st));
+            cli_outputs_abort(o);
+            return 1;
+        }
+        o->layers = layers;
+        isomend_decimate_stream_sink(o->decimate, &o->dsink);
+        cli_sink_timed(&o->timed_in, &o->t_in, &o->dsink);
+        o->sink = &o->timed_in;
+    }
+    return 0;
+}
+
+int cli_outputs_finish(cli_outputs *o, int rc, const char *label, struct cli_post_report *post,
+                       isomend_check_report *check, int *checked)
+{
+    *checked = 0;
+    if (o->decimate) {
+        const double d0 = cli_now_ms();
+        const isomend_status st = isomend_decimate_stream_finish(o->decimate, &post->decimate);
+        if (!rc && st != ISOMEND_OK) {
+            if (st != ISOMEND_ERR_SINK) /* else the sink said why */
+                cli_error("%s: decimation failed: %s", label, isomend_status_string(st));
+            rc = CLI_EXIT_FAIL;
+        }
+        post->decimated = !rc;
+        post->streamed = 1;
+        post->chunk_layers = o->layers;
+        /* its own time: its calls, less those of the sinks after it */
+        post->decimate_ms = o->t_in.ms + (cli_now_ms() - d0) - o->t_out.ms;
+    }
+    if (!rc && o->checker) {
+        rc = cli_checker_finish(o->checker, check) ? CLI_EXIT_FAIL : CLI_EXIT_OK;
+        *checked = !rc;
+    }
+    outputs_free(o);
+    return rc;
+}
+
 /* ------------------------------------------------------------------ extraction */
 
 int cli_stream_extract(cli_source *s, const isomend_options *opts, const cli_sink *sink,

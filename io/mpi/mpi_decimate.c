@@ -138,12 +138,7 @@ void dec_spool_close(dec_spool *s)
 
 void dec_spool_sink(dec_spool *s, isomend_mesh_sink *sink)
 {
-    memset(sink, 0, sizeof *sink);
-    sink->user = s;
-    sink->vertices = rec_vertices;
-    sink->triangles = rec_triangles;
-    sink->retire = rec_retire;
-    sink->foreign = rec_foreign;
+    *sink = (isomend_mesh_sink){s, rec_vertices, rec_triangles, rec_retire, rec_foreign};
 }
 
 /* ------------------------------------------------------------------ reading a spool */

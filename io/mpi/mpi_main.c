@@ -213,6 +213,19 @@ static int exchange_plane(const slab_piece *p, int64_t nz_marched, uint64_t firs
     return rc;
 }
 
+/* The summary's first lines: the source, the method and level. */
+static void print_run(FILE *text, const cli_slices *sl, const cli_args *a, int iso_suggested,
+                      int pad, int normals)
+{
+    const isomend_volume *v = &sl->desc;
+    fprintf(text, "%s: %s (%s), %lld x %lld x %lld %s, %d rank%s\n", sl->label, sl->kind,
+            sl->format, (long long)v->dims[0], (long long)v->dims[1], (long long)v->dims[2],
+            isomend_type_name(v->type), ranks, ranks > 1 ? "s" : "");
+    fprintf(text, "%s at iso %.9g%s%s%s%s\n", isomend_method_name(a->method), a->iso,
+            iso_suggested ? " (suggested)" : "", pad ? ", padded" : "",
+            (a->seen & OPT_FLIP) ? ", flipped" : "", normals ? "" : ", no normals");
+}
+
 /*
  * --decimate RATIO: every rank records its slab's piece (mpi_decimate.h);
  * rank 0 replays them as one stream into the streamed decimation, the
@@ -243,94 +256,41 @@ static int run_decimated(const cli_args *a, cli_slices *sl, const isomend_option
         dec_spool_close(&sp);
         return rc;
     }
-    /* rank 0: decimation -> check -> (patient space) -> writer */
+    /* rank 0: decimation -> check -> (patient space) -> writer, as isomend extract's stream */
     t0 = MPI_Wtime();
-    char msg[ISOMEND_FILEIO_MSG_SIZE];
-    isomend_mesh_writer *w = NULL;
-    cli_sink wsink, world_sink, tee, dsink;
-    cli_world world;
-    int has_world = 0;
-    cli_checker *checker = NULL;
-    isomend_decimate_stream *ds = NULL;
+    cli_outputs out;
+    memset(&out, 0, sizeof out);
     cli_post_report post;
     memset(&post, 0, sizeof post);
     isomend_check_report check;
     memset(&check, 0, sizeof check);
-    cli_memory_plan plan;
-    memset(&plan, 0, sizeof plan);
+    int checked = 0;
     const int normals = !(opts->flags & ISOMEND_FLAG_NO_NORMALS);
     if (rank == 0) {
+        cli_memory_plan plan;
         cli_memory_plan_make(&sl->desc, opts, fmt, a->max_memory, 0, 1, a->post.chunk_layers,
                              &plan);
-        if (isomend_mesh_writer_begin(a->output, fmt, normals, 0, &w, msg, sizeof msg) !=
-            ISOMEND_FILEIO_OK) {
-            cli_error("%s", msg);
+        if (cli_outputs_begin(&out, a->output, fmt, normals, sl->has_world ? sl->world : NULL,
+                              sl->label, &sl->desc, opts, plan.check_queue, a->post.ratio,
+                              plan.decimate_layers))
             rc = CLI_EXIT_FAIL;
-        }
-        const cli_sink *after = &wsink;
-        if (!rc) {
-            cli_sink_for_writer(&wsink, w);
-            if (sl->has_world) {
-                if (!cli_world_init(&world, sl->world, &wsink)) {
-                    cli_error("%s: the series' patient transform is not invertible", sl->label);
-                    rc = CLI_EXIT_FAIL;
-                } else {
-                    has_world = 1;
-                    cli_sink_for_world(&world_sink, &world);
-                    after = &world_sink;
-                }
-            }
-        }
-        if (!rc && cli_checker_begin(&sl->desc, opts, plan.check_queue, after, &checker, &tee))
-            rc = CLI_EXIT_FAIL;
-        if (!rc) {
-            isomend_decimate_options d;
-            isomend_decimate_options_init(&d);
-            d.ratio = a->post.ratio;
-            const isomend_status st =
-                isomend_decimate_stream_begin(&sl->desc, opts, &d, plan.decimate_layers, &tee, &ds);
-            if (st != ISOMEND_OK) {
-                cli_error("%s: decimation failed: %s", sl->label, isomend_status_string(st));
-                rc = CLI_EXIT_FAIL;
-            } else {
-                isomend_decimate_stream_sink(ds, &dsink);
-            }
-        }
     }
     /* the replay is collective: every rank takes part, also after a failure */
     int failed0 = rc;
     MPI_Bcast(&failed0, 1, MPI_INT, 0, comm);
     if (!failed0)
-        rc = dec_replay(comm, &sp, rank == 0 ? &dsink : NULL);
+        rc = dec_replay(comm, &sp, rank == 0 ? out.sink : NULL);
     dec_spool_close(&sp);
-    if (rank == 0 && ds) {
-        const isomend_status st = isomend_decimate_stream_finish(ds, &post.decimate);
-        if (!rc && st != ISOMEND_OK) {
-            if (st != ISOMEND_ERR_SINK) /* else the sink said why */
-                cli_error("%s: decimation failed: %s", sl->label, isomend_status_string(st));
-            rc = CLI_EXIT_FAIL;
-        }
-        post.decimated = !rc;
-        post.streamed = 1;
-        post.chunk_layers = plan.decimate_layers;
-    }
-    isomend_decimate_stream_destroy(ds);
-    if (rank == 0 && checker && !rc && cli_checker_finish(checker, &check))
-        rc = CLI_EXIT_FAIL;
-    cli_checker_destroy(checker);
-    if (has_world)
-        cli_world_free(&world);
-    if (rank == 0 && w) {
+    if (rank == 0 && !failed0) {
+        rc = cli_outputs_finish(&out, rc, sl->label, &post, &check, &checked);
         if (!rc && cli_interrupted) {
             cli_error("%s: interrupted", sl->label);
             rc = CLI_EXIT_INTERRUPTED;
         }
-        if (rc) {
-            isomend_mesh_writer_abort(w);
-        } else if (isomend_mesh_writer_commit(w, msg, sizeof msg) != ISOMEND_FILEIO_OK) {
-            cli_error("%s", msg);
-            rc = CLI_EXIT_FAIL;
-        }
+        if (rc)
+            cli_outputs_abort(&out);
+        else
+            rc = cli_outputs_commit(&out);
     }
     post.decimate_ms = (MPI_Wtime() - t0) * 1e3; /* the replay, decimation, check and write */
     if ((rc = agree(rc)) != 0)
@@ -346,12 +306,7 @@ static int run_decimated(const cli_args *a, cli_slices *sl, const isomend_option
     if (rank == 0) {
         const isomend_volume *v = &sl->desc;
         if (!quiet) {
-            fprintf(text, "%s: %s (%s), %lld x %lld x %lld %s, %d rank%s\n", sl->label, sl->kind,
-                    sl->format, (long long)v->dims[0], (long long)v->dims[1], (long long)v->dims[2],
-                    isomend_type_name(v->type), ranks, ranks > 1 ? "s" : "");
-            fprintf(text, "%s at iso %.9g%s%s%s%s\n", isomend_method_name(a->method), a->iso,
-                    iso_suggested ? " (suggested)" : "", pad ? ", padded" : "",
-                    (a->seen & OPT_FLIP) ? ", flipped" : "", normals ? "" : ", no normals");
+            print_run(text, sl, a, iso_suggested, pad != 0, normals);
         }
         if (a->seen & OPT_STATS) cli_print_table2(text, &total, a->method);
         if (!quiet) {
@@ -621,12 +576,7 @@ static int run(int argc, char **argv)
     if (rank == 0) {
         const isomend_volume *v = &sl.desc;
         if (!quiet) {
-            fprintf(text, "%s: %s (%s), %lld x %lld x %lld %s, %d rank%s\n", sl.label, sl.kind,
-                    sl.format, (long long)v->dims[0], (long long)v->dims[1], (long long)v->dims[2],
-                    isomend_type_name(v->type), ranks, ranks > 1 ? "s" : "");
-            fprintf(text, "%s at iso %.9g%s%s%s%s\n", isomend_method_name(a.method), a.iso,
-                    iso_suggested ? " (suggested)" : "", pad ? ", padded" : "",
-                    (a.seen & OPT_FLIP) ? ", flipped" : "", normals ? "" : ", no normals");
+            print_run(text, &sl, &a, iso_suggested, pad != 0, normals);
         }
         if (a.seen & OPT_STATS) cli_print_table2(text, &stats, a.method);
         if (!quiet) {

@@ -158,7 +158,7 @@ struct isomend_decimate_stream {
     uint64_t err_n;
 
     /* delivery scratch */
-    vec vbuf;  /* floats: positions (and normals) of a batch */
+    vec vpos, vnrm; /* floats x 3: the positions and normals of a batch */
     vec tbuf;  /* uint64_t x 3 */
 
     isomend_decimate_report rep;
@@ -331,7 +331,7 @@ static isomend_status deliver(isomend_decimate_stream *d)
 {
     uint32_t *w = d->waiting.p;
     const size_t n = d->waiting.n;
-    d->vbuf.n = d->tbuf.n = 0;
+    d->vpos.n = d->vnrm.n = d->tbuf.n = 0;
     size_t keep = 0, nv = 0;
     uint64_t low = NO_ID; /* the lowest delivered id a waiting triangle uses */
     for (size_t i = 0; i < n; i++) {
@@ -347,14 +347,14 @@ static isomend_status deliver(isomend_decimate_stream *d)
         for (int k = 0; k < 3; k++) {
             slot *x = &d->slots[t[k]];
             if (x->out == NO_ID) {
-                float *v = vec_push(&d->vbuf, 1);
-                if (!v)
+                float *v = vec_push(&d->vpos, 1), *nv3 = d->normals ? vec_push(&d->vnrm, 1) : NULL;
+                if (!v || (d->normals && !nv3))
                     return fail(d, ISOMEND_ERR_OUT_OF_MEMORY);
                 memcpy(v, x->p, 3 * sizeof(float));
                 const double len = sqrt(x->n[0] * x->n[0] + x->n[1] * x->n[1] + x->n[2] * x->n[2]);
-                for (int c = 0; c < 3; c++)
-                    v[3 + c] = len > 0 && isfinite(len) ? (float)(x->n[c] / len)
-                                                        : (c == 2 ? 1.0f : 0.0f);
+                for (int c = 0; nv3 && c < 3; c++)
+                    nv3[c] = len > 0 && isfinite(len) ? (float)(x->n[c] / len)
+                                                      : (c == 2 ? 1.0f : 0.0f);
                 x->out = d->out_next + nv++;
             }
             ids[k] = x->out;
@@ -368,22 +368,9 @@ static isomend_status deliver(isomend_decimate_stream *d)
     for (size_t i = 0; i < 3 * keep; i++) /* after the loop: ids given to later triangles count */
         if (d->slots[w[i]].out < low)
             low = d->slots[w[i]].out;
-    if (nv) { /* positions, then normals, of the new vertices */
-        float *v = d->vbuf.p, *pos = malloc(nv * 12), *nrm = d->normals ? malloc(nv * 12) : NULL;
-        if (!pos || (d->normals && !nrm)) {
-            free(pos);
-            free(nrm);
-            return fail(d, ISOMEND_ERR_OUT_OF_MEMORY);
-        }
-        for (size_t i = 0; i < nv; i++) {
-            memcpy(pos + 3 * i, v + 6 * i, 12);
-            if (nrm)
-                memcpy(nrm + 3 * i, v + 6 * i + 3, 12);
-        }
-        const int r = d->out.vertices(d->out.user, d->out_next, nv, pos, nrm, NULL);
-        free(pos);
-        free(nrm);
-        if (r)
+    if (nv) {
+        if (d->out.vertices(d->out.user, d->out_next, nv, d->vpos.p,
+                            d->normals ? d->vnrm.p : NULL, NULL))
             return fail(d, ISOMEND_ERR_SINK);
         d->out_next += nv;
     }
@@ -795,7 +782,7 @@ isomend_status isomend_decimate_stream_begin(const isomend_volume *desc,
     d->raw.size = 12;
     d->chunk.size = 24;
     d->held.size = d->waiting.size = 12;
-    d->vbuf.size = 24;
+    d->vpos.size = d->vnrm.size = 12;
     d->tbuf.size = 24;
     d->lag = (int)((MEASURE_LAYERS + d->K - 1) / d->K);
     d->lag = d->lag < 2 ? 2 : d->lag;
@@ -816,11 +803,7 @@ isomend_status isomend_decimate_stream_sink(isomend_decimate_stream *d, isomend_
 {
     if (!d || !sink)
         return ISOMEND_ERR_INVALID_ARGUMENT;
-    memset(sink, 0, sizeof *sink);
-    sink->user = d;
-    sink->vertices = on_vertices;
-    sink->triangles = on_triangles;
-    sink->retire = on_retire;
+    *sink = (isomend_mesh_sink){d, on_vertices, on_triangles, on_retire, NULL};
     return ISOMEND_OK;
 }
 
@@ -872,7 +855,8 @@ void isomend_decimate_stream_destroy(isomend_decimate_stream *d)
         free(d->soup[j].p);
     free(d->pend);
     free(d->soup);
-    free(d->vbuf.p);
+    free(d->vpos.p);
+    free(d->vnrm.p);
     free(d->tbuf.p);
     free(d);
 }

@@ -17,21 +17,17 @@
  */
 #include "isomend.h"
 #include "testutil.h"
+#include "volumes.h"
 
 #include <math.h>
 #include <stdint.h>
 #include <stdlib.h>
 #include <string.h>
 
-static uint64_t rng_state = 0x9e3779b97f4a7c15ull;
-static double urand(void)
-{
-    rng_state = rng_state * 6364136223846793005ull + 1442695040888963407ull;
-    return (double)(rng_state >> 11) / 9007199254740992.0;
-}
-
-enum { SPHERE, GYROID, NOISE, F1, F2, SHAPES };
+enum { SPHERE = SHAPE_SPHERE, GYROID = SHAPE_GYROID, NOISE = SHAPE_NOISE, F1 = SHAPE_F1,
+       F2 = SHAPE_F2, SHAPES };
 static const char *names[SHAPES] = {"sphere", "gyroid", "noise", "F1", "F2"};
+static uint64_t rng_state = 0x9e3779b97f4a7c15ull;
 
 static float *make(int shape, int64_t n[3])
 {
@@ -41,30 +37,7 @@ static float *make(int shape, int64_t n[3])
         n[0] = n[1] = n[2] = 14;
     else
         n[0] = 40, n[1] = 36, n[2] = 33;
-    float *f = malloc(sizeof(float) * (size_t)(n[0] * n[1] * n[2]));
-    for (int64_t k = 0; k < n[2]; k++)
-        for (int64_t j = 0; j < n[1]; j++)
-            for (int64_t i = 0; i < n[0]; i++) {
-                const double x = (double)i, y = (double)j, z = (double)k;
-                double v;
-                switch (shape) {
-                case SPHERE:
-                    v = 17.5 - sqrt((x - 19.5) * (x - 19.5) + (y - 17.2) * (y - 17.2) +
-                                    (z - 16.1) * (z - 16.1));
-                    break;
-                case GYROID: {
-                    const double s = 0.35;
-                    v = sin(s * x) * cos(s * y) + sin(s * y) * cos(s * z) + sin(s * z) * cos(s * x);
-                    break;
-                }
-                case NOISE: v = urand() - 0.5; break;
-                case F1: v = 4 * y + 4 * (x - z) * (x - z) - 5; break;
-                default:
-                    v = 4 * (y - 1) * (y - 1) + 2 * (x - z) * (x - z) - 2 * (x + z - 3) * (x + z - 3) + 1;
-                }
-                f[(k * n[1] + j) * n[0] + i] = (float)v;
-            }
-    return f;
+    return shape_volume(shape, n, 0.35, &rng_state);
 }
 
 static int closed_as(const isomend_check_report *r, const isomend_check_report *in, int padded)
