@@ -106,7 +106,7 @@ static const char *const usage_extract =
     "After the extraction, each keeping a closed surface closed (in this order):\n"
     "  --min-component N        drop components of fewer than N triangles\n"
     "  --largest K              keep the K largest components\n"
-    "  --smooth N               N Taubin lambda|mu iterations, volume kept\n"
+    "  --smooth N               N windowed sinc iterations (VTK's filter), volume kept\n"
     "  --decimate RATIO         keep RATIO of the triangles (0.1: a tenth)\n"
     "  --target-triangles N     keep N triangles\n"
     "  --max-error E            no collapse farther than E (world units) from the surface\n"

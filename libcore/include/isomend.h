@@ -764,13 +764,15 @@ typedef struct isomend_smooth_report {
 } isomend_smooth_report;
 
 /*
- * Taubin's lambda|mu smoothing (1995), lambda 0.5 and mu -0.53 (pass band
- * 0.1), `iterations` pairs of steps with the umbrella operator: it removes
- * the voxel staircase without the shrinking of plain Laplacian smoothing;
- * then each component's volume is restored by moving its free vertices
- * along their normals by one offset (the volume change over its area), so
- * the enclosed volume is kept.  Only vertices move, locked ones never: the
- * triangles are the input's.  iterations 0 copies the mesh.
+ * The windowed sinc filter of Taubin, Zhang and Golub (1996), the one VTK's
+ * vtkWindowedSincPolyDataFilter and 3D Slicer apply: a low pass (pass band
+ * 0.1, Hamming window) of degree `iterations` in the umbrella operator, each
+ * iteration one umbrella step; it removes the voxel staircase without the
+ * shrinking of plain Laplacian smoothing.  Then each component's volume is
+ * restored by moving its free vertices along their normals by one offset
+ * (the volume change over its area), so the enclosed volume is kept.  Only
+ * vertices move, locked ones never: the triangles are the input's.  The
+ * result does not depend on the threads.  iterations 0 copies the mesh.
  * ISOMEND_ERR_INVALID_ARGUMENT for iterations < 0 or > 10000.
  */
 ISOMEND_API isomend_status isomend_mesh_smooth(const isomend_mesh *mesh, int iterations,

@@ -601,7 +601,7 @@ isomend_status mesh_decimate_to(const isomend_mesh *mesh, uint64_t target, doubl
         d.next[c] = d.head[v];
         d.head[v] = (uint32_t)c;
     }
-    if (!mesh_free_vertices(mesh, d.vf, NULL, NULL))
+    if (!mesh_free_vertices(mesh, d.vf, NULL, NULL, NULL))
         goto done;
     for (size_t v = 0; v < d.nv; v++) {
         d.vf[v] = d.vf[v] ? 0 : V_LOCKED; /* unused vertices are locked too */
