@@ -913,6 +913,59 @@ ISOMEND_API isomend_status isomend_clean_stream_finish(isomend_clean_stream *cs,
 /* Accepts NULL. */
 ISOMEND_API void isomend_clean_stream_destroy(isomend_clean_stream *cs);
 
+/*
+ * Streamed smoothing: isomend_mesh_smooth()'s Taubin iterations on a mesh
+ * that is never whole in memory, between a stream (or a streamed clean-up)
+ * and a sink (a writer, the streaming check, a streamed decimation).  The
+ * layers are cut into chunks of chunk_layers (0: the default,
+ * isomend_decimate_stream_layers()); as each completes, it is smoothed with
+ * the band held back from the previous one by isomend_mesh_smooth(), whose
+ * locks keep the window's cut in place; the triangles within 2 N + 1 rings
+ * of the new top plane (N the iterations: the 2 N steps reach that far) are
+ * held back and smoothed again, from the stream's positions, in the next
+ * window; the rest is final.  Only vertices move, cut vertices never: a
+ * closed, oriented 2-manifold stays one, with its components and Euler
+ * characteristic.  Each window restores its components' signed volume, so
+ * the volume is kept but for the bands (docs/postprocess.md, "Streamed").
+ *
+ * The output as isomend_decimate_stream_*'s: vertices numbered from 0 in
+ * the order they are delivered (once every triangle around them is final,
+ * with those triangles' area-weighted normal unless
+ * ISOMEND_FLAG_NO_NORMALS), the stream's triangles, no origins, one
+ * retire() for each of the input's.  It depends on the volume, the options,
+ * the iterations and chunk_layers only (not on the stream's threads).  The
+ * report: vertices moved, the largest displacement, and the signed volume
+ * of the stream's triangles before and of the result's after.
+ */
+typedef struct isomend_smooth_stream isomend_smooth_stream;
+
+/* An estimate of what it holds (a chunk and a band of 2 N + 2 layers of a
+ * surface as busy as a 256^3 gyroid), 0 for invalid arguments. */
+ISOMEND_API uint64_t isomend_smooth_stream_memory(const isomend_volume *desc,
+                                                  const isomend_options *opts, int iterations,
+                                                  int64_t chunk_layers);
+
+/* Begins a streamed smoothing of N = iterations (0 .. 10000) of what a
+ * stream of desc with opts delivers, passing the result to `out` (copied;
+ * vertices, triangles and retire required).  On failure *ss is NULL. */
+ISOMEND_API isomend_status isomend_smooth_stream_begin(const isomend_volume *desc,
+                                                       const isomend_options *opts, int iterations,
+                                                       int64_t chunk_layers,
+                                                       const isomend_mesh_sink *out,
+                                                       isomend_smooth_stream **ss);
+
+/* The sink to give the stream (vertices, triangles, retire; foreign NULL). */
+ISOMEND_API isomend_status isomend_smooth_stream_sink(isomend_smooth_stream *ss,
+                                                      isomend_mesh_sink *sink);
+
+/* After the stream's finish: smooths and delivers the rest, fills the
+ * report (may be NULL).  ISOMEND_ERR_SINK when `out` stopped it. */
+ISOMEND_API isomend_status isomend_smooth_stream_finish(isomend_smooth_stream *ss,
+                                                        isomend_smooth_report *report);
+
+/* Accepts NULL. */
+ISOMEND_API void isomend_smooth_stream_destroy(isomend_smooth_stream *ss);
+
 /* ------------------------------------------------------------ case tables */
 
 /*
