@@ -916,14 +916,14 @@ ISOMEND_API isomend_status isomend_clean_stream_finish(isomend_clean_stream *cs,
 ISOMEND_API void isomend_clean_stream_destroy(isomend_clean_stream *cs);
 
 /*
- * Streamed smoothing: isomend_mesh_smooth()'s Taubin iterations on a mesh
+ * Streamed smoothing: isomend_mesh_smooth()'s windowed sinc on a mesh
  * that is never whole in memory, between a stream (or a streamed clean-up)
  * and a sink (a writer, the streaming check, a streamed decimation).  The
  * layers are cut into chunks of chunk_layers (0: the default,
  * isomend_decimate_stream_layers()); as each completes, it is smoothed with
  * the band held back from the previous one by isomend_mesh_smooth(), whose
- * locks keep the window's cut in place; the triangles within 2 N + 1 rings
- * of the new top plane (N the iterations: the 2 N steps reach that far) are
+ * locks keep the window's cut in place; the triangles within N + 1 rings
+ * of the new top plane (N the iterations: N umbrella steps reach that far) are
  * held back and smoothed again, from the stream's positions, in the next
  * window; the rest is final.  Only vertices move, cut vertices never: a
  * closed, oriented 2-manifold stays one, with its components and Euler
@@ -941,7 +941,7 @@ ISOMEND_API void isomend_clean_stream_destroy(isomend_clean_stream *cs);
  */
 typedef struct isomend_smooth_stream isomend_smooth_stream;
 
-/* An estimate of what it holds (a chunk and a band of 2 N + 2 layers of a
+/* An estimate of what it holds (a chunk and a band of N + 2 layers of a
  * surface as busy as a 256^3 gyroid), 0 for invalid arguments. */
 ISOMEND_API uint64_t isomend_smooth_stream_memory(const isomend_volume *desc,
                                                   const isomend_options *opts, int iterations,

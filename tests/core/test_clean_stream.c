@@ -147,9 +147,10 @@ static isomend_status stream_cleaned(const isomend_volume *vol, const isomend_op
 
 static int same(const collected *a, const collected *b)
 {
-    return a->nv == b->nv && a->nt == b->nt && !memcmp(a->pos, b->pos, 12 * a->nv) &&
-           !memcmp(a->tri, b->tri, 12 * a->nt) &&
-           (!a->normals || !memcmp(a->nrm, b->nrm, 12 * a->nv));
+    /* (an empty mesh has no arrays: memcmp wants pointers even for 0 bytes) */
+    return a->nv == b->nv && a->nt == b->nt && (!a->nv || !memcmp(a->pos, b->pos, 12 * a->nv)) &&
+           (!a->nt || !memcmp(a->tri, b->tri, 12 * a->nt)) &&
+           (!a->normals || !a->nv || !memcmp(a->nrm, b->nrm, 12 * a->nv));
 }
 
 /* A triangle as its corners' 9 floats, for comparing triangle sets. */
