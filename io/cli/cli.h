@@ -407,7 +407,13 @@ typedef struct cli_memory_plan {
     uint64_t decimate_need;  /* what the decimation holds (isomend_decimate_stream_memory) */
     uint64_t smooth_need;    /* the smoothing's (isomend_smooth_stream_memory)           */
     uint64_t clean_need;     /* the clean-up's (isomend_clean_stream_memory)             */
+    uint64_t largest_need;   /* --largest's: isomend_largest_stream_memory and the spool's */
+                             /* buffers (CLI_SPOOL_BUFFERS)                               */
 } cli_memory_plan;
+
+/* --largest's spool (stream.c): its stdio buffer, and the replay's record
+ * buffer beyond one layer's calls, MiB. */
+#define CLI_SPOOL_BUFFERS 2
 
 /* The writer's stdio buffers, MiB (mesh_writer.c: the file and two scratch files). */
 #define CLI_WRITER_BUFFERS 3
@@ -480,8 +486,12 @@ typedef struct cli_timed_sink {
 void cli_sink_timed(cli_sink *sink, cli_timed_sink *t, const cli_sink *next);
 
 /*
- * Where a streamed mesh goes (isomend extract, isomend-mpi --decimate): the
- * streamed decimation (ratio > 0, chunks of `layers`), then the continuity
+ * Where a streamed mesh goes (isomend extract, isomend-mpi --decimate): with
+ * --largest, the stream recorded to a scratch spool beside the output while
+ * the components are counted, then replayed through the filter of the kept
+ * components (isomend_largest_stream_*, --min-component with it) at
+ * cli_outputs_finish(); else the streamed clean-up; then the streamed
+ * smoothing, the streamed decimation (ratio > 0, chunks of `layers`), then the continuity
  * check (check_queue > 0: the queue's bytes; it sees the grid's frame), then
  * the patient map (world: a 3x4 affine, or NULL), then the writer of path.
  * `sink` is the head of that chain.  The struct points into itself: it must
@@ -493,6 +503,10 @@ typedef struct cli_outputs {
     int has_world;
     cli_checker *checker;
     isomend_clean_stream *clean;
+    isomend_largest_stream *largest;
+    FILE *spool;            /* --largest: pass 1's calls, replayed for pass 2 */
+    char *spool_buf;        /* its stdio buffer                               */
+    const char *path;       /* the output, for messages                       */
     isomend_smooth_stream *smooth;
     isomend_decimate_stream *decimate;
     int64_t layers;
@@ -500,6 +514,8 @@ typedef struct cli_outputs {
     cli_timed_sink t_in, t_out, c_in, c_out, s_in, s_out;
     cli_sink writer, mapped, tee, dsink, timed_in, timed_out;
     cli_sink csink, ctimed_in, ctimed_out, ssink, stimed_in, stimed_out;
+    cli_timed_sink l_in, l_out;
+    cli_sink lsink, lrecord, ltimed_out;
     const cli_sink *sink;
 } cli_outputs;
 

@@ -98,8 +98,8 @@ static const char *const usage_extract =
     "  --in-memory              hold the whole mesh, then check and write it (what the\n"
     "                           steps below do anyway); streamed when it does not fit\n"
     "  --stream                 stream even when the whole mesh would fit (with\n"
-    "                           --min-component, --smooth, --decimate: the streamed\n"
-    "                           steps below)\n"
+    "                           --min-component, --largest, --smooth, --decimate: the\n"
+    "                           streamed steps below)\n"
     "  --slice-positions Z0,Z1,...|@FILE\n"
     "                           the z of every slice (FILE: one a line, # comments),\n"
     "                           strictly increasing, for slices not evenly spaced;\n"
@@ -114,7 +114,8 @@ static const char *const usage_extract =
     "                           it replaces; alone: decimate as far as that allows\n"
     "A streamed run (--stream, or a mesh larger than --max-memory) is post-processed\n"
     "as it is made, still closed, by --min-component N, --smooth N and --decimate\n"
-    "RATIO (not --largest, --target-triangles, --max-error: they need the whole mesh)\n"
+    "RATIO; --largest K in two passes over a scratch copy of the stream beside MESH\n"
+    "(not --target-triangles, --max-error: they need the whole mesh)\n"
     "  --chunk-layers N         the streamed smoothing's and decimation's chunks of N\n"
     "                           layers (default: from the slice size, fewer under a\n"
     "                           tight --max-memory)\n"
@@ -345,27 +346,25 @@ static int cmd_extract(int argc, char **argv)
     /* the mesh goes to the file as it is made, checked on the way, unless the
      * run needs it whole: post-processing, --in-memory, --pages (and fits;
      * --stream: never); a streamed --min-component, --smooth, --decimate
-     * work as the mesh is made */
+     * work as the mesh is made, --largest in two passes over a spool */
     const int whole_mesh =
         !(a.seen & OPT_STREAM) && (a.seen & (OPT_POST | OPT_IN_MEMORY | OPT_PAGES)) != 0;
     cli_memory_plan plan;
     cli_memory_plan_make(&src.desc, &opts, fmt, a.max_memory, whole_mesh, &a.post, &plan);
     rc = plan_fits(&plan, &src);
-    const uint64_t whole_only = OPT_LARGEST | OPT_TARGET_TRIANGLES | OPT_MAX_ERROR;
+    const uint64_t whole_only = OPT_TARGET_TRIANGLES | OPT_MAX_ERROR;
     if (!rc && (a.seen & whole_only) && plan.stream) {
-        const char *flag = (a.seen & OPT_LARGEST)          ? "--largest"
-                           : (a.seen & OPT_TARGET_TRIANGLES) ? "--target-triangles"
-                                                           : "--max-error";
+        const char *flag = (a.seen & OPT_TARGET_TRIANGLES) ? "--target-triangles" : "--max-error";
         char need[32], limit[32];
         if (a.seen & OPT_STREAM)
             cli_error("%s: %s works on the whole mesh in memory, not with --stream; a streamed "
-                      "mesh can be post-processed by --min-component N, --smooth N and "
-                      "--decimate RATIO only",
+                      "mesh can be post-processed by --min-component N, --largest K, --smooth N "
+                      "and --decimate RATIO only",
                       src.label, flag);
         else
             cli_error("%s: %s works on the whole mesh in memory, which needs about %s, more than "
                       "%s (%s); a streamed mesh can be post-processed by --min-component N, "
-                      "--smooth N and --decimate RATIO only",
+                      "--largest K, --smooth N and --decimate RATIO only",
                       src.label, flag, cli_bytes_text(plan.in_memory, need, sizeof need),
                       plan.limit_given ? "--max-memory" : "the memory available",
                       cli_bytes_text(plan.limit, limit, sizeof limit));

@@ -34,7 +34,11 @@
  *   check    the streaming check's window (CLI_CHECK_BYTES_PER_SAMPLE a
  *            slice sample) and its queue (CLI_CHECK_QUEUE_MIB)
  *   steps    the streamed clean-up's live vertices and held components
- *            (isomend_clean_stream_memory), the smoothing's chunk and band
+ *            (isomend_clean_stream_memory), or with --largest its two
+ *            passes' (isomend_largest_stream_memory: the live vertices, one
+ *            layer's held triangles) and the spool's buffers
+ *            (CLI_SPOOL_BUFFERS; the spool itself is on the output's disk:
+ *            about 12 (24 with normals) bytes a vertex, 24 a triangle), the smoothing's chunk and band
  *            (isomend_smooth_stream_memory) and the decimation's chunk
  *            (isomend_decimate_stream_memory), the chunk height the one
  *            that fits what is left (--chunk-layers: the one given)
@@ -58,6 +62,7 @@
 
 #include "cli.h"
 
+#include <errno.h>
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
@@ -147,8 +152,13 @@ void cli_memory_plan_make(const isomend_volume *desc, const isomend_options *opt
      * then the smoothing's and the decimation's chunks of the layers that
      * fit what is left (the two share the chunk height; each holds a chunk,
      * the smoothing its band too) */
-    if ((clean || smooth || decimate) && isomend_stream_memory(&v, opts) != 0) {
-        if (clean) {
+    const int largest = post && post->largest > 0;
+    if ((clean || largest || smooth || decimate) && isomend_stream_memory(&v, opts) != 0) {
+        if (largest) { /* it does the clean-up too */
+            p->largest_need = isomend_largest_stream_memory(&v, opts) +
+                              (uint64_t)(CLI_SPOOL_BUFFERS * MIB);
+            streaming += (double)p->largest_need;
+        } else if (clean) {
             p->clean_need = isomend_clean_stream_memory(&v, opts);
             streaming += (double)p->clean_need;
         }
@@ -399,6 +409,12 @@ void cli_sink_timed(cli_sink *sink, cli_timed_sink *t, const cli_sink *next)
 
 static void outputs_free(cli_outputs *o)
 {
+    isomend_largest_stream_destroy(o->largest);
+    o->largest = NULL;
+    if (o->spool) fclose(o->spool); /* unlinked when opened: nothing left behind */
+    o->spool = NULL;
+    free(o->spool_buf);
+    o->spool_buf = NULL;
     isomend_clean_stream_destroy(o->clean);
     isomend_smooth_stream_destroy(o->smooth);
     o->clean = NULL;
@@ -427,6 +443,125 @@ int cli_outputs_commit(cli_outputs *o)
     if (st == ISOMEND_FILEIO_OK) return CLI_EXIT_OK;
     cli_error("%s", msg);
     return CLI_EXIT_FAIL;
+}
+
+/*
+ * --largest's spool: the calls pass 1 gets, in records of three 64-bit
+ * words (type, a, b) and a payload, replayed for pass 2:
+ *   V  a = first id, b = count; count x 3 floats (positions)
+ *   N  as V, then count x 3 floats (normals)
+ *   T  b = count; count x 3 ids
+ *   R  a = the floor
+ * The file is a scratch file beside the output (isomend_spool_open: unlinked
+ * as soon as it exists, so gone however the run ends).
+ */
+enum { SPOOL_V = 1, SPOOL_N = 2, SPOOL_T = 3, SPOOL_R = 4 };
+
+static int spool_put(cli_outputs *o, uint64_t type, uint64_t a, uint64_t b, const void *p1,
+                     size_t n1, const void *p2, size_t n2)
+{
+    const uint64_t head[3] = {type, a, b};
+    if (fwrite(head, sizeof head, 1, o->spool) != 1 ||
+        (n1 && fwrite(p1, 1, n1, o->spool) != n1) || (n2 && fwrite(p2, 1, n2, o->spool) != n2)) {
+        cli_error("%s: cannot write the --largest scratch file: %s", o->path, strerror(errno));
+        return 1;
+    }
+    return 0;
+}
+
+static int spool_vertices(void *user, uint64_t first, size_t count, const float *pos,
+                          const float *nrm, const uint64_t *keys)
+{
+    cli_outputs *o = user;
+    if (spool_put(o, nrm ? SPOOL_N : SPOOL_V, first, count, pos, 12 * count, nrm,
+                  nrm ? 12 * count : 0))
+        return 1;
+    return o->lsink.vertices(o->lsink.user, first, count, pos, nrm, keys);
+}
+
+static int spool_triangles(void *user, size_t count, const uint64_t *ids, const uint8_t *origins)
+{
+    cli_outputs *o = user;
+    if (spool_put(o, SPOOL_T, 0, count, ids, 24 * count, NULL, 0))
+        return 1;
+    return o->lsink.triangles(o->lsink.user, count, ids, origins);
+}
+
+static int spool_retire(void *user, uint64_t floor)
+{
+    cli_outputs *o = user;
+    if (spool_put(o, SPOOL_R, floor, 0, NULL, 0, NULL, 0))
+        return 1;
+    return o->lsink.retire(o->lsink.user, floor);
+}
+
+/* Pass 2: the spool again, through the filter.  0, or 1 with the message
+ * printed (the filter's own failures by the caller). */
+static int spool_replay(cli_outputs *o, const char *label)
+{
+    if (fflush(o->spool) != 0 || fseeko(o->spool, 0, SEEK_SET) != 0) {
+        cli_error("%s: cannot read back the --largest scratch file: %s", o->path,
+                  strerror(errno));
+        return 1;
+    }
+    unsigned char *buf = NULL;
+    size_t cap = 0;
+    int rc = 0;
+    for (;;) {
+        uint64_t head[3];
+        const size_t got = fread(head, 1, sizeof head, o->spool);
+        if (got == 0 && feof(o->spool))
+            break;
+        if (cli_interrupted) {
+            cli_error("%s: interrupted", label);
+            rc = 1;
+            break;
+        }
+        const uint64_t type = head[0], a = head[1], n = head[2];
+        const uint64_t len = type == SPOOL_V ? 12 * n : type == SPOOL_N ? 24 * n
+                             : type == SPOOL_T ? 24 * n : 0;
+        if (got != sizeof head || type < SPOOL_V || type > SPOOL_R || n > (SIZE_MAX >> 5)) {
+            cli_error("%s: the --largest scratch file is damaged", o->path);
+            rc = 1;
+            break;
+        }
+        if (len > cap) {
+            unsigned char *b = realloc(buf, (size_t)len);
+            if (!b) {
+                cli_error("%s: out of memory replaying the --largest scratch file", label);
+                rc = 1;
+                break;
+            }
+            buf = b;
+            cap = (size_t)len;
+        }
+        if (len && fread(buf, 1, (size_t)len, o->spool) != len) {
+            cli_error("%s: cannot read back the --largest scratch file: %s", o->path,
+                      ferror(o->spool) ? strerror(errno) : "it ends early");
+            rc = 1;
+            break;
+        }
+        const float *pos = (const float *)(const void *)buf;
+        if (type == SPOOL_V || type == SPOOL_N)
+            rc = o->lsink.vertices(o->lsink.user, a, (size_t)n, pos,
+                                   type == SPOOL_N ? pos + 3 * n : NULL, NULL);
+        else if (type == SPOOL_T)
+            rc = o->lsink.triangles(o->lsink.user, (size_t)n, (const uint64_t *)(const void *)buf,
+                                    NULL);
+        else
+            rc = o->lsink.retire(o->lsink.user, a);
+        if (rc) {
+            rc = 2; /* the filter or a step after it: its status says why */
+            break;
+        }
+    }
+    if (!rc && ferror(o->spool)) {
+        cli_error("%s: cannot read back the --largest scratch file: %s", o->path,
+                  strerror(errno));
+        rc = 1;
+    }
+    free(buf);
+    return rc;
 }
 
 int cli_outputs_begin(cli_outputs *o, const char *path, isomend_mesh_format fmt, int normals,
@@ -493,7 +628,30 @@ int cli_outputs_begin(cli_outputs *o, const char *path, isomend_mesh_format fmt,
         cli_sink_timed(&o->stimed_in, &o->s_in, &o->ssink);
         o->sink = &o->stimed_in;
     }
-    if (post && post->min_component > 0) {
+    o->path = path;
+    if (post && post->largest > 0) { /* --min-component with it */
+        cli_sink_timed(&o->ltimed_out, &o->l_out, o->sink);
+        const isomend_status st = isomend_largest_stream_begin(
+            post->min_component, post->largest, &o->ltimed_out, &o->largest);
+        if (st != ISOMEND_OK) {
+            cli_error("%s: clean-up failed: %s", label, isomend_status_string(st));
+            cli_outputs_abort(o);
+            return 1;
+        }
+        isomend_largest_stream_sink(o->largest, &o->lsink);
+        char smsg[ISOMEND_FILEIO_MSG_SIZE];
+        if (isomend_spool_open(path, &o->spool, smsg, sizeof smsg) != ISOMEND_FILEIO_OK) {
+            o->spool = NULL;
+            cli_error("--largest: %s", smsg);
+            cli_outputs_abort(o);
+            return 1;
+        }
+        o->spool_buf = malloc(1u << 20);
+        if (o->spool_buf) setvbuf(o->spool, o->spool_buf, _IOFBF, 1u << 20);
+        o->lrecord = (cli_sink){o, spool_vertices, spool_triangles, spool_retire, NULL};
+        cli_sink_timed(&o->ctimed_in, &o->l_in, &o->lrecord);
+        o->sink = &o->ctimed_in;
+    } else if (post && post->min_component > 0) {
         cli_sink_timed(&o->ctimed_out, &o->c_out, o->sink);
         const isomend_status st =
             isomend_clean_stream_begin(post->min_component, &o->ctimed_out, &o->clean);
@@ -516,6 +674,31 @@ int cli_outputs_finish(cli_outputs *o, int rc, const char *label, struct cli_pos
     /* each step's finish delivers its rest to the next, so in the chain's
      * order; each one's time: its calls and finish, less those of the sinks
      * after it */
+    if (o->largest) { /* pass 2: the spool through the filter */
+        const double t0 = cli_now_ms();
+        int replay = rc ? 0 : -1;
+        isomend_status st = rc ? ISOMEND_OK : isomend_largest_stream_replay(o->largest);
+        if (!rc && st == ISOMEND_OK)
+            replay = spool_replay(o, label);
+        if (replay == 1) {
+            rc = CLI_EXIT_FAIL;
+        } else if (!rc) {
+            const isomend_status fs = isomend_largest_stream_finish(o->largest, &post->clean);
+            if (st == ISOMEND_OK)
+                st = fs;
+            if (st != ISOMEND_OK) {
+                if (st != ISOMEND_ERR_SINK)
+                    cli_error("%s: --largest failed: %s", label, isomend_status_string(st));
+                rc = CLI_EXIT_FAIL;
+            }
+        }
+        post->cleaned = !rc;
+        post->streamed = 1;
+        /* both passes, less the steps after it (pass 1 calls none) */
+        post->clean_ms = o->l_in.ms + (cli_now_ms() - t0) - o->l_out.ms;
+        if (o->spool) fclose(o->spool);
+        o->spool = NULL;
+    }
     if (o->clean) {
         const double t0 = cli_now_ms();
         const isomend_status st = isomend_clean_stream_finish(o->clean, &post->clean);

@@ -57,10 +57,10 @@ static const char *const usage =
     "Every method splits between ranks.  The continuity check is not run: use\n"
     "isomend check.\n"
     "\n"
-    "--min-component N, --smooth N, --decimate RATIO [--chunk-layers N]: rank 0\n"
-    "post-processes the ranks' slabs as one stream, checks and writes the mesh: the\n"
-    "file 'isomend extract --stream' with the same steps writes, for any number of\n"
-    "ranks.\n";
+    "--min-component N, --largest K, --smooth N, --decimate RATIO [--chunk-layers N]:\n"
+    "rank 0 post-processes the ranks' slabs as one stream, checks and writes the mesh:\n"
+    "the file 'isomend extract --stream' with the same steps writes, for any number\n"
+    "of ranks (--largest: in two passes over a scratch copy of the stream beside MESH).\n";
 
 static MPI_Comm comm = MPI_COMM_WORLD;
 static int rank, ranks;
@@ -228,9 +228,10 @@ static void print_run(FILE *text, const cli_slices *sl, const cli_args *a, int i
 }
 
 /*
- * --min-component N, --smooth N, --decimate RATIO: every rank records its
+ * --min-component N, --largest K, --smooth N, --decimate RATIO: every rank records its
  * slab's piece (mpi_decimate.h); rank 0 replays them as one stream into the
- * streamed steps (clean-up, smoothing, decimation: cli_outputs), the
+ * streamed steps (clean-up or --largest's two passes, smoothing, decimation:
+ * cli_outputs, which spools the replay for --largest's second pass), the
  * continuity check and one writer, as `isomend extract --stream` with the
  * same steps does (the same bytes), and reports.
  */
@@ -355,7 +356,7 @@ static int run(int argc, char **argv)
                        OPT_PAD | OPT_NO_NORMALS | OPT_FLIP | OPT_STATS | OPT_JSON | OPT_QUIET |
                        OPT_THREADS | OPT_FIRST | OPT_COUNT | OPT_STEP | OPT_CHANNEL | OPT_HELP |
                        OPT_PAGES | OPT_MAX_MEMORY | OPT_SLICE_POSITIONS | OPT_DECIMATE |
-                       OPT_SMOOTH | OPT_MIN_COMPONENT | OPT_CHUNK_LAYERS;
+                       OPT_SMOOTH | OPT_MIN_COMPONENT | OPT_LARGEST | OPT_CHUNK_LAYERS;
     int rc = cli_parse_args(argc, argv, 2, "extract", allowed, &a);
     if (!rc && (a.seen & OPT_HELP)) {
         if (rank == 0) fputs(usage, stdout);
@@ -457,7 +458,7 @@ static int run(int argc, char **argv)
                             "(Otsu, see 'isomend info')\n", a.iso, sl.label);
     }
     opts.iso = a.iso;
-    if (a.seen & (OPT_DECIMATE | OPT_SMOOTH | OPT_MIN_COMPONENT)) {
+    if (a.seen & (OPT_DECIMATE | OPT_SMOOTH | OPT_MIN_COMPONENT | OPT_LARGEST)) {
         rc = run_decimated(&a, &sl, &opts, fmt, first, end, iso_suggested, &jo, t_start, text);
         if (rc) cli_json_abort(&jo);
         cli_slices_close(&sl);

@@ -876,7 +876,7 @@ ISOMEND_API void isomend_decimate_stream_destroy(isomend_decimate_stream *ds);
  * exactly isomend_mesh_clean(mesh, min_triangles, 0)'s, and the report's
  * components, triangles and vertices removed are its (docs/postprocess.md,
  * "Streamed").  keep_largest needs every component's size before anything
- * is written: not streamed.
+ * is written: isomend_largest_stream_*, two passes.
  *
  * The output: vertices numbered from 0 in the order a passed triangle first
  * uses them (with the normals they came with), triangles in the order they
@@ -914,6 +914,65 @@ ISOMEND_API isomend_status isomend_clean_stream_finish(isomend_clean_stream *cs,
 
 /* Accepts NULL. */
 ISOMEND_API void isomend_clean_stream_destroy(isomend_clean_stream *cs);
+
+/*
+ * Streamed --largest: isomend_mesh_clean(mesh, min_triangles, keep_largest)
+ * on a mesh that is never whole in memory.  Every component's size is
+ * needed before a triangle is written, so the caller plays the same stream
+ * through the sink twice (a scratch spool of it, replayed): pass 1 counts
+ * each component's triangles by a frontier union-find (clean_stream's);
+ * isomend_largest_stream_replay() then keeps the keep_largest largest
+ * components of at least min_triangles triangles (0: all of those; ties:
+ * the component whose first triangle comes first, as isomend_mesh_clean());
+ * pass 2 runs the same union-find again and passes only the triangles of
+ * kept components to `out`.  A piece of a component gets a seed at the
+ * retire after it starts, the same in both passes, and pass 1 notes which
+ * seeds join: so pass 2 knows a piece's component long before it closes,
+ * holding at most the triangles of one layer (docs/postprocess.md,
+ * "Streamed --largest").  The triangles kept and the report are exactly
+ * isomend_mesh_clean()'s.
+ *
+ * The output (pass 2) as isomend_clean_stream_*'s: vertices numbered from 0
+ * in the order a passed triangle first uses them (the normals they came
+ * with), triangles in stream order but for those held within a layer (they
+ * pass at its retire), no origins, one retire() for each of the stream's.
+ * It depends on the stream's vertices, triangles and floors only.  Memory:
+ * the live vertices, one layer's held triangles
+ * (isomend_largest_stream_memory()) and, growing with the surface's pieces,
+ * 8 bytes a seed in pass 1 (1 bit in pass 2) and 24 bytes a component of
+ * min_triangles or more.
+ */
+typedef struct isomend_largest_stream isomend_largest_stream;
+
+/* An estimate of what it holds on a stream of desc with opts (a surface as
+ * busy as a 256^3 gyroid), 0 for invalid arguments. */
+ISOMEND_API uint64_t isomend_largest_stream_memory(const isomend_volume *desc,
+                                                   const isomend_options *opts);
+
+/* Begins pass 1; `out` (copied; vertices, triangles and retire required)
+ * gets pass 2's result. */
+ISOMEND_API isomend_status isomend_largest_stream_begin(uint64_t min_triangles,
+                                                        uint64_t keep_largest,
+                                                        const isomend_mesh_sink *out,
+                                                        isomend_largest_stream **ls);
+
+/* The sink to give the stream in both passes (vertices, triangles, retire;
+ * foreign NULL).  A callback returns non-zero when the step or `out` failed. */
+ISOMEND_API isomend_status isomend_largest_stream_sink(isomend_largest_stream *ls,
+                                                       isomend_mesh_sink *sink);
+
+/* After pass 1's stream ended: closes what is open, chooses the kept
+ * components and starts pass 2 (the same stream again, from id 0). */
+ISOMEND_API isomend_status isomend_largest_stream_replay(isomend_largest_stream *ls);
+
+/* After pass 2's stream ended: delivers the rest, fills the report (may be
+ * NULL).  ISOMEND_ERR_SINK when `out` stopped it; ISOMEND_ERR_INVALID_ARGUMENT
+ * when a stream broke the sink's rules, or pass 2's stream was not pass 1's. */
+ISOMEND_API isomend_status isomend_largest_stream_finish(isomend_largest_stream *ls,
+                                                         isomend_clean_report *report);
+
+/* Accepts NULL. */
+ISOMEND_API void isomend_largest_stream_destroy(isomend_largest_stream *ls);
 
 /*
  * Streamed smoothing: isomend_mesh_smooth()'s windowed sinc on a mesh

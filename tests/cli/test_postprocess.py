@@ -38,7 +38,7 @@ they are.  For each, every option alone and in combinations:
 - the same bytes with --threads 1 and --threads 2, and the same bytes twice;
 - bad values (--decimate 0, 1.5, x, --max-error -1, --smooth 0, 20000,
   --min-component 0, ...) are usage errors (exit 2) with one line naming the
-  flag and no output file; isomend-mpi refuses --largest, --target-triangles,
+  flag and no output file; isomend-mpi refuses --target-triangles,
   --max-error (exit 2); `mpirun -n N isomend-mpi extract --decimate R` writes the bytes of
   `isomend extract --stream --decimate R` for N = 1, 2, 3, closed; a
   --max-memory that forces streaming refuses the steps that need the whole
@@ -499,7 +499,7 @@ def test_errors(exe, mpi, mpirun, work, samples):
         # isomend-mpi cleans, smooths and decimates (as the streamed run:
         # test_postprocess_stream.py and mpi_decimate below); the steps that need the
         # whole mesh it does not take
-        for flags in (["--largest", "1"], ["--max-error", "1"], ["--target-triangles", "100"]):
+        for flags in (["--max-error", "1"], ["--target-triangles", "100"]):
             p = subprocess.run([mpirun, "-n", "1", mpi, "extract", anat, "--pad", "-o", out, *flags],
                                cwd=work, capture_output=True, text=True, env=env, timeout=120)
             if p.returncode != 2 or flags[0] not in p.stderr or os.path.exists(out):
@@ -517,7 +517,7 @@ def test_errors(exe, mpi, mpirun, work, samples):
     # the steps that need the whole mesh are refused on a streamed run (the
     # streamed --min-component, --smooth, --decimate are test_postprocess_stream.py's)
     before = sorted(os.listdir(work))
-    for flags in (["--largest", "2"], ["--smooth", "5", "--largest", "2"],
+    for flags in (["--largest", "2", "--target-triangles", "100"],
                   ["--decimate", "0.1", "--target-triangles", "100"],
                   ["--decimate", "0.1", "--max-error", "0.5"]):
         rc, o, err = run(exe, ["extract", anat, "--pad", "-o", out, "--max-memory", limit, *flags], work)

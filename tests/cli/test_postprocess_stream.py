@@ -35,8 +35,7 @@ each, --decimate 0.1 and 0.25 with --chunk-layers 2, 5 and the default:
   is the in-memory decimation, byte for byte;
 - PLY, OBJ (vtkOBJReader, numpy: the PLY's vertices and triangles) and STL
   (`isomend check`, vtkSTLReader) of the same run;
-- bad use: --smooth, --min-component, --largest, --target-triangles,
-  --max-error on a streamed run (--stream or a small --max-memory) exit 1
+- bad use: --target-triangles, --max-error on a streamed run (--stream or a small --max-memory) exit 1
   with one message naming the flag and no file; a small --max-memory with
   --decimate alone streams (the --stream bytes); --chunk-layers 0, -3, x,
   2.5, '', 1e3 exit 2 naming --chunk-layers, no file;
@@ -384,16 +383,15 @@ def test_errors(exe, work, samples):
     os.remove(out)
     limit = str((j["memory_estimate"] + j["memory_streaming"]) // 2)
     iso = repr(j["iso"])  # given: no "using the suggested level" line on stderr
-    refused = [(["--stream", "--smooth", "3", "--largest", "2"], "--largest"),
-               (["--stream", "--min-component", "5", "--max-error", "0.5"], "--max-error"),
-               (["--stream", "--largest", "1"], "--largest"),
+    # (--largest is streamed: test_postprocess_stream_largest.py)
+    refused = [(["--stream", "--min-component", "5", "--max-error", "0.5"], "--max-error"),
                (["--stream", "--target-triangles", "100"], "--target-triangles"),
                (["--stream", "--decimate", "0.1", "--max-error", "0.5"], "--max-error"),
                (["--stream", "--max-error", "0.5"], "--max-error"),
                (["--stream", "--decimate", "0.1", "--target-triangles", "100"], "--target-triangles"),
                (["--max-memory", limit, "--smooth", "3", "--target-triangles", "100"],
                 "--target-triangles"),
-               (["--max-memory", limit, "--largest", "1", "--decimate", "0.1"], "--largest")]
+               (["--max-memory", limit, "--largest", "1", "--max-error", "0.1"], "--max-error")]
     for flags, flag in refused:
         tag = f"refused {' '.join(flags)}"
         rc, o, err = run(exe, ["extract", anat, "--pad", "--iso", iso, "-q", "-o", out, *flags], work)
