@@ -60,17 +60,25 @@ typedef struct dec {
     double *q;       /* 10 a vertex: the quadric's upper triangle */
     uint32_t *tv;    /* 3 a triangle: the corners' vertices */
     uint8_t *tdead;
-    uint32_t *head;  /* a vertex's first corner */
-    uint32_t *next;  /* the next corner of the same vertex */
+    uint32_t *fan_first; /* nv + 1: where a vertex's corners start in fan */
+    uint32_t *fan;       /* the corners of the live triangles as the pass began, by vertex */
+    uint32_t *merged;    /* the vertex collapsed into v in this pass, or NONE */
+    uint32_t *live;      /* the live triangles as the pass began, in order */
+    size_t nlive;
+    float *cost_of;      /* a corner's edge's cost when last costed (from its a < b side) */
+    struct cand *cand, *cand_tmp; /* a pass's candidates: 3 a triangle each */
     uint8_t *vf;     /* V_LOCKED, V_DEAD */
     uint32_t *mark;  /* scratch marks, generation `gen` */
     uint32_t gen;
-    uint32_t *pass_mark; /* the pass in which a vertex last changed */
+    uint64_t *changed;   /* a bit a vertex: moved or removed in this pass */
+    uint64_t *changed_before; /* the same for the pass before (the costs to renew) */
+    size_t nwords;       /* of each */
+    uint32_t pass;
     double max_dist;      /* max_error, or 0: no distance check            */
     const float *orig;    /* the input's positions                         */
-    uint32_t *parent;     /* the vertex an input vertex was collapsed into */
     uint32_t *members;    /* the input vertices a vertex stands for: a list */
     uint32_t *member_next; /* through these, from members[v]               */
+    uint32_t *member_last; /* the list's last                              */
     isomend_decimate_report *rep;
 } dec;
 
@@ -96,6 +104,18 @@ static double quadric_eval(const double *q, const double v[3])
     return q[0] * x * x + 2 * q[1] * x * y + 2 * q[2] * x * z + 2 * q[3] * x + q[4] * y * y +
            2 * q[5] * y * z + 2 * q[6] * y + q[7] * z * z + 2 * q[8] * z + q[9];
 }
+
+/* The planes of triangles from `from` on, summed into their vertices'
+ * quadrics, then q_in (if not NULL) added: each vertex's own sum, over its
+ * corners in the order of the triangles (as one pass over the triangles
+ * would add them), so vertices [lo, hi) on any thread. */
+typedef struct quadric_job {
+    const struct dec *d;
+    size_t from;
+    const double *q_in;
+} quadric_job;
+
+static void quadric_range(void *arg, size_t lo, size_t hi);
 
 /* The collapse of (a, b): the point minimising qa + qb (or the best of a, b
  * and the midpoint where that is ill-posed or far off the edge); its cost. */
@@ -153,22 +173,114 @@ static double collapse_point(const dec *d, uint32_t a, uint32_t b, double v[3])
 
 /* --------------------------------------------------------- adjacency */
 
-/* Unlinks the corners of dead triangles from v's list (collapse() keeps
- * every list free of them). */
-static void prune(dec *d, uint32_t v)
+/*
+ * A vertex's corners: those it had as the pass began (fan, rebuilt each
+ * pass: contiguous, unlike lists, so that they cost one or two cache lines)
+ * and, if a vertex was collapsed into it in this pass, that vertex's (each
+ * vertex changes at most once a pass).  Corners of triangles that died in
+ * this pass are skipped.
+ */
+typedef struct fan_iter {
+    const uint32_t *at, *end, *at2, *end2;
+} fan_iter;
+
+static inline fan_iter fan_begin(const dec *d, uint32_t x)
 {
-    uint32_t *link = &d->head[v];
-    while (*link != NONE) {
-        const uint32_t c = *link;
-        if (d->tdead[c / 3])
-            *link = d->next[c];
-        else
-            link = &d->next[c];
+    fan_iter it = {d->fan + d->fan_first[x], d->fan + d->fan_first[x + 1], NULL, NULL};
+    if (d->merged[x] != NONE) {
+        const uint32_t y = d->merged[x];
+        it.at2 = d->fan + d->fan_first[y];
+        it.end2 = d->fan + d->fan_first[y + 1];
+    }
+    return it;
+}
+
+static inline int fan_next(const dec *d, fan_iter *it, uint32_t *c)
+{
+    for (;;) {
+        while (it->at < it->end) {
+            const uint32_t k = *it->at++;
+            if (!d->tdead[k / 3]) {
+                *c = k;
+                return 1;
+            }
+        }
+        if (!it->at2)
+            return 0;
+        it->at = it->at2;
+        it->end = it->end2;
+        it->at2 = NULL;
     }
 }
 
+/* The live triangles and the fans of a pass (the corners of the live
+ * triangles by vertex, each vertex's in the order of the triangles: a
+ * counting sort); a new pass's marks. */
+static void begin_pass(dec *d)
+{
+    size_t m = 0;
+    for (size_t i = 0; i < d->nlive; i++)
+        if (!d->tdead[d->live[i]])
+            d->live[m++] = d->live[i];
+    d->nlive = m;
+    uint32_t *first = d->fan_first, *cursor = d->merged; /* merged: scratch here */
+    memset(first, 0, (d->nv + 1) * sizeof(uint32_t));
+    for (size_t i = 0; i < m; i++)
+        for (int k = 0; k < 3; k++)
+            first[d->tv[3 * (size_t)d->live[i] + (size_t)k] + 1]++;
+    for (size_t v = 0; v < d->nv; v++) {
+        first[v + 1] += first[v];
+        cursor[v] = first[v];
+    }
+    for (size_t i = 0; i < m; i++) {
+        const uint32_t t = d->live[i];
+        for (uint32_t k = 0; k < 3; k++)
+            d->fan[cursor[d->tv[3 * t + k]]++] = 3 * t + k;
+    }
+    for (size_t v = 0; v < d->nv; v++)
+        d->merged[v] = NONE;
+    uint64_t *w = d->changed_before; /* this pass's marks start empty */
+    d->changed_before = d->changed;
+    d->changed = w;
+    memset(d->changed, 0, d->nwords * sizeof(uint64_t));
+}
+
+static inline int is_changed(const uint64_t *bits, uint32_t v) { return (int)(bits[v >> 6] >> (v & 63)) & 1; }
+static inline void set_changed(uint64_t *bits, uint32_t v) { bits[v >> 6] |= (uint64_t)1 << (v & 63); }
+
 static inline uint32_t corner_next(const dec *d, uint32_t c) { return d->tv[c - c % 3 + (c % 3 + 1) % 3]; }
 static inline uint32_t corner_prev(const dec *d, uint32_t c) { return d->tv[c - c % 3 + (c % 3 + 2) % 3]; }
+
+static void quadric_range(void *arg, size_t lo, size_t hi)
+{
+    const quadric_job *j = arg;
+    const dec *d = j->d;
+    for (size_t v = lo; v < hi; v++) {
+        double *q = d->q + 10 * v;
+        for (uint32_t k = d->fan_first[v]; k < d->fan_first[v + 1]; k++) {
+            const uint32_t t = d->fan[k] / 3;
+            if (t < j->from)
+                continue;
+            const double *p0 = d->p + 3 * (size_t)d->tv[3 * (size_t)t],
+                         *p1 = d->p + 3 * (size_t)d->tv[3 * (size_t)t + 1],
+                         *p2 = d->p + 3 * (size_t)d->tv[3 * (size_t)t + 2];
+            const double e1[3] = {p1[0] - p0[0], p1[1] - p0[1], p1[2] - p0[2]};
+            const double e2[3] = {p2[0] - p0[0], p2[1] - p0[1], p2[2] - p0[2]};
+            double n[3] = {e1[1] * e2[2] - e1[2] * e2[1], e1[2] * e2[0] - e1[0] * e2[2],
+                           e1[0] * e2[1] - e1[1] * e2[0]};
+            const double len = sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
+            if (!(len > 0) || !isfinite(len))
+                continue;
+            for (int c = 0; c < 3; c++)
+                n[c] /= len;
+            const double dd = -(n[0] * p0[0] + n[1] * p0[1] + n[2] * p0[2]);
+            quadric_add_plane(q, n, dd);
+        }
+        if (j->q_in)
+            for (int i = 0; i < 10; i++)
+                q[i] += j->q_in[10 * v + (size_t)i];
+    }
+}
 
 /* ------------------------------------------------------------- distance */
 
@@ -185,10 +297,10 @@ static double fan_distance2(const dec *d, uint32_t u, uint32_t x1, uint32_t x2, 
         const uint32_t x = s ? x2 : x1;
         if (x == NONE)
             continue;
-        for (uint32_t c = d->head[x]; c != NONE; c = d->next[c]) {
+        fan_iter it = fan_begin(d, x);
+        uint32_t c;
+        while (fan_next(d, &it, &c)) {
             const uint32_t t = c / 3;
-            if (d->tdead[t])
-                continue;
             const double *q[3];
             int moved = 0;
             for (int k = 0; k < 3; k++) {
@@ -209,7 +321,7 @@ static double fan_distance2(const dec *d, uint32_t u, uint32_t x1, uint32_t x2, 
 /* Whether every input vertex stays within max_dist of the triangles around
  * the vertex it stands in for, after (a, b) collapses to v: the members of
  * a and b (to the new fan) and of every neighbour of a or b (whose fans
- * change too).  Uses the marks of collapse_allowed (the neighbours of a). */
+ * change too). */
 static int collapse_close(dec *d, uint32_t a, uint32_t b, const double v[3])
 {
     const double limit = d->max_dist * d->max_dist;
@@ -223,10 +335,10 @@ static int collapse_close(dec *d, uint32_t a, uint32_t b, const double v[3])
     }
     const uint32_t g = d->gen;
     d->mark[a] = d->mark[b] = g;
-    for (int s = 0; s < 2; s++)
-        for (uint32_t c = d->head[s ? b : a]; c != NONE; c = d->next[c]) {
-            if (d->tdead[c / 3])
-                continue;
+    for (int s = 0; s < 2; s++) {
+        fan_iter it = fan_begin(d, s ? b : a);
+        uint32_t c;
+        while (fan_next(d, &it, &c)) {
             const uint32_t w = corner_next(d, c);
             if (d->mark[w] == g)
                 continue;
@@ -235,6 +347,7 @@ static int collapse_close(dec *d, uint32_t a, uint32_t b, const double v[3])
                 if (fan_distance2(d, u, w, NONE, a, b, v) > limit)
                     return 0;
         }
+    }
     return 1;
 }
 
@@ -262,52 +375,86 @@ static void tri_normal(const dec *d, uint32_t t, uint32_t moved_a, uint32_t move
     }
 }
 
+/* The link condition's neighbours of a, held here up to LINK_CAP (the
+ * marks beyond). */
+#define LINK_CAP 128
+
 /* Whether (a, b) may collapse to v (the checks at the top of this file). */
 static int collapse_allowed(dec *d, uint32_t a, uint32_t b, const double v[3])
 {
     /* link condition: the neighbours common to a and b */
-    if (++d->gen == 0) {
-        memset(d->mark, 0, d->nv * sizeof(uint32_t));
-        d->gen = 1;
-    }
-    const uint32_t g = d->gen;
+    uint32_t around[LINK_CAP];
+    size_t naround = 0;
+    int marked = 0; /* too many neighbours for `around`: the marks */
+    uint32_t g = 0;
     uint32_t opp[2], nopp = 0;
-    for (uint32_t c = d->head[a]; c != NONE; c = d->next[c]) {
+    fan_iter it = fan_begin(d, a);
+    uint32_t c;
+    while (fan_next(d, &it, &c)) {
         const uint32_t w = corner_next(d, c), u = corner_prev(d, c);
-        d->mark[w] = d->mark[u] = g;
+        if (!marked && naround + 2 > LINK_CAP) {
+            if (++d->gen == 0) {
+                memset(d->mark, 0, d->nv * sizeof(uint32_t));
+                d->gen = 1;
+            }
+            g = d->gen;
+            for (size_t i = 0; i < naround; i++)
+                d->mark[around[i]] = g;
+            marked = 1;
+        }
+        if (marked) {
+            d->mark[w] = d->mark[u] = g;
+        } else {
+            around[naround++] = w;
+            around[naround++] = u;
+        }
         if (w == b)
             opp[nopp < 2 ? nopp : 1] = u, nopp++;
     }
     if (nopp != 1)
         goto topology;
-    for (uint32_t c = d->head[b]; c != NONE; c = d->next[c])
+    it = fan_begin(d, b);
+    while (fan_next(d, &it, &c))
         if (corner_next(d, c) == a)
             opp[1] = corner_prev(d, c), nopp++;
     if (nopp != 2 || opp[0] == opp[1])
         goto topology;
     int common = 0;
-    for (uint32_t c = d->head[b]; c != NONE; c = d->next[c]) {
+    it = fan_begin(d, b);
+    while (fan_next(d, &it, &c)) {
         const uint32_t w = corner_next(d, c); /* each neighbour once as `next` */
-        if (w != a && d->mark[w] == g)
-            common++;
+        if (w == a)
+            continue;
+        if (marked) {
+            common += d->mark[w] == g;
+        } else {
+            for (size_t i = 0; i < naround; i++)
+                if (around[i] == w) {
+                    common++;
+                    break;
+                }
+        }
     }
     if (common != 2)
         goto topology;
     /* no triangle (a, c, d) and (b, c, d) both: a tetrahedron */
     int tet = 0;
-    for (int s = 0; s < 2; s++)
-        for (uint32_t c = d->head[s ? b : a]; c != NONE; c = d->next[c]) {
+    for (int s = 0; s < 2; s++) {
+        it = fan_begin(d, s ? b : a);
+        while (fan_next(d, &it, &c)) {
             const uint32_t w = corner_next(d, c), u = corner_prev(d, c);
             if ((w == opp[0] && u == opp[1]) || (w == opp[1] && u == opp[0])) {
                 tet++;
                 break;
             }
         }
+    }
     if (tet == 2)
         goto topology;
     /* no flipped or degenerate triangle */
-    for (int s = 0; s < 2; s++)
-        for (uint32_t c = d->head[s ? b : a]; c != NONE; c = d->next[c]) {
+    for (int s = 0; s < 2; s++) {
+        it = fan_begin(d, s ? b : a);
+        while (fan_next(d, &it, &c)) {
             const uint32_t t = c / 3;
             const uint32_t w = corner_next(d, c), u = corner_prev(d, c);
             if (w == (s ? a : b) || u == (s ? a : b))
@@ -325,121 +472,244 @@ static int collapse_allowed(dec *d, uint32_t a, uint32_t b, const double v[3])
                 return 0;
             }
         }
+    }
     return 1;
 topology:
     d->rep->refused_topology++;
     return 0;
 }
 
-/* Collapses (a, b) into a at v. */
+/* Collapses (a, b) into a at v; the caller then marks both as changed in
+ * this pass. */
 static void collapse(dec *d, uint32_t a, uint32_t b, const double v[3])
 {
-    uint32_t opposite[2] = {NONE, NONE};
-    int nopp = 0;
-    for (uint32_t c = d->head[b]; c != NONE;) {
-        const uint32_t t = c / 3, nextc = d->next[c];
-        if (!d->tdead[t]) {
-            if (corner_next(d, c) == a || corner_prev(d, c) == a) {
-                d->tdead[t] = 1;
-                d->alive--;
-                if (nopp < 2) /* the dying triangle's third vertex */
-                    opposite[nopp++] = corner_next(d, c) == a ? corner_prev(d, c) : corner_next(d, c);
-            } else {
-                d->tv[c] = a;
-            }
+    fan_iter it = fan_begin(d, b);
+    uint32_t c;
+    while (fan_next(d, &it, &c)) {
+        if (corner_next(d, c) == a || corner_prev(d, c) == a) {
+            d->tdead[c / 3] = 1;
+            d->alive--;
+        } else {
+            d->tv[c] = a;
         }
-        /* into a's list */
-        d->next[c] = d->head[a];
-        d->head[a] = c;
-        c = nextc;
     }
-    d->head[b] = NONE;
     d->vf[b] |= V_DEAD;
-    d->parent[b] = a;
-    uint32_t *tail = &d->members[a]; /* b's members join a's */
-    while (*tail != NONE)
-        tail = &d->member_next[*tail];
-    *tail = d->members[b];
-    d->members[b] = NONE;
+    d->merged[a] = b; /* b's corners are a's now */
+    d->merged[b] = NONE;
+    if (d->members) { /* b's members join a's */
+        if (d->members[b] != NONE) {
+            if (d->members[a] == NONE)
+                d->members[a] = d->members[b];
+            else
+                d->member_next[d->member_last[a]] = d->members[b];
+            d->member_last[a] = d->member_last[b];
+        }
+        d->members[b] = NONE;
+    }
     for (int i = 0; i < 10; i++)
         d->q[10 * a + i] += d->q[10 * b + i];
     memcpy(d->p + 3 * a, v, 3 * sizeof(double));
-    /* every list stays free of dead corners: a's, and the third vertices'
-     * of the two triangles that died */
-    prune(d, a);
-    for (int k = 0; k < nopp; k++)
-        prune(d, opposite[k]);
 }
 
 /* ----------------------------------------------------------- the passes */
 
-/* The candidates of a pass: every live edge (once, from its a < b side)
- * whose ends are free, in the order of the triangles. */
-static cand *gather(const dec *d, size_t *n)
+/*
+ * The collapse loop takes the candidates in the order of their costs, so
+ * all over the mesh: it would wait on memory at every step.  What a
+ * candidate will read is asked for ahead (its vertices PREFETCH_FAR
+ * candidates ahead, its fans' triangles PREFETCH_MID ahead, their vertices
+ * PREFETCH_NEAR ahead).  Only a
+ * hint: nothing depends on it.
+ */
+#define PREFETCH_FAR 32
+#define PREFETCH_MID 12
+#define PREFETCH_NEAR 4
+#if defined(__GNUC__)
+#define PREFETCH(x) __builtin_prefetch(x)
+#else
+#define PREFETCH(x) ((void)(x))
+#endif
+
+static inline void prefetch_vertices(const dec *d, uint32_t a, uint32_t b)
 {
-    cand *c = malloc(3 * (d->nt ? d->nt : 1) * sizeof(cand));
-    if (!c)
-        return NULL;
-    size_t k = 0;
-    for (size_t t = 0; t < d->nt; t++) {
-        if (d->tdead[t])
-            continue;
-        for (int e = 0; e < 3; e++) {
-            const uint32_t a = d->tv[3 * t + (size_t)e], b = d->tv[3 * t + (size_t)(e + 1) % 3];
-            if (a < b && !((d->vf[a] | d->vf[b]) & (V_LOCKED | V_DEAD)))
-                c[k++] = (cand){0, a, b};
-        }
-    }
-    *n = k;
-    return c;
+    if (is_changed(d->changed, a) || is_changed(d->changed, b))
+        return; /* will be passed over */
+    PREFETCH(d->fan_first + a);
+    PREFETCH(d->fan_first + b);
+    PREFETCH(d->merged + a);
+    PREFETCH(d->merged + b);
+    PREFETCH(d->p + 3 * (size_t)a);
+    PREFETCH(d->p + 3 * (size_t)b);
+    PREFETCH(d->q + 10 * (size_t)a);
+    PREFETCH(d->q + 10 * (size_t)a + 9);
+    PREFETCH(d->q + 10 * (size_t)b);
+    PREFETCH(d->q + 10 * (size_t)b + 9);
 }
 
-typedef struct cost_job {
-    const dec *d;
+static inline void prefetch_fans(const dec *d, uint32_t a, uint32_t b)
+{
+    if (is_changed(d->changed, a) || is_changed(d->changed, b))
+        return; /* will be passed over */
+    for (int s = 0; s < 2; s++) {
+        const uint32_t x = s ? b : a;
+        for (uint32_t k = d->fan_first[x]; k < d->fan_first[x + 1]; k++) {
+            const uint32_t c = d->fan[k];
+            PREFETCH(d->tv + c);
+            PREFETCH(d->tdead + c / 3);
+        }
+    }
+}
+
+static inline void prefetch_neighbours(const dec *d, uint32_t a, uint32_t b)
+{
+    if (is_changed(d->changed, a) || is_changed(d->changed, b))
+        return;
+    for (int s = 0; s < 2; s++) {
+        const uint32_t x = s ? b : a;
+        for (uint32_t k = d->fan_first[x]; k < d->fan_first[x + 1]; k++)
+            PREFETCH(d->p + 3 * (size_t)corner_next(d, d->fan[k]));
+    }
+}
+
+/*
+ * The candidates of a pass: every live edge (once, from its a < b side)
+ * whose ends are free, in the order of the triangles, with their costs.
+ * The triangles go in blocks of GATHER_BLOCK, on threads: each block's
+ * candidates are counted, then filed from the block's offset and costed
+ * (a pure function of the mesh), so nothing depends on the threads.
+ */
+#define GATHER_BLOCK 16384
+
+typedef struct gather_job {
+    dec *d; /* writes only cost_of, each block its own triangles' */
     cand *c;
-} cost_job;
+    size_t *first; /* a block's first candidate; its count before the sum */
+} gather_job;
 
-/* The costs of candidates [lo, hi): read-only on the mesh, any thread. */
-static void cost_range(void *arg, size_t lo, size_t hi)
+static int edge_free(const dec *d, uint32_t a, uint32_t b)
 {
-    const cost_job *j = arg;
-    for (size_t i = lo; i < hi; i++) {
-        double v[3];
-        const double e = collapse_point(j->d, j->c[i].a, j->c[i].b, v);
-        j->c[i].cost = e < (double)FLT_MAX ? (float)e : FLT_MAX;
+    return a < b && !((d->vf[a] | d->vf[b]) & (V_LOCKED | V_DEAD));
+}
+
+static void gather_count(void *arg, size_t lo, size_t hi)
+{
+    const gather_job *j = arg;
+    const dec *d = j->d;
+    for (size_t blk = lo; blk < hi; blk++) {
+        const size_t i1 = (blk + 1) * GATHER_BLOCK < d->nlive ? (blk + 1) * GATHER_BLOCK : d->nlive;
+        size_t k = 0;
+        for (size_t i = blk * GATHER_BLOCK; i < i1; i++) {
+            const size_t t = d->live[i];
+            for (int e = 0; e < 3; e++)
+                k += (size_t)edge_free(d, d->tv[3 * t + (size_t)e], d->tv[3 * t + (size_t)(e + 1) % 3]);
+        }
+        j->first[blk + 1] = k;
     }
 }
 
-/* Sorts candidates by cost, keeping the order of equal ones (a least
- * significant digit radix sort on the costs' bits, which order as the
- * non-negative floats do).  0 without memory. */
-static int sort_candidates(cand *c, size_t n)
+static void gather_cost(void *arg, size_t lo, size_t hi)
 {
-    cand *tmp = malloc((n ? n : 1) * sizeof(cand));
-    if (!tmp)
+    const gather_job *j = arg;
+    dec *d = j->d;
+    for (size_t blk = lo; blk < hi; blk++) {
+        const size_t i1 = (blk + 1) * GATHER_BLOCK < d->nlive ? (blk + 1) * GATHER_BLOCK : d->nlive;
+        cand *c = j->c + j->first[blk];
+        for (size_t i = blk * GATHER_BLOCK; i < i1; i++) {
+            const size_t t = d->live[i];
+            for (int e = 0; e < 3; e++) {
+                const uint32_t a = d->tv[3 * t + (size_t)e], b = d->tv[3 * t + (size_t)(e + 1) % 3];
+                if (!edge_free(d, a, b))
+                    continue;
+                float *cost = d->cost_of + 3 * t + (size_t)e;
+                if (d->pass == 1 || is_changed(d->changed_before, a) || is_changed(d->changed_before, b)) {
+                    double v[3];
+                    const double e2 = collapse_point(d, a, b, v);
+                    *cost = e2 < (double)FLT_MAX ? (float)e2 : FLT_MAX;
+                }
+                *c++ = (cand){*cost, a, b};
+            }
+        }
+    }
+}
+
+/* Gathers and costs the candidates into c (room for 3 a triangle); their
+ * count.  0 without memory (then *ok = 0). */
+static size_t gather(dec *d, cand *c, int *ok)
+{
+    const size_t nblocks = (d->nlive + GATHER_BLOCK - 1) / GATHER_BLOCK;
+    size_t *first = calloc(nblocks + 1, sizeof(size_t));
+    *ok = first != NULL;
+    if (!first)
         return 0;
-    cand *src = c, *dst = tmp;
-    for (int shift = 0; shift < 32; shift += 8) {
-        size_t count[257] = {0};
-        for (size_t i = 0; i < n; i++) {
-            uint32_t k;
-            memcpy(&k, &src[i].cost, 4);
-            count[((k >> shift) & 255) + 1]++;
+    gather_job job = {d, c, first};
+    parallel_for_from(nblocks, 2, gather_count, &job);
+    for (size_t blk = 0; blk < nblocks; blk++)
+        first[blk + 1] += first[blk];
+    parallel_for_from(nblocks, 2, gather_cost, &job);
+    const size_t n = first[nblocks];
+    free(first);
+    return n;
+}
+
+static inline uint32_t cost_bits(const cand *c)
+{
+    uint32_t k;
+    memcpy(&k, &c->cost, 4);
+    return k;
+}
+
+/*
+ * The candidates of a pass that it may take, cheapest first, ties in their
+ * order: those up to the cost of the one at `rank` in that order (all if
+ * rank >= n); their count, and *limit that cost (FLT_MAX: all).  The
+ * costs' bits order as the non-negative floats do: a histogram of their top
+ * 16 bits finds the block of costs where `rank` falls, the candidates up to
+ * it are kept (in order), and a least significant digit radix sort (three
+ * digits of 11 bits, stable) sorts them into c.  tmp has room for n.
+ */
+static size_t sort_candidates(cand *c, cand *tmp, size_t n, size_t rank, float *limit)
+{
+    uint32_t top = 0xffffu; /* the kept: top 16 bits up to this */
+    if (rank < n) {
+        uint32_t *hist = calloc(65536, sizeof(uint32_t));
+        if (hist) {
+            for (size_t i = 0; i < n; i++)
+                hist[cost_bits(c + i) >> 16]++;
+            size_t below = 0;
+            for (top = 0; top < 0xffffu && below + hist[top] <= rank; top++)
+                below += hist[top];
+            free(hist);
         }
-        for (int b = 0; b < 256; b++)
-            count[b + 1] += count[b];
-        for (size_t i = 0; i < n; i++) {
-            uint32_t k;
-            memcpy(&k, &src[i].cost, 4);
-            dst[count[(k >> shift) & 255]++] = src[i];
-        }
+    }
+    size_t count[3][2049];
+    memset(count, 0, sizeof count);
+    size_t m = 0;
+    for (size_t i = 0; i < n; i++) {
+        const uint32_t k = cost_bits(c + i);
+        if ((k >> 16) > top)
+            continue;
+        tmp[m++] = c[i];
+        count[0][(k & 2047) + 1]++;
+        count[1][((k >> 11) & 2047) + 1]++;
+        count[2][(k >> 22) + 1]++;
+    }
+    cand *src = tmp, *dst = c;
+    for (int digit = 0; digit < 3; digit++) {
+        size_t *cnt = count[digit];
+        for (int b = 0; b < 2048; b++)
+            cnt[b + 1] += cnt[b];
+        const int shift = 11 * digit;
+        for (size_t i = 0; i < m; i++)
+            dst[cnt[(cost_bits(src + i) >> shift) & 2047]++] = src[i];
         cand *t = src;
         src = dst;
         dst = t;
     }
-    /* four passes: the sorted run is back in c */
-    free(tmp);
-    return 1;
+    /* three passes from tmp: the sorted run is in c */
+    *limit = rank < n ? c[rank].cost : FLT_MAX;
+    while (m > 0 && c[m - 1].cost > *limit)
+        m--;
+    return m;
 }
 
 /* ---------------------------------------------------------- the output */
@@ -573,56 +843,49 @@ isomend_status mesh_decimate_to(const isomend_mesh *mesh, uint64_t target, doubl
     d.q = calloc(10 * nv, sizeof(double));
     d.tv = malloc(nc * sizeof(uint32_t));
     d.tdead = calloc(d.nt ? d.nt : 1, 1);
-    d.head = malloc(nv * sizeof(uint32_t));
-    d.next = malloc(nc * sizeof(uint32_t));
+    d.merged = malloc(nv * sizeof(uint32_t));
+    d.cand = malloc(nc * sizeof(cand));
+    d.cand_tmp = malloc(nc * sizeof(cand));
     d.vf = calloc(nv, 1);
-    d.pass_mark = calloc(nv, sizeof(uint32_t));
+    d.nwords = (nv + 63) / 64;
+    d.changed = calloc(d.nwords, sizeof(uint64_t));
+    d.changed_before = calloc(d.nwords, sizeof(uint64_t));
+    d.live = malloc((d.nt ? d.nt : 1) * sizeof(uint32_t));
+    d.cost_of = malloc(nc * sizeof(float));
     d.mark = calloc(nv, sizeof(uint32_t));
-    d.parent = malloc(nv * sizeof(uint32_t));
-    d.members = malloc(nv * sizeof(uint32_t));
-    d.member_next = malloc(nv * sizeof(uint32_t));
+    if (max_error > 0) { /* only the distance check needs the members */
+        d.members = malloc(nv * sizeof(uint32_t));
+        d.member_next = malloc(nv * sizeof(uint32_t));
+        d.member_last = malloc(nv * sizeof(uint32_t));
+    }
     d.orig = mesh->pos;
     d.max_dist = max_error;
     isomend_status status = ISOMEND_ERR_OUT_OF_MEMORY;
-    if (!d.p || !d.q || !d.tv || !d.tdead || !d.head || !d.next || !d.vf || !d.pass_mark || !d.mark ||
-        !d.parent || !d.members || !d.member_next)
+    if (!d.p || !d.q || !d.tv || !d.tdead || !d.merged || !d.cand || !d.cand_tmp || !d.vf || !d.changed || !d.changed_before || !d.live || !d.cost_of || !d.mark ||
+        (max_error > 0 && (!d.members || !d.member_next || !d.member_last)))
         goto done;
-    for (size_t v = 0; v < d.nv; v++) {
-        d.parent[v] = d.members[v] = (uint32_t)v;
-        d.member_next[v] = NONE;
-    }
+    if (d.members)
+        for (size_t v = 0; v < d.nv; v++) {
+            d.members[v] = d.member_last[v] = (uint32_t)v;
+            d.member_next[v] = NONE;
+        }
     for (size_t i = 0; i < 3 * d.nv; i++)
         d.p[i] = mesh->pos[i];
     memcpy(d.tv, mesh->tri, 3 * d.nt * sizeof(uint32_t));
-    for (size_t v = 0; v < d.nv; v++)
-        d.head[v] = NONE;
-    for (size_t c = 3 * d.nt; c-- > 0;) {
-        const uint32_t v = d.tv[c];
-        d.next[c] = d.head[v];
-        d.head[v] = (uint32_t)c;
-    }
-    if (!mesh_free_vertices(mesh, d.vf, NULL, NULL))
+    for (size_t t = 0; t < d.nt; t++)
+        d.live[t] = (uint32_t)t;
+    d.nlive = d.nt;
+    /* the first pass's fans: the corners by vertex that the test of the free
+     * vertices files */
+    if (!mesh_free_vertices(mesh, d.vf, &d.fan_first, &d.fan))
         goto done;
     for (size_t v = 0; v < d.nv; v++) {
+        d.merged[v] = NONE;
         d.vf[v] = d.vf[v] ? 0 : V_LOCKED; /* unused vertices are locked too */
-        rep.locked_vertices += d.vf[v] && d.head[v] != NONE;
+        rep.locked_vertices += d.vf[v] && d.fan_first[v + 1] > d.fan_first[v];
     }
-    for (size_t t = carry ? carry->planes_from : 0; t < d.nt; t++) {
-        double n[3];
-        tri_normal(&d, (uint32_t)t, NONE, NONE, NULL, n, NULL);
-        const double len = sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
-        if (!(len > 0) || !isfinite(len))
-            continue;
-        for (int c = 0; c < 3; c++)
-            n[c] /= len;
-        const double *p0 = d.p + 3 * (size_t)d.tv[3 * t];
-        const double dd = -(n[0] * p0[0] + n[1] * p0[1] + n[2] * p0[2]);
-        for (int k = 0; k < 3; k++)
-            quadric_add_plane(d.q + 10 * (size_t)d.tv[3 * t + (size_t)k], n, dd);
-    }
-    if (carry && carry->q_in)
-        for (size_t i = 0; i < 10 * d.nv; i++)
-            d.q[i] += carry->q_in[i];
+    quadric_job qj = {&d, carry ? carry->planes_from : 0, carry ? carry->q_in : NULL};
+    parallel_for(d.nv, quadric_range, &qj);
     /*
      * Passes.  Each gathers the live edges, costs them (on threads: a pure
      * function of the mesh), sorts them, and collapses them cheapest first,
@@ -635,24 +898,28 @@ isomend_status mesh_decimate_to(const isomend_mesh *mesh, uint64_t target, doubl
      */
     int unlimited = 0;
     for (uint32_t pass = 1; d.alive > target; pass++) {
-        size_t n = 0;
-        cand *c = gather(&d, &n);
-        if (!c)
+        d.pass = pass;
+        if (pass > 1)
+            begin_pass(&d);
+        int ok;
+        const size_t n_all = gather(&d, d.cand, &ok);
+        if (!ok)
             goto done;
-        cost_job job = {&d, c};
-        parallel_for(n, cost_range, &job);
-        if (!sort_candidates(c, n)) {
-            free(c);
-            goto done;
-        }
         const size_t need = (d.alive - target + 1) / 2;
-        const float limit = unlimited || 2 * need >= n ? FLT_MAX : c[2 * need].cost;
+        float limit;
+        const size_t n = sort_candidates(d.cand, d.cand_tmp, n_all,
+                                         unlimited || 2 * need >= n_all ? n_all : 2 * need, &limit);
+        const cand *c = d.cand;
         uint64_t made = 0;
         for (size_t i = 0; i < n && d.alive > target; i++) {
-            if (c[i].cost > limit)
-                break;
+            if (i + PREFETCH_FAR < n)
+                prefetch_vertices(&d, c[i + PREFETCH_FAR].a, c[i + PREFETCH_FAR].b);
+            if (i + PREFETCH_MID < n)
+                prefetch_fans(&d, c[i + PREFETCH_MID].a, c[i + PREFETCH_MID].b);
+            if (i + PREFETCH_NEAR < n)
+                prefetch_neighbours(&d, c[i + PREFETCH_NEAR].a, c[i + PREFETCH_NEAR].b);
             const uint32_t ea = c[i].a, eb = c[i].b;
-            if (d.pass_mark[ea] == pass || d.pass_mark[eb] == pass)
+            if (is_changed(d.changed, ea) || is_changed(d.changed, eb))
                 continue;
             double v[3];
             (void)collapse_point(&d, ea, eb, v);
@@ -663,10 +930,10 @@ isomend_status mesh_decimate_to(const isomend_mesh *mesh, uint64_t target, doubl
                 continue;
             }
             collapse(&d, ea, eb, v);
-            d.pass_mark[ea] = d.pass_mark[eb] = pass;
+            set_changed(d.changed, ea);
+            set_changed(d.changed, eb);
             made++;
         }
-        free(c);
         rep.collapses += made;
         if (made == 0) {
             if (unlimited || limit == FLT_MAX)
@@ -726,14 +993,20 @@ done:
     free(d.q);
     free(d.tv);
     free(d.tdead);
-    free(d.head);
-    free(d.next);
+    free(d.fan_first);
+    free(d.fan);
+    free(d.merged);
+    free(d.cand);
+    free(d.cand_tmp);
     free(d.vf);
-    free(d.pass_mark);
+    free(d.changed);
+    free(d.changed_before);
+    free(d.live);
+    free(d.cost_of);
     free(d.mark);
-    free(d.parent);
     free(d.members);
     free(d.member_next);
+    free(d.member_last);
     if (report)
         *report = rep;
     return status;

@@ -83,28 +83,21 @@ void mesh_area_normals(isomend_mesh *m, const float *keep)
  * index `corners` (corner c = 3t + k), which the caller may keep (both
  * NULL-able: then freed here).  Returns 0 without memory.
  */
-int mesh_free_vertices(const isomend_mesh *m, uint8_t *free_flag, uint32_t **first_out,
-                       uint32_t **corners_out)
+typedef struct free_job {
+    const isomend_mesh *m;
+    const uint32_t *first, *corners;
+    uint8_t *free_flag;
+} free_job;
+
+/* The test of vertices [lo, hi): each vertex's own, so on any thread. */
+static void free_range(void *arg, size_t lo, size_t hi)
 {
-    const size_t nv = m->nv, nc = 3 * m->nt;
-    uint32_t *first = calloc(nv + 1, sizeof(uint32_t)), *corners = malloc((nc ? nc : 1) * 4);
-    if (!first || !corners) {
-        free(first);
-        free(corners);
-        return 0;
-    }
-    for (size_t c = 0; c < nc; c++)
-        first[m->tri[c] + 1]++;
-    for (size_t v = 0; v < nv; v++)
-        first[v + 1] += first[v];
-    for (size_t c = 0; c < nc; c++)
-        corners[first[m->tri[c]]++] = (uint32_t)c;
-    for (size_t v = nv; v > 0; v--)
-        first[v] = first[v - 1];
-    first[0] = 0;
+    const free_job *j = arg;
+    const isomend_mesh *m = j->m;
+    const uint32_t *first = j->first, *corners = j->corners;
 #define NEXT(c) m->tri[(c) - (c) % 3 + ((c) % 3 + 1) % 3]
 #define PREV(c) m->tri[(c) - (c) % 3 + ((c) % 3 + 2) % 3]
-    for (size_t v = 0; v < nv; v++) {
+    for (size_t v = lo; v < hi; v++) {
         const uint32_t b = first[v], e = first[v + 1], n = e - b;
         int ok = n >= 3;
         for (uint32_t x = b; x < e && ok; x++) {
@@ -132,10 +125,33 @@ int mesh_free_vertices(const isomend_mesh *m, uint8_t *free_flag, uint32_t **fir
             } while (c != corners[b] && steps <= n);
             ok = steps == n;
         }
-        free_flag[v] = (uint8_t)ok;
+        j->free_flag[v] = (uint8_t)ok;
     }
 #undef NEXT
 #undef PREV
+}
+
+int mesh_free_vertices(const isomend_mesh *m, uint8_t *free_flag, uint32_t **first_out,
+                       uint32_t **corners_out)
+{
+    const size_t nv = m->nv, nc = 3 * m->nt;
+    uint32_t *first = calloc(nv + 1, sizeof(uint32_t)), *corners = malloc((nc ? nc : 1) * 4);
+    if (!first || !corners) {
+        free(first);
+        free(corners);
+        return 0;
+    }
+    for (size_t c = 0; c < nc; c++)
+        first[m->tri[c] + 1]++;
+    for (size_t v = 0; v < nv; v++)
+        first[v + 1] += first[v];
+    for (size_t c = 0; c < nc; c++)
+        corners[first[m->tri[c]]++] = (uint32_t)c;
+    for (size_t v = nv; v > 0; v--)
+        first[v] = first[v - 1];
+    first[0] = 0;
+    free_job job = {m, first, corners, free_flag};
+    parallel_for(nv, free_range, &job);
     if (first_out)
         *first_out = first;
     else
