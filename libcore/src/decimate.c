@@ -184,10 +184,13 @@ typedef struct fan_iter {
     const uint32_t *at, *end, *at2, *end2;
 } fan_iter;
 
+static inline int is_changed(const uint64_t *bits, uint32_t v) { return (int)(bits[v >> 6] >> (v & 63)) & 1; }
+static inline void set_changed(uint64_t *bits, uint32_t v) { bits[v >> 6] |= (uint64_t)1 << (v & 63); }
+
 static inline fan_iter fan_begin(const dec *d, uint32_t x)
 {
     fan_iter it = {d->fan + d->fan_first[x], d->fan + d->fan_first[x + 1], NULL, NULL};
-    if (d->merged[x] != NONE) {
+    if (is_changed(d->changed, x) && d->merged[x] != NONE) {
         const uint32_t y = d->merged[x];
         it.at2 = d->fan + d->fan_first[y];
         it.end2 = d->fan + d->fan_first[y + 1];
@@ -200,7 +203,7 @@ static inline int fan_next(const dec *d, fan_iter *it, uint32_t *c)
     for (;;) {
         while (it->at < it->end) {
             const uint32_t k = *it->at++;
-            if (!d->tdead[k / 3]) {
+            if (d->tv[k - k % 3] != NONE) { /* not dead (collapse) */
                 *c = k;
                 return 1;
             }
@@ -245,8 +248,6 @@ static void begin_pass(dec *d)
     memset(d->changed, 0, d->nwords * sizeof(uint64_t));
 }
 
-static inline int is_changed(const uint64_t *bits, uint32_t v) { return (int)(bits[v >> 6] >> (v & 63)) & 1; }
-static inline void set_changed(uint64_t *bits, uint32_t v) { bits[v >> 6] |= (uint64_t)1 << (v & 63); }
 
 static inline uint32_t corner_next(const dec *d, uint32_t c) { return d->tv[c - c % 3 + (c % 3 + 1) % 3]; }
 static inline uint32_t corner_prev(const dec *d, uint32_t c) { return d->tv[c - c % 3 + (c % 3 + 2) % 3]; }
@@ -488,6 +489,7 @@ static void collapse(dec *d, uint32_t a, uint32_t b, const double v[3])
     while (fan_next(d, &it, &c)) {
         if (corner_next(d, c) == a || corner_prev(d, c) == a) {
             d->tdead[c / 3] = 1;
+            d->tv[c - c % 3] = NONE; /* so the fans see it dead without tdead */
             d->alive--;
         } else {
             d->tv[c] = a;
@@ -536,8 +538,6 @@ static inline void prefetch_vertices(const dec *d, uint32_t a, uint32_t b)
         return; /* will be passed over */
     PREFETCH(d->fan_first + a);
     PREFETCH(d->fan_first + b);
-    PREFETCH(d->merged + a);
-    PREFETCH(d->merged + b);
     PREFETCH(d->p + 3 * (size_t)a);
     PREFETCH(d->p + 3 * (size_t)b);
     PREFETCH(d->q + 10 * (size_t)a);
@@ -555,7 +555,6 @@ static inline void prefetch_fans(const dec *d, uint32_t a, uint32_t b)
         for (uint32_t k = d->fan_first[x]; k < d->fan_first[x + 1]; k++) {
             const uint32_t c = d->fan[k];
             PREFETCH(d->tv + c);
-            PREFETCH(d->tdead + c / 3);
         }
     }
 }
@@ -897,6 +896,7 @@ isomend_status mesh_decimate_to(const isomend_mesh *mesh, uint64_t target, doubl
      * ends the decimation short of the target.
      */
     int unlimited = 0;
+    size_t refused = 0; /* in the pass before */
     for (uint32_t pass = 1; d.alive > target; pass++) {
         d.pass = pass;
         if (pass > 1)
@@ -908,9 +908,10 @@ isomend_status mesh_decimate_to(const isomend_mesh *mesh, uint64_t target, doubl
         const size_t need = (d.alive - target + 1) / 2;
         float limit;
         const size_t n = sort_candidates(d.cand, d.cand_tmp, n_all,
-                                         unlimited || 2 * need >= n_all ? n_all : 2 * need, &limit);
+                                         unlimited || 2 * need + refused >= n_all ? n_all : 2 * need + refused, &limit);
         const cand *c = d.cand;
         uint64_t made = 0;
+        refused = 0;
         for (size_t i = 0; i < n && d.alive > target; i++) {
             if (i + PREFETCH_FAR < n)
                 prefetch_vertices(&d, c[i + PREFETCH_FAR].a, c[i + PREFETCH_FAR].b);
@@ -923,10 +924,13 @@ isomend_status mesh_decimate_to(const isomend_mesh *mesh, uint64_t target, doubl
                 continue;
             double v[3];
             (void)collapse_point(&d, ea, eb, v);
-            if (!collapse_allowed(&d, ea, eb, v))
+            if (!collapse_allowed(&d, ea, eb, v)) {
+                refused++;
                 continue;
+            }
             if (d.max_dist > 0 && !collapse_close(&d, ea, eb, v)) {
                 rep.refused_error++;
+                refused++;
                 continue;
             }
             collapse(&d, ea, eb, v);

@@ -4,11 +4,12 @@
  * one-sided Hausdorff distance that VTK's vtkCellLocator or MeshLab's
  * Hausdorff filter measure.
  *
- * A uniform grid of cells about twice the mean edge long files each
- * triangle under every cell its bounding box touches (a compressed row
- * table); a point searches rings of cells around its own, outwards, until
- * the ring is farther than the nearest triangle found.  Points outside the
- * grid start from the nearest cell.
+ * A uniform grid of cells about the mean edge long (at most about 16 a
+ * triangle) files each triangle under every cell its bounding box touches
+ * (a compressed row table); a point searches rings of cells around its own,
+ * outwards, until the ring is farther than the nearest triangle found,
+ * passing over cells and triangles' bounding boxes farther than that.
+ * Points outside the grid start from the nearest cell.
  */
 #include "mesh_internal.h"
 
@@ -140,6 +141,7 @@ static void dist_blocks(void *arg, size_t lo_block, size_t hi_block)
     const dist_job *j = arg;
     const cell_grid g = *j->g;
     const float *pts = j->pts;
+    const double slack = 1e-6 * g.size;
     for (size_t b = lo_block; b < hi_block; b++) {
         double worst = 0, sum = 0;
         size_t last = 0; /* the triangle nearest to the previous point: points come
@@ -182,6 +184,19 @@ static void dist_blocks(void *arg, size_t lo_block, size_t hi_block)
                                 const size_t cell = (size_t)((z * g.n[1] + y) * g.n[0] + x);
                                 for (uint32_t k = g.first[cell]; k < g.first[cell + 1]; k++) {
                                     const float *f = j->corners + 9 * (size_t)g.tris[k];
+                                    /* no nearer than its bounding box (less the slack) */
+                                    double gap2 = 0;
+                                    for (int a = 0; a < 3; a++) {
+                                        const double lo = f[a] < f[3 + a] ? (f[a] < f[6 + a] ? f[a] : f[6 + a])
+                                                                          : (f[3 + a] < f[6 + a] ? f[3 + a] : f[6 + a]);
+                                        const double hi = f[a] > f[3 + a] ? (f[a] > f[6 + a] ? f[a] : f[6 + a])
+                                                                          : (f[3 + a] > f[6 + a] ? f[3 + a] : f[6 + a]);
+                                        const double gap = p[a] < lo ? lo - p[a] : p[a] > hi ? p[a] - hi : 0;
+                                        if (gap > slack)
+                                            gap2 += (gap - slack) * (gap - slack);
+                                    }
+                                    if (gap2 > best)
+                                        continue;
                                     double q[3][3];
                                     for (int m = 0; m < 3; m++)
                                         for (int a = 0; a < 3; a++)
@@ -249,20 +264,20 @@ int mesh_distances(const float *pts, size_t np, const float *pos, const uint32_t
             const double dx = (double)p[0] - q[0], dy = (double)p[1] - q[1], dz = (double)p[2] - q[2];
             edges += sqrt(dx * dx + dy * dy + dz * dz);
         }
-    g.size = 2.0 * edges / (3.0 * (double)nt);
+    g.size = edges / (3.0 * (double)nt);
     double extent = 0;
     for (int a = 0; a < 3; a++)
         extent = hi[a] - g.lo[a] > extent ? hi[a] - g.lo[a] : extent;
     if (!(g.size > 0) || !isfinite(g.size))
         g.size = extent > 0 ? extent : 1.0;
-    /* at most about 4 cells a triangle */
+    /* at most about 16 cells a triangle */
     for (;;) {
         uint64_t cells = 1;
         for (int a = 0; a < 3; a++) {
             g.n[a] = (int64_t)((hi[a] - g.lo[a]) / g.size) + 1;
             cells *= (uint64_t)g.n[a];
         }
-        if (cells <= 4 * (uint64_t)nt + 64)
+        if (cells <= 16 * (uint64_t)nt + 64)
             break;
         g.size *= 1.5;
     }
