@@ -22,14 +22,18 @@
  *     triangles around the vertex it was collapsed into (collapse_close),
  *     so within it of the result.  The report's errors are measured at the
  *     end (distance.c).
- * Collapses are taken in passes (the loop in isomend_mesh_decimate says
- * how), cheapest first, ties in the order of the triangles: the result does
- * not depend on the thread count, which only shares out the costing.
+ * Collapses are taken in passes (the loop in mesh_decimate_to says how),
+ * cheapest first, ties in the order of the triangles; in the large passes
+ * the candidates inside fixed regions of the mesh go region by region on
+ * threads before those on the regions' borders (run_pass says why that is
+ * safe).  The result does not depend on the thread count, which only
+ * shares out the costing, the regions and the distance measurement.
  *
- * Layout: a corner table (corner c = 3t + k of triangle t) with, per
- * vertex, a singly linked list of its corners; a collapse moves b's corners
- * into a's list, and the corners of dead triangles are unlinked as lists
- * are walked.
+ * Layout: a corner table (corner c = 3t + k of triangle t; a dead
+ * triangle's first corner NONE) and, per pass, each vertex's corners in a
+ * compressed row table (fan_first, fan) built as the pass begins; a vertex
+ * collapsed into another in the pass lends it its corners (merged), and
+ * the corners of triangles that died in the pass are skipped.
  */
 #include "mesh_internal.h"
 
@@ -64,6 +68,7 @@ typedef struct dec {
     uint32_t *fan;       /* the corners of the live triangles as the pass began, by vertex */
     uint32_t *merged;    /* the vertex collapsed into v in this pass, or NONE */
     uint32_t *live;      /* the live triangles as the pass began, in order */
+    uint8_t *border;     /* a vertex with a triangle across a region's border (run_pass) */
     size_t nlive;
     float *cost_of;      /* a corner's edge's cost when last costed (from its a < b side) */
     struct cand *cand, *cand_tmp; /* a pass's candidates: 3 a triangle each */
@@ -79,7 +84,6 @@ typedef struct dec {
     uint32_t *members;    /* the input vertices a vertex stands for: a list */
     uint32_t *member_next; /* through these, from members[v]               */
     uint32_t *member_last; /* the list's last                              */
-    isomend_decimate_report *rep;
 } dec;
 
 /* ------------------------------------------------------------- quadrics */
@@ -258,6 +262,8 @@ static void quadric_range(void *arg, size_t lo, size_t hi)
     const dec *d = j->d;
     for (size_t v = lo; v < hi; v++) {
         double *q = d->q + 10 * v;
+        for (int i = 0; i < 10; i++)
+            q[i] = 0;
         for (uint32_t k = d->fan_first[v]; k < d->fan_first[v + 1]; k++) {
             const uint32_t t = d->fan[k] / 3;
             if (t < j->from)
@@ -380,7 +386,11 @@ static void tri_normal(const dec *d, uint32_t t, uint32_t moved_a, uint32_t move
  * marks beyond). */
 #define LINK_CAP 128
 
-/* Whether (a, b) may collapse to v (the checks at the top of this file). */
+enum { ALLOWED = 0, REFUSED_TOPOLOGY = 1, REFUSED_GEOMETRY = 2 };
+
+/* Whether (a, b) may collapse to v (the checks at the top of this file):
+ * ALLOWED or why not.  Uses the marks only where a has more than
+ * LINK_CAP / 2 triangles. */
 static int collapse_allowed(dec *d, uint32_t a, uint32_t b, const double v[3])
 {
     /* link condition: the neighbours common to a and b */
@@ -468,29 +478,27 @@ static int collapse_allowed(dec *d, uint32_t a, uint32_t b, const double v[3])
             const double l0 = n0[0] * n0[0] + n0[1] * n0[1] + n0[2] * n0[2];
             /* shape: 2 sqrt(3) |n| / (sum of squared edges), 1 equilateral */
             const double q0 = e0 > 0 ? sqrt(l0) / e0 : 0, q1 = e1 > 0 ? sqrt(l1) / e1 : 0;
-            if (!(l1 > 0) || (l0 > 0 && !(dot > 0)) || (q1 < MIN_SHAPE && q1 < 0.5 * q0)) {
-                d->rep->refused_geometry++;
-                return 0;
-            }
+            if (!(l1 > 0) || (l0 > 0 && !(dot > 0)) || (q1 < MIN_SHAPE && q1 < 0.5 * q0))
+                return REFUSED_GEOMETRY;
         }
     }
-    return 1;
+    return ALLOWED;
 topology:
-    d->rep->refused_topology++;
-    return 0;
+    return REFUSED_TOPOLOGY;
 }
 
 /* Collapses (a, b) into a at v; the caller then marks both as changed in
- * this pass. */
-static void collapse(dec *d, uint32_t a, uint32_t b, const double v[3])
+ * this pass.  Returns the number of triangles that died (two). */
+static size_t collapse(dec *d, uint32_t a, uint32_t b, const double v[3])
 {
     fan_iter it = fan_begin(d, b);
     uint32_t c;
+    size_t died = 0;
     while (fan_next(d, &it, &c)) {
         if (corner_next(d, c) == a || corner_prev(d, c) == a) {
             d->tdead[c / 3] = 1;
             d->tv[c - c % 3] = NONE; /* so the fans see it dead without tdead */
-            d->alive--;
+            died++;
         } else {
             d->tv[c] = a;
         }
@@ -511,6 +519,7 @@ static void collapse(dec *d, uint32_t a, uint32_t b, const double v[3])
     for (int i = 0; i < 10; i++)
         d->q[10 * a + i] += d->q[10 * b + i];
     memcpy(d->p + 3 * a, v, 3 * sizeof(double));
+    return died;
 }
 
 /* ----------------------------------------------------------- the passes */
@@ -578,6 +587,7 @@ static inline void prefetch_neighbours(const dec *d, uint32_t a, uint32_t b)
  * (a pure function of the mesh), so nothing depends on the threads.
  */
 #define GATHER_BLOCK 16384
+#define GATHER_AHEAD 8
 
 typedef struct gather_job {
     dec *d; /* writes only cost_of, each block its own triangles' */
@@ -615,6 +625,12 @@ static void gather_cost(void *arg, size_t lo, size_t hi)
         cand *c = j->c + j->first[blk];
         for (size_t i = blk * GATHER_BLOCK; i < i1; i++) {
             const size_t t = d->live[i];
+            if (i + GATHER_AHEAD < i1) /* the quadrics a few triangles ahead */
+                for (int k = 0; k < 3; k++) {
+                    const size_t x = d->tv[3 * (size_t)d->live[i + GATHER_AHEAD] + (size_t)k];
+                    PREFETCH(d->q + 10 * x);
+                    PREFETCH(d->q + 10 * x + 9);
+                }
             for (int e = 0; e < 3; e++) {
                 const uint32_t a = d->tv[3 * t + (size_t)e], b = d->tv[3 * t + (size_t)(e + 1) % 3];
                 if (!edge_free(d, a, b))
@@ -709,6 +725,210 @@ static size_t sort_candidates(cand *c, cand *tmp, size_t n, size_t rank, float *
     while (m > 0 && c[m - 1].cost > *limit)
         m--;
     return m;
+}
+
+/* What a run of candidates did. */
+typedef struct tally {
+    uint64_t made, refused, topology, geometry, error;
+    size_t died;
+} tally;
+
+/* Takes candidates c[0 .. n) in order (the rules of the passes) while
+ * alive - (triangles that died) > target. */
+static void run_candidates(dec *d, const cand *c, size_t n, size_t alive, uint64_t target,
+                           tally *t)
+{
+    for (size_t i = 0; i < n && alive > target; i++) {
+        if (i + PREFETCH_FAR < n)
+            prefetch_vertices(d, c[i + PREFETCH_FAR].a, c[i + PREFETCH_FAR].b);
+        if (i + PREFETCH_MID < n)
+            prefetch_fans(d, c[i + PREFETCH_MID].a, c[i + PREFETCH_MID].b);
+        if (i + PREFETCH_NEAR < n)
+            prefetch_neighbours(d, c[i + PREFETCH_NEAR].a, c[i + PREFETCH_NEAR].b);
+        const uint32_t ea = c[i].a, eb = c[i].b;
+        if (is_changed(d->changed, ea) || is_changed(d->changed, eb))
+            continue;
+        double v[3];
+        (void)collapse_point(d, ea, eb, v);
+        const int why = collapse_allowed(d, ea, eb, v);
+        if (why != ALLOWED) {
+            t->refused++;
+            t->topology += why == REFUSED_TOPOLOGY;
+            t->geometry += why == REFUSED_GEOMETRY;
+            continue;
+        }
+        if (d->max_dist > 0 && !collapse_close(d, ea, eb, v)) {
+            t->error++;
+            t->refused++;
+            continue;
+        }
+        const size_t died = collapse(d, ea, eb, v);
+        alive -= died;
+        t->died += died;
+        set_changed(d->changed, ea);
+        set_changed(d->changed, eb);
+        t->made++;
+    }
+}
+
+/*
+ * Regions.  The vertices go in regions of REGION_SIZE consecutive indices
+ * (the extraction numbers them slab by slab, so a region is a slab of the
+ * surface).  A candidate is inside a region when both its vertices and
+ * every vertex of their triangles (as the pass began) are in it, and each
+ * has at most LINK_CAP / 2 triangles.  Its checks and its collapse read
+ * and write only that region's vertices and triangles (the triangles of a
+ * vertex change only by collapses of its neighbours, which are then inside
+ * the region too; a vertex's triangles only grow when it is collapsed into,
+ * after which it waits for the next pass), and whole words of the bitmap.
+ * So the regions' candidates can be taken region by region, each region's
+ * in its order, on any thread, with the same result; the candidates on the
+ * regions' borders follow, in their order.  A pass goes this way only where
+ * it cannot reach the target (each collapse takes two free vertices: at
+ * most half the free vertices collapse) and without a maximum error (whose
+ * check reads farther).
+ */
+#define REGION_SHIFT 16
+#define REGION_SIZE ((size_t)1 << REGION_SHIFT) /* a multiple of 64: whole bitmap words */
+
+/* The vertices with a triangle across a region's border (border[v] = 1)
+ * as the pass begins; returns the number of free vertices that have
+ * triangles. */
+static size_t mark_borders(dec *d)
+{
+    memset(d->border, 0, d->nv);
+    for (size_t i = 0; i < d->nlive; i++) {
+        const uint32_t *t = d->tv + 3 * (size_t)d->live[i];
+        if ((t[0] >> REGION_SHIFT) != (t[1] >> REGION_SHIFT) ||
+            (t[0] >> REGION_SHIFT) != (t[2] >> REGION_SHIFT))
+            d->border[t[0]] = d->border[t[1]] = d->border[t[2]] = 1;
+    }
+    size_t nfree = 0;
+    for (size_t v = 0; v < d->nv; v++)
+        nfree += !(d->vf[v] & (V_LOCKED | V_DEAD)) && d->fan_first[v + 1] > d->fan_first[v];
+    return nfree;
+}
+
+/* The region (offset by `offset` vertices) that candidate (a, b) is inside,
+ * or NONE.  offset 0: as the pass began (border); else as the fans are now
+ * (a changed vertex is passed over anyway: NONE). */
+static uint32_t region_of(const dec *d, uint32_t a, uint32_t b, uint32_t offset)
+{
+    if (d->fan_first[a + 1] - d->fan_first[a] > LINK_CAP / 2 ||
+        d->fan_first[b + 1] - d->fan_first[b] > LINK_CAP / 2)
+        return NONE;
+    const uint32_t r = (uint32_t)(((size_t)a + offset) >> REGION_SHIFT);
+    if (r != (uint32_t)(((size_t)b + offset) >> REGION_SHIFT))
+        return NONE;
+    if (offset == 0)
+        return d->border[a] || d->border[b] ? NONE : r;
+    if (is_changed(d->changed, a) || is_changed(d->changed, b))
+        return NONE;
+    for (int s = 0; s < 2; s++) {
+        fan_iter it = fan_begin(d, s ? b : a);
+        uint32_t c;
+        while (fan_next(d, &it, &c)) {
+            const uint32_t *tv = d->tv + (c - c % 3);
+            for (int k = 0; k < 3; k++)
+                if ((uint32_t)(((size_t)tv[k] + offset) >> REGION_SHIFT) != r)
+                    return NONE;
+        }
+    }
+    return r;
+}
+
+typedef struct region_job {
+    dec *d;
+    const cand *c;         /* the regions' candidates, region by region */
+    const size_t *first;   /* nregions + 1 */
+    tally *t;              /* a region's */
+} region_job;
+
+static void region_range(void *arg, size_t lo, size_t hi)
+{
+    const region_job *j = arg;
+    for (size_t r = lo; r < hi; r++)
+        run_candidates(j->d, j->c + j->first[r], j->first[r + 1] - j->first[r], SIZE_MAX, 0,
+                       &j->t[r]);
+}
+
+static void tally_add(tally *t, const tally *u)
+{
+    t->made += u->made;
+    t->refused += u->refused;
+    t->topology += u->topology;
+    t->geometry += u->geometry;
+    t->error += u->error;
+    t->died += u->died;
+}
+
+/* Takes the candidates c[0 .. n) inside the regions offset by `offset`
+ * (region_of), region by region on threads, into t; the others stay in c,
+ * in order: returns their count, or SIZE_MAX without memory.  tmp: room
+ * for n. */
+static size_t run_regions(dec *d, cand *c, cand *tmp, size_t n, uint32_t offset, tally *t)
+{
+    const size_t nregions = ((d->nv + offset) >> REGION_SHIFT) + 1;
+    size_t *first = calloc(nregions + 1, sizeof(size_t));
+    tally *rt = calloc(nregions, sizeof(tally));
+    uint32_t *key = malloc((n ? n : 1) * sizeof(uint32_t));
+    if (!first || !rt || !key) {
+        free(first);
+        free(rt);
+        free(key);
+        return SIZE_MAX;
+    }
+    for (size_t i = 0; i < n; i++) {
+        key[i] = region_of(d, c[i].a, c[i].b, offset);
+        if (key[i] != NONE)
+            first[key[i] + 1]++;
+    }
+    for (size_t r = 0; r < nregions; r++)
+        first[r + 1] += first[r];
+    size_t rest = 0;
+    for (size_t i = 0; i < n; i++) { /* stable: each region's in order, the rest too */
+        if (key[i] != NONE)
+            tmp[first[key[i]]++] = c[i];
+        else
+            c[rest++] = c[i];
+    }
+    free(key);
+    for (size_t r = nregions; r > 0; r--) /* back to each region's start */
+        first[r] = first[r - 1];
+    first[0] = 0;
+    region_job job = {d, tmp, first, rt};
+    parallel_for_from(nregions, 2, region_range, &job);
+    tally sum = {0, 0, 0, 0, 0, 0};
+    for (size_t r = 0; r < nregions; r++)
+        tally_add(&sum, &rt[r]);
+    free(first);
+    free(rt);
+    d->alive -= sum.died;
+    tally_add(t, &sum);
+    return rest;
+}
+
+/* Takes the pass's candidates c[0 .. n) (sorted) into t: where the pass
+ * may run so, those inside the regions on threads, then those inside the
+ * regions shifted by half a region (the borders of the first, judged after
+ * them), then the rest in order; else all in order.  tmp: room for n.  0
+ * without memory. */
+static int run_pass(dec *d, cand *c, cand *tmp, size_t n, size_t nfree, uint64_t target, tally *t)
+{
+    const size_t most = n < nfree / 2 ? n : nfree / 2; /* collapses a pass can make */
+    if (d->max_dist == 0 && (d->nv >> REGION_SHIFT) >= 1 && d->alive > target &&
+        2 * most < d->alive - target) {
+        n = run_regions(d, c, tmp, n, 0, t);
+        if (n != SIZE_MAX)
+            n = run_regions(d, c, tmp, n, (uint32_t)(REGION_SIZE / 2), t);
+        if (n == SIZE_MAX)
+            return 0;
+    }
+    tally b = {0, 0, 0, 0, 0, 0};
+    run_candidates(d, c, n, d->alive, target, &b);
+    d->alive -= b.died;
+    tally_add(t, &b);
+    return 1;
 }
 
 /* ---------------------------------------------------------- the output */
@@ -827,7 +1047,6 @@ isomend_status mesh_decimate_to(const isomend_mesh *mesh, uint64_t target, doubl
     memset(&rep, 0, sizeof rep);
     dec d;
     memset(&d, 0, sizeof d);
-    d.rep = &rep;
     d.nv = mesh->nv;
     d.nt = mesh->nt;
     d.alive = mesh->nt;
@@ -839,7 +1058,7 @@ isomend_status mesh_decimate_to(const isomend_mesh *mesh, uint64_t target, doubl
 
     const size_t nv = d.nv ? d.nv : 1, nc = 3 * (d.nt ? d.nt : 1);
     d.p = malloc(3 * sizeof(double) * nv);
-    d.q = calloc(10 * nv, sizeof(double));
+    d.q = malloc(10 * sizeof(double) * nv); /* quadric_range sets every vertex's */
     d.tv = malloc(nc * sizeof(uint32_t));
     d.tdead = calloc(d.nt ? d.nt : 1, 1);
     d.merged = malloc(nv * sizeof(uint32_t));
@@ -850,6 +1069,7 @@ isomend_status mesh_decimate_to(const isomend_mesh *mesh, uint64_t target, doubl
     d.changed = calloc(d.nwords, sizeof(uint64_t));
     d.changed_before = calloc(d.nwords, sizeof(uint64_t));
     d.live = malloc((d.nt ? d.nt : 1) * sizeof(uint32_t));
+    d.border = malloc(nv);
     d.cost_of = malloc(nc * sizeof(float));
     d.mark = calloc(nv, sizeof(uint32_t));
     if (max_error > 0) { /* only the distance check needs the members */
@@ -860,7 +1080,7 @@ isomend_status mesh_decimate_to(const isomend_mesh *mesh, uint64_t target, doubl
     d.orig = mesh->pos;
     d.max_dist = max_error;
     isomend_status status = ISOMEND_ERR_OUT_OF_MEMORY;
-    if (!d.p || !d.q || !d.tv || !d.tdead || !d.merged || !d.cand || !d.cand_tmp || !d.vf || !d.changed || !d.changed_before || !d.live || !d.cost_of || !d.mark ||
+    if (!d.p || !d.q || !d.tv || !d.tdead || !d.merged || !d.cand || !d.cand_tmp || !d.vf || !d.changed || !d.changed_before || !d.live || !d.border || !d.cost_of || !d.mark ||
         (max_error > 0 && (!d.members || !d.member_next || !d.member_last)))
         goto done;
     if (d.members)
@@ -889,9 +1109,11 @@ isomend_status mesh_decimate_to(const isomend_mesh *mesh, uint64_t target, doubl
      * Passes.  Each gathers the live edges, costs them (on threads: a pure
      * function of the mesh), sorts them, and collapses them cheapest first,
      * each vertex at most once a pass (a vertex that changed waits for the
-     * next pass, where its edges are costed again), up to the cost at twice
-     * the collapses still needed (so that a pass does not spend expensive
-     * edges while cheaper ones are yet to appear).  A pass without a
+     * next pass, where its edges are costed again), up to the cost at the
+     * rank of twice the collapses still needed plus the candidates the pass
+     * before refused (so that a pass does not spend expensive edges while
+     * cheaper ones are yet to appear, nor stall on cheap edges that keep
+     * being refused).  A pass without a
      * collapse under that limit is run again without it; one without any
      * ends the decimation short of the target.
      */
@@ -909,35 +1131,15 @@ isomend_status mesh_decimate_to(const isomend_mesh *mesh, uint64_t target, doubl
         float limit;
         const size_t n = sort_candidates(d.cand, d.cand_tmp, n_all,
                                          unlimited || 2 * need + refused >= n_all ? n_all : 2 * need + refused, &limit);
-        const cand *c = d.cand;
-        uint64_t made = 0;
-        refused = 0;
-        for (size_t i = 0; i < n && d.alive > target; i++) {
-            if (i + PREFETCH_FAR < n)
-                prefetch_vertices(&d, c[i + PREFETCH_FAR].a, c[i + PREFETCH_FAR].b);
-            if (i + PREFETCH_MID < n)
-                prefetch_fans(&d, c[i + PREFETCH_MID].a, c[i + PREFETCH_MID].b);
-            if (i + PREFETCH_NEAR < n)
-                prefetch_neighbours(&d, c[i + PREFETCH_NEAR].a, c[i + PREFETCH_NEAR].b);
-            const uint32_t ea = c[i].a, eb = c[i].b;
-            if (is_changed(d.changed, ea) || is_changed(d.changed, eb))
-                continue;
-            double v[3];
-            (void)collapse_point(&d, ea, eb, v);
-            if (!collapse_allowed(&d, ea, eb, v)) {
-                refused++;
-                continue;
-            }
-            if (d.max_dist > 0 && !collapse_close(&d, ea, eb, v)) {
-                rep.refused_error++;
-                refused++;
-                continue;
-            }
-            collapse(&d, ea, eb, v);
-            set_changed(d.changed, ea);
-            set_changed(d.changed, eb);
-            made++;
-        }
+        const size_t nfree = mark_borders(&d);
+        tally t = {0, 0, 0, 0, 0, 0};
+        if (!run_pass(&d, d.cand, d.cand_tmp, n, nfree, target, &t))
+            goto done;
+        const uint64_t made = t.made;
+        refused = t.refused;
+        rep.refused_topology += t.topology;
+        rep.refused_geometry += t.geometry;
+        rep.refused_error += t.error;
         rep.collapses += made;
         if (made == 0) {
             if (unlimited || limit == FLT_MAX)
@@ -1006,6 +1208,7 @@ done:
     free(d.changed);
     free(d.changed_before);
     free(d.live);
+    free(d.border);
     free(d.cost_of);
     free(d.mark);
     free(d.members);
