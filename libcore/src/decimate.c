@@ -574,8 +574,11 @@ static inline void prefetch_neighbours(const dec *d, uint32_t a, uint32_t b)
         return;
     for (int s = 0; s < 2; s++) {
         const uint32_t x = s ? b : a;
-        for (uint32_t k = d->fan_first[x]; k < d->fan_first[x + 1]; k++)
-            PREFETCH(d->p + 3 * (size_t)corner_next(d, d->fan[k]));
+        for (uint32_t k = d->fan_first[x]; k < d->fan_first[x + 1]; k++) {
+            const uint32_t w = corner_next(d, d->fan[k]);
+            if (w != NONE) /* NONE: a dead triangle's first corner */
+                PREFETCH(d->p + 3 * (size_t)w);
+        }
     }
 }
 
