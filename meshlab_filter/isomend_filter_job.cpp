@@ -288,9 +288,9 @@ ParamText param_text(const char *name)
                 "triangles than this (specks of noise). 0 = keep everything."};
     if (n == kParamSmooth)
         return {"Smoothing iterations",
-                "Post-processing, second: Taubin lambda|mu smoothing steps that remove the voxel "
-                "staircase without shrinking (the enclosed volume is restored); the surface stays "
-                "closed. 0 = off."};
+                "Post-processing, second: windowed sinc smoothing iterations (the filter of VTK and "
+                "3D Slicer) that remove the voxel staircase without shrinking (the enclosed volume "
+                "is restored); the surface stays closed. 0 = off."};
     if (n == kParamDecimate)
         return {"Decimation ratio",
                 "Post-processing, last: the fraction of the triangles to keep (0.2 = a fifth), by "

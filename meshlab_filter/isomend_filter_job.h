@@ -51,7 +51,7 @@ extern const char *const kParamGridAxes; /* DICOM: the series' own axes, not pat
 /* Post-processing of the extracted mesh (isomend.h, "post-processing"), in
  * the command line's order: clean-up, smoothing, decimation.  0 = off. */
 extern const char *const kParamMinComponent; /* drop components of fewer triangles */
-extern const char *const kParamSmooth;       /* Taubin smoothing iterations        */
+extern const char *const kParamSmooth;       /* windowed sinc smoothing iterations */
 extern const char *const kParamDecimate;     /* fraction of the triangles to keep  */
 
 /* One choice of the "method" enum: display name and core method. */

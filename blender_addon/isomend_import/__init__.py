@@ -186,7 +186,7 @@ class IMPORT_MESH_OT_slice_stack(Operator, ImportHelper):
         default=0, min=0, max=2**31 - 1)
     smooth_iterations: IntProperty(
         name="Smooth Iterations",
-        description="Taubin smoothing steps that remove the voxel staircase without shrinking "
+        description="Windowed sinc smoothing iterations that remove the voxel staircase without shrinking "
                     "(the enclosed volume is restored; the surface stays closed); 0 = off",
         default=0, min=0, max=10000, soft_max=100)
     decimate: FloatProperty(

@@ -926,8 +926,8 @@ class Mesh:
         return self._derived(out, "clean", report), report
 
     def smooth(self, iterations):
-        """Taubin lambda|mu smoothing, ``iterations`` pairs of steps (0..10000),
-        then each component's enclosed volume restored; locked vertices (on a
+        """Windowed sinc smoothing (VTK's and 3D Slicer's filter), ``iterations``
+        umbrella steps (0..10000), then each component's enclosed volume restored; locked vertices (on a
         border or a hole) never move.  Returns (Mesh, report) with report keys
         moved_vertices, volume_before, volume_after, max_displacement
         (isomend_mesh_smooth)."""
@@ -1101,7 +1101,7 @@ def extract(volume, iso, method="dmc", spacing=None, origin=None, pad=False, fli
              and origin z are then not used (isomend_volume.slice_origins).
     min_component, largest, smooth, decimate: post-processing, in the command line's
              order (see postprocess()): drop components of fewer than min_component
-             triangles, keep the `largest` largest, `smooth` Taubin iterations, then
+             triangles, keep the `largest` largest, `smooth` windowed sinc iterations, then
              decimate (a ratio in (0, 1], or a dict of ratio, target_triangles,
              max_error).  0/None: off.  The reports are in mesh.postprocess.
     Returns a Mesh.  Raises IsomendError (Cancelled when cancelled), ValueError, TypeError.

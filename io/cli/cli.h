@@ -402,8 +402,11 @@ typedef struct cli_memory_plan {
     int threads;          /* the stream's threads: opts', or 1 when several do not fit   */
     int over_limit;       /* in_memory > limit                                           */
     int stream;           /* the mesh streamed: always, but for a whole-mesh run that fits */
-    int64_t decimate_layers; /* a streamed decimation's chunk height (0: none)           */
-    uint64_t decimate_need;  /* what it holds (isomend_decimate_stream_memory)           */
+    int64_t decimate_layers; /* the chunk height of a streamed smoothing and decimation  */
+                             /* (0: neither)                                             */
+    uint64_t decimate_need;  /* what the decimation holds (isomend_decimate_stream_memory) */
+    uint64_t smooth_need;    /* the smoothing's (isomend_smooth_stream_memory)           */
+    uint64_t clean_need;     /* the clean-up's (isomend_clean_stream_memory)             */
 } cli_memory_plan;
 
 /* The writer's stdio buffers, MiB (mesh_writer.c: the file and two scratch files). */
@@ -411,11 +414,14 @@ typedef struct cli_memory_plan {
 
 /* The plan of an extraction; `whole_mesh`: the run needs the mesh in memory
  * (--in-memory, post-processing, --pages), streamed only when it does not fit;
- * `decimate`: a streamed run is decimated as it goes, in chunks of
- * chunk_layers layers (0: the core's default, fewer where that does not fit). */
+ * `post` (may be NULL): the steps a streamed run does as it goes
+ * (--min-component, --smooth, --decimate), smoothing and decimation in
+ * chunks of post->chunk_layers layers (0: the core's default, fewer where
+ * that does not fit). */
+struct cli_post;
 void cli_memory_plan_make(const isomend_volume *desc, const isomend_options *opts,
                           isomend_mesh_format format, uint64_t max_memory, int whole_mesh,
-                          int decimate, int64_t chunk_layers, cli_memory_plan *p);
+                          const struct cli_post *post, cli_memory_plan *p);
 
 /* The process's peak resident memory (VmHWM), bytes; 0 if unknown. */
 uint64_t cli_peak_memory(void);
@@ -486,23 +492,30 @@ typedef struct cli_outputs {
     cli_world world;
     int has_world;
     cli_checker *checker;
+    isomend_clean_stream *clean;
+    isomend_smooth_stream *smooth;
     isomend_decimate_stream *decimate;
     int64_t layers;
-    cli_timed_sink t_in, t_out; /* around the decimation and around what follows */
+    /* around each step (in) and around what follows it (out): its own time */
+    cli_timed_sink t_in, t_out, c_in, c_out, s_in, s_out;
     cli_sink writer, mapped, tee, dsink, timed_in, timed_out;
+    cli_sink csink, ctimed_in, ctimed_out, ssink, stimed_in, stimed_out;
     const cli_sink *sink;
 } cli_outputs;
 
-/* 0, or 1 with the message printed (label names the source) and nothing left open. */
+/* 0, or 1 with the message printed (label names the source) and nothing left
+ * open.  post (may be NULL): the streamed steps, [clean-up] -> [smoothing]
+ * -> [decimation] before the check, smoothing and decimation in chunks of
+ * `layers` layers. */
 int cli_outputs_begin(cli_outputs *o, const char *path, isomend_mesh_format fmt, int normals,
                       const double *world, const char *label, const isomend_volume *desc,
-                      const isomend_options *opts, uint64_t check_queue, double ratio,
-                      int64_t layers);
+                      const isomend_options *opts, uint64_t check_queue,
+                      const struct cli_post *post, int64_t layers);
 
-/* After the stream (rc its exit code): ends the decimation (into post: its
- * report, streamed, chunk_layers, its own time) and the check (*checked: it
- * ran to its report); frees all but the writer.  Returns rc, or the failure
- * of either. */
+/* After the stream (rc its exit code): ends the steps (into post: their
+ * reports, streamed, chunk_layers, their own times) and the check
+ * (*checked: it ran to its report); frees all but the writer.  Returns rc,
+ * or the failure of any. */
 struct cli_post_report; /* postprocess.c */
 int cli_outputs_finish(cli_outputs *o, int rc, const char *label, struct cli_post_report *post,
                        isomend_check_report *check, int *checked);
@@ -524,7 +537,7 @@ typedef struct cli_timings {
 
 typedef struct cli_post_report {
     int cleaned, smoothed, decimated;
-    int streamed;         /* the decimation ran on the stream, in chunks of: */
+    int streamed;         /* the steps ran on the stream, smoothing and decimation in chunks of: */
     int64_t chunk_layers;
     isomend_clean_report clean;
     isomend_smooth_report smooth;

@@ -98,7 +98,8 @@ static const char *const usage_extract =
     "  --in-memory              hold the whole mesh, then check and write it (what the\n"
     "                           steps below do anyway); streamed when it does not fit\n"
     "  --stream                 stream even when the whole mesh would fit (with\n"
-    "                           --decimate: the streamed decimation below)\n"
+    "                           --min-component, --smooth, --decimate: the streamed\n"
+    "                           steps below)\n"
     "  --slice-positions Z0,Z1,...|@FILE\n"
     "                           the z of every slice (FILE: one a line, # comments),\n"
     "                           strictly increasing, for slices not evenly spaced;\n"
@@ -106,15 +107,17 @@ static const char *const usage_extract =
     "After the extraction, each keeping a closed surface closed (in this order):\n"
     "  --min-component N        drop components of fewer than N triangles\n"
     "  --largest K              keep the K largest components\n"
-    "  --smooth N               N Taubin lambda|mu iterations, volume kept\n"
+    "  --smooth N               N windowed sinc iterations (VTK's filter), volume kept\n"
     "  --decimate RATIO         keep RATIO of the triangles (0.1: a tenth)\n"
     "  --target-triangles N     keep N triangles\n"
     "  --max-error E            no collapse farther than E (world units) from the surface\n"
     "                           it replaces; alone: decimate as far as that allows\n"
-    "A streamed run (--stream, or a mesh larger than --max-memory) can be decimated\n"
-    "as it is made, chunk by chunk, still closed: --decimate RATIO only\n"
-    "  --chunk-layers N         the streamed decimation's chunks of N layers (default:\n"
-    "                           from the slice size, fewer under a tight --max-memory)\n"
+    "A streamed run (--stream, or a mesh larger than --max-memory) is post-processed\n"
+    "as it is made, still closed, by --min-component N, --smooth N and --decimate\n"
+    "RATIO (not --largest, --target-triangles, --max-error: they need the whole mesh)\n"
+    "  --chunk-layers N         the streamed smoothing's and decimation's chunks of N\n"
+    "                           layers (default: from the slice size, fewer under a\n"
+    "                           tight --max-memory)\n"
 #ifdef ISOMEND_HAVE_IO
     "  --first N --count N --step N   printf-pattern slice range\n"
     "  --channel N|luma         channel of multi-channel images\n"
@@ -313,8 +316,9 @@ static int cmd_extract(int argc, char **argv)
                   (a.seen & OPT_IN_MEMORY) ? "--in-memory" : "--pages");
         return CLI_EXIT_USAGE;
     }
-    if ((a.seen & OPT_CHUNK_LAYERS) && !(a.seen & OPT_DECIMATE)) {
-        cli_error("--chunk-layers: only with --decimate (the streamed decimation's chunks)");
+    if ((a.seen & OPT_CHUNK_LAYERS) && !(a.seen & (OPT_DECIMATE | OPT_SMOOTH))) {
+        cli_error("--chunk-layers: only with --decimate or --smooth (the streamed smoothing's and "
+                  "decimation's chunks)");
         return CLI_EXIT_USAGE;
     }
     int quiet = (a.seen & OPT_QUIET) != 0;
@@ -340,28 +344,28 @@ static int cmd_extract(int argc, char **argv)
     const int small_pages = a.pages == CLI_PAGES_SMALL;
     /* the mesh goes to the file as it is made, checked on the way, unless the
      * run needs it whole: post-processing, --in-memory, --pages (and fits;
-     * --stream: never); a streamed --decimate works chunk by chunk */
+     * --stream: never); a streamed --min-component, --smooth, --decimate
+     * work as the mesh is made */
     const int whole_mesh =
         !(a.seen & OPT_STREAM) && (a.seen & (OPT_POST | OPT_IN_MEMORY | OPT_PAGES)) != 0;
     cli_memory_plan plan;
-    cli_memory_plan_make(&src.desc, &opts, fmt, a.max_memory, whole_mesh,
-                         (a.seen & OPT_DECIMATE) != 0, a.post.chunk_layers, &plan);
+    cli_memory_plan_make(&src.desc, &opts, fmt, a.max_memory, whole_mesh, &a.post, &plan);
     rc = plan_fits(&plan, &src);
-    const uint64_t whole_only = OPT_POST & ~(uint64_t)OPT_DECIMATE;
+    const uint64_t whole_only = OPT_LARGEST | OPT_TARGET_TRIANGLES | OPT_MAX_ERROR;
     if (!rc && (a.seen & whole_only) && plan.stream) {
-        const char *flag = (a.seen & OPT_SMOOTH)           ? "--smooth"
-                           : (a.seen & OPT_MIN_COMPONENT)  ? "--min-component"
-                           : (a.seen & OPT_LARGEST)        ? "--largest"
+        const char *flag = (a.seen & OPT_LARGEST)          ? "--largest"
                            : (a.seen & OPT_TARGET_TRIANGLES) ? "--target-triangles"
                                                            : "--max-error";
         char need[32], limit[32];
         if (a.seen & OPT_STREAM)
             cli_error("%s: %s works on the whole mesh in memory, not with --stream; a streamed "
-                      "mesh can be decimated by --decimate RATIO only",
+                      "mesh can be post-processed by --min-component N, --smooth N and "
+                      "--decimate RATIO only",
                       src.label, flag);
         else
             cli_error("%s: %s works on the whole mesh in memory, which needs about %s, more than "
-                      "%s (%s); a streamed mesh can be decimated by --decimate RATIO only",
+                      "%s (%s); a streamed mesh can be post-processed by --min-component N, "
+                      "--smooth N and --decimate RATIO only",
                       src.label, flag, cli_bytes_text(plan.in_memory, need, sizeof need),
                       plan.limit_given ? "--max-memory" : "the memory available",
                       cli_bytes_text(plan.limit, limit, sizeof limit));
@@ -418,14 +422,15 @@ static int cmd_extract(int argc, char **argv)
     uint64_t check_skipped = 0; /* the check's need, when it did not fit the limit */
     cli_timings tm = {0, 0, 0};
     if (plan.stream) {
-        /* the mesh through [the decimation], [the check], [the patient map] to the file */
+        /* the mesh through [the clean-up], [the smoothing], [the decimation], [the check],
+         * [the patient map] to the file */
         isomend_options stream_opts = opts;
         stream_opts.threads = plan.threads;
         cli_outputs out;
         if (cli_outputs_begin(&out, a.output, fmt, !(opts.flags & ISOMEND_FLAG_NO_NORMALS),
                               src.has_world ? src.world : NULL, src.label, &src.desc, &stream_opts,
-                              plan.check ? plan.check_queue : 0,
-                              plan.decimate_layers ? a.post.ratio : 0.0, plan.decimate_layers)) {
+                              plan.check ? plan.check_queue : 0, &a.post,
+                              plan.decimate_layers)) {
             rc = CLI_EXIT_FAIL;
             goto fail_source;
         }

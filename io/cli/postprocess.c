@@ -4,7 +4,8 @@
  * --largest), smoothing (--smooth) and decimation (--decimate,
  * --target-triangles, --max-error), in that order: islands go before they
  * cost smoothing time, and the smoothed surface is what the decimation's
- * quadrics keep.  Every step keeps a closed, oriented surface closed; the
+ * quadrics keep (a streamed run chains the same steps as sinks: stream.c,
+ * cli_outputs).  Every step keeps a closed, oriented surface closed; the
  * mesh each one makes replaces the previous.
  */
 #include "cli.h"
@@ -66,15 +67,18 @@ void cli_print_post(FILE *fp, const cli_post_report *r)
 {
     if (r->cleaned)
         fprintf(fp, "clean-up: %" PRIu64 " of %" PRIu64 " components kept, %" PRIu64
-                    " triangles removed (%.1f ms)\n",
+                    " triangles removed%s (%.1f ms)\n",
                 r->clean.components_after, r->clean.components_before, r->clean.triangles_removed,
-                r->clean_ms);
+                r->streamed ? ", streamed" : "", r->clean_ms);
     if (r->smoothed) {
         const double v0 = r->smooth.volume_before, v1 = r->smooth.volume_after;
         fprintf(fp, "smoothing: %" PRIu64 " vertices moved, at most %.4g; volume %.6g -> %.6g"
-                    " (%+.3f %%) (%.1f ms)\n",
+                    " (%+.3f %%)",
                 r->smooth.moved_vertices, r->smooth.max_displacement, v0, v1,
-                v0 != 0 ? 100.0 * (v1 - v0) / v0 : 0.0, r->smooth_ms);
+                v0 != 0 ? 100.0 * (v1 - v0) / v0 : 0.0);
+        if (r->streamed)
+            fprintf(fp, ", streamed in chunks of %lld layers", (long long)r->chunk_layers);
+        fprintf(fp, " (%.1f ms)\n", r->smooth_ms);
     }
     if (r->decimated) {
         const isomend_decimate_report *d = &r->decimate;
@@ -98,17 +102,19 @@ void cli_json_post(FILE *fp, const cli_post_report *r)
     if (r->cleaned)
         fprintf(fp, "{\"components_before\": %" PRIu64 ", \"components_after\": %" PRIu64
                     ", \"triangles_removed\": %" PRIu64 ", \"vertices_removed\": %" PRIu64
-                    ", \"ms\": %.3f}",
+                    ", \"streamed\": %s, \"ms\": %.3f}",
                 r->clean.components_before, r->clean.components_after, r->clean.triangles_removed,
-                r->clean.vertices_removed, r->clean_ms);
+                r->clean.vertices_removed, r->streamed ? "true" : "false", r->clean_ms);
     else
         fprintf(fp, "null");
     fprintf(fp, ", \"smooth\": ");
     if (r->smoothed)
         fprintf(fp, "{\"moved_vertices\": %" PRIu64 ", \"max_displacement\": %.9g"
-                    ", \"volume_before\": %.17g, \"volume_after\": %.17g, \"ms\": %.3f}",
+                    ", \"volume_before\": %.17g, \"volume_after\": %.17g, \"streamed\": %s"
+                    ", \"chunk_layers\": %lld, \"ms\": %.3f}",
                 r->smooth.moved_vertices, r->smooth.max_displacement, r->smooth.volume_before,
-                r->smooth.volume_after, r->smooth_ms);
+                r->smooth.volume_after, r->streamed ? "true" : "false",
+                (long long)(r->streamed ? r->chunk_layers : 0), r->smooth_ms);
     else
         fprintf(fp, "null");
     fprintf(fp, ", \"decimate\": ");

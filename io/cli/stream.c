@@ -33,6 +33,11 @@
  *            positions of at most twice isomend_stream_vertex_bound()
  *   check    the streaming check's window (CLI_CHECK_BYTES_PER_SAMPLE a
  *            slice sample) and its queue (CLI_CHECK_QUEUE_MIB)
+ *   steps    the streamed clean-up's live vertices and held components
+ *            (isomend_clean_stream_memory), the smoothing's chunk and band
+ *            (isomend_smooth_stream_memory) and the decimation's chunk
+ *            (isomend_decimate_stream_memory), the chunk height the one
+ *            that fits what is left (--chunk-layers: the one given)
  * When that exceeds the limit, the stream runs on one thread; if it still
  * does, without the check (said so, as the whole-mesh path says when the
  * check's tables do not fit); and a limit below what remains is refused.
@@ -91,8 +96,11 @@ static double streaming_need(const isomend_volume *v, const isomend_options *opt
 
 void cli_memory_plan_make(const isomend_volume *desc, const isomend_options *opts,
                           isomend_mesh_format format, uint64_t max_memory, int whole_mesh,
-                          int decimate, int64_t chunk_layers, cli_memory_plan *p)
+                          const cli_post *post, cli_memory_plan *p)
 {
+    const int decimate = post && post->ratio > 0, smooth = post && post->smooth > 0;
+    const int clean = post && post->min_component > 0;
+    const int64_t chunk_layers = post ? post->chunk_layers : 0;
     memset(p, 0, sizeof *p);
     const int pad = (opts->flags & ISOMEND_FLAG_PAD) != 0;
     const int normals = !(opts->flags & ISOMEND_FLAG_NO_NORMALS);
@@ -135,15 +143,37 @@ void cli_memory_plan_make(const isomend_volume *desc, const isomend_options *opt
             p->check = check;
         }
     }
-    /* a streamed decimation: chunks of the layers that fit what is left */
-    if (decimate && isomend_stream_memory(&v, opts) != 0) {
-        const double left = p->limit ? (double)p->limit - streaming : 0.0;
-        p->decimate_layers = chunk_layers ? chunk_layers
-                             : isomend_decimate_stream_layers(&v, opts, !p->limit ? 0
-                                                                        : left > 1.0 ? (uint64_t)left
-                                                                                     : 1);
-        p->decimate_need = isomend_decimate_stream_memory(&v, opts, p->decimate_layers);
-        streaming += (double)p->decimate_need;
+    /* the streamed steps: the clean-up's live vertices and held components,
+     * then the smoothing's and the decimation's chunks of the layers that
+     * fit what is left (the two share the chunk height; each holds a chunk,
+     * the smoothing its band too) */
+    if ((clean || smooth || decimate) && isomend_stream_memory(&v, opts) != 0) {
+        if (clean) {
+            p->clean_need = isomend_clean_stream_memory(&v, opts);
+            streaming += (double)p->clean_need;
+        }
+        if (smooth || decimate) {
+            const double left = p->limit ? (double)p->limit - streaming : 0.0;
+            /* the smoothing's band counts as that many more layers of a chunk */
+            const double band = smooth ? 2.0 * post->smooth + 2.0 : 0.0;
+            const double share = (smooth && decimate ? 2.0 : 1.0);
+            double fit = left / share;
+            if (p->limit && band > 0) {
+                const double per_layer = (double)isomend_smooth_stream_memory(&v, opts, 0, 2) -
+                                         (double)isomend_smooth_stream_memory(&v, opts, 0, 1);
+                fit -= band * per_layer;
+            }
+            p->decimate_layers = chunk_layers ? chunk_layers
+                                 : isomend_decimate_stream_layers(&v, opts, !p->limit ? 0
+                                                                  : fit > 1.0 ? (uint64_t)fit
+                                                                              : 1);
+            if (decimate)
+                p->decimate_need = isomend_decimate_stream_memory(&v, opts, p->decimate_layers);
+            if (smooth)
+                p->smooth_need =
+                    isomend_smooth_stream_memory(&v, opts, post->smooth, p->decimate_layers);
+            streaming += (double)p->decimate_need + (double)p->smooth_need;
+        }
     }
     const double cap = 1.8e19;
     p->volume = volume < cap ? (uint64_t)volume : UINT64_MAX;
@@ -369,6 +399,10 @@ void cli_sink_timed(cli_sink *sink, cli_timed_sink *t, const cli_sink *next)
 
 static void outputs_free(cli_outputs *o)
 {
+    isomend_clean_stream_destroy(o->clean);
+    isomend_smooth_stream_destroy(o->smooth);
+    o->clean = NULL;
+    o->smooth = NULL;
     isomend_decimate_stream_destroy(o->decimate);
     cli_checker_destroy(o->checker);
     cli_world_free(o->has_world ? &o->world : NULL);
@@ -397,9 +431,10 @@ int cli_outputs_commit(cli_outputs *o)
 
 int cli_outputs_begin(cli_outputs *o, const char *path, isomend_mesh_format fmt, int normals,
                       const double *world, const char *label, const isomend_volume *desc,
-                      const isomend_options *opts, uint64_t check_queue, double ratio,
+                      const isomend_options *opts, uint64_t check_queue, const cli_post *post,
                       int64_t layers)
 {
+    const double ratio = post ? post->ratio : 0.0;
     memset(o, 0, sizeof *o);
     char msg[ISOMEND_FILEIO_MSG_SIZE];
     if (isomend_mesh_writer_begin(path, fmt, normals, 0, &o->w, msg, sizeof msg) !=
@@ -444,6 +479,33 @@ int cli_outputs_begin(cli_outputs *o, const char *path, isomend_mesh_format fmt,
         cli_sink_timed(&o->timed_in, &o->t_in, &o->dsink);
         o->sink = &o->timed_in;
     }
+    if (post && post->smooth > 0) {
+        cli_sink_timed(&o->stimed_out, &o->s_out, o->sink);
+        const isomend_status st = isomend_smooth_stream_begin(desc, opts, post->smooth, layers,
+                                                              &o->stimed_out, &o->smooth);
+        if (st != ISOMEND_OK) {
+            cli_error("%s: smoothing failed: %s", label, isomend_status_string(st));
+            cli_outputs_abort(o);
+            return 1;
+        }
+        o->layers = layers;
+        isomend_smooth_stream_sink(o->smooth, &o->ssink);
+        cli_sink_timed(&o->stimed_in, &o->s_in, &o->ssink);
+        o->sink = &o->stimed_in;
+    }
+    if (post && post->min_component > 0) {
+        cli_sink_timed(&o->ctimed_out, &o->c_out, o->sink);
+        const isomend_status st =
+            isomend_clean_stream_begin(post->min_component, &o->ctimed_out, &o->clean);
+        if (st != ISOMEND_OK) {
+            cli_error("%s: clean-up failed: %s", label, isomend_status_string(st));
+            cli_outputs_abort(o);
+            return 1;
+        }
+        isomend_clean_stream_sink(o->clean, &o->csink);
+        cli_sink_timed(&o->ctimed_in, &o->c_in, &o->csink);
+        o->sink = &o->ctimed_in;
+    }
     return 0;
 }
 
@@ -451,6 +513,34 @@ int cli_outputs_finish(cli_outputs *o, int rc, const char *label, struct cli_pos
                        isomend_check_report *check, int *checked)
 {
     *checked = 0;
+    /* each step's finish delivers its rest to the next, so in the chain's
+     * order; each one's time: its calls and finish, less those of the sinks
+     * after it */
+    if (o->clean) {
+        const double t0 = cli_now_ms();
+        const isomend_status st = isomend_clean_stream_finish(o->clean, &post->clean);
+        if (!rc && st != ISOMEND_OK) {
+            if (st != ISOMEND_ERR_SINK)
+                cli_error("%s: clean-up failed: %s", label, isomend_status_string(st));
+            rc = CLI_EXIT_FAIL;
+        }
+        post->cleaned = !rc;
+        post->streamed = 1;
+        post->clean_ms = o->c_in.ms + (cli_now_ms() - t0) - o->c_out.ms;
+    }
+    if (o->smooth) {
+        const double t0 = cli_now_ms();
+        const isomend_status st = isomend_smooth_stream_finish(o->smooth, &post->smooth);
+        if (!rc && st != ISOMEND_OK) {
+            if (st != ISOMEND_ERR_SINK)
+                cli_error("%s: smoothing failed: %s", label, isomend_status_string(st));
+            rc = CLI_EXIT_FAIL;
+        }
+        post->smoothed = !rc;
+        post->streamed = 1;
+        post->chunk_layers = o->layers;
+        post->smooth_ms = o->s_in.ms + (cli_now_ms() - t0) - o->s_out.ms;
+    }
     if (o->decimate) {
         const double d0 = cli_now_ms();
         const isomend_status st = isomend_decimate_stream_finish(o->decimate, &post->decimate);

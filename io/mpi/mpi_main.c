@@ -57,9 +57,10 @@ static const char *const usage =
     "Every method splits between ranks.  The continuity check is not run: use\n"
     "isomend check.\n"
     "\n"
-    "--decimate RATIO [--chunk-layers N]: rank 0 decimates the ranks' slabs as one\n"
-    "stream, checks and writes the mesh: the file 'isomend extract --stream\n"
-    "--decimate RATIO' writes, for any number of ranks.\n";
+    "--min-component N, --smooth N, --decimate RATIO [--chunk-layers N]: rank 0\n"
+    "post-processes the ranks' slabs as one stream, checks and writes the mesh: the\n"
+    "file 'isomend extract --stream' with the same steps writes, for any number of\n"
+    "ranks.\n";
 
 static MPI_Comm comm = MPI_COMM_WORLD;
 static int rank, ranks;
@@ -227,10 +228,11 @@ static void print_run(FILE *text, const cli_slices *sl, const cli_args *a, int i
 }
 
 /*
- * --decimate RATIO: every rank records its slab's piece (mpi_decimate.h);
- * rank 0 replays them as one stream into the streamed decimation, the
- * continuity check and one writer, as `isomend extract --stream --decimate`
- * does (the same bytes), and reports.
+ * --min-component N, --smooth N, --decimate RATIO: every rank records its
+ * slab's piece (mpi_decimate.h); rank 0 replays them as one stream into the
+ * streamed steps (clean-up, smoothing, decimation: cli_outputs), the
+ * continuity check and one writer, as `isomend extract --stream` with the
+ * same steps does (the same bytes), and reports.
  */
 static int run_decimated(const cli_args *a, cli_slices *sl, const isomend_options *opts,
                          isomend_mesh_format fmt, int64_t first, int64_t end, int iso_suggested,
@@ -268,10 +270,9 @@ static int run_decimated(const cli_args *a, cli_slices *sl, const isomend_option
     const int normals = !(opts->flags & ISOMEND_FLAG_NO_NORMALS);
     if (rank == 0) {
         cli_memory_plan plan;
-        cli_memory_plan_make(&sl->desc, opts, fmt, a->max_memory, 0, 1, a->post.chunk_layers,
-                             &plan);
+        cli_memory_plan_make(&sl->desc, opts, fmt, a->max_memory, 0, &a->post, &plan);
         if (cli_outputs_begin(&out, a->output, fmt, normals, sl->has_world ? sl->world : NULL,
-                              sl->label, &sl->desc, opts, plan.check_queue, a->post.ratio,
+                              sl->label, &sl->desc, opts, plan.check_queue, &a->post,
                               plan.decimate_layers))
             rc = CLI_EXIT_FAIL;
     }
@@ -312,7 +313,7 @@ static int run_decimated(const cli_args *a, cli_slices *sl, const isomend_option
         if (!quiet) {
             cli_print_post(text, &post);
             cli_print_check(text, a->output, &check);
-            fprintf(text, "time: read %.1f ms, extract %.1f ms (slowest rank), decimate and write "
+            fprintf(text, "time: read %.1f ms, extract %.1f ms (slowest rank), post-process and write "
                           "%.1f ms (rank 0), total %.1f ms; peak memory %.1f MiB (largest rank)\n",
                     tmax[0], tmax[1], post.decimate_ms, (MPI_Wtime() - t_start) * 1e3,
                     (double)peak_max / 1048576.0);
@@ -354,7 +355,7 @@ static int run(int argc, char **argv)
                        OPT_PAD | OPT_NO_NORMALS | OPT_FLIP | OPT_STATS | OPT_JSON | OPT_QUIET |
                        OPT_THREADS | OPT_FIRST | OPT_COUNT | OPT_STEP | OPT_CHANNEL | OPT_HELP |
                        OPT_PAGES | OPT_MAX_MEMORY | OPT_SLICE_POSITIONS | OPT_DECIMATE |
-                       OPT_CHUNK_LAYERS;
+                       OPT_SMOOTH | OPT_MIN_COMPONENT | OPT_CHUNK_LAYERS;
     int rc = cli_parse_args(argc, argv, 2, "extract", allowed, &a);
     if (!rc && (a.seen & OPT_HELP)) {
         if (rank == 0) fputs(usage, stdout);
@@ -373,8 +374,9 @@ static int run(int argc, char **argv)
     } else if (!rc && a.json && strcmp(a.json, a.output) == 0) {
         cli_error("--json %s: same file as -o", a.json);
         rc = CLI_EXIT_USAGE;
-    } else if (!rc && (a.seen & OPT_CHUNK_LAYERS) && !(a.seen & OPT_DECIMATE)) {
-        cli_error("--chunk-layers: only with --decimate (the streamed decimation's chunks)");
+    } else if (!rc && (a.seen & OPT_CHUNK_LAYERS) && !(a.seen & (OPT_DECIMATE | OPT_SMOOTH))) {
+        cli_error("--chunk-layers: only with --decimate or --smooth (the streamed smoothing's and "
+                  "decimation's chunks)");
         rc = CLI_EXIT_USAGE;
     }
     if ((rc = agree(rc)) != 0) return rc;
@@ -455,7 +457,7 @@ static int run(int argc, char **argv)
                             "(Otsu, see 'isomend info')\n", a.iso, sl.label);
     }
     opts.iso = a.iso;
-    if (a.seen & OPT_DECIMATE) {
+    if (a.seen & (OPT_DECIMATE | OPT_SMOOTH | OPT_MIN_COMPONENT)) {
         rc = run_decimated(&a, &sl, &opts, fmt, first, end, iso_suggested, &jo, t_start, text);
         if (rc) cli_json_abort(&jo);
         cli_slices_close(&sl);

@@ -764,13 +764,15 @@ typedef struct isomend_smooth_report {
 } isomend_smooth_report;
 
 /*
- * Taubin's lambda|mu smoothing (1995), lambda 0.5 and mu -0.53 (pass band
- * 0.1), `iterations` pairs of steps with the umbrella operator: it removes
- * the voxel staircase without the shrinking of plain Laplacian smoothing;
- * then each component's volume is restored by moving its free vertices
- * along their normals by one offset (the volume change over its area), so
- * the enclosed volume is kept.  Only vertices move, locked ones never: the
- * triangles are the input's.  iterations 0 copies the mesh.
+ * The windowed sinc filter of Taubin, Zhang and Golub (1996), the one VTK's
+ * vtkWindowedSincPolyDataFilter and 3D Slicer apply: a low pass (pass band
+ * 0.1, Hamming window) of degree `iterations` in the umbrella operator, each
+ * iteration one umbrella step; it removes the voxel staircase without the
+ * shrinking of plain Laplacian smoothing.  Then each component's volume is
+ * restored by moving its free vertices along their normals by one offset
+ * (the volume change over its area), so the enclosed volume is kept.  Only
+ * vertices move, locked ones never: the triangles are the input's.  The
+ * result does not depend on the threads.  iterations 0 copies the mesh.
  * ISOMEND_ERR_INVALID_ARGUMENT for iterations < 0 or > 10000.
  */
 ISOMEND_API isomend_status isomend_mesh_smooth(const isomend_mesh *mesh, int iterations,
@@ -862,6 +864,109 @@ ISOMEND_API isomend_status isomend_decimate_stream_finish(isomend_decimate_strea
 
 /* Accepts NULL. */
 ISOMEND_API void isomend_decimate_stream_destroy(isomend_decimate_stream *ds);
+
+/*
+ * Streamed clean-up: isomend_mesh_clean()'s --min-component on a mesh that
+ * is never whole in memory, between a stream (isomend_stream_begin(), any
+ * thread count, or another streamed step) and a sink.  A union-find over the
+ * stream's live vertices: a component's triangles are held back until it
+ * has min_triangles of them (then they pass, and every triangle that joins
+ * it later passes at once) or until it closes (no live vertex left, by the
+ * stream's retire floors: then it is dropped).  The triangles kept are
+ * exactly isomend_mesh_clean(mesh, min_triangles, 0)'s, and the report's
+ * components, triangles and vertices removed are its (docs/postprocess.md,
+ * "Streamed").  keep_largest needs every component's size before anything
+ * is written: not streamed.
+ *
+ * The output: vertices numbered from 0 in the order a passed triangle first
+ * uses them (with the normals they came with), triangles in the order they
+ * pass (a held component's in stream order when it reaches min_triangles),
+ * no origins, and one retire() for each of the input's, so that a streamed
+ * smoothing or decimation after it still counts the stream's layers.  It
+ * depends on the stream's vertices, triangles and floors only (not on the
+ * threads).  Memory: the live vertices and the held components' triangles
+ * (each fewer than min_triangles), isomend_clean_stream_memory().
+ */
+typedef struct isomend_clean_stream isomend_clean_stream;
+
+/* An estimate of what it holds on a stream of desc with opts (a surface as
+ * busy as a 256^3 gyroid), 0 for invalid arguments. */
+ISOMEND_API uint64_t isomend_clean_stream_memory(const isomend_volume *desc,
+                                                 const isomend_options *opts);
+
+/* Begins a streamed clean-up passing its result to `out` (copied; vertices,
+ * triangles and retire required).  min_triangles 0 or 1 keeps everything. */
+ISOMEND_API isomend_status isomend_clean_stream_begin(uint64_t min_triangles,
+                                                      const isomend_mesh_sink *out,
+                                                      isomend_clean_stream **cs);
+
+/* The sink to give the stream (vertices, triangles, retire; foreign NULL).
+ * A callback returns non-zero when the clean-up or `out` failed. */
+ISOMEND_API isomend_status isomend_clean_stream_sink(isomend_clean_stream *cs,
+                                                     isomend_mesh_sink *sink);
+
+/* After the stream's finish: closes what is still open (a stream's last
+ * retire has closed everything already) and fills the report (may be
+ * NULL).  ISOMEND_ERR_SINK when `out` stopped it; ISOMEND_ERR_INVALID_ARGUMENT
+ * when the stream broke the sink's rules. */
+ISOMEND_API isomend_status isomend_clean_stream_finish(isomend_clean_stream *cs,
+                                                       isomend_clean_report *report);
+
+/* Accepts NULL. */
+ISOMEND_API void isomend_clean_stream_destroy(isomend_clean_stream *cs);
+
+/*
+ * Streamed smoothing: isomend_mesh_smooth()'s windowed sinc on a mesh
+ * that is never whole in memory, between a stream (or a streamed clean-up)
+ * and a sink (a writer, the streaming check, a streamed decimation).  The
+ * layers are cut into chunks of chunk_layers (0: the default,
+ * isomend_decimate_stream_layers()); as each completes, it is smoothed with
+ * the band held back from the previous one by isomend_mesh_smooth(), whose
+ * locks keep the window's cut in place; the triangles within N + 1 rings
+ * of the new top plane (N the iterations: N umbrella steps reach that far) are
+ * held back and smoothed again, from the stream's positions, in the next
+ * window; the rest is final.  Only vertices move, cut vertices never: a
+ * closed, oriented 2-manifold stays one, with its components and Euler
+ * characteristic.  Each window restores its components' signed volume, so
+ * the volume is kept but for the bands (docs/postprocess.md, "Streamed").
+ *
+ * The output as isomend_decimate_stream_*'s: vertices numbered from 0 in
+ * the order they are delivered (once every triangle around them is final,
+ * with those triangles' area-weighted normal unless
+ * ISOMEND_FLAG_NO_NORMALS), the stream's triangles, no origins, one
+ * retire() for each of the input's.  It depends on the volume, the options,
+ * the iterations and chunk_layers only (not on the stream's threads).  The
+ * report: vertices moved, the largest displacement, and the signed volume
+ * of the stream's triangles before and of the result's after.
+ */
+typedef struct isomend_smooth_stream isomend_smooth_stream;
+
+/* An estimate of what it holds (a chunk and a band of N + 2 layers of a
+ * surface as busy as a 256^3 gyroid), 0 for invalid arguments. */
+ISOMEND_API uint64_t isomend_smooth_stream_memory(const isomend_volume *desc,
+                                                  const isomend_options *opts, int iterations,
+                                                  int64_t chunk_layers);
+
+/* Begins a streamed smoothing of N = iterations (0 .. 10000) of what a
+ * stream of desc with opts delivers, passing the result to `out` (copied;
+ * vertices, triangles and retire required).  On failure *ss is NULL. */
+ISOMEND_API isomend_status isomend_smooth_stream_begin(const isomend_volume *desc,
+                                                       const isomend_options *opts, int iterations,
+                                                       int64_t chunk_layers,
+                                                       const isomend_mesh_sink *out,
+                                                       isomend_smooth_stream **ss);
+
+/* The sink to give the stream (vertices, triangles, retire; foreign NULL). */
+ISOMEND_API isomend_status isomend_smooth_stream_sink(isomend_smooth_stream *ss,
+                                                      isomend_mesh_sink *sink);
+
+/* After the stream's finish: smooths and delivers the rest, fills the
+ * report (may be NULL).  ISOMEND_ERR_SINK when `out` stopped it. */
+ISOMEND_API isomend_status isomend_smooth_stream_finish(isomend_smooth_stream *ss,
+                                                        isomend_smooth_report *report);
+
+/* Accepts NULL. */
+ISOMEND_API void isomend_smooth_stream_destroy(isomend_smooth_stream *ss);
 
 /* ------------------------------------------------------------ case tables */
 

@@ -1065,6 +1065,8 @@ isomend_status mesh_decimate_to(const isomend_mesh *mesh, uint64_t target, doubl
     d.tv = malloc(nc * sizeof(uint32_t));
     d.tdead = calloc(d.nt ? d.nt : 1, 1);
     d.merged = malloc(nv * sizeof(uint32_t));
+    d.fan_first = malloc((nv + 1) * sizeof(uint32_t));
+    d.fan = malloc(nc * sizeof(uint32_t));
     d.cand = malloc(nc * sizeof(cand));
     d.cand_tmp = malloc(nc * sizeof(cand));
     d.vf = calloc(nv, 1);
@@ -1083,8 +1085,9 @@ isomend_status mesh_decimate_to(const isomend_mesh *mesh, uint64_t target, doubl
     d.orig = mesh->pos;
     d.max_dist = max_error;
     isomend_status status = ISOMEND_ERR_OUT_OF_MEMORY;
-    if (!d.p || !d.q || !d.tv || !d.tdead || !d.merged || !d.cand || !d.cand_tmp || !d.vf || !d.changed || !d.changed_before || !d.live || !d.border || !d.cost_of || !d.mark ||
-        (max_error > 0 && (!d.members || !d.member_next || !d.member_last)))
+    if (!d.p || !d.q || !d.tv || !d.tdead || !d.merged || !d.fan_first || !d.fan || !d.cand ||
+        !d.cand_tmp || !d.vf || !d.changed || !d.changed_before || !d.live || !d.border ||
+        !d.cost_of || !d.mark || (max_error > 0 && (!d.members || !d.member_next || !d.member_last)))
         goto done;
     if (d.members)
         for (size_t v = 0; v < d.nv; v++) {
@@ -1097,12 +1100,10 @@ isomend_status mesh_decimate_to(const isomend_mesh *mesh, uint64_t target, doubl
     for (size_t t = 0; t < d.nt; t++)
         d.live[t] = (uint32_t)t;
     d.nlive = d.nt;
-    /* the first pass's fans: the corners by vertex that the test of the free
-     * vertices files */
-    if (!mesh_free_vertices(mesh, d.vf, &d.fan_first, &d.fan))
+    begin_pass(&d); /* the first pass's fans */
+    if (!mesh_free_vertices(mesh, d.vf, NULL, NULL, NULL))
         goto done;
     for (size_t v = 0; v < d.nv; v++) {
-        d.merged[v] = NONE;
         d.vf[v] = d.vf[v] ? 0 : V_LOCKED; /* unused vertices are locked too */
         rep.locked_vertices += d.vf[v] && d.fan_first[v + 1] > d.fan_first[v];
     }

@@ -74,92 +74,107 @@ void mesh_area_normals(isomend_mesh *m, const float *keep)
     free(acc);
 }
 
+/* Whether the n corners of vertex v, given by the other two vertices of
+ * each (next[i], prev[i] around its triangle), form one closed fan with
+ * every edge used once each way: n >= 3, no repeated vertex in a triangle,
+ * each neighbour once a next and once a prev, and one cycle through them. */
+static int one_fan(uint32_t v, const uint32_t *next, const uint32_t *prev, uint32_t n)
+{
+    if (n < 3)
+        return 0;
+    for (uint32_t i = 0; i < n; i++) {
+        if (next[i] == v || prev[i] == v || next[i] == prev[i])
+            return 0;
+        for (uint32_t k = i + 1; k < n; k++)
+            if (next[i] == next[k] || prev[i] == prev[k])
+                return 0;
+    }
+    /* the nexts are distinct and so are the prevs, so prev -> the corner
+     * whose next it is maps corners one to one: one cycle through all n */
+    uint32_t i = 0, steps = 0;
+    do {
+        uint32_t k = 0;
+        while (k < n && next[k] != prev[i])
+            k++;
+        if (k == n)
+            return 0; /* a prev that is no next: a once-used edge */
+        i = k;
+        steps++;
+    } while (i != 0 && steps <= n);
+    return steps == n;
+}
+
+typedef struct fan_job {
+    const uint32_t *first, *next, *prev;
+    uint8_t *free_flag;
+} fan_job;
+
+static void fan_range(void *arg, size_t lo, size_t hi)
+{
+    const fan_job *j = arg;
+    for (size_t v = lo; v < hi; v++) {
+        const uint32_t b = j->first[v];
+        j->free_flag[v] = (uint8_t)one_fan((uint32_t)v, j->next + b, j->prev + b, j->first[v + 1] - b);
+    }
+}
+
 /*
  * The vertices free to move: those whose triangles form one closed fan with
  * every edge used once each way.  Every other vertex of a triangle (on a
  * once-used edge, an edge used three times or twice the same way, a
  * repeated index, two fans) is locked (free[v] = 0).  The corners of each
- * vertex are filed in a compressed row table: first[v] .. first[v + 1] - 1
- * index `corners` (corner c = 3t + k), which the caller may keep (both
- * NULL-able: then freed here).  Returns 0 without memory.
+ * vertex are filed in a compressed row table, in triangle order: first[v] ..
+ * first[v + 1] - 1 index next and prev, the other two vertices of each
+ * corner's triangle (the one after v and the one before, in the winding),
+ * which the caller may keep (all three NULL-able: then freed here).  The
+ * fans are tested on threads.  The arrays come from scratch_alloc() (huge
+ * pages; free() releases them).  Returns 0 without memory.
  */
-typedef struct free_job {
-    const isomend_mesh *m;
-    const uint32_t *first, *corners;
-    uint8_t *free_flag;
-} free_job;
-
-/* The test of vertices [lo, hi): each vertex's own, so on any thread. */
-static void free_range(void *arg, size_t lo, size_t hi)
-{
-    const free_job *j = arg;
-    const isomend_mesh *m = j->m;
-    const uint32_t *first = j->first, *corners = j->corners;
-#define NEXT(c) m->tri[(c) - (c) % 3 + ((c) % 3 + 1) % 3]
-#define PREV(c) m->tri[(c) - (c) % 3 + ((c) % 3 + 2) % 3]
-    for (size_t v = lo; v < hi; v++) {
-        const uint32_t b = first[v], e = first[v + 1], n = e - b;
-        int ok = n >= 3;
-        for (uint32_t x = b; x < e && ok; x++) {
-            const uint32_t c = corners[x], w = NEXT(c), u = PREV(c);
-            if (w == v || u == v || w == u) {
-                ok = 0;
-                break;
-            }
-            int out = 0, in = 0;
-            for (uint32_t y = b; y < e; y++) {
-                out += NEXT(corners[y]) == w;
-                in += PREV(corners[y]) == w;
-            }
-            ok = out == 1 && in == 1;
-        }
-        if (ok) { /* one fan: around v through the edges */
-            uint32_t c = corners[b], steps = 0;
-            do {
-                const uint32_t w = PREV(c);
-                uint32_t y = b;
-                while (y < e && NEXT(corners[y]) != w)
-                    y++;
-                c = corners[y < e ? y : b];
-                steps++;
-            } while (c != corners[b] && steps <= n);
-            ok = steps == n;
-        }
-        j->free_flag[v] = (uint8_t)ok;
-    }
-#undef NEXT
-#undef PREV
-}
-
 int mesh_free_vertices(const isomend_mesh *m, uint8_t *free_flag, uint32_t **first_out,
-                       uint32_t **corners_out)
+                       uint32_t **next_out, uint32_t **prev_out)
 {
     const size_t nv = m->nv, nc = 3 * m->nt;
-    uint32_t *first = calloc(nv + 1, sizeof(uint32_t)), *corners = malloc((nc ? nc : 1) * 4);
-    if (!first || !corners) {
+    uint32_t *first = scratch_alloc((nv + 1) * sizeof(uint32_t)),
+             *next = scratch_alloc((nc ? nc : 1) * 4), *prev = scratch_alloc((nc ? nc : 1) * 4);
+    if (!first || !next || !prev) {
         free(first);
-        free(corners);
+        free(next);
+        free(prev);
         return 0;
     }
+    memset(first, 0, (nv + 1) * sizeof(uint32_t));
+    const uint32_t *tri = m->tri;
     for (size_t c = 0; c < nc; c++)
-        first[m->tri[c] + 1]++;
+        first[tri[c] + 1]++;
     for (size_t v = 0; v < nv; v++)
         first[v + 1] += first[v];
-    for (size_t c = 0; c < nc; c++)
-        corners[first[m->tri[c]]++] = (uint32_t)c;
+    for (size_t t = 0; t < m->nt; t++) {
+        const uint32_t a = tri[3 * t], b = tri[3 * t + 1], c = tri[3 * t + 2];
+        const uint32_t xa = first[a]++, xb = first[b]++, xc = first[c]++;
+        next[xa] = b;
+        prev[xa] = c;
+        next[xb] = c;
+        prev[xb] = a;
+        next[xc] = a;
+        prev[xc] = b;
+    }
     for (size_t v = nv; v > 0; v--)
         first[v] = first[v - 1];
     first[0] = 0;
-    free_job job = {m, first, corners, free_flag};
-    parallel_for(nv, free_range, &job);
+    fan_job job = {first, next, prev, free_flag};
+    parallel_for(nv, fan_range, &job);
     if (first_out)
         *first_out = first;
     else
         free(first);
-    if (corners_out)
-        *corners_out = corners;
+    if (next_out)
+        *next_out = next;
     else
-        free(corners);
+        free(next);
+    if (prev_out)
+        *prev_out = prev;
+    else
+        free(prev);
     return 1;
 }
 

@@ -384,14 +384,15 @@ def test_errors(exe, work, samples):
     os.remove(out)
     limit = str((j["memory_estimate"] + j["memory_streaming"]) // 2)
     iso = repr(j["iso"])  # given: no "using the suggested level" line on stderr
-    refused = [(["--stream", "--smooth", "3", "--decimate", "0.1"], "--smooth"),
-               (["--stream", "--min-component", "5"], "--min-component"),
+    refused = [(["--stream", "--smooth", "3", "--largest", "2"], "--largest"),
+               (["--stream", "--min-component", "5", "--max-error", "0.5"], "--max-error"),
                (["--stream", "--largest", "1"], "--largest"),
                (["--stream", "--target-triangles", "100"], "--target-triangles"),
                (["--stream", "--decimate", "0.1", "--max-error", "0.5"], "--max-error"),
                (["--stream", "--max-error", "0.5"], "--max-error"),
                (["--stream", "--decimate", "0.1", "--target-triangles", "100"], "--target-triangles"),
-               (["--max-memory", limit, "--smooth", "3", "--decimate", "0.1"], "--smooth"),
+               (["--max-memory", limit, "--smooth", "3", "--target-triangles", "100"],
+                "--target-triangles"),
                (["--max-memory", limit, "--largest", "1", "--decimate", "0.1"], "--largest")]
     for flags, flag in refused:
         tag = f"refused {' '.join(flags)}"
