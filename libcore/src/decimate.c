@@ -22,14 +22,18 @@
  *     triangles around the vertex it was collapsed into (collapse_close),
  *     so within it of the result.  The report's errors are measured at the
  *     end (distance.c).
- * Collapses are taken in passes (the loop in isomend_mesh_decimate says
- * how), cheapest first, ties in the order of the triangles: the result does
- * not depend on the thread count, which only shares out the costing.
+ * Collapses are taken in passes (the loop in mesh_decimate_to says how),
+ * cheapest first, ties in the order of the triangles; in the large passes
+ * the candidates inside fixed regions of the mesh go region by region on
+ * threads before those on the regions' borders (run_pass says why that is
+ * safe).  The result does not depend on the thread count, which only
+ * shares out the costing, the regions and the distance measurement.
  *
- * Layout: a corner table (corner c = 3t + k of triangle t) with, per
- * vertex, a singly linked list of its corners; a collapse moves b's corners
- * into a's list, and the corners of dead triangles are unlinked as lists
- * are walked.
+ * Layout: a corner table (corner c = 3t + k of triangle t; a dead
+ * triangle's first corner NONE) and, per pass, each vertex's corners in a
+ * compressed row table (fan_first, fan) built as the pass begins; a vertex
+ * collapsed into another in the pass lends it its corners (merged), and
+ * the corners of triangles that died in the pass are skipped.
  */
 #include "mesh_internal.h"
 
@@ -60,18 +64,26 @@ typedef struct dec {
     double *q;       /* 10 a vertex: the quadric's upper triangle */
     uint32_t *tv;    /* 3 a triangle: the corners' vertices */
     uint8_t *tdead;
-    uint32_t *head;  /* a vertex's first corner */
-    uint32_t *next;  /* the next corner of the same vertex */
+    uint32_t *fan_first; /* nv + 1: where a vertex's corners start in fan */
+    uint32_t *fan;       /* the corners of the live triangles as the pass began, by vertex */
+    uint32_t *merged;    /* the vertex collapsed into v in this pass, or NONE */
+    uint32_t *live;      /* the live triangles as the pass began, in order */
+    uint8_t *border;     /* a vertex with a triangle across a region's border (run_pass) */
+    size_t nlive;
+    float *cost_of;      /* a corner's edge's cost when last costed (from its a < b side) */
+    struct cand *cand, *cand_tmp; /* a pass's candidates: 3 a triangle each */
     uint8_t *vf;     /* V_LOCKED, V_DEAD */
     uint32_t *mark;  /* scratch marks, generation `gen` */
     uint32_t gen;
-    uint32_t *pass_mark; /* the pass in which a vertex last changed */
+    uint64_t *changed;   /* a bit a vertex: moved or removed in this pass */
+    uint64_t *changed_before; /* the same for the pass before (the costs to renew) */
+    size_t nwords;       /* of each */
+    uint32_t pass;
     double max_dist;      /* max_error, or 0: no distance check            */
     const float *orig;    /* the input's positions                         */
-    uint32_t *parent;     /* the vertex an input vertex was collapsed into */
     uint32_t *members;    /* the input vertices a vertex stands for: a list */
     uint32_t *member_next; /* through these, from members[v]               */
-    isomend_decimate_report *rep;
+    uint32_t *member_last; /* the list's last                              */
 } dec;
 
 /* ------------------------------------------------------------- quadrics */
@@ -96,6 +108,18 @@ static double quadric_eval(const double *q, const double v[3])
     return q[0] * x * x + 2 * q[1] * x * y + 2 * q[2] * x * z + 2 * q[3] * x + q[4] * y * y +
            2 * q[5] * y * z + 2 * q[6] * y + q[7] * z * z + 2 * q[8] * z + q[9];
 }
+
+/* The planes of triangles from `from` on, summed into their vertices'
+ * quadrics, then q_in (if not NULL) added: each vertex's own sum, over its
+ * corners in the order of the triangles (as one pass over the triangles
+ * would add them), so vertices [lo, hi) on any thread. */
+typedef struct quadric_job {
+    const struct dec *d;
+    size_t from;
+    const double *q_in;
+} quadric_job;
+
+static void quadric_range(void *arg, size_t lo, size_t hi);
 
 /* The collapse of (a, b): the point minimising qa + qb (or the best of a, b
  * and the midpoint where that is ill-posed or far off the edge); its cost. */
@@ -153,22 +177,117 @@ static double collapse_point(const dec *d, uint32_t a, uint32_t b, double v[3])
 
 /* --------------------------------------------------------- adjacency */
 
-/* Unlinks the corners of dead triangles from v's list (collapse() keeps
- * every list free of them). */
-static void prune(dec *d, uint32_t v)
+/*
+ * A vertex's corners: those it had as the pass began (fan, rebuilt each
+ * pass: contiguous, unlike lists, so that they cost one or two cache lines)
+ * and, if a vertex was collapsed into it in this pass, that vertex's (each
+ * vertex changes at most once a pass).  Corners of triangles that died in
+ * this pass are skipped.
+ */
+typedef struct fan_iter {
+    const uint32_t *at, *end, *at2, *end2;
+} fan_iter;
+
+static inline int is_changed(const uint64_t *bits, uint32_t v) { return (int)(bits[v >> 6] >> (v & 63)) & 1; }
+static inline void set_changed(uint64_t *bits, uint32_t v) { bits[v >> 6] |= (uint64_t)1 << (v & 63); }
+
+static inline fan_iter fan_begin(const dec *d, uint32_t x)
 {
-    uint32_t *link = &d->head[v];
-    while (*link != NONE) {
-        const uint32_t c = *link;
-        if (d->tdead[c / 3])
-            *link = d->next[c];
-        else
-            link = &d->next[c];
+    fan_iter it = {d->fan + d->fan_first[x], d->fan + d->fan_first[x + 1], NULL, NULL};
+    if (is_changed(d->changed, x) && d->merged[x] != NONE) {
+        const uint32_t y = d->merged[x];
+        it.at2 = d->fan + d->fan_first[y];
+        it.end2 = d->fan + d->fan_first[y + 1];
+    }
+    return it;
+}
+
+static inline int fan_next(const dec *d, fan_iter *it, uint32_t *c)
+{
+    for (;;) {
+        while (it->at < it->end) {
+            const uint32_t k = *it->at++;
+            if (d->tv[k - k % 3] != NONE) { /* not dead (collapse) */
+                *c = k;
+                return 1;
+            }
+        }
+        if (!it->at2)
+            return 0;
+        it->at = it->at2;
+        it->end = it->end2;
+        it->at2 = NULL;
     }
 }
 
+/* The live triangles and the fans of a pass (the corners of the live
+ * triangles by vertex, each vertex's in the order of the triangles: a
+ * counting sort); a new pass's marks. */
+static void begin_pass(dec *d)
+{
+    size_t m = 0;
+    for (size_t i = 0; i < d->nlive; i++)
+        if (!d->tdead[d->live[i]])
+            d->live[m++] = d->live[i];
+    d->nlive = m;
+    uint32_t *first = d->fan_first, *cursor = d->merged; /* merged: scratch here */
+    memset(first, 0, (d->nv + 1) * sizeof(uint32_t));
+    for (size_t i = 0; i < m; i++)
+        for (int k = 0; k < 3; k++)
+            first[d->tv[3 * (size_t)d->live[i] + (size_t)k] + 1]++;
+    for (size_t v = 0; v < d->nv; v++) {
+        first[v + 1] += first[v];
+        cursor[v] = first[v];
+    }
+    for (size_t i = 0; i < m; i++) {
+        const uint32_t t = d->live[i];
+        for (uint32_t k = 0; k < 3; k++)
+            d->fan[cursor[d->tv[3 * t + k]]++] = 3 * t + k;
+    }
+    for (size_t v = 0; v < d->nv; v++)
+        d->merged[v] = NONE;
+    uint64_t *w = d->changed_before; /* this pass's marks start empty */
+    d->changed_before = d->changed;
+    d->changed = w;
+    memset(d->changed, 0, d->nwords * sizeof(uint64_t));
+}
+
+
 static inline uint32_t corner_next(const dec *d, uint32_t c) { return d->tv[c - c % 3 + (c % 3 + 1) % 3]; }
 static inline uint32_t corner_prev(const dec *d, uint32_t c) { return d->tv[c - c % 3 + (c % 3 + 2) % 3]; }
+
+static void quadric_range(void *arg, size_t lo, size_t hi)
+{
+    const quadric_job *j = arg;
+    const dec *d = j->d;
+    for (size_t v = lo; v < hi; v++) {
+        double *q = d->q + 10 * v;
+        for (int i = 0; i < 10; i++)
+            q[i] = 0;
+        for (uint32_t k = d->fan_first[v]; k < d->fan_first[v + 1]; k++) {
+            const uint32_t t = d->fan[k] / 3;
+            if (t < j->from)
+                continue;
+            const double *p0 = d->p + 3 * (size_t)d->tv[3 * (size_t)t],
+                         *p1 = d->p + 3 * (size_t)d->tv[3 * (size_t)t + 1],
+                         *p2 = d->p + 3 * (size_t)d->tv[3 * (size_t)t + 2];
+            const double e1[3] = {p1[0] - p0[0], p1[1] - p0[1], p1[2] - p0[2]};
+            const double e2[3] = {p2[0] - p0[0], p2[1] - p0[1], p2[2] - p0[2]};
+            double n[3] = {e1[1] * e2[2] - e1[2] * e2[1], e1[2] * e2[0] - e1[0] * e2[2],
+                           e1[0] * e2[1] - e1[1] * e2[0]};
+            const double len = sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
+            if (!(len > 0) || !isfinite(len))
+                continue;
+            for (int c = 0; c < 3; c++)
+                n[c] /= len;
+            const double dd = -(n[0] * p0[0] + n[1] * p0[1] + n[2] * p0[2]);
+            quadric_add_plane(q, n, dd);
+        }
+        if (j->q_in)
+            for (int i = 0; i < 10; i++)
+                q[i] += j->q_in[10 * v + (size_t)i];
+    }
+}
 
 /* ------------------------------------------------------------- distance */
 
@@ -185,10 +304,10 @@ static double fan_distance2(const dec *d, uint32_t u, uint32_t x1, uint32_t x2, 
         const uint32_t x = s ? x2 : x1;
         if (x == NONE)
             continue;
-        for (uint32_t c = d->head[x]; c != NONE; c = d->next[c]) {
+        fan_iter it = fan_begin(d, x);
+        uint32_t c;
+        while (fan_next(d, &it, &c)) {
             const uint32_t t = c / 3;
-            if (d->tdead[t])
-                continue;
             const double *q[3];
             int moved = 0;
             for (int k = 0; k < 3; k++) {
@@ -209,7 +328,7 @@ static double fan_distance2(const dec *d, uint32_t u, uint32_t x1, uint32_t x2, 
 /* Whether every input vertex stays within max_dist of the triangles around
  * the vertex it stands in for, after (a, b) collapses to v: the members of
  * a and b (to the new fan) and of every neighbour of a or b (whose fans
- * change too).  Uses the marks of collapse_allowed (the neighbours of a). */
+ * change too). */
 static int collapse_close(dec *d, uint32_t a, uint32_t b, const double v[3])
 {
     const double limit = d->max_dist * d->max_dist;
@@ -223,10 +342,10 @@ static int collapse_close(dec *d, uint32_t a, uint32_t b, const double v[3])
     }
     const uint32_t g = d->gen;
     d->mark[a] = d->mark[b] = g;
-    for (int s = 0; s < 2; s++)
-        for (uint32_t c = d->head[s ? b : a]; c != NONE; c = d->next[c]) {
-            if (d->tdead[c / 3])
-                continue;
+    for (int s = 0; s < 2; s++) {
+        fan_iter it = fan_begin(d, s ? b : a);
+        uint32_t c;
+        while (fan_next(d, &it, &c)) {
             const uint32_t w = corner_next(d, c);
             if (d->mark[w] == g)
                 continue;
@@ -235,6 +354,7 @@ static int collapse_close(dec *d, uint32_t a, uint32_t b, const double v[3])
                 if (fan_distance2(d, u, w, NONE, a, b, v) > limit)
                     return 0;
         }
+    }
     return 1;
 }
 
@@ -262,52 +382,90 @@ static void tri_normal(const dec *d, uint32_t t, uint32_t moved_a, uint32_t move
     }
 }
 
-/* Whether (a, b) may collapse to v (the checks at the top of this file). */
+/* The link condition's neighbours of a, held here up to LINK_CAP (the
+ * marks beyond). */
+#define LINK_CAP 128
+
+enum { ALLOWED = 0, REFUSED_TOPOLOGY = 1, REFUSED_GEOMETRY = 2 };
+
+/* Whether (a, b) may collapse to v (the checks at the top of this file):
+ * ALLOWED or why not.  Uses the marks only where a has more than
+ * LINK_CAP / 2 triangles. */
 static int collapse_allowed(dec *d, uint32_t a, uint32_t b, const double v[3])
 {
     /* link condition: the neighbours common to a and b */
-    if (++d->gen == 0) {
-        memset(d->mark, 0, d->nv * sizeof(uint32_t));
-        d->gen = 1;
-    }
-    const uint32_t g = d->gen;
+    uint32_t around[LINK_CAP];
+    size_t naround = 0;
+    int marked = 0; /* too many neighbours for `around`: the marks */
+    uint32_t g = 0;
     uint32_t opp[2], nopp = 0;
-    for (uint32_t c = d->head[a]; c != NONE; c = d->next[c]) {
+    fan_iter it = fan_begin(d, a);
+    uint32_t c;
+    while (fan_next(d, &it, &c)) {
         const uint32_t w = corner_next(d, c), u = corner_prev(d, c);
-        d->mark[w] = d->mark[u] = g;
+        if (!marked && naround + 2 > LINK_CAP) {
+            if (++d->gen == 0) {
+                memset(d->mark, 0, d->nv * sizeof(uint32_t));
+                d->gen = 1;
+            }
+            g = d->gen;
+            for (size_t i = 0; i < naround; i++)
+                d->mark[around[i]] = g;
+            marked = 1;
+        }
+        if (marked) {
+            d->mark[w] = d->mark[u] = g;
+        } else {
+            around[naround++] = w;
+            around[naround++] = u;
+        }
         if (w == b)
             opp[nopp < 2 ? nopp : 1] = u, nopp++;
     }
     if (nopp != 1)
         goto topology;
-    for (uint32_t c = d->head[b]; c != NONE; c = d->next[c])
+    it = fan_begin(d, b);
+    while (fan_next(d, &it, &c))
         if (corner_next(d, c) == a)
             opp[1] = corner_prev(d, c), nopp++;
     if (nopp != 2 || opp[0] == opp[1])
         goto topology;
     int common = 0;
-    for (uint32_t c = d->head[b]; c != NONE; c = d->next[c]) {
+    it = fan_begin(d, b);
+    while (fan_next(d, &it, &c)) {
         const uint32_t w = corner_next(d, c); /* each neighbour once as `next` */
-        if (w != a && d->mark[w] == g)
-            common++;
+        if (w == a)
+            continue;
+        if (marked) {
+            common += d->mark[w] == g;
+        } else {
+            for (size_t i = 0; i < naround; i++)
+                if (around[i] == w) {
+                    common++;
+                    break;
+                }
+        }
     }
     if (common != 2)
         goto topology;
     /* no triangle (a, c, d) and (b, c, d) both: a tetrahedron */
     int tet = 0;
-    for (int s = 0; s < 2; s++)
-        for (uint32_t c = d->head[s ? b : a]; c != NONE; c = d->next[c]) {
+    for (int s = 0; s < 2; s++) {
+        it = fan_begin(d, s ? b : a);
+        while (fan_next(d, &it, &c)) {
             const uint32_t w = corner_next(d, c), u = corner_prev(d, c);
             if ((w == opp[0] && u == opp[1]) || (w == opp[1] && u == opp[0])) {
                 tet++;
                 break;
             }
         }
+    }
     if (tet == 2)
         goto topology;
     /* no flipped or degenerate triangle */
-    for (int s = 0; s < 2; s++)
-        for (uint32_t c = d->head[s ? b : a]; c != NONE; c = d->next[c]) {
+    for (int s = 0; s < 2; s++) {
+        it = fan_begin(d, s ? b : a);
+        while (fan_next(d, &it, &c)) {
             const uint32_t t = c / 3;
             const uint32_t w = corner_next(d, c), u = corner_prev(d, c);
             if (w == (s ? a : b) || u == (s ? a : b))
@@ -320,125 +478,459 @@ static int collapse_allowed(dec *d, uint32_t a, uint32_t b, const double v[3])
             const double l0 = n0[0] * n0[0] + n0[1] * n0[1] + n0[2] * n0[2];
             /* shape: 2 sqrt(3) |n| / (sum of squared edges), 1 equilateral */
             const double q0 = e0 > 0 ? sqrt(l0) / e0 : 0, q1 = e1 > 0 ? sqrt(l1) / e1 : 0;
-            if (!(l1 > 0) || (l0 > 0 && !(dot > 0)) || (q1 < MIN_SHAPE && q1 < 0.5 * q0)) {
-                d->rep->refused_geometry++;
-                return 0;
-            }
+            if (!(l1 > 0) || (l0 > 0 && !(dot > 0)) || (q1 < MIN_SHAPE && q1 < 0.5 * q0))
+                return REFUSED_GEOMETRY;
         }
-    return 1;
+    }
+    return ALLOWED;
 topology:
-    d->rep->refused_topology++;
-    return 0;
+    return REFUSED_TOPOLOGY;
 }
 
-/* Collapses (a, b) into a at v. */
-static void collapse(dec *d, uint32_t a, uint32_t b, const double v[3])
+/* Collapses (a, b) into a at v; the caller then marks both as changed in
+ * this pass.  Returns the number of triangles that died (two). */
+static size_t collapse(dec *d, uint32_t a, uint32_t b, const double v[3])
 {
-    uint32_t opposite[2] = {NONE, NONE};
-    int nopp = 0;
-    for (uint32_t c = d->head[b]; c != NONE;) {
-        const uint32_t t = c / 3, nextc = d->next[c];
-        if (!d->tdead[t]) {
-            if (corner_next(d, c) == a || corner_prev(d, c) == a) {
-                d->tdead[t] = 1;
-                d->alive--;
-                if (nopp < 2) /* the dying triangle's third vertex */
-                    opposite[nopp++] = corner_next(d, c) == a ? corner_prev(d, c) : corner_next(d, c);
-            } else {
-                d->tv[c] = a;
-            }
+    fan_iter it = fan_begin(d, b);
+    uint32_t c;
+    size_t died = 0;
+    while (fan_next(d, &it, &c)) {
+        if (corner_next(d, c) == a || corner_prev(d, c) == a) {
+            d->tdead[c / 3] = 1;
+            d->tv[c - c % 3] = NONE; /* so the fans see it dead without tdead */
+            died++;
+        } else {
+            d->tv[c] = a;
         }
-        /* into a's list */
-        d->next[c] = d->head[a];
-        d->head[a] = c;
-        c = nextc;
     }
-    d->head[b] = NONE;
     d->vf[b] |= V_DEAD;
-    d->parent[b] = a;
-    uint32_t *tail = &d->members[a]; /* b's members join a's */
-    while (*tail != NONE)
-        tail = &d->member_next[*tail];
-    *tail = d->members[b];
-    d->members[b] = NONE;
+    d->merged[a] = b; /* b's corners are a's now */
+    d->merged[b] = NONE;
+    if (d->members) { /* b's members join a's */
+        if (d->members[b] != NONE) {
+            if (d->members[a] == NONE)
+                d->members[a] = d->members[b];
+            else
+                d->member_next[d->member_last[a]] = d->members[b];
+            d->member_last[a] = d->member_last[b];
+        }
+        d->members[b] = NONE;
+    }
     for (int i = 0; i < 10; i++)
         d->q[10 * a + i] += d->q[10 * b + i];
     memcpy(d->p + 3 * a, v, 3 * sizeof(double));
-    /* every list stays free of dead corners: a's, and the third vertices'
-     * of the two triangles that died */
-    prune(d, a);
-    for (int k = 0; k < nopp; k++)
-        prune(d, opposite[k]);
+    return died;
 }
 
 /* ----------------------------------------------------------- the passes */
 
-/* The candidates of a pass: every live edge (once, from its a < b side)
- * whose ends are free, in the order of the triangles. */
-static cand *gather(const dec *d, size_t *n)
+/*
+ * The collapse loop takes the candidates in the order of their costs, so
+ * all over the mesh: it would wait on memory at every step.  What a
+ * candidate will read is asked for ahead (its vertices PREFETCH_FAR
+ * candidates ahead, its fans' triangles PREFETCH_MID ahead, their vertices
+ * PREFETCH_NEAR ahead).  Only a
+ * hint: nothing depends on it.
+ */
+#define PREFETCH_FAR 32
+#define PREFETCH_MID 12
+#define PREFETCH_NEAR 4
+#if defined(__GNUC__)
+#define PREFETCH(x) __builtin_prefetch(x)
+#else
+#define PREFETCH(x) ((void)(x))
+#endif
+
+static inline void prefetch_vertices(const dec *d, uint32_t a, uint32_t b)
 {
-    cand *c = malloc(3 * (d->nt ? d->nt : 1) * sizeof(cand));
-    if (!c)
-        return NULL;
-    size_t k = 0;
-    for (size_t t = 0; t < d->nt; t++) {
-        if (d->tdead[t])
-            continue;
-        for (int e = 0; e < 3; e++) {
-            const uint32_t a = d->tv[3 * t + (size_t)e], b = d->tv[3 * t + (size_t)(e + 1) % 3];
-            if (a < b && !((d->vf[a] | d->vf[b]) & (V_LOCKED | V_DEAD)))
-                c[k++] = (cand){0, a, b};
-        }
-    }
-    *n = k;
-    return c;
+    if (is_changed(d->changed, a) || is_changed(d->changed, b))
+        return; /* will be passed over */
+    PREFETCH(d->fan_first + a);
+    PREFETCH(d->fan_first + b);
+    PREFETCH(d->p + 3 * (size_t)a);
+    PREFETCH(d->p + 3 * (size_t)b);
+    PREFETCH(d->q + 10 * (size_t)a);
+    PREFETCH(d->q + 10 * (size_t)a + 9);
+    PREFETCH(d->q + 10 * (size_t)b);
+    PREFETCH(d->q + 10 * (size_t)b + 9);
 }
 
-typedef struct cost_job {
-    const dec *d;
+static inline void prefetch_fans(const dec *d, uint32_t a, uint32_t b)
+{
+    if (is_changed(d->changed, a) || is_changed(d->changed, b))
+        return; /* will be passed over */
+    for (int s = 0; s < 2; s++) {
+        const uint32_t x = s ? b : a;
+        for (uint32_t k = d->fan_first[x]; k < d->fan_first[x + 1]; k++) {
+            const uint32_t c = d->fan[k];
+            PREFETCH(d->tv + c);
+        }
+    }
+}
+
+static inline void prefetch_neighbours(const dec *d, uint32_t a, uint32_t b)
+{
+    if (is_changed(d->changed, a) || is_changed(d->changed, b))
+        return;
+    for (int s = 0; s < 2; s++) {
+        const uint32_t x = s ? b : a;
+        for (uint32_t k = d->fan_first[x]; k < d->fan_first[x + 1]; k++) {
+            const uint32_t w = corner_next(d, d->fan[k]);
+            if (w != NONE) /* NONE: a dead triangle's first corner */
+                PREFETCH(d->p + 3 * (size_t)w);
+        }
+    }
+}
+
+/*
+ * The candidates of a pass: every live edge (once, from its a < b side)
+ * whose ends are free, in the order of the triangles, with their costs.
+ * The triangles go in blocks of GATHER_BLOCK, on threads: each block's
+ * candidates are counted, then filed from the block's offset and costed
+ * (a pure function of the mesh), so nothing depends on the threads.
+ */
+#define GATHER_BLOCK 16384
+#define GATHER_AHEAD 8
+
+typedef struct gather_job {
+    dec *d; /* writes only cost_of, each block its own triangles' */
     cand *c;
-} cost_job;
+    size_t *first; /* a block's first candidate; its count before the sum */
+} gather_job;
 
-/* The costs of candidates [lo, hi): read-only on the mesh, any thread. */
-static void cost_range(void *arg, size_t lo, size_t hi)
+static int edge_free(const dec *d, uint32_t a, uint32_t b)
 {
-    const cost_job *j = arg;
-    for (size_t i = lo; i < hi; i++) {
-        double v[3];
-        const double e = collapse_point(j->d, j->c[i].a, j->c[i].b, v);
-        j->c[i].cost = e < (double)FLT_MAX ? (float)e : FLT_MAX;
+    return a < b && !((d->vf[a] | d->vf[b]) & (V_LOCKED | V_DEAD));
+}
+
+static void gather_count(void *arg, size_t lo, size_t hi)
+{
+    const gather_job *j = arg;
+    const dec *d = j->d;
+    for (size_t blk = lo; blk < hi; blk++) {
+        const size_t i1 = (blk + 1) * GATHER_BLOCK < d->nlive ? (blk + 1) * GATHER_BLOCK : d->nlive;
+        size_t k = 0;
+        for (size_t i = blk * GATHER_BLOCK; i < i1; i++) {
+            const size_t t = d->live[i];
+            for (int e = 0; e < 3; e++)
+                k += (size_t)edge_free(d, d->tv[3 * t + (size_t)e], d->tv[3 * t + (size_t)(e + 1) % 3]);
+        }
+        j->first[blk + 1] = k;
     }
 }
 
-/* Sorts candidates by cost, keeping the order of equal ones (a least
- * significant digit radix sort on the costs' bits, which order as the
- * non-negative floats do).  0 without memory. */
-static int sort_candidates(cand *c, size_t n)
+static void gather_cost(void *arg, size_t lo, size_t hi)
 {
-    cand *tmp = malloc((n ? n : 1) * sizeof(cand));
-    if (!tmp)
+    const gather_job *j = arg;
+    dec *d = j->d;
+    for (size_t blk = lo; blk < hi; blk++) {
+        const size_t i1 = (blk + 1) * GATHER_BLOCK < d->nlive ? (blk + 1) * GATHER_BLOCK : d->nlive;
+        cand *c = j->c + j->first[blk];
+        for (size_t i = blk * GATHER_BLOCK; i < i1; i++) {
+            const size_t t = d->live[i];
+            if (i + GATHER_AHEAD < i1) /* the quadrics a few triangles ahead */
+                for (int k = 0; k < 3; k++) {
+                    const size_t x = d->tv[3 * (size_t)d->live[i + GATHER_AHEAD] + (size_t)k];
+                    PREFETCH(d->q + 10 * x);
+                    PREFETCH(d->q + 10 * x + 9);
+                }
+            for (int e = 0; e < 3; e++) {
+                const uint32_t a = d->tv[3 * t + (size_t)e], b = d->tv[3 * t + (size_t)(e + 1) % 3];
+                if (!edge_free(d, a, b))
+                    continue;
+                float *cost = d->cost_of + 3 * t + (size_t)e;
+                if (d->pass == 1 || is_changed(d->changed_before, a) || is_changed(d->changed_before, b)) {
+                    double v[3];
+                    const double e2 = collapse_point(d, a, b, v);
+                    *cost = e2 < (double)FLT_MAX ? (float)e2 : FLT_MAX;
+                }
+                *c++ = (cand){*cost, a, b};
+            }
+        }
+    }
+}
+
+/* Gathers and costs the candidates into c (room for 3 a triangle); their
+ * count.  0 without memory (then *ok = 0). */
+static size_t gather(dec *d, cand *c, int *ok)
+{
+    const size_t nblocks = (d->nlive + GATHER_BLOCK - 1) / GATHER_BLOCK;
+    size_t *first = calloc(nblocks + 1, sizeof(size_t));
+    *ok = first != NULL;
+    if (!first)
         return 0;
-    cand *src = c, *dst = tmp;
-    for (int shift = 0; shift < 32; shift += 8) {
-        size_t count[257] = {0};
-        for (size_t i = 0; i < n; i++) {
-            uint32_t k;
-            memcpy(&k, &src[i].cost, 4);
-            count[((k >> shift) & 255) + 1]++;
+    gather_job job = {d, c, first};
+    parallel_for_from(nblocks, 2, gather_count, &job);
+    for (size_t blk = 0; blk < nblocks; blk++)
+        first[blk + 1] += first[blk];
+    parallel_for_from(nblocks, 2, gather_cost, &job);
+    const size_t n = first[nblocks];
+    free(first);
+    return n;
+}
+
+static inline uint32_t cost_bits(const cand *c)
+{
+    uint32_t k;
+    memcpy(&k, &c->cost, 4);
+    return k;
+}
+
+/*
+ * The candidates of a pass that it may take, cheapest first, ties in their
+ * order: those up to the cost of the one at `rank` in that order (all if
+ * rank >= n); their count, and *limit that cost (FLT_MAX: all).  The
+ * costs' bits order as the non-negative floats do: a histogram of their top
+ * 16 bits finds the block of costs where `rank` falls, the candidates up to
+ * it are kept (in order), and a least significant digit radix sort (three
+ * digits of 11 bits, stable) sorts them into c.  tmp has room for n.
+ */
+static size_t sort_candidates(cand *c, cand *tmp, size_t n, size_t rank, float *limit)
+{
+    uint32_t top = 0xffffu; /* the kept: top 16 bits up to this */
+    if (rank < n) {
+        uint32_t *hist = calloc(65536, sizeof(uint32_t));
+        if (hist) {
+            for (size_t i = 0; i < n; i++)
+                hist[cost_bits(c + i) >> 16]++;
+            size_t below = 0;
+            for (top = 0; top < 0xffffu && below + hist[top] <= rank; top++)
+                below += hist[top];
+            free(hist);
         }
-        for (int b = 0; b < 256; b++)
-            count[b + 1] += count[b];
-        for (size_t i = 0; i < n; i++) {
-            uint32_t k;
-            memcpy(&k, &src[i].cost, 4);
-            dst[count[(k >> shift) & 255]++] = src[i];
-        }
+    }
+    size_t count[3][2049];
+    memset(count, 0, sizeof count);
+    size_t m = 0;
+    for (size_t i = 0; i < n; i++) {
+        const uint32_t k = cost_bits(c + i);
+        if ((k >> 16) > top)
+            continue;
+        tmp[m++] = c[i];
+        count[0][(k & 2047) + 1]++;
+        count[1][((k >> 11) & 2047) + 1]++;
+        count[2][(k >> 22) + 1]++;
+    }
+    cand *src = tmp, *dst = c;
+    for (int digit = 0; digit < 3; digit++) {
+        size_t *cnt = count[digit];
+        for (int b = 0; b < 2048; b++)
+            cnt[b + 1] += cnt[b];
+        const int shift = 11 * digit;
+        for (size_t i = 0; i < m; i++)
+            dst[cnt[(cost_bits(src + i) >> shift) & 2047]++] = src[i];
         cand *t = src;
         src = dst;
         dst = t;
     }
-    /* four passes: the sorted run is back in c */
-    free(tmp);
+    /* three passes from tmp: the sorted run is in c */
+    *limit = rank < n ? c[rank].cost : FLT_MAX;
+    while (m > 0 && c[m - 1].cost > *limit)
+        m--;
+    return m;
+}
+
+/* What a run of candidates did. */
+typedef struct tally {
+    uint64_t made, refused, topology, geometry, error;
+    size_t died;
+} tally;
+
+/* Takes candidates c[0 .. n) in order (the rules of the passes) while
+ * alive - (triangles that died) > target. */
+static void run_candidates(dec *d, const cand *c, size_t n, size_t alive, uint64_t target,
+                           tally *t)
+{
+    for (size_t i = 0; i < n && alive > target; i++) {
+        if (i + PREFETCH_FAR < n)
+            prefetch_vertices(d, c[i + PREFETCH_FAR].a, c[i + PREFETCH_FAR].b);
+        if (i + PREFETCH_MID < n)
+            prefetch_fans(d, c[i + PREFETCH_MID].a, c[i + PREFETCH_MID].b);
+        if (i + PREFETCH_NEAR < n)
+            prefetch_neighbours(d, c[i + PREFETCH_NEAR].a, c[i + PREFETCH_NEAR].b);
+        const uint32_t ea = c[i].a, eb = c[i].b;
+        if (is_changed(d->changed, ea) || is_changed(d->changed, eb))
+            continue;
+        double v[3];
+        (void)collapse_point(d, ea, eb, v);
+        const int why = collapse_allowed(d, ea, eb, v);
+        if (why != ALLOWED) {
+            t->refused++;
+            t->topology += why == REFUSED_TOPOLOGY;
+            t->geometry += why == REFUSED_GEOMETRY;
+            continue;
+        }
+        if (d->max_dist > 0 && !collapse_close(d, ea, eb, v)) {
+            t->error++;
+            t->refused++;
+            continue;
+        }
+        const size_t died = collapse(d, ea, eb, v);
+        alive -= died;
+        t->died += died;
+        set_changed(d->changed, ea);
+        set_changed(d->changed, eb);
+        t->made++;
+    }
+}
+
+/*
+ * Regions.  The vertices go in regions of REGION_SIZE consecutive indices
+ * (the extraction numbers them slab by slab, so a region is a slab of the
+ * surface).  A candidate is inside a region when both its vertices and
+ * every vertex of their triangles (as the pass began) are in it, and each
+ * has at most LINK_CAP / 2 triangles.  Its checks and its collapse read
+ * and write only that region's vertices and triangles (the triangles of a
+ * vertex change only by collapses of its neighbours, which are then inside
+ * the region too; a vertex's triangles only grow when it is collapsed into,
+ * after which it waits for the next pass), and whole words of the bitmap.
+ * So the regions' candidates can be taken region by region, each region's
+ * in its order, on any thread, with the same result; the candidates on the
+ * regions' borders follow, in their order.  A pass goes this way only where
+ * it cannot reach the target (each collapse takes two free vertices: at
+ * most half the free vertices collapse) and without a maximum error (whose
+ * check reads farther).
+ */
+#define REGION_SHIFT 16
+#define REGION_SIZE ((size_t)1 << REGION_SHIFT) /* a multiple of 64: whole bitmap words */
+
+/* The vertices with a triangle across a region's border (border[v] = 1)
+ * as the pass begins; returns the number of free vertices that have
+ * triangles. */
+static size_t mark_borders(dec *d)
+{
+    memset(d->border, 0, d->nv);
+    for (size_t i = 0; i < d->nlive; i++) {
+        const uint32_t *t = d->tv + 3 * (size_t)d->live[i];
+        if ((t[0] >> REGION_SHIFT) != (t[1] >> REGION_SHIFT) ||
+            (t[0] >> REGION_SHIFT) != (t[2] >> REGION_SHIFT))
+            d->border[t[0]] = d->border[t[1]] = d->border[t[2]] = 1;
+    }
+    size_t nfree = 0;
+    for (size_t v = 0; v < d->nv; v++)
+        nfree += !(d->vf[v] & (V_LOCKED | V_DEAD)) && d->fan_first[v + 1] > d->fan_first[v];
+    return nfree;
+}
+
+/* The region (offset by `offset` vertices) that candidate (a, b) is inside,
+ * or NONE.  offset 0: as the pass began (border); else as the fans are now
+ * (a changed vertex is passed over anyway: NONE). */
+static uint32_t region_of(const dec *d, uint32_t a, uint32_t b, uint32_t offset)
+{
+    if (d->fan_first[a + 1] - d->fan_first[a] > LINK_CAP / 2 ||
+        d->fan_first[b + 1] - d->fan_first[b] > LINK_CAP / 2)
+        return NONE;
+    const uint32_t r = (uint32_t)(((size_t)a + offset) >> REGION_SHIFT);
+    if (r != (uint32_t)(((size_t)b + offset) >> REGION_SHIFT))
+        return NONE;
+    if (offset == 0)
+        return d->border[a] || d->border[b] ? NONE : r;
+    if (is_changed(d->changed, a) || is_changed(d->changed, b))
+        return NONE;
+    for (int s = 0; s < 2; s++) {
+        fan_iter it = fan_begin(d, s ? b : a);
+        uint32_t c;
+        while (fan_next(d, &it, &c)) {
+            const uint32_t *tv = d->tv + (c - c % 3);
+            for (int k = 0; k < 3; k++)
+                if ((uint32_t)(((size_t)tv[k] + offset) >> REGION_SHIFT) != r)
+                    return NONE;
+        }
+    }
+    return r;
+}
+
+typedef struct region_job {
+    dec *d;
+    const cand *c;         /* the regions' candidates, region by region */
+    const size_t *first;   /* nregions + 1 */
+    tally *t;              /* a region's */
+} region_job;
+
+static void region_range(void *arg, size_t lo, size_t hi)
+{
+    const region_job *j = arg;
+    for (size_t r = lo; r < hi; r++)
+        run_candidates(j->d, j->c + j->first[r], j->first[r + 1] - j->first[r], SIZE_MAX, 0,
+                       &j->t[r]);
+}
+
+static void tally_add(tally *t, const tally *u)
+{
+    t->made += u->made;
+    t->refused += u->refused;
+    t->topology += u->topology;
+    t->geometry += u->geometry;
+    t->error += u->error;
+    t->died += u->died;
+}
+
+/* Takes the candidates c[0 .. n) inside the regions offset by `offset`
+ * (region_of), region by region on threads, into t; the others stay in c,
+ * in order: returns their count, or SIZE_MAX without memory.  tmp: room
+ * for n. */
+static size_t run_regions(dec *d, cand *c, cand *tmp, size_t n, uint32_t offset, tally *t)
+{
+    const size_t nregions = ((d->nv + offset) >> REGION_SHIFT) + 1;
+    size_t *first = calloc(nregions + 1, sizeof(size_t));
+    tally *rt = calloc(nregions, sizeof(tally));
+    uint32_t *key = malloc((n ? n : 1) * sizeof(uint32_t));
+    if (!first || !rt || !key) {
+        free(first);
+        free(rt);
+        free(key);
+        return SIZE_MAX;
+    }
+    for (size_t i = 0; i < n; i++) {
+        key[i] = region_of(d, c[i].a, c[i].b, offset);
+        if (key[i] != NONE)
+            first[key[i] + 1]++;
+    }
+    for (size_t r = 0; r < nregions; r++)
+        first[r + 1] += first[r];
+    size_t rest = 0;
+    for (size_t i = 0; i < n; i++) { /* stable: each region's in order, the rest too */
+        if (key[i] != NONE)
+            tmp[first[key[i]]++] = c[i];
+        else
+            c[rest++] = c[i];
+    }
+    free(key);
+    for (size_t r = nregions; r > 0; r--) /* back to each region's start */
+        first[r] = first[r - 1];
+    first[0] = 0;
+    region_job job = {d, tmp, first, rt};
+    parallel_for_from(nregions, 2, region_range, &job);
+    tally sum = {0, 0, 0, 0, 0, 0};
+    for (size_t r = 0; r < nregions; r++)
+        tally_add(&sum, &rt[r]);
+    free(first);
+    free(rt);
+    d->alive -= sum.died;
+    tally_add(t, &sum);
+    return rest;
+}
+
+/* Takes the pass's candidates c[0 .. n) (sorted) into t: where the pass
+ * may run so, those inside the regions on threads, then those inside the
+ * regions shifted by half a region (the borders of the first, judged after
+ * them), then the rest in order; else all in order.  tmp: room for n.  0
+ * without memory. */
+static int run_pass(dec *d, cand *c, cand *tmp, size_t n, size_t nfree, uint64_t target, tally *t)
+{
+    const size_t most = n < nfree / 2 ? n : nfree / 2; /* collapses a pass can make */
+    if (d->max_dist == 0 && (d->nv >> REGION_SHIFT) >= 1 && d->alive > target &&
+        2 * most < d->alive - target) {
+        n = run_regions(d, c, tmp, n, 0, t);
+        if (n != SIZE_MAX)
+            n = run_regions(d, c, tmp, n, (uint32_t)(REGION_SIZE / 2), t);
+        if (n == SIZE_MAX)
+            return 0;
+    }
+    tally b = {0, 0, 0, 0, 0, 0};
+    run_candidates(d, c, n, d->alive, target, &b);
+    d->alive -= b.died;
+    tally_add(t, &b);
     return 1;
 }
 
@@ -558,7 +1050,6 @@ isomend_status mesh_decimate_to(const isomend_mesh *mesh, uint64_t target, doubl
     memset(&rep, 0, sizeof rep);
     dec d;
     memset(&d, 0, sizeof d);
-    d.rep = &rep;
     d.nv = mesh->nv;
     d.nt = mesh->nt;
     d.alive = mesh->nt;
@@ -570,103 +1061,89 @@ isomend_status mesh_decimate_to(const isomend_mesh *mesh, uint64_t target, doubl
 
     const size_t nv = d.nv ? d.nv : 1, nc = 3 * (d.nt ? d.nt : 1);
     d.p = malloc(3 * sizeof(double) * nv);
-    d.q = calloc(10 * nv, sizeof(double));
+    d.q = malloc(10 * sizeof(double) * nv); /* quadric_range sets every vertex's */
     d.tv = malloc(nc * sizeof(uint32_t));
     d.tdead = calloc(d.nt ? d.nt : 1, 1);
-    d.head = malloc(nv * sizeof(uint32_t));
-    d.next = malloc(nc * sizeof(uint32_t));
+    d.merged = malloc(nv * sizeof(uint32_t));
+    d.fan_first = malloc((nv + 1) * sizeof(uint32_t));
+    d.fan = malloc(nc * sizeof(uint32_t));
+    d.cand = malloc(nc * sizeof(cand));
+    d.cand_tmp = malloc(nc * sizeof(cand));
     d.vf = calloc(nv, 1);
-    d.pass_mark = calloc(nv, sizeof(uint32_t));
+    d.nwords = (nv + 63) / 64;
+    d.changed = calloc(d.nwords, sizeof(uint64_t));
+    d.changed_before = calloc(d.nwords, sizeof(uint64_t));
+    d.live = malloc((d.nt ? d.nt : 1) * sizeof(uint32_t));
+    d.border = malloc(nv);
+    d.cost_of = malloc(nc * sizeof(float));
     d.mark = calloc(nv, sizeof(uint32_t));
-    d.parent = malloc(nv * sizeof(uint32_t));
-    d.members = malloc(nv * sizeof(uint32_t));
-    d.member_next = malloc(nv * sizeof(uint32_t));
+    if (max_error > 0) { /* only the distance check needs the members */
+        d.members = malloc(nv * sizeof(uint32_t));
+        d.member_next = malloc(nv * sizeof(uint32_t));
+        d.member_last = malloc(nv * sizeof(uint32_t));
+    }
     d.orig = mesh->pos;
     d.max_dist = max_error;
     isomend_status status = ISOMEND_ERR_OUT_OF_MEMORY;
-    if (!d.p || !d.q || !d.tv || !d.tdead || !d.head || !d.next || !d.vf || !d.pass_mark || !d.mark ||
-        !d.parent || !d.members || !d.member_next)
+    if (!d.p || !d.q || !d.tv || !d.tdead || !d.merged || !d.fan_first || !d.fan || !d.cand ||
+        !d.cand_tmp || !d.vf || !d.changed || !d.changed_before || !d.live || !d.border ||
+        !d.cost_of || !d.mark || (max_error > 0 && (!d.members || !d.member_next || !d.member_last)))
         goto done;
-    for (size_t v = 0; v < d.nv; v++) {
-        d.parent[v] = d.members[v] = (uint32_t)v;
-        d.member_next[v] = NONE;
-    }
+    if (d.members)
+        for (size_t v = 0; v < d.nv; v++) {
+            d.members[v] = d.member_last[v] = (uint32_t)v;
+            d.member_next[v] = NONE;
+        }
     for (size_t i = 0; i < 3 * d.nv; i++)
         d.p[i] = mesh->pos[i];
     memcpy(d.tv, mesh->tri, 3 * d.nt * sizeof(uint32_t));
-    for (size_t v = 0; v < d.nv; v++)
-        d.head[v] = NONE;
-    for (size_t c = 3 * d.nt; c-- > 0;) {
-        const uint32_t v = d.tv[c];
-        d.next[c] = d.head[v];
-        d.head[v] = (uint32_t)c;
-    }
+    for (size_t t = 0; t < d.nt; t++)
+        d.live[t] = (uint32_t)t;
+    d.nlive = d.nt;
+    begin_pass(&d); /* the first pass's fans */
     if (!mesh_free_vertices(mesh, d.vf, NULL, NULL, NULL))
         goto done;
     for (size_t v = 0; v < d.nv; v++) {
         d.vf[v] = d.vf[v] ? 0 : V_LOCKED; /* unused vertices are locked too */
-        rep.locked_vertices += d.vf[v] && d.head[v] != NONE;
+        rep.locked_vertices += d.vf[v] && d.fan_first[v + 1] > d.fan_first[v];
     }
-    for (size_t t = carry ? carry->planes_from : 0; t < d.nt; t++) {
-        double n[3];
-        tri_normal(&d, (uint32_t)t, NONE, NONE, NULL, n, NULL);
-        const double len = sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
-        if (!(len > 0) || !isfinite(len))
-            continue;
-        for (int c = 0; c < 3; c++)
-            n[c] /= len;
-        const double *p0 = d.p + 3 * (size_t)d.tv[3 * t];
-        const double dd = -(n[0] * p0[0] + n[1] * p0[1] + n[2] * p0[2]);
-        for (int k = 0; k < 3; k++)
-            quadric_add_plane(d.q + 10 * (size_t)d.tv[3 * t + (size_t)k], n, dd);
-    }
-    if (carry && carry->q_in)
-        for (size_t i = 0; i < 10 * d.nv; i++)
-            d.q[i] += carry->q_in[i];
+    quadric_job qj = {&d, carry ? carry->planes_from : 0, carry ? carry->q_in : NULL};
+    parallel_for(d.nv, quadric_range, &qj);
     /*
      * Passes.  Each gathers the live edges, costs them (on threads: a pure
      * function of the mesh), sorts them, and collapses them cheapest first,
      * each vertex at most once a pass (a vertex that changed waits for the
-     * next pass, where its edges are costed again), up to the cost at twice
-     * the collapses still needed (so that a pass does not spend expensive
-     * edges while cheaper ones are yet to appear).  A pass without a
+     * next pass, where its edges are costed again), up to the cost at the
+     * rank of twice the collapses still needed plus the candidates the pass
+     * before refused (so that a pass does not spend expensive edges while
+     * cheaper ones are yet to appear, nor stall on cheap edges that keep
+     * being refused).  A pass without a
      * collapse under that limit is run again without it; one without any
      * ends the decimation short of the target.
      */
     int unlimited = 0;
+    size_t refused = 0; /* in the pass before */
     for (uint32_t pass = 1; d.alive > target; pass++) {
-        size_t n = 0;
-        cand *c = gather(&d, &n);
-        if (!c)
+        d.pass = pass;
+        if (pass > 1)
+            begin_pass(&d);
+        int ok;
+        const size_t n_all = gather(&d, d.cand, &ok);
+        if (!ok)
             goto done;
-        cost_job job = {&d, c};
-        parallel_for(n, cost_range, &job);
-        if (!sort_candidates(c, n)) {
-            free(c);
-            goto done;
-        }
         const size_t need = (d.alive - target + 1) / 2;
-        const float limit = unlimited || 2 * need >= n ? FLT_MAX : c[2 * need].cost;
-        uint64_t made = 0;
-        for (size_t i = 0; i < n && d.alive > target; i++) {
-            if (c[i].cost > limit)
-                break;
-            const uint32_t ea = c[i].a, eb = c[i].b;
-            if (d.pass_mark[ea] == pass || d.pass_mark[eb] == pass)
-                continue;
-            double v[3];
-            (void)collapse_point(&d, ea, eb, v);
-            if (!collapse_allowed(&d, ea, eb, v))
-                continue;
-            if (d.max_dist > 0 && !collapse_close(&d, ea, eb, v)) {
-                rep.refused_error++;
-                continue;
-            }
-            collapse(&d, ea, eb, v);
-            d.pass_mark[ea] = d.pass_mark[eb] = pass;
-            made++;
-        }
-        free(c);
+        float limit;
+        const size_t n = sort_candidates(d.cand, d.cand_tmp, n_all,
+                                         unlimited || 2 * need + refused >= n_all ? n_all : 2 * need + refused, &limit);
+        const size_t nfree = mark_borders(&d);
+        tally t = {0, 0, 0, 0, 0, 0};
+        if (!run_pass(&d, d.cand, d.cand_tmp, n, nfree, target, &t))
+            goto done;
+        const uint64_t made = t.made;
+        refused = t.refused;
+        rep.refused_topology += t.topology;
+        rep.refused_geometry += t.geometry;
+        rep.refused_error += t.error;
         rep.collapses += made;
         if (made == 0) {
             if (unlimited || limit == FLT_MAX)
@@ -726,14 +1203,21 @@ done:
     free(d.q);
     free(d.tv);
     free(d.tdead);
-    free(d.head);
-    free(d.next);
+    free(d.fan_first);
+    free(d.fan);
+    free(d.merged);
+    free(d.cand);
+    free(d.cand_tmp);
     free(d.vf);
-    free(d.pass_mark);
+    free(d.changed);
+    free(d.changed_before);
+    free(d.live);
+    free(d.border);
+    free(d.cost_of);
     free(d.mark);
-    free(d.parent);
     free(d.members);
     free(d.member_next);
+    free(d.member_last);
     if (report)
         *report = rep;
     return status;

@@ -4,11 +4,12 @@
  * one-sided Hausdorff distance that VTK's vtkCellLocator or MeshLab's
  * Hausdorff filter measure.
  *
- * A uniform grid of cells about twice the mean edge long files each
- * triangle under every cell its bounding box touches (a compressed row
- * table); a point searches rings of cells around its own, outwards, until
- * the ring is farther than the nearest triangle found.  Points outside the
- * grid start from the nearest cell.
+ * A uniform grid of cells about the mean edge long (at most about 16 a
+ * triangle) files each triangle under every cell its bounding box touches
+ * (a compressed row table); a point searches rings of cells around its own,
+ * outwards, until the ring is farther than the nearest triangle found,
+ * passing over cells and triangles' bounding boxes farther than that.
+ * Points outside the grid start from the nearest cell.
  */
 #include "mesh_internal.h"
 
@@ -111,14 +112,26 @@ static int64_t cell_of(const cell_grid *g, double x, int a)
     return c < 0 ? 0 : c >= g->n[a] ? g->n[a] - 1 : c;
 }
 
+/* How far x lies outside cell i along axis a (0 inside), a little less
+ * (by a millionth of a cell) so that rounding never skips a cell that holds
+ * the nearest point: a cell is searched when this is within the nearest
+ * distance found, and a triangle filed under the cell of its nearest point
+ * is found there, so skipping the others changes no distance. */
+static inline double box_gap(const cell_grid *g, double x, int64_t i, int a)
+{
+    const double lo = g->lo[a] + (double)i * g->size, hi = lo + g->size;
+    const double gap = x < lo ? lo - x : x > hi ? x - hi : 0;
+    return gap > 1e-6 * g->size ? gap - 1e-6 * g->size : 0;
+}
+
 /* The points of a query, in blocks of DIST_BLOCK: each block's largest
  * distance and sum, so that the result does not depend on how the blocks
  * are shared among threads. */
 #define DIST_BLOCK 4096
 typedef struct dist_job {
     const cell_grid *g;
-    const float *pts, *pos;
-    const uint32_t *tri;
+    const float *pts;
+    const float *corners; /* 9 a triangle: its corners' positions */
     size_t np;
     double *block_max, *block_sum;
 } dist_job;
@@ -127,8 +140,8 @@ static void dist_blocks(void *arg, size_t lo_block, size_t hi_block)
 {
     const dist_job *j = arg;
     const cell_grid g = *j->g;
-    const float *pts = j->pts, *pos = j->pos;
-    const uint32_t *tri = j->tri;
+    const float *pts = j->pts;
+    const double slack = 1e-6 * g.size;
     for (size_t b = lo_block; b < hi_block; b++) {
         double worst = 0, sum = 0;
         size_t last = 0; /* the triangle nearest to the previous point: points come
@@ -142,11 +155,11 @@ static void dist_blocks(void *arg, size_t lo_block, size_t hi_block)
                 c[a] = cell_of(&g, p[a], a);
             double best;
             {
-                const uint32_t *v = tri + 3 * last;
+                const float *f = j->corners + 9 * last;
                 double q[3][3];
                 for (int m = 0; m < 3; m++)
                     for (int a = 0; a < 3; a++)
-                        q[m][a] = pos[3 * (size_t)v[m] + (size_t)a];
+                        q[m][a] = f[3 * m + a];
                 best = point_triangle_distance2(p, q[0], q[1], q[2]);
             }
             int64_t maxr = g.n[0] > g.n[1] ? g.n[0] : g.n[1];
@@ -160,15 +173,34 @@ static void dist_blocks(void *arg, size_t lo_block, size_t hi_block)
                         if (y < 0 || y >= g.n[1])
                             continue;
                         const int shell = z == c[2] - r || z == c[2] + r || y == c[1] - r || y == c[1] + r;
+                        /* the cells of this row and layer lie no nearer than dyz */
+                        const double dy = box_gap(&g, p[1], y, 1), dz = box_gap(&g, p[2], z, 2);
+                        const double dyz = dy * dy + dz * dz;
+                        if (dyz > best)
+                            continue;
                         for (int64_t x = c[0] - r; x <= c[0] + r; x += shell ? 1 : 2 * r) {
-                            if (x >= 0 && x < g.n[0]) {
+                            const double dx = x >= 0 && x < g.n[0] ? box_gap(&g, p[0], x, 0) : 0;
+                            if (x >= 0 && x < g.n[0] && dyz + dx * dx <= best) {
                                 const size_t cell = (size_t)((z * g.n[1] + y) * g.n[0] + x);
                                 for (uint32_t k = g.first[cell]; k < g.first[cell + 1]; k++) {
-                                    const uint32_t *v = tri + 3 * (size_t)g.tris[k];
+                                    const float *f = j->corners + 9 * (size_t)g.tris[k];
+                                    /* no nearer than its bounding box (less the slack) */
+                                    double gap2 = 0;
+                                    for (int a = 0; a < 3; a++) {
+                                        const double lo = f[a] < f[3 + a] ? (f[a] < f[6 + a] ? f[a] : f[6 + a])
+                                                                          : (f[3 + a] < f[6 + a] ? f[3 + a] : f[6 + a]);
+                                        const double hi = f[a] > f[3 + a] ? (f[a] > f[6 + a] ? f[a] : f[6 + a])
+                                                                          : (f[3 + a] > f[6 + a] ? f[3 + a] : f[6 + a]);
+                                        const double gap = p[a] < lo ? lo - p[a] : p[a] > hi ? p[a] - hi : 0;
+                                        if (gap > slack)
+                                            gap2 += (gap - slack) * (gap - slack);
+                                    }
+                                    if (gap2 > best)
+                                        continue;
                                     double q[3][3];
                                     for (int m = 0; m < 3; m++)
                                         for (int a = 0; a < 3; a++)
-                                            q[m][a] = pos[3 * (size_t)v[m] + (size_t)a];
+                                            q[m][a] = f[3 * m + a];
                                     const double e = point_triangle_distance2(p, q[0], q[1], q[2]);
                                     if (e < best) {
                                         best = e;
@@ -232,20 +264,20 @@ int mesh_distances(const float *pts, size_t np, const float *pos, const uint32_t
             const double dx = (double)p[0] - q[0], dy = (double)p[1] - q[1], dz = (double)p[2] - q[2];
             edges += sqrt(dx * dx + dy * dy + dz * dz);
         }
-    g.size = 2.0 * edges / (3.0 * (double)nt);
+    g.size = edges / (3.0 * (double)nt);
     double extent = 0;
     for (int a = 0; a < 3; a++)
         extent = hi[a] - g.lo[a] > extent ? hi[a] - g.lo[a] : extent;
     if (!(g.size > 0) || !isfinite(g.size))
         g.size = extent > 0 ? extent : 1.0;
-    /* at most about 4 cells a triangle */
+    /* at most about 16 cells a triangle */
     for (;;) {
         uint64_t cells = 1;
         for (int a = 0; a < 3; a++) {
             g.n[a] = (int64_t)((hi[a] - g.lo[a]) / g.size) + 1;
             cells *= (uint64_t)g.n[a];
         }
-        if (cells <= 4 * (uint64_t)nt + 64)
+        if (cells <= 16 * (uint64_t)nt + 64)
             break;
         g.size *= 1.5;
     }
@@ -301,7 +333,17 @@ int mesh_distances(const float *pts, size_t np, const float *pos, const uint32_t
         free(g.tris);
         return 0;
     }
-    dist_job job = {&g, pts, pos, tri, np, bmax, bmax + nblocks};
+    float *corners = malloc(9 * nt * sizeof(float));
+    if (!corners) {
+        free(bmax);
+        free(g.first);
+        free(g.tris);
+        return 0;
+    }
+    for (size_t t = 0; t < nt; t++)
+        for (int k = 0; k < 3; k++)
+            memcpy(corners + 9 * t + 3 * k, pos + 3 * (size_t)tri[3 * t + (size_t)k], 3 * sizeof(float));
+    dist_job job = {&g, pts, corners, np, bmax, bmax + nblocks};
     parallel_for_from(nblocks, 8, dist_blocks, &job); /* threads from 32768 points on */
     double worst = 0, sum = 0;
     for (size_t b = 0; b < nblocks; b++) {
@@ -309,6 +351,7 @@ int mesh_distances(const float *pts, size_t np, const float *pos, const uint32_t
         sum += bmax[nblocks + b];
     }
     free(bmax);
+    free(corners);
     free(g.first);
     free(g.tris);
     *max_out = worst;
