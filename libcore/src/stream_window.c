@@ -30,6 +30,7 @@
  * last top plane on.
  */
 #include "stream_window.h"
+#include "mesh_internal.h"
 
 #include <math.h>
 #include <stdlib.h>

@@ -9,7 +9,7 @@
 #ifndef ISOMEND_STREAM_WINDOW_H
 #define ISOMEND_STREAM_WINDOW_H
 
-#include "mesh_internal.h"
+#include "isomend.h"
 
 #include <stddef.h>
 #include <stdint.h>

@@ -107,12 +107,15 @@ static inline void collected_free(collected *c)
     memset(c, 0, sizeof *c);
 }
 
-/* The same mesh to the byte: positions, triangles, normals if any. */
+/* The same mesh to the byte: positions, triangles, normals if any (an
+ * empty mesh has no arrays). */
 static inline int collected_same(const collected *a, const collected *b)
 {
-    return a->nv == b->nv && a->nt == b->nt && !memcmp(a->pos, b->pos, 12 * a->nv) &&
-           !memcmp(a->tri, b->tri, 12 * a->nt) &&
-           (!a->normals || !memcmp(a->nrm, b->nrm, 12 * a->nv));
+    if (a->nv != b->nv || a->nt != b->nt)
+        return 0;
+    return (!a->nv || !memcmp(a->pos, b->pos, 12 * a->nv)) &&
+           (!a->nt || !memcmp(a->tri, b->tri, 12 * a->nt)) &&
+           (!a->normals || !a->nv || !memcmp(a->nrm, b->nrm, 12 * a->nv));
 }
 
 /* vol's slices streamed with o into `in` (isomend_stream_*), finished; the
