@@ -18,6 +18,7 @@
  */
 #include "isomend.h"
 #include "mesh_internal.h" /* point_triangle_distance2 */
+#include "collect.h"
 #include "testutil.h"
 #include "volumes.h"
 
@@ -45,92 +46,17 @@ static float *make(int shape, int64_t n[3])
     return shape_volume(shape == TALL ? GYROID : shape, n, shape == TALL ? 0.5 : 0.35, &rng_state);
 }
 
-/* ------------------------------------------------------------------ a collecting sink */
-
-typedef struct collected {
-    float *pos, *nrm;
-    uint32_t *tri;
-    size_t nv, nt, cap_v, cap_t;
-    uint64_t floor;
-    int normals, stop_at, calls;
-    isomend_check_stream *check;
-} collected;
-
-static int c_vertices(void *user, uint64_t first, size_t count, const float *pos, const float *nrm,
-                      const uint64_t *keys)
-{
-    collected *c = user;
-    if (++c->calls == c->stop_at)
-        return 1;
-    if (first != c->nv || keys || (c->normals != (nrm != NULL)))
-        return 1;
-    if (c->nv + count > c->cap_v) {
-        c->cap_v = 2 * (c->nv + count);
-        c->pos = realloc(c->pos, 12 * c->cap_v);
-        c->nrm = realloc(c->nrm, 12 * c->cap_v);
-    }
-    memcpy(c->pos + 3 * c->nv, pos, 12 * count);
-    if (nrm) {
-        memcpy(c->nrm + 3 * c->nv, nrm, 12 * count);
-        for (size_t i = 0; i < count; i++) {
-            const float *n = nrm + 3 * i;
-            const double len = sqrt((double)n[0] * n[0] + (double)n[1] * n[1] + (double)n[2] * n[2]);
-            if (fabs(len - 1.0) > 1e-5)
-                return 1;
-        }
-    }
-    c->nv += count;
-    return isomend_check_stream_vertices(c->check, first, count, pos) != ISOMEND_OK;
-}
-
-static int c_triangles(void *user, size_t count, const uint64_t *ids, const uint8_t *origins)
-{
-    collected *c = user;
-    if (++c->calls == c->stop_at || origins)
-        return 1;
-    if (c->nt + count > c->cap_t) {
-        c->cap_t = 2 * (c->nt + count);
-        c->tri = realloc(c->tri, 12 * c->cap_t);
-    }
-    for (size_t i = 0; i < 3 * count; i++) {
-        if (ids[i] < c->floor || ids[i] >= c->nv)
-            return 1;
-        c->tri[3 * c->nt + i] = (uint32_t)ids[i];
-    }
-    c->nt += count;
-    return isomend_check_stream_triangles(c->check, count, ids) != ISOMEND_OK;
-}
-
-static int c_retire(void *user, uint64_t floor)
-{
-    collected *c = user;
-    if (++c->calls == c->stop_at || floor < c->floor || floor > c->nv)
-        return 1;
-    c->floor = floor;
-    return isomend_check_stream_retire(c->check, floor) != ISOMEND_OK;
-}
-
-static void collected_free(collected *c)
-{
-    free(c->pos);
-    free(c->nrm);
-    free(c->tri);
-    isomend_check_stream_destroy(c->check);
-    memset(c, 0, sizeof *c);
-}
-
 /* Streams vol with o through a streamed decimation into c; the status of
  * the first failing call. */
 static isomend_status stream_decimated(const isomend_volume *vol, const isomend_options *o,
                                        double ratio, int64_t layers, collected *c,
                                        isomend_decimate_report *rep, isomend_check_report *sr)
 {
-    memset(c, 0, sizeof *c);
-    c->normals = !(o->flags & ISOMEND_FLAG_NO_NORMALS);
-    isomend_status st = isomend_check_stream_begin_volume(vol, o, &c->check);
+    isomend_status st = collected_begin(c, vol, o);
     if (st != ISOMEND_OK)
         return st;
-    const isomend_mesh_sink out = {c, c_vertices, c_triangles, c_retire, NULL};
+    c->unit_normals = 1;
+    const isomend_mesh_sink out = collected_sink(c);
     isomend_decimate_options d;
     isomend_decimate_options_init(&d);
     d.ratio = ratio;
@@ -140,14 +66,7 @@ static isomend_status stream_decimated(const isomend_volume *vol, const isomend_
         return st;
     isomend_mesh_sink in;
     isomend_decimate_stream_sink(ds, &in);
-    isomend_stream *s = NULL;
-    st = isomend_stream_begin(vol, o, &in, &s);
-    const size_t plane = (size_t)(vol->dims[0] * vol->dims[1]);
-    for (int64_t k = 0; st == ISOMEND_OK && k < vol->dims[2]; k++)
-        st = isomend_stream_push(s, (const float *)vol->data + plane * (size_t)k);
-    if (st == ISOMEND_OK)
-        st = isomend_stream_finish(s, NULL);
-    isomend_stream_destroy(s);
+    st = stream_volume(vol, o, &in);
     const isomend_status fs = isomend_decimate_stream_finish(ds, rep);
     isomend_decimate_stream_destroy(ds);
     if (st == ISOMEND_OK)
@@ -155,13 +74,6 @@ static isomend_status stream_decimated(const isomend_volume *vol, const isomend_
     if (st == ISOMEND_OK)
         st = isomend_check_stream_finish(c->check, sr);
     return st;
-}
-
-static int same(const collected *a, const collected *b)
-{
-    return a->nv == b->nv && a->nt == b->nt && !memcmp(a->pos, b->pos, 12 * a->nv) &&
-           !memcmp(a->tri, b->tri, 12 * a->nt) &&
-           (!a->normals || !memcmp(a->nrm, b->nrm, 12 * a->nv));
 }
 
 /* The largest distance from the mesh m's vertices to the triangles of c (all
@@ -293,7 +205,7 @@ int main(void)
                             isomend_check_report sr2;
                             CHECK_EQ_INT(stream_decimated(&vol, &o, ratio, layer_sets[li], &c2, NULL, &sr2),
                                          ISOMEND_OK);
-                            if (!same(&c1, &c2)) {
+                            if (!collected_same(&c1, &c2)) {
                                 fprintf(stderr, "%s: %d threads: another mesh\n", what, th);
                                 CHECK(0);
                             }
@@ -318,7 +230,7 @@ int main(void)
         o.flags = ISOMEND_FLAG_PAD;
         collected c;
         memset(&c, 0, sizeof c);
-        const isomend_mesh_sink out = {&c, c_vertices, c_triangles, c_retire, NULL};
+        const isomend_mesh_sink out = collected_sink(&c);
         isomend_decimate_options d;
         isomend_decimate_options_init(&d);
         isomend_decimate_stream *ds = (isomend_decimate_stream *)&c;
@@ -352,23 +264,16 @@ int main(void)
         for (int k = 1; k < 400; k += 7) {
             isomend_decimate_report rep;
             collected t;
-            memset(&t, 0, sizeof t);
-            t.normals = 1;
-            CHECK_EQ_INT(isomend_check_stream_begin_volume(&vol, &o, &t.check), ISOMEND_OK);
+            CHECK_EQ_INT(collected_begin(&t, &vol, &o), ISOMEND_OK);
+            t.unit_normals = 1;
             t.stop_at = k;
-            const isomend_mesh_sink tout = {&t, c_vertices, c_triangles, c_retire, NULL};
+            const isomend_mesh_sink tout = collected_sink(&t);
             isomend_decimate_stream *x = NULL;
             CHECK_EQ_INT(isomend_decimate_stream_begin(&vol, &o, &d, 2, &tout, &x), ISOMEND_OK);
             isomend_mesh_sink in;
             isomend_decimate_stream_sink(x, &in);
-            isomend_stream *st = NULL;
             o.threads = 2;
-            isomend_status r = isomend_stream_begin(&vol, &o, &in, &st);
-            for (int64_t z = 0; r == ISOMEND_OK && z < n[2]; z++)
-                r = isomend_stream_push(st, f + (size_t)(n[0] * n[1] * z));
-            if (r == ISOMEND_OK)
-                r = isomend_stream_finish(st, NULL);
-            isomend_stream_destroy(st);
+            const isomend_status r = stream_volume(&vol, &o, &in);
             const isomend_status fr = isomend_decimate_stream_finish(x, &rep);
             isomend_decimate_stream_destroy(x);
             if (t.calls >= k) {

@@ -15,6 +15,7 @@
  *   - bad arguments are refused and a sink that stops stops the stream.
  */
 #include "isomend.h"
+#include "collect.h"
 #include "testutil.h"
 #include "volumes.h"
 
@@ -25,74 +26,6 @@
 
 static uint64_t rng_state = 0x9e3779b97f4a7c15ull;
 
-/* ------------------------------------------------------------------ a collecting sink */
-
-typedef struct collected {
-    float *pos, *nrm;
-    uint32_t *tri;
-    size_t nv, nt, cap_v, cap_t;
-    uint64_t floor;
-    int normals, stop_at, calls, retires;
-    isomend_check_stream *check;
-} collected;
-
-static int c_vertices(void *user, uint64_t first, size_t count, const float *pos, const float *nrm,
-                      const uint64_t *keys)
-{
-    collected *c = user;
-    if (++c->calls == c->stop_at)
-        return 1;
-    if (first != c->nv || keys || (c->normals != (nrm != NULL)))
-        return 1;
-    if (c->nv + count > c->cap_v) {
-        c->cap_v = 2 * (c->nv + count);
-        c->pos = realloc(c->pos, 12 * c->cap_v);
-        c->nrm = realloc(c->nrm, 12 * c->cap_v);
-    }
-    memcpy(c->pos + 3 * c->nv, pos, 12 * count);
-    if (nrm)
-        memcpy(c->nrm + 3 * c->nv, nrm, 12 * count);
-    c->nv += count;
-    return isomend_check_stream_vertices(c->check, first, count, pos) != ISOMEND_OK;
-}
-
-static int c_triangles(void *user, size_t count, const uint64_t *ids, const uint8_t *origins)
-{
-    collected *c = user;
-    if (++c->calls == c->stop_at || origins)
-        return 1;
-    if (c->nt + count > c->cap_t) {
-        c->cap_t = 2 * (c->nt + count);
-        c->tri = realloc(c->tri, 12 * c->cap_t);
-    }
-    for (size_t i = 0; i < 3 * count; i++) {
-        if (ids[i] < c->floor || ids[i] >= c->nv)
-            return 1;
-        c->tri[3 * c->nt + i] = (uint32_t)ids[i];
-    }
-    c->nt += count;
-    return isomend_check_stream_triangles(c->check, count, ids) != ISOMEND_OK;
-}
-
-static int c_retire(void *user, uint64_t floor)
-{
-    collected *c = user;
-    if (++c->calls == c->stop_at || floor < c->floor || floor > c->nv)
-        return 1;
-    c->floor = floor;
-    c->retires++;
-    return isomend_check_stream_retire(c->check, floor) != ISOMEND_OK;
-}
-
-static void collected_free(collected *c)
-{
-    free(c->pos);
-    free(c->nrm);
-    free(c->tri);
-    isomend_check_stream_destroy(c->check);
-    memset(c, 0, sizeof *c);
-}
-
 /* Streams vol (pass 1 with threads t1, pass 2 with t2; pass 2 from vol2 if
  * not NULL) through a streamed --largest into c. */
 static isomend_status stream_largest(const isomend_volume *vol, const isomend_volume *vol2,
@@ -100,12 +33,10 @@ static isomend_status stream_largest(const isomend_volume *vol, const isomend_vo
                                      uint64_t keep, collected *c, isomend_clean_report *rep,
                                      isomend_check_report *sr)
 {
-    memset(c, 0, sizeof *c);
-    c->normals = !(o.flags & ISOMEND_FLAG_NO_NORMALS);
-    isomend_status st = isomend_check_stream_begin_volume(vol, &o, &c->check);
+    isomend_status st = collected_begin(c, vol, &o);
     if (st != ISOMEND_OK)
         return st;
-    const isomend_mesh_sink out = {c, c_vertices, c_triangles, c_retire, NULL};
+    const isomend_mesh_sink out = collected_sink(c);
     isomend_largest_stream *ls = NULL;
     if ((st = isomend_largest_stream_begin(min, keep, &out, &ls)) != ISOMEND_OK)
         return st;
@@ -114,14 +45,7 @@ static isomend_status stream_largest(const isomend_volume *vol, const isomend_vo
     for (int pass = 0; pass < 2 && st == ISOMEND_OK; pass++) {
         const isomend_volume *v = pass && vol2 ? vol2 : vol;
         o.threads = pass ? t2 : t1;
-        isomend_stream *s = NULL;
-        st = isomend_stream_begin(v, &o, &in, &s);
-        const size_t plane = (size_t)(v->dims[0] * v->dims[1]);
-        for (int64_t k = 0; st == ISOMEND_OK && k < v->dims[2]; k++)
-            st = isomend_stream_push(s, (const float *)v->data + plane * (size_t)k);
-        if (st == ISOMEND_OK)
-            st = isomend_stream_finish(s, NULL);
-        isomend_stream_destroy(s);
+        st = stream_volume(v, &o, &in);
         if (st == ISOMEND_OK && pass == 0)
             st = isomend_largest_stream_replay(ls);
     }
@@ -132,34 +56,6 @@ static isomend_status stream_largest(const isomend_volume *vol, const isomend_vo
     if (st == ISOMEND_OK)
         st = isomend_check_stream_finish(c->check, sr);
     return st;
-}
-
-static int same(const collected *a, const collected *b)
-{
-    /* (an empty mesh has no arrays: memcmp wants pointers even for 0 bytes) */
-    return a->nv == b->nv && a->nt == b->nt && (!a->nv || !memcmp(a->pos, b->pos, 12 * a->nv)) &&
-           (!a->nt || !memcmp(a->tri, b->tri, 12 * a->nt)) &&
-           (!a->normals || !a->nv || !memcmp(a->nrm, b->nrm, 12 * a->nv));
-}
-
-/* A triangle as its corners' 9 floats, for comparing triangle sets. */
-typedef struct tri9 {
-    float f[9];
-} tri9;
-
-static int by_tri9(const void *x, const void *y)
-{
-    return memcmp(x, y, sizeof(tri9));
-}
-
-static tri9 *corners(const float *pos, const uint32_t *tri, size_t nt)
-{
-    tri9 *t = malloc((nt + 1) * sizeof *t);
-    for (size_t i = 0; i < nt; i++)
-        for (int k = 0; k < 3; k++)
-            memcpy(t[i].f + 3 * k, pos + 3 * (size_t)tri[3 * i + (size_t)k], 12);
-    qsort(t, nt, sizeof *t, by_tri9);
-    return t;
 }
 
 int main(void)
@@ -260,7 +156,7 @@ int main(void)
                         CHECK_EQ_INT(stream_largest(&vol, NULL, o, t1s[t], t2s[t], mins[k], keeps[k],
                                                     &c2, NULL, &rs),
                                      ISOMEND_OK);
-                        if (!same(&c1, &c2)) {
+                        if (!collected_same(&c1, &c2)) {
                             fprintf(stderr, "%s: threads %d/%d: another mesh\n", what, t1s[t], t2s[t]);
                             CHECK(0);
                         }
@@ -289,13 +185,13 @@ int main(void)
         CHECK(stream_largest(&vol, &other, o, 1, 1, 0, 3, &c, NULL, &rs) != ISOMEND_OK);
         collected_free(&c);
         memset(&c, 0, sizeof c);
-        isomend_mesh_sink out = {&c, c_vertices, c_triangles, c_retire, NULL};
+        isomend_mesh_sink out = collected_sink(&c);
         isomend_largest_stream *ls = (isomend_largest_stream *)&c;
         CHECK_EQ_INT(isomend_largest_stream_begin(0, 1, NULL, &ls), ISOMEND_ERR_INVALID_ARGUMENT);
         CHECK(ls == NULL);
         out.retire = NULL;
         CHECK_EQ_INT(isomend_largest_stream_begin(0, 1, &out, &ls), ISOMEND_ERR_INVALID_ARGUMENT);
-        out.retire = c_retire;
+        out.retire = collect_retire;
         CHECK_EQ_INT(isomend_largest_stream_begin(0, 1, &out, NULL), ISOMEND_ERR_INVALID_ARGUMENT);
         CHECK_EQ_INT(isomend_largest_stream_sink(NULL, &out), ISOMEND_ERR_INVALID_ARGUMENT);
         CHECK_EQ_INT(isomend_largest_stream_replay(NULL), ISOMEND_ERR_INVALID_ARGUMENT);
@@ -306,11 +202,9 @@ int main(void)
         int stops = 0;
         for (int k = 1; k < 200; k += 5) {
             collected t;
-            memset(&t, 0, sizeof t);
-            t.normals = 1;
-            CHECK_EQ_INT(isomend_check_stream_begin_volume(&vol, &o, &t.check), ISOMEND_OK);
+            CHECK_EQ_INT(collected_begin(&t, &vol, &o), ISOMEND_OK);
             t.stop_at = k;
-            const isomend_mesh_sink tout = {&t, c_vertices, c_triangles, c_retire, NULL};
+            const isomend_mesh_sink tout = collected_sink(&t);
             isomend_largest_stream *x = NULL;
             CHECK_EQ_INT(isomend_largest_stream_begin(0, 30, &tout, &x), ISOMEND_OK);
             isomend_mesh_sink in;
@@ -318,13 +212,7 @@ int main(void)
             isomend_status r = ISOMEND_OK;
             o.threads = 2;
             for (int pass = 0; pass < 2 && r == ISOMEND_OK; pass++) {
-                isomend_stream *st = NULL;
-                r = isomend_stream_begin(&vol, &o, &in, &st);
-                for (int64_t z = 0; r == ISOMEND_OK && z < n[2]; z++)
-                    r = isomend_stream_push(st, f + (size_t)(n[0] * n[1] * z));
-                if (r == ISOMEND_OK)
-                    r = isomend_stream_finish(st, NULL);
-                isomend_stream_destroy(st);
+                r = stream_volume(&vol, &o, &in);
                 if (r == ISOMEND_OK && pass == 0)
                     r = isomend_largest_stream_replay(x);
             }

@@ -19,6 +19,7 @@
  *   - bad arguments are refused and a sink that stops stops the stream.
  */
 #include "isomend.h"
+#include "collect.h"
 #include "mesh_internal.h" /* mesh_distances */
 #include "testutil.h"
 #include "volumes.h"
@@ -30,86 +31,16 @@
 
 static uint64_t rng_state = 0x5851f42d4c957f2dull;
 
-/* ------------------------------------------------------------------ a collecting sink */
-
-typedef struct collected {
-    float *pos, *nrm;
-    uint32_t *tri;
-    size_t nv, nt, cap_v, cap_t;
-    uint64_t floor;
-    int normals, stop_at, calls, retires;
-    isomend_check_stream *check;
-} collected;
-
-static int c_vertices(void *user, uint64_t first, size_t count, const float *pos, const float *nrm,
-                      const uint64_t *keys)
-{
-    collected *c = user;
-    if (++c->calls == c->stop_at)
-        return 1;
-    if (first != c->nv || keys || (c->normals != (nrm != NULL)))
-        return 1;
-    if (c->nv + count > c->cap_v) {
-        c->cap_v = 2 * (c->nv + count);
-        c->pos = realloc(c->pos, 12 * c->cap_v);
-        c->nrm = realloc(c->nrm, 12 * c->cap_v);
-    }
-    memcpy(c->pos + 3 * c->nv, pos, 12 * count);
-    if (nrm)
-        memcpy(c->nrm + 3 * c->nv, nrm, 12 * count);
-    c->nv += count;
-    return isomend_check_stream_vertices(c->check, first, count, pos) != ISOMEND_OK;
-}
-
-static int c_triangles(void *user, size_t count, const uint64_t *ids, const uint8_t *origins)
-{
-    collected *c = user;
-    if (++c->calls == c->stop_at || origins)
-        return 1;
-    if (c->nt + count > c->cap_t) {
-        c->cap_t = 2 * (c->nt + count);
-        c->tri = realloc(c->tri, 12 * c->cap_t);
-    }
-    for (size_t i = 0; i < 3 * count; i++) {
-        if (ids[i] < c->floor || ids[i] >= c->nv)
-            return 1;
-        c->tri[3 * c->nt + i] = (uint32_t)ids[i];
-    }
-    c->nt += count;
-    return isomend_check_stream_triangles(c->check, count, ids) != ISOMEND_OK;
-}
-
-static int c_retire(void *user, uint64_t floor)
-{
-    collected *c = user;
-    if (++c->calls == c->stop_at || floor < c->floor || floor > c->nv)
-        return 1;
-    c->floor = floor;
-    c->retires++;
-    return isomend_check_stream_retire(c->check, floor) != ISOMEND_OK;
-}
-
-static void collected_free(collected *c)
-{
-    free(c->pos);
-    free(c->nrm);
-    free(c->tri);
-    isomend_check_stream_destroy(c->check);
-    memset(c, 0, sizeof *c);
-}
-
 /* Streams vol with o through [a clean-up,] a smoothing [and a decimation]
  * into c. */
 static isomend_status stream_smoothed(const isomend_volume *vol, const isomend_options *o, int iters,
                                       int64_t layers, uint64_t min, double ratio, collected *c,
                                       isomend_smooth_report *rep, isomend_check_report *sr)
 {
-    memset(c, 0, sizeof *c);
-    c->normals = !(o->flags & ISOMEND_FLAG_NO_NORMALS);
-    isomend_status st = isomend_check_stream_begin_volume(vol, o, &c->check);
+    isomend_status st = collected_begin(c, vol, o);
     if (st != ISOMEND_OK)
         return st;
-    const isomend_mesh_sink out = {c, c_vertices, c_triangles, c_retire, NULL};
+    const isomend_mesh_sink out = collected_sink(c);
     isomend_mesh_sink to_dec = out, to_smooth, in;
     isomend_decimate_stream *ds = NULL;
     isomend_clean_stream *cs = NULL;
@@ -132,14 +63,7 @@ static isomend_status stream_smoothed(const isomend_volume *vol, const isomend_o
         isomend_clean_stream_begin(min, &to_smooth, &cs);
         isomend_clean_stream_sink(cs, &in);
     }
-    isomend_stream *s = NULL;
-    st = isomend_stream_begin(vol, o, &in, &s);
-    const size_t plane = (size_t)(vol->dims[0] * vol->dims[1]);
-    for (int64_t k = 0; st == ISOMEND_OK && k < vol->dims[2]; k++)
-        st = isomend_stream_push(s, (const float *)vol->data + plane * (size_t)k);
-    if (st == ISOMEND_OK)
-        st = isomend_stream_finish(s, NULL);
-    isomend_stream_destroy(s);
+    st = stream_volume(vol, o, &in);
     isomend_status fs = cs ? isomend_clean_stream_finish(cs, NULL) : ISOMEND_OK;
     const isomend_status f1 = isomend_smooth_stream_finish(ss, rep);
     fs = fs == ISOMEND_OK ? f1 : fs;
@@ -155,13 +79,6 @@ static isomend_status stream_smoothed(const isomend_volume *vol, const isomend_o
     if (st == ISOMEND_OK)
         st = isomend_check_stream_finish(c->check, sr);
     return st;
-}
-
-static int same(const collected *a, const collected *b)
-{
-    return a->nv == b->nv && a->nt == b->nt && !memcmp(a->pos, b->pos, 12 * a->nv) &&
-           !memcmp(a->tri, b->tri, 12 * a->nt) &&
-           (!a->normals || !memcmp(a->nrm, b->nrm, 12 * a->nv));
 }
 
 int main(void)
@@ -278,7 +195,7 @@ int main(void)
                             CHECK_EQ_INT(stream_smoothed(&vol, &o, iter_set[ii], layer_set[li], 0,
                                                          0, &c2, NULL, &sr),
                                          ISOMEND_OK);
-                            if (!same(&c1, &c2)) {
+                            if (!collected_same(&c1, &c2)) {
                                 fprintf(stderr, "%s: %d threads: another mesh\n", what, th);
                                 CHECK(0);
                             }
@@ -323,7 +240,7 @@ int main(void)
         o.flags = ISOMEND_FLAG_PAD;
         collected c;
         memset(&c, 0, sizeof c);
-        const isomend_mesh_sink out = {&c, c_vertices, c_triangles, c_retire, NULL};
+        const isomend_mesh_sink out = collected_sink(&c);
         isomend_smooth_stream *ss = (isomend_smooth_stream *)&c;
         CHECK_EQ_INT(isomend_smooth_stream_begin(&vol, &o, -1, 0, &out, &ss),
                      ISOMEND_ERR_INVALID_ARGUMENT);
@@ -344,23 +261,15 @@ int main(void)
         int stops = 0;
         for (int k = 1; k < 200; k += 7) {
             collected t;
-            memset(&t, 0, sizeof t);
-            t.normals = 1;
-            CHECK_EQ_INT(isomend_check_stream_begin_volume(&vol, &o, &t.check), ISOMEND_OK);
+            CHECK_EQ_INT(collected_begin(&t, &vol, &o), ISOMEND_OK);
             t.stop_at = k;
-            const isomend_mesh_sink tout = {&t, c_vertices, c_triangles, c_retire, NULL};
+            const isomend_mesh_sink tout = collected_sink(&t);
             isomend_smooth_stream *x = NULL;
             CHECK_EQ_INT(isomend_smooth_stream_begin(&vol, &o, 2, 3, &tout, &x), ISOMEND_OK);
             isomend_mesh_sink in;
             isomend_smooth_stream_sink(x, &in);
-            isomend_stream *st = NULL;
             o.threads = 2;
-            isomend_status r = isomend_stream_begin(&vol, &o, &in, &st);
-            for (int64_t z = 0; r == ISOMEND_OK && z < n[2]; z++)
-                r = isomend_stream_push(st, f + (size_t)(n[0] * n[1] * z));
-            if (r == ISOMEND_OK)
-                r = isomend_stream_finish(st, NULL);
-            isomend_stream_destroy(st);
+            const isomend_status r = stream_volume(&vol, &o, &in);
             const isomend_status fr = isomend_smooth_stream_finish(x, NULL);
             isomend_smooth_stream_destroy(x);
             if (t.calls >= k) {

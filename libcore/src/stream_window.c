@@ -1,0 +1,666 @@
+/*
+ * stream_window.c - the sliding window of the streamed post-processing
+ * (stream_window.h), shared by decimate_stream.c and smooth_stream.c.
+ *
+ * The stream's layers are grouped in chunks of K layers.  When chunk c is
+ * complete (K retire() calls), the window W = H (the triangles held back
+ * from the previous window) + chunk c's triangles is made one mesh and
+ * handed to the client, which processes it as a whole mesh whose cut (its
+ * once-used edges: triangles outside it, final below or in chunk c + 1
+ * above, whose plane of vertices is the top slice of chunk c) is locked.
+ * Then the triangles of the result within `band` rings of the top plane are
+ * held back (the next H: there the plane's vertices get their triangles of
+ * both sides into one window), and every other triangle is final.
+ *
+ *     layers:   0 ............ K ............ 2K ........... 3K
+ *     window 0: [ chunk 0      )H0
+ *     window 1:             H0 [ chunk 1      )H1
+ *     window 2:                            H1 [ chunk 2      ) ...
+ *
+ * Output.  A vertex is delivered once every triangle around it is final
+ * (it never gets a triangle again: only a top plane's vertices get new
+ * ones, and they are held), with the area-weighted normal of those
+ * triangles; a final triangle once its three vertices are delivered.  Ids
+ * count from 0 in the order vertices are first delivered; retire() follows
+ * the lowest id a waiting triangle still uses.
+ *
+ * Vertices are slots in a table keyed by the stream's vertex id: a window's
+ * vertices and the held and waiting triangles' (O(chunk) memory); each slot
+ * has the client's bytes besides.  The stream's positions are kept from the
+ * last top plane on.
+ */
+#include "stream_window.h"
+#include "mesh_internal.h"
+
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+#define NONE  UINT32_MAX
+#define NO_ID UINT64_MAX
+
+typedef struct slot {
+    float p[3];       /* its position: the stream's, then where the windows put it */
+    uint32_t held;    /* its triangles not yet final (held or in a window) */
+    uint32_t pending; /* its triangles not yet delivered (final or not)    */
+    uint32_t local;   /* scratch: index in the window's mesh               */
+    uint64_t id;      /* the stream's id                                   */
+    uint64_t out;     /* the delivered id, NO_ID before                    */
+    double n[3];      /* the final triangles' area-weighted normal sum     */
+} slot;
+
+/* A growable array of elements of `size` bytes. */
+typedef struct vec {
+    void *p;
+    size_t n, cap, size;
+} vec;
+
+static int vec_reserve(vec *v, size_t n)
+{
+    if (n <= v->cap && v->p)
+        return 1; /* (allocated once even for nothing: vec_push never returns NULL on success) */
+    size_t cap = v->cap ? v->cap : 256;
+    while (cap < n)
+        cap *= 2;
+    void *p = realloc(v->p, cap * v->size);
+    if (!p)
+        return 0;
+    v->p = p;
+    v->cap = cap;
+    return 1;
+}
+
+static void *vec_push(vec *v, size_t count)
+{
+    if (!vec_reserve(v, v->n + count))
+        return NULL;
+    void *at = (char *)v->p + v->n * v->size;
+    v->n += count;
+    return at;
+}
+
+struct stream_window {
+    stream_window_client c;
+    isomend_mesh_sink out;
+    int normals;
+    int64_t K;
+    isomend_status status;
+
+    /* the stream's side */
+    int64_t layers;        /* layers completed (retire calls)     */
+    uint64_t next_id;      /* stream vertices delivered           */
+    uint64_t floor;        /* the last floor retired              */
+    vec raw;               /* floats: positions of ids raw_base.. */
+    uint64_t raw_base;
+    vec chunk;             /* uint64_t x 3: the chunk's triangles */
+    uint64_t triangles_in; /* stream triangles so far             */
+
+    /* the slots */
+    slot *slots;
+    unsigned char *data; /* c.data_bytes a slot                  */
+    size_t nslots, cap_slots;
+    uint32_t free_slot;  /* a free list through slot.local       */
+    uint64_t *hkey;      /* open addressing: stream id -> slot   */
+    uint32_t *hval;
+    size_t hcap, hcount;
+
+    vec held;               /* uint32_t x 3: the held triangles (slots)    */
+    vec waiting;            /* uint32_t x 3: final triangles not delivered */
+    uint64_t final_count;   /* triangles made final                        */
+    uint64_t out_next;      /* vertices delivered                          */
+    uint64_t triangles_out; /* triangles delivered                         */
+    uint64_t out_floor;
+
+    /* delivery scratch */
+    vec vpos, vnrm; /* floats x 3: the positions and normals of a batch */
+    vec tbuf;       /* uint64_t x 3                                     */
+};
+
+isomend_status stream_window_fail(stream_window *w, isomend_status st)
+{
+    if (w->status == ISOMEND_OK)
+        w->status = st;
+    return w->status;
+}
+
+isomend_status stream_window_status(const stream_window *w)
+{
+    return w->status;
+}
+
+stream_window_counts stream_window_counts_of(const stream_window *w)
+{
+    return (stream_window_counts){w->next_id, w->triangles_in, w->final_count, w->out_next,
+                                  w->triangles_out};
+}
+
+float *stream_window_pos(stream_window *w, uint32_t s)
+{
+    return w->slots[s].p;
+}
+
+void *stream_window_data(stream_window *w, uint32_t s)
+{
+    return w->data + (size_t)s * w->c.data_bytes;
+}
+
+const float *stream_window_raw(const stream_window *w, uint64_t id)
+{
+    return (const float *)w->raw.p + 3 * (id - w->raw_base);
+}
+
+const uint32_t *stream_window_held(const stream_window *w, size_t *count)
+{
+    *count = w->held.n;
+    return w->held.p;
+}
+
+/* ------------------------------------------------------------------ the slot table */
+
+static size_t hash_of(uint64_t id, size_t cap)
+{
+    id ^= id >> 33;
+    id *= 0xff51afd7ed558ccdULL;
+    id ^= id >> 33;
+    return (size_t)id & (cap - 1);
+}
+
+static int table_grow(stream_window *w)
+{
+    const size_t cap = w->hcap ? 2 * w->hcap : 1024;
+    uint64_t *k = malloc(cap * sizeof *k);
+    uint32_t *v = malloc(cap * sizeof *v);
+    if (!k || !v) {
+        free(k);
+        free(v);
+        return 0;
+    }
+    for (size_t i = 0; i < cap; i++)
+        k[i] = NO_ID;
+    for (size_t i = 0; i < w->hcap; i++)
+        if (w->hkey[i] != NO_ID) {
+            size_t h = hash_of(w->hkey[i], cap);
+            while (k[h] != NO_ID)
+                h = (h + 1) & (cap - 1);
+            k[h] = w->hkey[i];
+            v[h] = w->hval[i];
+        }
+    free(w->hkey);
+    free(w->hval);
+    w->hkey = k;
+    w->hval = v;
+    w->hcap = cap;
+    return 1;
+}
+
+static uint32_t table_find(const stream_window *w, uint64_t id)
+{
+    if (!w->hcap)
+        return NONE;
+    for (size_t h = hash_of(id, w->hcap);; h = (h + 1) & (w->hcap - 1)) {
+        if (w->hkey[h] == id)
+            return w->hval[h];
+        if (w->hkey[h] == NO_ID)
+            return NONE;
+    }
+}
+
+static void table_remove(stream_window *w, uint64_t id)
+{
+    const size_t mask = w->hcap - 1;
+    size_t h = hash_of(id, w->hcap);
+    while (w->hkey[h] != id)
+        h = (h + 1) & mask;
+    /* backward shift: the entries after the hole that may move into it */
+    for (size_t j = (h + 1) & mask;; j = (j + 1) & mask) {
+        if (w->hkey[j] == NO_ID)
+            break;
+        const size_t home = hash_of(w->hkey[j], w->hcap);
+        /* j's entry may fill h if its home is not in (h, j] cyclically */
+        if (((j - home) & mask) >= ((j - h) & mask)) {
+            w->hkey[h] = w->hkey[j];
+            w->hval[h] = w->hval[j];
+            h = j;
+        }
+    }
+    w->hkey[h] = NO_ID;
+    w->hcount--;
+}
+
+/* The slot of stream vertex id, made at position p if it has none. */
+static uint32_t slot_of(stream_window *w, uint64_t id, const float *p)
+{
+    uint32_t s = table_find(w, id);
+    if (s != NONE)
+        return s;
+    if (2 * (w->hcount + 1) > w->hcap && !table_grow(w))
+        return NONE;
+    if (w->free_slot != NONE) {
+        s = w->free_slot;
+        w->free_slot = w->slots[s].local;
+    } else {
+        if (w->nslots == w->cap_slots) {
+            const size_t cap = w->cap_slots ? 2 * w->cap_slots : 1024;
+            slot *n = realloc(w->slots, cap * sizeof *n);
+            if (!n)
+                return NONE;
+            w->slots = n;
+            unsigned char *b = realloc(w->data, cap * w->c.data_bytes + 1);
+            if (!b)
+                return NONE;
+            w->data = b;
+            w->cap_slots = cap;
+        }
+        s = (uint32_t)w->nslots++;
+    }
+    slot *x = &w->slots[s];
+    memset(x, 0, sizeof *x);
+    memcpy(x->p, p, sizeof x->p);
+    x->local = NONE;
+    x->id = id;
+    x->out = NO_ID;
+    memset(stream_window_data(w, s), 0, w->c.data_bytes);
+    if (w->c.made)
+        w->c.made(w->c.user, stream_window_data(w, s), p);
+    size_t h = hash_of(id, w->hcap);
+    while (w->hkey[h] != NO_ID)
+        h = (h + 1) & (w->hcap - 1);
+    w->hkey[h] = id;
+    w->hval[h] = s;
+    w->hcount++;
+    return s;
+}
+
+/* Frees slot s once nothing uses it. */
+static void slot_release(stream_window *w, uint32_t s)
+{
+    slot *x = &w->slots[s];
+    if (x->held || x->pending || x->id == NO_ID)
+        return;
+    table_remove(w, x->id);
+    x->id = NO_ID;
+    x->local = w->free_slot;
+    w->free_slot = s;
+}
+
+/* ------------------------------------------------------------------ delivery */
+
+static void add_normal(stream_window *w, const uint32_t *t)
+{
+    const float *a = w->slots[t[0]].p, *b = w->slots[t[1]].p, *c = w->slots[t[2]].p;
+    const double e1[3] = {(double)b[0] - a[0], (double)b[1] - a[1], (double)b[2] - a[2]};
+    const double e2[3] = {(double)c[0] - a[0], (double)c[1] - a[1], (double)c[2] - a[2]};
+    const double f[3] = {e1[1] * e2[2] - e1[2] * e2[1], e1[2] * e2[0] - e1[0] * e2[2],
+                         e1[0] * e2[1] - e1[1] * e2[0]};
+    for (int k = 0; k < 3; k++)
+        for (int i = 0; i < 3; i++)
+            w->slots[t[k]].n[i] += f[i];
+}
+
+/* Triangle t (slots) is final: it waits for delivery, its geometry counts
+ * for its vertices' normals, then for the client. */
+static int make_final(stream_window *w, const uint32_t *t)
+{
+    uint32_t *q = vec_push(&w->waiting, 1);
+    if (!q)
+        return 0;
+    memcpy(q, t, 3 * sizeof *t);
+    for (int k = 0; k < 3; k++)
+        w->slots[t[k]].pending++;
+    if (w->normals)
+        add_normal(w, t);
+    w->final_count++;
+    return !w->c.final || w->c.final(w->c.user, w, t);
+}
+
+/* Delivers every waiting triangle whose vertices are done (no held
+ * triangle), their new vertices first, in the order they wait. */
+static isomend_status deliver(stream_window *w)
+{
+    uint32_t *q = w->waiting.p;
+    const size_t n = w->waiting.n;
+    w->vpos.n = w->vnrm.n = w->tbuf.n = 0;
+    size_t keep = 0, nv = 0;
+    uint64_t low = NO_ID; /* the lowest delivered id a waiting triangle uses */
+    for (size_t i = 0; i < n; i++) {
+        const uint32_t *t = q + 3 * i;
+        const int ready = !w->slots[t[0]].held && !w->slots[t[1]].held && !w->slots[t[2]].held;
+        if (!ready) {
+            memmove(q + 3 * keep++, t, 3 * sizeof *t);
+            continue;
+        }
+        uint64_t *ids = vec_push(&w->tbuf, 1);
+        if (!ids)
+            return stream_window_fail(w, ISOMEND_ERR_OUT_OF_MEMORY);
+        for (int k = 0; k < 3; k++) {
+            slot *x = &w->slots[t[k]];
+            if (x->out == NO_ID) {
+                float *v = vec_push(&w->vpos, 1), *nv3 = w->normals ? vec_push(&w->vnrm, 1) : NULL;
+                if (!v || (w->normals && !nv3))
+                    return stream_window_fail(w, ISOMEND_ERR_OUT_OF_MEMORY);
+                memcpy(v, x->p, 3 * sizeof(float));
+                const double len = sqrt(x->n[0] * x->n[0] + x->n[1] * x->n[1] + x->n[2] * x->n[2]);
+                for (int c = 0; nv3 && c < 3; c++)
+                    nv3[c] =
+                        len > 0 && isfinite(len) ? (float)(x->n[c] / len) : (c == 2 ? 1.0f : 0.0f);
+                x->out = w->out_next + nv++;
+                if (w->c.delivered)
+                    w->c.delivered(w->c.user, w, t[k]);
+            }
+            ids[k] = x->out;
+        }
+        for (int k = 0; k < 3; k++) {
+            w->slots[t[k]].pending--;
+            slot_release(w, t[k]);
+        }
+    }
+    w->waiting.n = keep;
+    for (size_t i = 0; i < 3 * keep; i++) /* after the loop: ids given to later triangles count */
+        if (w->slots[q[i]].out < low)
+            low = w->slots[q[i]].out;
+    if (nv) {
+        if (w->out.vertices(w->out.user, w->out_next, nv, w->vpos.p, w->normals ? w->vnrm.p : NULL,
+                            NULL))
+            return stream_window_fail(w, ISOMEND_ERR_SINK);
+        w->out_next += nv;
+    }
+    if (w->tbuf.n && w->out.triangles(w->out.user, w->tbuf.n, w->tbuf.p, NULL))
+        return stream_window_fail(w, ISOMEND_ERR_SINK);
+    w->triangles_out += w->tbuf.n;
+    const uint64_t floor = low == NO_ID ? w->out_next : low;
+    if (floor > w->out_floor) {
+        if (!w->c.retire_each && w->out.retire(w->out.user, floor))
+            return stream_window_fail(w, ISOMEND_ERR_SINK);
+        w->out_floor = floor;
+    }
+    return ISOMEND_OK;
+}
+
+/* ------------------------------------------------------------------ a window */
+
+/* Rings from the top plane's vertices over mesh r, whose vertex v is slot
+ * out_slot[v] (dist: band or more where farther). */
+static int rings(const isomend_mesh *r, const uint32_t *out_slot, const slot *slots,
+                 uint64_t top_lo, uint64_t top_hi, uint32_t band, uint32_t *dist)
+{
+    const size_t nv = r->nv, nt = r->nt;
+    uint32_t *first = calloc(nv + 1, sizeof *first), *tris = malloc((3 * nt + 1) * sizeof *tris);
+    uint32_t *queue = malloc((nv + 1) * sizeof *queue);
+    if (!first || !tris || !queue) {
+        free(first);
+        free(tris);
+        free(queue);
+        return 0;
+    }
+    for (size_t i = 0; i < 3 * nt; i++)
+        first[r->tri[i] + 1]++;
+    for (size_t v = 0; v < nv; v++)
+        first[v + 1] += first[v];
+    for (size_t t = 0; t < nt; t++)
+        for (int k = 0; k < 3; k++)
+            tris[first[r->tri[3 * t + (size_t)k]]++] = (uint32_t)t;
+    for (size_t v = nv; v > 0; v--)
+        first[v] = first[v - 1];
+    first[0] = 0;
+    size_t head = 0, tail = 0;
+    for (size_t v = 0; v < nv; v++) {
+        const uint64_t id = slots[out_slot[v]].id;
+        dist[v] = id >= top_lo && id < top_hi ? 0 : band;
+        if (!dist[v])
+            queue[tail++] = (uint32_t)v;
+    }
+    while (head < tail) {
+        const uint32_t v = queue[head++];
+        if (dist[v] + 1 >= band)
+            continue;
+        for (uint32_t i = first[v]; i < first[v + 1]; i++)
+            for (int k = 0; k < 3; k++) {
+                const uint32_t u = r->tri[3 * (size_t)tris[i] + (size_t)k];
+                if (dist[u] == band) {
+                    dist[u] = dist[v] + 1;
+                    queue[tail++] = u;
+                }
+            }
+    }
+    free(first);
+    free(tris);
+    free(queue);
+    return 1;
+}
+
+/* The window: the held triangles and the chunk's, processed by the client;
+ * the band at the top plane held back, the rest final.  last: no chunk
+ * follows. */
+static isomend_status run_window(stream_window *w, int last)
+{
+    const uint64_t top_lo = last ? w->next_id : w->floor, top_hi = w->next_id;
+    const size_t nheld = w->held.n, nchunk = w->chunk.n, nt = nheld + nchunk;
+    isomend_status st = ISOMEND_OK;
+    isomend_mesh *m = calloc(1, sizeof *m), *r = NULL;
+    uint32_t *wt = malloc((3 * nt + 1) * sizeof *wt), *lv = malloc((3 * nt + 1) * sizeof *lv);
+    uint32_t *kept = NULL, *out_slot = NULL, *dist = NULL;
+    uint8_t *fin = NULL;
+    if (!m || !wt || !lv)
+        goto oom;
+    /* the window's triangles as slots: the held ones, then the chunk's */
+    if (nheld)
+        memcpy(wt, w->held.p, 3 * nheld * sizeof *wt);
+    const uint64_t *ct = w->chunk.p;
+    for (size_t i = 0; i < 3 * nchunk; i++) {
+        const uint32_t s = slot_of(w, ct[i], stream_window_raw(w, ct[i]));
+        if (s == NONE)
+            goto oom;
+        w->slots[s].held++;
+        wt[3 * nheld + i] = s;
+    }
+    /* its mesh: vertices in the order of first use */
+    size_t nv = 0;
+    for (size_t i = 0; i < 3 * nt; i++) {
+        slot *x = &w->slots[wt[i]];
+        if (x->local == NONE) {
+            x->local = (uint32_t)nv;
+            lv[nv++] = wt[i];
+        }
+    }
+    m->nv = nv;
+    m->nt = nt;
+    m->pos = malloc((nv + 1) * 12);
+    m->tri = malloc((nt + 1) * 12);
+    if (!m->pos || !m->tri)
+        goto oom;
+    for (size_t v = 0; v < nv; v++)
+        memcpy(m->pos + 3 * v, w->slots[lv[v]].p, 12);
+    for (size_t i = 0; i < 3 * nt; i++)
+        m->tri[i] = w->slots[wt[i]].local;
+    for (size_t v = 0; v < nv; v++)
+        w->slots[lv[v]].local = NONE;
+    const stream_window_mesh view = {m, lv, nheld, ct, nchunk, top_lo, top_hi};
+    st = w->c.process(w->c.user, w, &view, &r, &kept);
+    if (st != ISOMEND_OK)
+        goto done;
+    /* the window's triangles are consumed; the result's vertices take their place */
+    for (size_t i = 0; i < 3 * nt; i++)
+        w->slots[wt[i]].held--;
+    w->held.n = 0;
+    const size_t rv = r ? r->nv : 0, rt = r ? r->nt : 0;
+    out_slot = malloc((rv + 1) * sizeof *out_slot);
+    dist = malloc((rv + 1) * sizeof *dist);
+    fin = malloc(rt + 1);
+    if (!out_slot || !dist || !fin)
+        goto oom;
+    for (size_t v = 0; v < rv; v++)
+        out_slot[v] = lv[kept ? kept[v] : v];
+    if (rv && !rings(r, out_slot, w->slots, top_lo, top_hi, w->c.band, dist))
+        goto oom;
+    for (size_t t = 0; t < rt; t++) {
+        fin[t] = 1;
+        for (int k = 0; k < 3; k++)
+            fin[t] &= dist[r->tri[3 * t + (size_t)k]] >= w->c.band;
+    }
+    if (r)
+        w->c.settle(w->c.user, w, r, out_slot, fin);
+    for (size_t t = 0; t < rt; t++) {
+        uint32_t s[3];
+        for (int k = 0; k < 3; k++)
+            s[k] = out_slot[r->tri[3 * t + (size_t)k]];
+        if (!fin[t]) {
+            uint32_t *h = vec_push(&w->held, 1);
+            if (!h)
+                goto oom;
+            memcpy(h, s, sizeof s);
+            for (int k = 0; k < 3; k++)
+                w->slots[s[k]].held++;
+        } else if (!make_final(w, s)) {
+            goto oom;
+        }
+    }
+    /* the vertices the client removed */
+    for (size_t v = 0; v < nv; v++)
+        slot_release(w, lv[v]);
+    st = deliver(w);
+    if (st != ISOMEND_OK)
+        goto done;
+    if (w->c.done && (st = w->c.done(w->c.user, w)) != ISOMEND_OK)
+        goto done;
+    /* the stream's positions below the top plane are no longer needed */
+    {
+        const size_t drop = (size_t)(top_lo - w->raw_base);
+        if (w->raw.n > drop)
+            memmove(w->raw.p, (const float *)w->raw.p + 3 * drop, (w->raw.n - drop) * 12);
+        w->raw.n -= drop;
+        w->raw_base = top_lo;
+    }
+    w->chunk.n = 0;
+    goto done;
+oom:
+    st = ISOMEND_ERR_OUT_OF_MEMORY;
+done:
+    isomend_mesh_destroy(m);
+    isomend_mesh_destroy(r);
+    free(wt);
+    free(lv);
+    free(kept);
+    free(out_slot);
+    free(dist);
+    free(fin);
+    return st == ISOMEND_OK ? ISOMEND_OK : stream_window_fail(w, st);
+}
+
+/* ------------------------------------------------------------------ the stream's sink */
+
+static int on_vertices(void *user, uint64_t first, size_t count, const float *pos, const float *nrm,
+                       const uint64_t *keys)
+{
+    (void)nrm;
+    (void)keys;
+    stream_window *w = user;
+    if (w->status != ISOMEND_OK)
+        return 1;
+    if (first != w->next_id)
+        return stream_window_fail(w, ISOMEND_ERR_INVALID_ARGUMENT), 1;
+    float *p = vec_push(&w->raw, count);
+    if (!p)
+        return stream_window_fail(w, ISOMEND_ERR_OUT_OF_MEMORY), 1;
+    if (count)
+        memcpy(p, pos, count * 12);
+    w->next_id += count;
+    return 0;
+}
+
+static int on_triangles(void *user, size_t count, const uint64_t *ids, const uint8_t *origins)
+{
+    (void)origins;
+    stream_window *w = user;
+    if (w->status != ISOMEND_OK)
+        return 1;
+    for (size_t i = 0; i < 3 * count; i++)
+        if (ids[i] < w->raw_base || ids[i] >= w->next_id ||
+            (w->c.strict_floor && ids[i] < w->floor))
+            return stream_window_fail(w, ISOMEND_ERR_INVALID_ARGUMENT), 1;
+    uint64_t *t = vec_push(&w->chunk, count);
+    if (!t)
+        return stream_window_fail(w, ISOMEND_ERR_OUT_OF_MEMORY), 1;
+    if (count)
+        memcpy(t, ids, count * 24);
+    w->triangles_in += count;
+    return 0;
+}
+
+static int on_retire(void *user, uint64_t floor)
+{
+    stream_window *w = user;
+    if (w->status != ISOMEND_OK)
+        return 1;
+    if (floor < w->floor || floor > w->next_id)
+        return stream_window_fail(w, ISOMEND_ERR_INVALID_ARGUMENT), 1;
+    w->floor = floor;
+    if (++w->layers % w->K == 0 && run_window(w, 0) != ISOMEND_OK)
+        return 1;
+    if (w->c.retire_each && w->out.retire(w->out.user, w->out_floor))
+        return stream_window_fail(w, ISOMEND_ERR_SINK), 1;
+    return 0;
+}
+
+/* ------------------------------------------------------------------ the window's life */
+
+isomend_status stream_window_begin(const stream_window_client *client, const isomend_mesh_sink *out,
+                                   int normals, int64_t K, stream_window **sw)
+{
+    *sw = NULL;
+    stream_window *w = calloc(1, sizeof *w);
+    if (!w)
+        return ISOMEND_ERR_OUT_OF_MEMORY;
+    w->c = *client;
+    w->out = *out;
+    w->normals = normals;
+    w->K = K;
+    w->free_slot = NONE;
+    w->raw.size = 12;
+    w->chunk.size = 24;
+    w->held.size = w->waiting.size = 12;
+    w->vpos.size = w->vnrm.size = 12;
+    w->tbuf.size = 24;
+    *sw = w;
+    return ISOMEND_OK;
+}
+
+void stream_window_sink(stream_window *w, isomend_mesh_sink *sink)
+{
+    *sink = (isomend_mesh_sink){w, on_vertices, on_triangles, on_retire, NULL};
+}
+
+isomend_status stream_window_finish(stream_window *w, int force)
+{
+    if (w->status == ISOMEND_OK && (w->chunk.n || w->held.n || force))
+        (void)run_window(w, 1);
+    return w->status;
+}
+
+isomend_status stream_window_close(stream_window *w)
+{
+    if (w->status == ISOMEND_OK && w->waiting.n)
+        (void)stream_window_fail(w,
+                                 ISOMEND_ERR_INVALID_ARGUMENT); /* not reached: nothing is held */
+    if (w->status == ISOMEND_OK && !w->c.retire_each && w->out_next > w->out_floor &&
+        w->out.retire(w->out.user, w->out_next))
+        (void)stream_window_fail(w, ISOMEND_ERR_SINK);
+    return w->status;
+}
+
+void stream_window_destroy(stream_window *w)
+{
+    if (!w)
+        return;
+    free(w->raw.p);
+    free(w->chunk.p);
+    free(w->slots);
+    free(w->data);
+    free(w->hkey);
+    free(w->hval);
+    free(w->held.p);
+    free(w->waiting.p);
+    free(w->vpos.p);
+    free(w->vnrm.p);
+    free(w->tbuf.p);
+    free(w);
+}
