@@ -127,15 +127,14 @@ static void fan_range(void *arg, size_t lo, size_t hi)
  * first[v + 1] - 1 index next and prev, the other two vertices of each
  * corner's triangle (the one after v and the one before, in the winding),
  * which the caller may keep (all three NULL-able: then freed here).  The
- * fans are tested on threads.  The arrays come from scratch_alloc() (huge
- * pages; free() releases them).  Returns 0 without memory.
+ * fans are tested on threads.  Returns 0 without memory.
  */
 int mesh_free_vertices(const isomend_mesh *m, uint8_t *free_flag, uint32_t **first_out,
                        uint32_t **next_out, uint32_t **prev_out)
 {
     const size_t nv = m->nv, nc = 3 * m->nt;
-    uint32_t *first = scratch_alloc((nv + 1) * sizeof(uint32_t)),
-             *next = scratch_alloc((nc ? nc : 1) * 4), *prev = scratch_alloc((nc ? nc : 1) * 4);
+    uint32_t *first = malloc((nv + 1) * sizeof(uint32_t)), *next = malloc((nc ? nc : 1) * 4),
+             *prev = malloc((nc ? nc : 1) * 4);
     if (!first || !next || !prev) {
         free(first);
         free(next);

@@ -327,12 +327,14 @@ isomend_status isomend_mesh_smooth(const isomend_mesh *mesh, int iterations, iso
         return ISOMEND_ERR_INVALID_ARGUMENT;
     const size_t nv = mesh->nv, nv1 = nv ? nv : 1;
     isomend_status status = ISOMEND_ERR_OUT_OF_MEMORY;
-    /* the working arrays on huge pages (scratch_alloc): a mesh of millions
-     * of vertices otherwise spends a good part of its time in page faults */
-    uint8_t *free_v = scratch_alloc(nv1);
-    uint32_t *first = NULL, *next = NULL, *prev = NULL, *label = scratch_alloc(nv1 * sizeof(uint32_t));
-    float *xa = scratch_alloc(12 * nv1), *xb = scratch_alloc(12 * nv1), *nrm = scratch_alloc(12 * nv1);
-    double *vv = scratch_alloc(8 * nv1), *va = scratch_alloc(8 * nv1);
+    /* the working arrays on small pages: huge ones (scratch_alloc) fault
+     * faster, but on a machine whose free memory is fragmented the kernel
+     * compacts it at the fault, which made a 1.5 M-vertex smoothing take
+     * 190 ms or 400-560 ms by turns (malloc: 250-285 ms, steadily) */
+    uint8_t *free_v = malloc(nv1);
+    uint32_t *first = NULL, *next = NULL, *prev = NULL, *label = malloc(nv1 * sizeof(uint32_t));
+    float *xa = malloc(12 * nv1), *xb = malloc(12 * nv1), *nrm = malloc(12 * nv1);
+    double *vv = malloc(8 * nv1), *va = malloc(8 * nv1);
     double *c = malloc(8 * ((size_t)iterations + 1));
     double *v0 = NULL, *v1 = NULL, *area = NULL, *edge = NULL, *delta = NULL;
     isomend_mesh *m = calloc(1, sizeof(*m));
@@ -359,9 +361,9 @@ isomend_status isomend_mesh_smooth(const isomend_mesh *mesh, int iterations, iso
     delta = calloc(nc1, sizeof(double));
     m->nv = nv;
     m->nt = mesh->nt;
-    m->pos = output_alloc(12 * nv1, 0);
-    m->tri = output_alloc(12 * (mesh->nt ? mesh->nt : 1), 0);
-    m->nrm = mesh->nrm ? output_alloc(12 * nv1, 0) : NULL;
+    m->pos = malloc(12 * nv1);
+    m->tri = malloc(12 * (mesh->nt ? mesh->nt : 1));
+    m->nrm = mesh->nrm ? malloc(12 * nv1) : NULL;
     if (!v0 || !v1 || !area || !edge || !delta || !m->pos || !m->tri || (mesh->nrm && !m->nrm))
         goto done;
 
