@@ -24,12 +24,13 @@
  * count from 0 in the order vertices are first delivered; retire() follows
  * the lowest id a waiting triangle still uses.
  *
- * Vertices are slots in a table keyed by the stream's vertex id: a window's
- * vertices and the held and waiting triangles' (O(chunk) memory); each slot
- * has the client's bytes besides.  The stream's positions are kept from the
- * last top plane on.
+ * Vertices are slots in a table keyed by the stream's vertex id (id_table.h):
+ * a window's vertices and the held and waiting triangles' (O(chunk) memory);
+ * each slot has the client's bytes besides.  The stream's positions are kept
+ * from the last top plane on.
  */
 #include "stream_window.h"
+#include "id_table.h"
 #include "mesh_internal.h"
 
 #include <math.h>
@@ -100,9 +101,7 @@ struct stream_window {
     unsigned char *data; /* c.data_bytes a slot                  */
     size_t nslots, cap_slots;
     uint32_t free_slot;  /* a free list through slot.local       */
-    uint64_t *hkey;      /* open addressing: stream id -> slot   */
-    uint32_t *hval;
-    size_t hcap, hcount;
+    id_table ids;        /* stream id -> slot                    */
 
     vec held;               /* uint32_t x 3: the held triangles (slots)    */
     vec waiting;            /* uint32_t x 3: final triangles not delivered */
@@ -155,85 +154,13 @@ const uint32_t *stream_window_held(const stream_window *w, size_t *count)
     return w->held.p;
 }
 
-/* ------------------------------------------------------------------ the slot table */
-
-static size_t hash_of(uint64_t id, size_t cap)
-{
-    id ^= id >> 33;
-    id *= 0xff51afd7ed558ccdULL;
-    id ^= id >> 33;
-    return (size_t)id & (cap - 1);
-}
-
-static int table_grow(stream_window *w)
-{
-    const size_t cap = w->hcap ? 2 * w->hcap : 1024;
-    uint64_t *k = malloc(cap * sizeof *k);
-    uint32_t *v = malloc(cap * sizeof *v);
-    if (!k || !v) {
-        free(k);
-        free(v);
-        return 0;
-    }
-    for (size_t i = 0; i < cap; i++)
-        k[i] = NO_ID;
-    for (size_t i = 0; i < w->hcap; i++)
-        if (w->hkey[i] != NO_ID) {
-            size_t h = hash_of(w->hkey[i], cap);
-            while (k[h] != NO_ID)
-                h = (h + 1) & (cap - 1);
-            k[h] = w->hkey[i];
-            v[h] = w->hval[i];
-        }
-    free(w->hkey);
-    free(w->hval);
-    w->hkey = k;
-    w->hval = v;
-    w->hcap = cap;
-    return 1;
-}
-
-static uint32_t table_find(const stream_window *w, uint64_t id)
-{
-    if (!w->hcap)
-        return NONE;
-    for (size_t h = hash_of(id, w->hcap);; h = (h + 1) & (w->hcap - 1)) {
-        if (w->hkey[h] == id)
-            return w->hval[h];
-        if (w->hkey[h] == NO_ID)
-            return NONE;
-    }
-}
-
-static void table_remove(stream_window *w, uint64_t id)
-{
-    const size_t mask = w->hcap - 1;
-    size_t h = hash_of(id, w->hcap);
-    while (w->hkey[h] != id)
-        h = (h + 1) & mask;
-    /* backward shift: the entries after the hole that may move into it */
-    for (size_t j = (h + 1) & mask;; j = (j + 1) & mask) {
-        if (w->hkey[j] == NO_ID)
-            break;
-        const size_t home = hash_of(w->hkey[j], w->hcap);
-        /* j's entry may fill h if its home is not in (h, j] cyclically */
-        if (((j - home) & mask) >= ((j - h) & mask)) {
-            w->hkey[h] = w->hkey[j];
-            w->hval[h] = w->hval[j];
-            h = j;
-        }
-    }
-    w->hkey[h] = NO_ID;
-    w->hcount--;
-}
-
 /* The slot of stream vertex id, made at position p if it has none. */
 static uint32_t slot_of(stream_window *w, uint64_t id, const float *p)
 {
-    uint32_t s = table_find(w, id);
+    uint32_t s = id_table_find(&w->ids, id);
     if (s != NONE)
         return s;
-    if (2 * (w->hcount + 1) > w->hcap && !table_grow(w))
+    if (!id_table_reserve(&w->ids))
         return NONE;
     if (w->free_slot != NONE) {
         s = w->free_slot;
@@ -262,12 +189,7 @@ static uint32_t slot_of(stream_window *w, uint64_t id, const float *p)
     memset(stream_window_data(w, s), 0, w->c.data_bytes);
     if (w->c.made)
         w->c.made(w->c.user, stream_window_data(w, s), p);
-    size_t h = hash_of(id, w->hcap);
-    while (w->hkey[h] != NO_ID)
-        h = (h + 1) & (w->hcap - 1);
-    w->hkey[h] = id;
-    w->hval[h] = s;
-    w->hcount++;
+    id_table_insert(&w->ids, id, s);
     return s;
 }
 
@@ -277,7 +199,7 @@ static void slot_release(stream_window *w, uint32_t s)
     slot *x = &w->slots[s];
     if (x->held || x->pending || x->id == NO_ID)
         return;
-    table_remove(w, x->id);
+    id_table_remove(&w->ids, x->id);
     x->id = NO_ID;
     x->local = w->free_slot;
     w->free_slot = s;
@@ -655,8 +577,7 @@ void stream_window_destroy(stream_window *w)
     free(w->chunk.p);
     free(w->slots);
     free(w->data);
-    free(w->hkey);
-    free(w->hval);
+    id_table_free(&w->ids);
     free(w->held.p);
     free(w->waiting.p);
     free(w->vpos.p);
