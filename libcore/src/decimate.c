@@ -1101,7 +1101,7 @@ isomend_status mesh_decimate_to(const isomend_mesh *mesh, uint64_t target, doubl
         d.live[t] = (uint32_t)t;
     d.nlive = d.nt;
     begin_pass(&d); /* the first pass's fans */
-    if (!mesh_free_vertices(mesh, d.vf, NULL, NULL, NULL))
+    if (!mesh_free_vertices(mesh, NULL, d.vf, NULL, NULL, NULL))
         goto done;
     for (size_t v = 0; v < d.nv; v++) {
         d.vf[v] = d.vf[v] ? 0 : V_LOCKED; /* unused vertices are locked too */

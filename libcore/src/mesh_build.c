@@ -77,31 +77,53 @@ void mesh_area_normals(isomend_mesh *m, const float *keep)
 /* Whether the n corners of vertex v, given by the other two vertices of
  * each (next[i], prev[i] around its triangle), form one closed fan with
  * every edge used once each way: n >= 3, no repeated vertex in a triangle,
- * each neighbour once a next and once a prev, and one cycle through them. */
+ * and the walk from corner 0 to the first corner whose next is this one's
+ * prev visits all n corners once and comes back to corner 0.  The walk
+ * alone proves each neighbour once a next and once a prev: of two corners
+ * with the same next the walk reaches only the first, so it cannot visit
+ * all n; and two corners with the same prev would have the same successor
+ * on a cycle through distinct corners.  (Above 64 corners, where the mask
+ * ends, each neighbour's uses are compared pairwise first.) */
 static int one_fan(uint32_t v, const uint32_t *next, const uint32_t *prev, uint32_t n)
 {
     if (n < 3)
         return 0;
-    for (uint32_t i = 0; i < n; i++) {
+    for (uint32_t i = 0; i < n; i++)
         if (next[i] == v || prev[i] == v || next[i] == prev[i])
             return 0;
-        for (uint32_t k = i + 1; k < n; k++)
-            if (next[i] == next[k] || prev[i] == prev[k])
-                return 0;
+    if (n > 64) {
+        for (uint32_t i = 0; i < n; i++)
+            for (uint32_t k = i + 1; k < n; k++)
+                if (next[i] == next[k] || prev[i] == prev[k])
+                    return 0;
+        uint32_t i = 0, steps = 0;
+        do {
+            uint32_t k = 0;
+            while (k < n && next[k] != prev[i])
+                k++;
+            if (k == n)
+                return 0; /* a prev that is no next: a once-used edge */
+            i = k;
+            steps++;
+        } while (i != 0 && steps <= n);
+        return steps == n;
     }
-    /* the nexts are distinct and so are the prevs, so prev -> the corner
-     * whose next it is maps corners one to one: one cycle through all n */
-    uint32_t i = 0, steps = 0;
-    do {
+    uint64_t seen = 1; /* corner 0 */
+    uint32_t i = 0;
+    for (uint32_t steps = 0; steps < n; steps++) {
         uint32_t k = 0;
         while (k < n && next[k] != prev[i])
             k++;
         if (k == n)
             return 0; /* a prev that is no next: a once-used edge */
+        if (k == 0)
+            return steps == n - 1; /* back at the start: after all n? */
+        if (seen >> k & 1)
+            return 0;
+        seen |= (uint64_t)1 << k;
         i = k;
-        steps++;
-    } while (i != 0 && steps <= n);
-    return steps == n;
+    }
+    return 0;
 }
 
 typedef struct fan_job {
@@ -127,9 +149,78 @@ static void fan_range(void *arg, size_t lo, size_t hi)
  * first[v + 1] - 1 index next and prev, the other two vertices of each
  * corner's triangle (the one after v and the one before, in the winding),
  * which the caller may keep (all three NULL-able: then freed here).  The
- * fans are tested on threads.  Returns 0 without memory.
+ * fans are tested on threads (the team tm's, or parallel_for()'s if NULL).  Returns 0 without memory.
  */
-int mesh_free_vertices(const isomend_mesh *m, uint8_t *free_flag, uint32_t **first_out,
+/* The compressed row table of corners, built in parts (vertex ranges), each
+ * by one thread that reads every triangle and files the corners of its own
+ * vertices, in triangle order: the same table for any number of parts.
+ * Step 0 counts a part's corners into first[v] and sums them; step 1 turns
+ * the counts into starts (the part's base: the corners of the parts before),
+ * files the corners (first[v] a cursor, ending at the next row's start) and
+ * shifts the starts back, all within the part's own vertices. */
+typedef struct rows_job {
+    const uint32_t *tri;
+    size_t nt, nv;
+    size_t parts;
+    int step;
+    uint32_t *first, *next, *prev;
+    uint64_t corners[TEAM_MAX_THREADS];
+} rows_job;
+
+static void rows_parts(void *arg, size_t p0, size_t p1)
+{
+    rows_job *j = arg;
+    const uint32_t *tri = j->tri;
+    uint32_t *first = j->first, *next = j->next, *prev = j->prev;
+    for (size_t part = p0; part < p1; part++) {
+        const size_t lo = j->nv * part / j->parts, hi = j->nv * (part + 1) / j->parts;
+        const uint32_t span = (uint32_t)(hi - lo);
+        if (j->step == 0) {
+            memset(first + lo, 0, (hi - lo) * sizeof(uint32_t));
+            for (size_t c = 0; c < 3 * j->nt; c++)
+                if (tri[c] - (uint32_t)lo < span)
+                    first[tri[c]]++;
+            uint64_t n = 0;
+            for (size_t v = lo; v < hi; v++)
+                n += first[v];
+            j->corners[part] = n;
+            continue;
+        }
+        uint64_t base = 0;
+        for (size_t q = 0; q < part; q++)
+            base += j->corners[q];
+        uint32_t at = (uint32_t)base;
+        for (size_t v = lo; v < hi; v++) {
+            const uint32_t n = first[v];
+            first[v] = at;
+            at += n;
+        }
+        for (size_t t = 0; t < j->nt; t++) {
+            const uint32_t a = tri[3 * t], b = tri[3 * t + 1], c = tri[3 * t + 2];
+            if (a - (uint32_t)lo < span) {
+                const uint32_t x = first[a]++;
+                next[x] = b;
+                prev[x] = c;
+            }
+            if (b - (uint32_t)lo < span) {
+                const uint32_t x = first[b]++;
+                next[x] = c;
+                prev[x] = a;
+            }
+            if (c - (uint32_t)lo < span) {
+                const uint32_t x = first[c]++;
+                next[x] = a;
+                prev[x] = b;
+            }
+        }
+        for (size_t v = hi; v > lo + 1; v--)
+            first[v - 1] = first[v - 2];
+        if (hi > lo)
+            first[lo] = (uint32_t)base;
+    }
+}
+
+int mesh_free_vertices(const isomend_mesh *m, team *tm, uint8_t *free_flag, uint32_t **first_out,
                        uint32_t **next_out, uint32_t **prev_out)
 {
     const size_t nv = m->nv, nc = 3 * m->nt;
@@ -141,27 +232,18 @@ int mesh_free_vertices(const isomend_mesh *m, uint8_t *free_flag, uint32_t **fir
         free(prev);
         return 0;
     }
-    memset(first, 0, (nv + 1) * sizeof(uint32_t));
-    const uint32_t *tri = m->tri;
-    for (size_t c = 0; c < nc; c++)
-        first[tri[c] + 1]++;
-    for (size_t v = 0; v < nv; v++)
-        first[v + 1] += first[v];
-    for (size_t t = 0; t < m->nt; t++) {
-        const uint32_t a = tri[3 * t], b = tri[3 * t + 1], c = tri[3 * t + 2];
-        const uint32_t xa = first[a]++, xb = first[b]++, xc = first[c]++;
-        next[xa] = b;
-        prev[xa] = c;
-        next[xb] = c;
-        prev[xb] = a;
-        next[xc] = a;
-        prev[xc] = b;
-    }
-    for (size_t v = nv; v > 0; v--)
-        first[v] = first[v - 1];
-    first[0] = 0;
+    rows_job rows = {m->tri, m->nt, nv, 1, 0, first, next, prev, {0}};
+    if (nv >= 2 * TEAM_MIN_ITEMS)
+        rows.parts = (size_t)team_threads(tm);
+    team_for_from(tm, rows.parts, 1, rows_parts, &rows);
+    rows.step = 1;
+    team_for_from(tm, rows.parts, 1, rows_parts, &rows);
+    first[nv] = (uint32_t)nc;
     fan_job job = {first, next, prev, free_flag};
-    parallel_for(nv, fan_range, &job);
+    if (tm)
+        team_for(tm, nv, fan_range, &job);
+    else
+        parallel_for(nv, fan_range, &job);
     if (first_out)
         *first_out = first;
     else
@@ -200,8 +282,8 @@ void parallel_for_from(size_t n, size_t min_items, void (*fn)(void *arg, size_t 
 {
     int nthreads = 1;
     if (n >= min_items && n >= 2) {
-        const long cores = sysconf(_SC_NPROCESSORS_ONLN);
-        nthreads = cores < 1 ? 1 : cores > 8 ? 8 : (int)cores;
+        const int cores = team_cores();
+        nthreads = cores > 8 ? 8 : cores;
     }
     pthread_t th[8];
     parallel_part parts[8];

@@ -9,6 +9,7 @@
 #define ISOMEND_MESH_INTERNAL_H
 
 #include "isomend.h"
+#include "team.h"
 
 #include <stddef.h>
 #include <stdint.h>
@@ -49,7 +50,7 @@ isomend_status sheared_check(const isomend_mesh *mesh, isomend_check_report *rep
  * the mesh it comes from; vertex normals from the triangles. */
 isomend_status mesh_copy_frame(isomend_mesh *dst, const isomend_mesh *src);
 void mesh_area_normals(isomend_mesh *m, const float *keep);
-int mesh_free_vertices(const isomend_mesh *m, uint8_t *free_flag, uint32_t **first,
+int mesh_free_vertices(const isomend_mesh *m, team *tm, uint8_t *free_flag, uint32_t **first,
                        uint32_t **next, uint32_t **prev);
 /* fn(arg, lo, hi) over [0, n) in ranges on up to 8 threads (one below 32768
  * items, or where threads cannot start); returns when all are done. */

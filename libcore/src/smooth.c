@@ -41,6 +41,9 @@
 #include <pthread.h>
 #include <stdlib.h>
 #include <string.h>
+#if defined(__SSE2__)
+#include <emmintrin.h>
+#endif
 
 #define PASS_BAND 0.1
 #define RESTORE_PASSES 8
@@ -76,61 +79,123 @@ static void sinc_coefficients(int n, double *c)
 
 /* ------------------------------------------------------------ the filter */
 
-typedef struct filter_job {
-    const uint32_t *first, *nb; /* each vertex's neighbours (compressed rows)  */
+/* Each vertex's first ROW neighbours in a row of ROW (the rest of a row
+ * the zero vertex nv, whose position is 0: adding it changes no sum), so
+ * that the filter's inner loop has no branch to mispredict on the varying
+ * neighbour count; the neighbours past ROW from the compressed rows.  Its
+ * neighbour count in a byte (0: locked, DEG_MANY: count from first) and
+ * 1 / count from a table. */
+#define ROW 8
+#define DEG_MANY 255
+
+typedef struct row_job {
+    const uint32_t *first, *nb;
     const uint8_t *free_v;
-    const float *x;             /* x_j, read                                  */
-    float *y;                   /* x_(j-1) in, x_(j+1) out (x_1 out at step 0) */
-    float *sum;                 /* the result so far                          */
-    float c0, c1;               /* step 0: c_0, c_1; later: c_(j+1) in c1     */
-    int first_step;
+    uint32_t *row;
+    uint8_t *deg;
+    size_t nv;
+} row_job;
+
+static void row_range(void *arg, size_t lo, size_t hi)
+{
+    const row_job *j = arg;
+    for (size_t v = lo; v < hi; v++) {
+        const uint32_t b = j->first[v], n = j->first[v + 1] - b;
+        for (uint32_t k = 0; k < ROW; k++)
+            j->row[ROW * v + k] = k < n ? j->nb[b + k] : (uint32_t)j->nv;
+        j->deg[v] = !j->free_v[v] || !n ? 0 : n < DEG_MANY ? (uint8_t)n : DEG_MANY;
+    }
+}
+
+/* One step of Clenshaw's recurrence for sum c_k T_k(M) x0, M = (I + W) / 2
+ * and W the mean of the neighbours (the identity at a locked vertex):
+ * out = ck x0 + gs (g + W g) - H, H = h or hs x0 (h NULL), every vertex from
+ * the previous steps' arrays only (h may be out: a vertex reads its own
+ * before writing it), so the threads' split changes nothing. */
+typedef struct filter_job {
+    const uint32_t *first, *nb, *row;
+    const uint8_t *deg;
+    const float *inv; /* 1 / d, d < DEG_MANY (DEG_MANY + 1 of them) */
+    const float *x0, *g, *h;
+    float *out;
+    float ck, gs, hs;
 } filter_job;
 
+#if defined(__SSE2__)
+/* x, y and z of a float4 into p (the fourth float, the next vertex's x,
+ * belongs to another range's thread) */
+static inline void store3(float *p, __m128 v)
+{
+    _mm_storel_pi((__m64 *)(void *)p, v);
+    _mm_store_ss(p + 2, _mm_movehl_ps(v, v));
+}
+#endif
+
+/* Vertices lo .. hi - 1.  With SSE2 a vertex's x, y and z go in one register
+ * (loaded with the next vertex's x: the arrays have floats after the last
+ * vertex, the zero vertex), lane by lane the same operations in the same
+ * order as the plain C below, so the same bytes. */
 static void filter_range(void *arg, size_t lo, size_t hi)
 {
     const filter_job *j = arg;
-    const uint32_t *restrict first = j->first, *restrict nb = j->nb;
-    const uint8_t *restrict free_v = j->free_v;
-    const float *restrict x = j->x;
-    float *restrict y = j->y, *restrict s = j->sum;
-    const float c0 = j->c0, c1 = j->c1;
-    const int first_step = j->first_step;
+    const uint32_t *restrict first = j->first, *restrict nb = j->nb, *restrict row = j->row;
+    const uint8_t *restrict deg = j->deg;
+    const float *restrict x0 = j->x0, *g = j->g, *h = j->h;
+    float *out = j->out;
+#if defined(__SSE2__)
+    const __m128 ck = _mm_set1_ps(j->ck), gs = _mm_set1_ps(j->gs), hs = _mm_set1_ps(j->hs);
     for (size_t v = lo; v < hi; v++) {
-        const float *p = x + 3 * v;
-        float n0 = p[0], n1 = p[1], n2 = p[2]; /* a locked vertex: K's row is 0 */
-        if (free_v[v]) {
-            const uint32_t b = first[v], e = first[v + 1];
-            float sx = 0, sy = 0, sz = 0;
-            for (uint32_t k = b; k < e; k++) {
-                const float *w = x + 3 * (size_t)nb[k];
-                sx += w[0];
-                sy += w[1];
-                sz += w[2];
+        const __m128 x = _mm_loadu_ps(x0 + 3 * v), gv = _mm_loadu_ps(g + 3 * v);
+        __m128 wg = gv; /* a locked vertex: W's row is the identity */
+        if (deg[v]) {
+            const uint32_t *r = row + ROW * v;
+            __m128 sum = _mm_loadu_ps(g + 3 * (size_t)r[0]);
+            for (int k = 1; k < ROW; k++)
+                sum = _mm_add_ps(sum, _mm_loadu_ps(g + 3 * (size_t)r[k]));
+            float inv = j->inv[deg[v]];
+            if (deg[v] > ROW) {
+                for (uint32_t k = first[v] + ROW; k < first[v + 1]; k++)
+                    sum = _mm_add_ps(sum, _mm_loadu_ps(g + 3 * (size_t)nb[k]));
+                if (deg[v] == DEG_MANY)
+                    inv = 1.0f / (float)(first[v + 1] - first[v]);
             }
-            const float inv = 1.0f / (float)(e - b);
-            if (first_step) { /* x1 = (x0 + mean x0) / 2 */
-                n0 = 0.5f * (n0 + sx * inv);
-                n1 = 0.5f * (n1 + sy * inv);
-                n2 = 0.5f * (n2 + sz * inv);
-            } else { /* x(j+1) = xj + mean xj - x(j-1) */
-                n0 += sx * inv - y[3 * v];
-                n1 += sy * inv - y[3 * v + 1];
-                n2 += sz * inv - y[3 * v + 2];
-            }
+            wg = _mm_mul_ps(sum, _mm_set1_ps(inv));
         }
-        if (first_step) {
-            s[3 * v] = c0 * p[0] + c1 * n0;
-            s[3 * v + 1] = c0 * p[1] + c1 * n1;
-            s[3 * v + 2] = c0 * p[2] + c1 * n2;
-        } else {
-            s[3 * v] += c1 * n0;
-            s[3 * v + 1] += c1 * n1;
-            s[3 * v + 2] += c1 * n2;
-        }
-        y[3 * v] = n0;
-        y[3 * v + 1] = n1;
-        y[3 * v + 2] = n2;
+        const __m128 hv = h ? _mm_loadu_ps(h + 3 * v) : _mm_mul_ps(hs, x);
+        store3(out + 3 * v,
+               _mm_sub_ps(_mm_add_ps(_mm_mul_ps(ck, x), _mm_mul_ps(gs, _mm_add_ps(gv, wg))), hv));
     }
+#else
+    const float ck = j->ck, gs = j->gs, hs = j->hs;
+    for (size_t v = lo; v < hi; v++) {
+        float wg[3] = {g[3 * v], g[3 * v + 1], g[3 * v + 2]};
+        if (deg[v]) {
+            const uint32_t *r = row + ROW * v;
+            float sum[3] = {g[3 * (size_t)r[0]], g[3 * (size_t)r[0] + 1], g[3 * (size_t)r[0] + 2]};
+            for (int k = 1; k < ROW; k++)
+                for (int d = 0; d < 3; d++)
+                    sum[d] += g[3 * (size_t)r[k] + (size_t)d];
+            float inv = j->inv[deg[v]];
+            if (deg[v] > ROW) {
+                for (uint32_t k = first[v] + ROW; k < first[v + 1]; k++)
+                    for (int d = 0; d < 3; d++)
+                        sum[d] += g[3 * (size_t)nb[k] + (size_t)d];
+                if (deg[v] == DEG_MANY)
+                    inv = 1.0f / (float)(first[v + 1] - first[v]);
+            }
+            for (int d = 0; d < 3; d++)
+                wg[d] = sum[d] * inv;
+        }
+        float o[3];
+        for (int d = 0; d < 3; d++) {
+            const float x = x0[3 * v + (size_t)d];
+            const float hv = h ? h[3 * v + (size_t)d] : hs * x;
+            o[d] = (ck * x + gs * (g[3 * v + (size_t)d] + wg[d])) - hv;
+        }
+        for (int d = 0; d < 3; d++)
+            out[3 * v + (size_t)d] = o[d];
+    }
+#endif
 }
 
 /* Each vertex's area-weighted normal sum N (twice the area of its
@@ -172,22 +237,96 @@ static void fan_range(void *arg, size_t lo, size_t hi)
     }
 }
 
-/* The fans of positions p on threads, of the n vertices of j->list (or of
- * all); the volume of each of their components and the area of its free
- * vertices summed anew, in vertex order (so not by the threads). */
-static void fans(fan_job *j, const float *p, size_t n, const uint32_t *label,
-                 const uint8_t *free_v, double *vol, double *area)
+/* Per-component sums over the vertices of a fan sweep: each component's
+ * volume and the area of its free vertices (and, on the input, the area of
+ * all its vertices and its corners: the step limit).  With few components
+ * (up to SUM_DENSE) they are summed on the team in fixed blocks of
+ * SUM_BLOCK vertices, a row of sums a block, then the blocks in order; with
+ * more, on this thread in vertex order.  Either way the same bytes for any
+ * number of threads. */
+#define SUM_BLOCK 4096
+#define SUM_DENSE 256
+#define SUM_FIELDS 4 /* volume, free area, area, corners */
+
+typedef struct sum_job {
+    const fan_job *fan;
+    const uint32_t *label, *first;
+    const uint8_t *free_v;
+    size_t n, nc;
+    int fields;
+    double *part; /* a block's SUM_FIELDS sums a component */
+    uint8_t *seen; /* a block's: whether it holds a vertex of the component */
+} sum_job;
+
+static void sum_blocks(void *arg, size_t b0, size_t b1)
+{
+    const sum_job *j = arg;
+    const fan_job *f = j->fan;
+    for (size_t b = b0; b < b1; b++) {
+        double *part = j->part + b * j->nc * SUM_FIELDS;
+        uint8_t *seen = j->seen + b * j->nc;
+        memset(part, 0, j->nc * SUM_FIELDS * sizeof(double));
+        memset(seen, 0, j->nc);
+        const size_t end = (b + 1) * SUM_BLOCK < j->n ? (b + 1) * SUM_BLOCK : j->n;
+        for (size_t i = b * SUM_BLOCK; i < end; i++) {
+            const size_t v = f->list ? f->list[i] : i;
+            const uint32_t k = j->label[v];
+            double *s = part + (size_t)k * SUM_FIELDS;
+            seen[k] = 1;
+            s[0] += f->vol[v];
+            s[1] += j->free_v[v] ? f->area[v] : 0;
+            if (j->fields > 2) {
+                s[2] += f->area[v];
+                s[3] += j->first[v + 1] - j->first[v];
+            }
+        }
+    }
+}
+
+/* The fans of positions p on the team, of the n vertices of j->list (or of
+ * all); the sums of each component they touch found anew (out[f] the f-th
+ * sum a component; fields 4 with first, else 2); part and seen room for
+ * the blocks' sums (NULL: more components than SUM_DENSE). */
+static void fans(team *t, fan_job *j, const float *p, size_t n, const uint32_t *label,
+                 const uint8_t *free_v, const uint32_t *first, size_t nc, double *part,
+                 uint8_t *seen, double *const out[SUM_FIELDS])
 {
     j->p = p;
-    parallel_for(n, fan_range, j);
+    team_for(t, n, fan_range, j);
+    const int fields = first ? 4 : 2;
+    if (part) {
+        const size_t nblocks = (n + SUM_BLOCK - 1) / SUM_BLOCK;
+        sum_job sj = {j, label, first, free_v, n, nc, fields, part, seen};
+        team_for_from(t, nblocks, 2, sum_blocks, &sj);
+        for (size_t k = 0; k < nc; k++) {
+            double sum[SUM_FIELDS] = {0, 0, 0, 0};
+            int any = 0;
+            for (size_t b = 0; b < nblocks; b++)
+                if (seen[b * nc + k]) {
+                    any = 1;
+                    for (int f = 0; f < fields; f++)
+                        sum[f] += part[(b * nc + k) * SUM_FIELDS + (size_t)f];
+                }
+            if (any)
+                for (int f = 0; f < fields; f++)
+                    out[f][k] = sum[f];
+        }
+        return;
+    }
     for (size_t i = 0; i < n; i++) {
-        const size_t v = j->list ? j->list[i] : i;
-        vol[label[v]] = area[label[v]] = 0;
+        const uint32_t k = label[j->list ? j->list[i] : i];
+        for (int f = 0; f < fields; f++)
+            out[f][k] = 0;
     }
     for (size_t i = 0; i < n; i++) {
         const size_t v = j->list ? j->list[i] : i;
-        vol[label[v]] += j->vol[v];
-        area[label[v]] += free_v[v] ? j->area[v] : 0;
+        const uint32_t k = label[v];
+        out[0][k] += j->vol[v];
+        out[1][k] += free_v[v] ? j->area[v] : 0;
+        if (fields > 2) {
+            out[2][k] += j->area[v];
+            out[3][k] += first[v + 1] - first[v];
+        }
     }
 }
 
@@ -302,6 +441,17 @@ static void box_range(void *arg, size_t b0, size_t b1)
     }
 }
 
+typedef struct copy_job {
+    const uint32_t *from;
+    uint32_t *to;
+} copy_job;
+
+static void copy_range(void *arg, size_t lo, size_t hi) /* triangles */
+{
+    const copy_job *j = arg;
+    memcpy(j->to + 3 * lo, j->from + 3 * lo, 12 * (hi - lo));
+}
+
 typedef struct comp_job {
     const isomend_mesh *mesh;
     uint32_t *label;
@@ -332,22 +482,29 @@ isomend_status isomend_mesh_smooth(const isomend_mesh *mesh, int iterations, iso
      * compacts it at the fault, which made a 1.5 M-vertex smoothing take
      * 190 ms or 400-560 ms by turns (malloc: 250-285 ms, steadily) */
     uint8_t *free_v = malloc(nv1);
-    uint32_t *first = NULL, *next = NULL, *prev = NULL, *label = malloc(nv1 * sizeof(uint32_t));
-    float *xa = malloc(12 * nv1), *xb = malloc(12 * nv1), *nrm = malloc(12 * nv1);
+    uint32_t *first = NULL, *next = NULL, *prev = NULL, *row = NULL, *label = malloc(nv1 * sizeof(uint32_t));
+    float *xa = malloc(12 * nv1 + 16), *xb = malloc(12 * nv1 + 16), *nrm = malloc(12 * nv1);
     double *vv = malloc(8 * nv1), *va = malloc(8 * nv1);
     double *c = malloc(8 * ((size_t)iterations + 1));
-    double *v0 = NULL, *v1 = NULL, *area = NULL, *edge = NULL, *delta = NULL;
+    double *v0 = NULL, *v1 = NULL, *area = NULL, *edge = NULL, *delta = NULL, *part = NULL;
+    uint8_t *seen = NULL;
     isomend_mesh *m = calloc(1, sizeof(*m));
+    team *tm = NULL;
     if (!free_v || !label || !xa || !xb || !nrm || !vv || !va || !c || !m)
         goto done;
+    for (int d = 0; d < 4; d++) /* the zero vertex nv (and its fourth float) */
+        xa[3 * nv + (size_t)d] = xb[3 * nv + (size_t)d] = 0;
+    /* the loops on one team of threads, started once (a loop under
+     * TEAM_MIN_ITEMS a thread runs on this one) */
+    tm = team_start(nv);
     /* the components (serial) on a thread of their own while the fans are
-     * filed (serial too, then tested on threads) */
+     * filed (serial too, then tested on the team) */
     comp_job cjob = {mesh, label, 0};
     pthread_t comp_thread;
-    const int comp_started = nv >= 32768 && pthread_create(&comp_thread, NULL, comp_main, &cjob) == 0;
+    const int comp_started = nv >= 8192 && pthread_create(&comp_thread, NULL, comp_main, &cjob) == 0;
     if (!comp_started)
         comp_main(&cjob);
-    const int fans_ok = mesh_free_vertices(mesh, free_v, &first, &next, &prev);
+    const int fans_ok = mesh_free_vertices(mesh, tm, free_v, &first, &next, &prev);
     if (comp_started)
         pthread_join(comp_thread, NULL);
     if (!fans_ok)
@@ -361,29 +518,33 @@ isomend_status isomend_mesh_smooth(const isomend_mesh *mesh, int iterations, iso
     delta = calloc(nc1, sizeof(double));
     m->nv = nv;
     m->nt = mesh->nt;
-    m->pos = malloc(12 * nv1);
+    m->pos = malloc(12 * nv1 + 16); /* + 16: the filter's zero vertex */
     m->tri = malloc(12 * (mesh->nt ? mesh->nt : 1));
     m->nrm = mesh->nrm ? malloc(12 * nv1) : NULL;
     if (!v0 || !v1 || !area || !edge || !delta || !m->pos || !m->tri || (mesh->nrm && !m->nrm))
         goto done;
+    for (int d = 0; d < 4; d++)
+        m->pos[3 * nv + (size_t)d] = 0;
 
     /* the input's volumes, and each component's mean triangle area: a
      * quarter of the edge of an equilateral triangle of that area is the
      * largest step the volume restoration takes at once */
     fan_job fj = {first, next, prev, NULL, NULL, nrm, vv, va};
-    for (int64_t k = 0; k < nc; k++)
-        v0[k] = area[k] = 0; /* every component has a vertex: all set */
-    fans(&fj, mesh->pos, nv, label, free_v, v0, area);
-    for (size_t v = 0; v < nv; v++) {
-        edge[label[v]] += va[v]; /* a third of each triangle's area, each corner */
-        delta[label[v]] += first[v + 1] - first[v]; /* three a triangle */
+    if (nc <= SUM_DENSE) {
+        const size_t nblocks = (nv + SUM_BLOCK - 1) / SUM_BLOCK;
+        part = malloc(nblocks * (size_t)nc * SUM_FIELDS * sizeof(double) + 1);
+        seen = malloc(nblocks * (size_t)nc + 1);
+        if (!part || !seen)
+            goto done;
     }
+    double *const sums0[SUM_FIELDS] = {v0, area, edge, delta}, *const sums1[SUM_FIELDS] = {v1, area};
+    fans(tm, &fj, mesh->pos, nv, label, free_v, first, (size_t)nc, part, seen, sums0);
     for (int64_t k = 0; k < nc; k++)
         edge[k] = delta[k] > 0 ? 0.25 * sqrt(4.0 * (3.0 * edge[k] / delta[k]) / sqrt(3.0)) : 0;
     /* the filter, on coordinates centred on the box of the vertices (found
      * in fixed blocks, so the same for any threads) */
     box_job bj = {mesh->pos, free_v, nv, {{0}}, {{0}}, {0}};
-    parallel_for_from(BOX_BLOCKS, 2, box_range, &bj);
+    team_for_from(tm, BOX_BLOCKS, 2, box_range, &bj);
     float lo[3], hi[3], mid[3];
     uint64_t moved = 0;
     for (int b = 0; b < BOX_BLOCKS; b++) {
@@ -400,26 +561,62 @@ isomend_status isomend_mesh_smooth(const isomend_mesh *mesh, int iterations, iso
     }
     if (iterations > 0) {
         centre_job cj = {mesh->pos, mid, xa};
-        parallel_for(nv, centre_range, &cj);
+        team_for(tm, nv, centre_range, &cj);
         sinc_coefficients(iterations, c);
-        filter_job job = {first, next, free_v, xa, xb, m->pos, (float)c[0], (float)c[1], 1};
-        parallel_for(nv, filter_range, &job); /* x1 into xb */
-        for (int it = 1; it < iterations; it++) {
-            job.x = it % 2 ? xb : xa; /* x_it */
-            job.y = it % 2 ? xa : xb; /* x_(it-1), becomes x_(it+1) */
-            job.c1 = (float)c[it + 1];
-            job.first_step = 0;
-            parallel_for(nv, filter_range, &job);
+        /* the rows, and the neighbour counts in nrm while the filter runs
+         * (the fans write it before and after) */
+        row = malloc(ROW * sizeof(uint32_t) * nv1);
+        if (!row)
+            goto done;
+        uint8_t *deg = (uint8_t *)nrm;
+        row_job rj = {first, next, free_v, row, deg, nv};
+        team_for(tm, nv, row_range, &rj);
+        float inv[DEG_MANY + 1];
+        inv[0] = inv[DEG_MANY] = 0;
+        for (int d = 1; d < DEG_MANY; d++)
+            inv[d] = 1.0f / (float)d;
+        /* Clenshaw: b_(N+1) = b_(N+2) = 0, b_k = c_k x0 + 2 M b_(k+1) - b_(k+2)
+         * down to k = 1, result c_0 x0 + M b_1 - b_2; b_N = c_N x0 is not
+         * stored, and the b_k alternate between two arrays, b_2 in the
+         * output's so that the last step writes over it */
+        const int n = iterations;
+        float *buf[2] = {n % 2 ? m->pos : xb, n % 2 ? xb : m->pos};
+        filter_job job = {first, next, row, deg, inv, xa, xa, NULL, NULL, 0, 0, 0};
+        if (n >= 2) {
+            job.ck = (float)c[n - 1]; /* b_(N-1) = c_(N-1) x0 + c_N 2 M x0 */
+            job.g = xa;
+            job.gs = (float)c[n];
+            job.h = NULL;
+            job.hs = 0;
+            job.out = buf[0];
+            team_for(tm, nv, filter_range, &job);
+            for (int k = n - 2; k >= 1; k--) {
+                const int i = (n - 1 - k) % 2;
+                job.ck = (float)c[k];
+                job.g = buf[1 - i]; /* b_(k+1) */
+                job.gs = 1;
+                job.h = k == n - 2 ? NULL : buf[i]; /* b_(k+2), or c_N x0 */
+                job.hs = k == n - 2 ? (float)c[n] : 0;
+                job.out = buf[i];
+                team_for(tm, nv, filter_range, &job);
+            }
         }
+        job.ck = (float)c[0]; /* c_0 x0 + M b_1 - b_2 */
+        job.g = n >= 2 ? buf[(n - 2) % 2] : xa;
+        job.gs = n >= 2 ? 0.5f : (float)(0.5 * c[1]);
+        job.h = n >= 3 ? buf[(n - 3) % 2] : NULL;
+        job.hs = n == 2 ? (float)c[2] : 0;
+        job.out = m->pos;
+        team_for(tm, nv, filter_range, &job);
     }
     /* back to the mesh's coordinates; locked vertices exactly where they were */
     out_job oj = {mesh, free_v, nrm, mid, m->pos, NULL, vv, iterations > 0};
-    parallel_for(nv, place_range, &oj);
+    team_for(tm, nv, place_range, &oj);
 
     /* the volume back, per component, along the normals: a few passes, each
      * step at most a quarter of the mean edge (a small island that the
      * filter shrank to almost a point grows back over several) */
-    fans(&fj, m->pos, nv, label, free_v, v1, area);
+    fans(tm, &fj, m->pos, nv, label, free_v, NULL, (size_t)nc, part, seen, sums1);
     /* the passes move the vertices of the components not yet restored,
      * listed in todo (in xa: the filter is done with it) */
     uint32_t *todo = (uint32_t *)xa;
@@ -428,8 +625,7 @@ isomend_status isomend_mesh_smooth(const isomend_mesh *mesh, int iterations, iso
         todo[v] = (uint32_t)v;
     for (int pass = 0; pass < RESTORE_PASSES && iterations > 0 && ntodo > 0; pass++) {
         int restored = 1; /* every component within float precision: done */
-        for (size_t i = 0; i < ntodo; i++) {
-            const uint32_t k = label[todo[i]];
+        for (int64_t k = 0; k < nc; k++) { /* (one restored before stays so) */
             /* within 1e-7 of its volume, or of what a move of a float's
              * resolution over its free area can change (a small island) */
             const int done_k = !(area[k] > 0) ||
@@ -446,16 +642,17 @@ isomend_status isomend_mesh_smooth(const isomend_mesh *mesh, int iterations, iso
                 todo[n++] = todo[i];
         ntodo = n;
         move_job mj = {todo, free_v, label, nrm, delta, m->pos};
-        parallel_for(ntodo, move_range, &mj);
+        team_for(tm, ntodo, move_range, &mj);
         fj.list = todo;
-        fans(&fj, m->pos, ntodo, label, free_v, v1, area);
+        fans(tm, &fj, m->pos, ntodo, label, free_v, NULL, (size_t)nc, part, seen, sums1);
     }
     /* the normals of what the passes did not move: from fans1, current */
     if (m->nrm && iterations == 0)
         memcpy(m->nrm, mesh->nrm, 12 * nv);
     oj.out_nrm = iterations > 0 ? m->nrm : NULL;
-    parallel_for(nv, finish_range, &oj);
-    memcpy(m->tri, mesh->tri, 12 * mesh->nt);
+    team_for(tm, nv, finish_range, &oj);
+    copy_job tj = {mesh->tri, m->tri};
+    team_for(tm, mesh->nt, copy_range, &tj); /* (faulting the pages in on the team) */
     if (mesh_copy_frame(m, mesh) != ISOMEND_OK)
         goto done;
     if (report) {
@@ -474,11 +671,13 @@ isomend_status isomend_mesh_smooth(const isomend_mesh *mesh, int iterations, iso
     m = NULL;
     status = ISOMEND_OK;
 done:
+    team_stop(tm);
     isomend_mesh_destroy(m);
     free(free_v);
     free(first);
     free(next);
     free(prev);
+    free(row);
     free(label);
     free(xa);
     free(xb);
@@ -491,5 +690,7 @@ done:
     free(area);
     free(edge);
     free(delta);
+    free(part);
+    free(seen);
     return status;
 }

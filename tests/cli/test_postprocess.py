@@ -35,7 +35,8 @@ they are.  For each, every option alone and in combinations:
   displacement on average (4 % measured: VTK stops its search for the
   filter's offset at 1e-3) and 15 % of its largest at most; --smooth N against
   VTK at 2N iterations must not match (the comparison can fail);
-- the same bytes with --threads 1 and --threads 2, and the same bytes twice;
+- the same bytes with --threads 1 and --threads 2, confined to one core (the
+  post-processing's threads follow the process's cores), and the same bytes twice;
 - bad values (--decimate 0, 1.5, x, --max-error -1, --smooth 0, 20000,
   --min-component 0, ...) are usage errors (exit 2) with one line naming the
   flag and no output file; isomend-mpi refuses --target-triangles,
@@ -331,22 +332,33 @@ def test_case(exe, work, case, configs):
         flags = [str(x).format(T=max(4, ntri // 5), E=0.5 * spacing) for x in cfg]
         tag = f"{case.name} {' '.join(flags)}"
         outs = {}
-        for t in ("1", "2", "2 again"):
+        # "1 core": the process confined to one core (its affinity), so that
+        # the post-processing's own threads (one a core) are one as well
+        for t in ("1", "2", "2 again", "1 core"):
             path = os.path.join(work, f"{case.name}_{abs(hash((tuple(flags), t))) % 10**8}.ply")
-            rc, out, err = run(exe, ["extract", *case.args, *flags, "-q", "--threads", t.split()[0],
-                                     "-o", path, "--json", "-"], work)
+            args = ["extract", *case.args, *flags, "-q", "--threads", t.split()[0], "-o", path,
+                    "--json", "-"]
+            if t == "1 core":
+                one = min(os.sched_getaffinity(0))
+                p = subprocess.run([exe, *args], cwd=work, capture_output=True, text=True,
+                                   timeout=600, preexec_fn=lambda: os.sched_setaffinity(0, {one}))
+                rc, out, err = p.returncode, p.stdout, p.stderr
+            else:
+                rc, out, err = run(exe, args, work)
             if rc:
                 fail(tag, f"exit {rc}: {err.strip()}")
                 break
             outs[t] = (path, json.loads(out))
-        if len(outs) != 3:
+        if len(outs) != 4:
             continue
         path, j = outs["1"]
         if not clitest.same_file(path, outs["2"][0]):
             fail(tag, "--threads 1 and --threads 2 write different files")
         if not clitest.same_file(outs["2"][0], outs["2 again"][0]):
             fail(tag, "two runs write different files")
-        for t in ("2", "2 again"):
+        if not clitest.same_file(path, outs["1 core"][0]):
+            fail(tag, "a run confined to one core writes a different file")
+        for t in ("2", "2 again", "1 core"):
             os.remove(outs[t][0])
         pp = j["postprocess"]
         # the expected components: the input's, less what clean-up drops
