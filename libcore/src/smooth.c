@@ -6,18 +6,21 @@
  *
  * A marching-cubes surface of voxel data is a staircase; plain Laplacian
  * smoothing removes it and shrinks the surface.  The filter is a polynomial
- * of degree N (the iterations) in the umbrella Laplacian K, evaluated with
- * Chebyshev's recurrence in the variable 1 - k/2 (k in [0, 2], K's
- * frequencies): x1 = (x0 + mean x0) / 2, x(j+1) = xj + mean xj - x(j-1),
- * result sum cj xj.  The cj are a sinc (an ideal low pass with pass band
+ * of degree N (the iterations) in the umbrella Laplacian K, sum cj Tj(M) x0
+ * with Chebyshev's Tj in M = 1 - K/2 (M x = (x + mean x) / 2; K's
+ * frequencies k in [0, 2]), evaluated by Clenshaw's recurrence (from cN
+ * down: b_k = c_k x0 + 2 M b_(k+1) - b_(k+2), result c_0 x0 + M b_1 - b_2;
+ * VTK runs the forward one, x(j+1) = 2 M xj - x(j-1) with a running sum,
+ * which reads and writes one array more a step).  The cj are a sinc (an
+ * ideal low pass with pass band
  * 0.1) under a Hamming window, its cut-off shifted (Newton) so that the gain
  * at the pass band is 1, then scaled to sum to 1: a translation passes
  * unchanged (VTK's sum is 0.998 for N = 20, which without its
  * NormalizeCoordinates shrinks a mesh towards the origin).  One step of the
  * recurrence costs one umbrella step, so N iterations cost what N of VTK's
- * do; the steps run in float on coordinates centred on the mesh's box, every
- * vertex from the previous steps only, so the threads' split changes
- * nothing.
+ * do; the steps run in float on coordinates centred on the mesh's box, on a
+ * team of threads started once (team.c), every vertex from the previous
+ * steps only, so the threads' split changes nothing.
  *
  * What volume is still lost is given back per component: its free vertices
  * move along their normals by one offset, (V0 - V1) / A, A the area those
