@@ -9,13 +9,14 @@
  * build tree: build/io/isomend next to build/io/slices/);
  * <exe dir>/../<libdir>/<soname> (an installation); then the soname through
  * the normal library search.  The functions called are listed once,
- * CLI_IO_FUNCTIONS in source_internal.h.
+ * CLI_IO_FUNCTIONS in importer.h.
  *
  * Without the importer (ISOMEND_HAVE_IO undefined) this file is empty.
  */
 #define _POSIX_C_SOURCE 200809L
 
-#include "source_internal.h"
+#include "importer.h"
+#include "cli.h"
 
 #ifdef ISOMEND_HAVE_IO
 #include <dlfcn.h>

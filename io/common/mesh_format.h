@@ -18,7 +18,7 @@ typedef enum isomend_mesh_format {
 } isomend_mesh_format;
 
 /* The format for a path's extension, ISOMEND_MESH_UNKNOWN if none matches
- * (defined in mesh_io.c). */
+ * (mesh_format.c). */
 isomend_mesh_format isomend_mesh_format_of(const char *path);
 
 #ifdef __cplusplus

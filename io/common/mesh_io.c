@@ -17,7 +17,6 @@
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
-#include <strings.h>
 #include <sys/stat.h>
 
 #include "atomic_file.h"
@@ -25,18 +24,6 @@
 #include "mesh_writer.h"
 
 #define SET_MSG isomend_fileio_set_msg
-
-isomend_mesh_format isomend_mesh_format_of(const char *path)
-{
-    if (!path) return ISOMEND_MESH_UNKNOWN;
-    const char *dot = strrchr(path, '.');
-    const char *slash = strrchr(path, '/');
-    if (!dot || (slash && dot < slash)) return ISOMEND_MESH_UNKNOWN;
-    if (strcasecmp(dot, ".ply") == 0) return ISOMEND_MESH_PLY;
-    if (strcasecmp(dot, ".obj") == 0) return ISOMEND_MESH_OBJ;
-    if (strcasecmp(dot, ".stl") == 0) return ISOMEND_MESH_STL;
-    return ISOMEND_MESH_UNKNOWN;
-}
 
 /* ------------------------------------------------------------------ writers */
 

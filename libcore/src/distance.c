@@ -344,7 +344,7 @@ int mesh_distances(const float *pts, size_t np, const float *pos, const uint32_t
         for (int k = 0; k < 3; k++)
             memcpy(corners + 9 * t + 3 * k, pos + 3 * (size_t)tri[3 * t + (size_t)k], 3 * sizeof(float));
     dist_job job = {&g, pts, corners, np, bmax, bmax + nblocks};
-    parallel_for_from(nblocks, 8, dist_blocks, &job); /* threads from 32768 points on */
+    parallel_for_from(nblocks, 2, dist_blocks, &job); /* threads from 2 blocks (8192 points) on */
     double worst = 0, sum = 0;
     for (size_t b = 0; b < nblocks; b++) {
         worst = bmax[b] > worst ? bmax[b] : worst;
