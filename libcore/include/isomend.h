@@ -862,7 +862,7 @@ ISOMEND_API isomend_status isomend_decimate_stream_sink(isomend_decimate_stream 
  * will deliver (known from an earlier pass over the same stream), which a
  * target_triangles needs (without it the first window fails with
  * ISOMEND_ERR_INVALID_ARGUMENT); the target is then
- * max(ceil(ratio * triangles), target_triangles), at most triangles.  A
+ * max(ceil(ratio * triangles), target_triangles), as in memory.  A
  * stream of another count makes isomend_decimate_stream_finish() return
  * ISOMEND_ERR_INVALID_ARGUMENT.  ISOMEND_ERR_INVALID_ARGUMENT when called
  * twice or after a triangle. */

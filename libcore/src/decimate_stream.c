@@ -531,7 +531,6 @@ isomend_status isomend_decimate_stream_expect(isomend_decimate_stream *d, uint64
     d->count = triangles;
     const double by_ratio = ceil(d->ratio * (double)triangles);
     d->goal = by_ratio > (double)d->target ? (uint64_t)by_ratio : d->target;
-    d->goal = d->goal < triangles ? d->goal : triangles;
     return ISOMEND_OK;
 }
 

@@ -14,12 +14,12 @@
  *   - the same bytes from streams on 1, 2 and 3 threads;
  *   - the reported max_error bounds the distance from the extracted mesh's
  *     vertices to the result (measured here, brute force);
- *   - max_error (alone, with a ratio, with a target), on chunks of 1 and 3
- *     layers and the default: every extracted vertex within it of the
- *     result (brute force on chunks of 1 layer, the most windows), the
- *     report's max_error within it, at least one collapse refused by it,
- *     closed as above, the same bytes on 2 threads (chunks of 3 layers), and
- *     no more than 1.25 x the in-memory decimation's triangles;
+ *   - max_error (alone, with a ratio, with a target), on chunks of 1 layer
+ *     (the most windows) and the default: every extracted vertex within it
+ *     of the result (brute force on chunks of 1 layer), the report's
+ *     max_error within it, at least one collapse refused by it, closed as
+ *     above, the same bytes on 2 threads (chunks of 1 layer), and no more
+ *     than 1.25 x the in-memory decimation's triangles;
  *   - target_triangles with the count given beforehand
  *     (isomend_decimate_stream_expect): the report's target the in-memory
  *     one (the larger of ratio and target), at most 1.25 x the in-memory
@@ -106,7 +106,8 @@ static isomend_status stream_decimated(const isomend_volume *vol, const isomend_
 /* The largest distance from the mesh m's vertices to the triangles of c (all
  * of them: the report measures against a subset); every triangle is tried
  * whose bounding box is nearer than the best so far, starting from the
- * previous vertex's nearest (the vertices come slice by slice). */
+ * previous vertex's nearest (the vertices come slice by slice), until the
+ * best is below the largest so far. */
 static double brute_distance(const isomend_mesh *m, const collected *c)
 {
     const float *p = isomend_mesh_positions(m);
@@ -131,7 +132,7 @@ static double brute_distance(const isomend_mesh *m, const collected *c)
         const double q[3] = {p[3 * v], p[3 * v + 1], p[3 * v + 2]};
         double best = INFINITY;
         const size_t start = hint;
-        for (size_t j = 0; j < c->nt && best > 0; j++) {
+        for (size_t j = 0; j < c->nt && best > worst; j++) { /* else it cannot raise the max */
             const size_t t = (j + start) % c->nt;
             double b2 = 0;
             for (int i = 0; i < 3; i++) {
@@ -194,7 +195,7 @@ static int same_surface(const char *what, const isomend_check_report *r1,
 static void targets(const isomend_volume *vol, isomend_options *o, const isomend_mesh *m,
                     const isomend_check_report *rin, const char *name, int closed)
 {
-    static const int64_t layer_sets[] = {1, 3, 0};
+    static const int64_t layer_sets[] = {1, 0};
     const uint64_t nt = isomend_mesh_triangle_count(m);
     /* options: max_error alone, with a ratio, a target alone, a target with a
      * smaller ratio, a target with max_error */
@@ -252,11 +253,11 @@ static void targets(const isomend_volume *vol, isomend_options *o, const isomend
                        "(largest error %.4f), %6llu in memory (%.4f)\n",
                        name, d.ratio, d.max_error, (unsigned long long)d.target_triangles, c1.nt,
                        rep.max_error, (unsigned long long)irep.triangles_after, irep.max_error);
-            if (layer_sets[li] != 3) {
+            if (layer_sets[li] != 1) {
                 collected_free(&c1);
                 continue;
             }
-            /* the same bytes on 2 threads (chunks of 3 layers) */
+            /* the same bytes on 2 threads (chunks of 1 layer) */
             o->threads = 2;
             CHECK_EQ_INT(stream_decimated_with(vol, o, &d, d.target_triangles ? nt : NO_COUNT,
                                                layer_sets[li], &c2, NULL, &sr2),
