@@ -595,6 +595,21 @@ static int spool_begin(cli_outputs *o, const char *path)
     return 0;
 }
 
+/* A streamed clean-up (--min-component min) into `out`, its sink in *in; 0,
+ * or 1 with the message printed and o aborted. */
+static int clean_begin(cli_outputs *o, const char *label, uint64_t min, const cli_sink *out,
+                       isomend_clean_stream **cs, cli_sink *in)
+{
+    const isomend_status st = isomend_clean_stream_begin(min, out, cs);
+    if (st != ISOMEND_OK) {
+        cli_error("%s: clean-up failed: %s", label, isomend_status_string(st));
+        cli_outputs_abort(o);
+        return 1;
+    }
+    isomend_clean_stream_sink(*cs, in);
+    return 0;
+}
+
 /* --target-triangles' pass 1 ends here: the triangles counted. */
 static int count_vertices(void *user, uint64_t first, size_t count, const float *pos,
                           const float *nrm, const uint64_t *keys)
@@ -700,14 +715,8 @@ int cli_outputs_begin(cli_outputs *o, const char *path, isomend_mesh_format fmt,
         o->sink = &o->ctimed_in;
     } else if (post && post->min_component > 0) {
         cli_sink_timed(&o->ctimed_out, &o->c_out, o->sink);
-        const isomend_status st =
-            isomend_clean_stream_begin(post->min_component, &o->ctimed_out, &o->clean);
-        if (st != ISOMEND_OK) {
-            cli_error("%s: clean-up failed: %s", label, isomend_status_string(st));
-            cli_outputs_abort(o);
+        if (clean_begin(o, label, post->min_component, &o->ctimed_out, &o->clean, &o->csink))
             return 1;
-        }
-        isomend_clean_stream_sink(o->clean, &o->csink);
         cli_sink_timed(&o->ctimed_in, &o->c_in, &o->csink);
         o->sink = &o->ctimed_in;
     }
@@ -719,16 +728,9 @@ int cli_outputs_begin(cli_outputs *o, const char *path, isomend_mesh_format fmt,
         o->replay = o->sink;
         o->counter = (cli_sink){o, count_vertices, count_triangles, count_retire, NULL};
         o->lsink = o->counter;
-        if (post->min_component > 0) {
-            const isomend_status st =
-                isomend_clean_stream_begin(post->min_component, &o->counter, &o->count_clean);
-            if (st != ISOMEND_OK) {
-                cli_error("%s: clean-up failed: %s", label, isomend_status_string(st));
-                cli_outputs_abort(o);
-                return 1;
-            }
-            isomend_clean_stream_sink(o->count_clean, &o->lsink);
-        }
+        if (post->min_component > 0 &&
+            clean_begin(o, label, post->min_component, &o->counter, &o->count_clean, &o->lsink))
+            return 1;
         if (spool_begin(o, path)) return 1;
         o->sink = &o->lrecord;
     }

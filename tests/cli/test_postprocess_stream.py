@@ -332,13 +332,7 @@ def test_case(exe, work, case):
             d = decimate_report(j)
             if not check_report(tag, d, ratio, base, of, ov, True, chunk):
                 continue
-            if len(of) > 1.25 * len(mf):
-                fail(tag, f"{len(of)} triangles, more than 1.25 x the in-memory decimation's {len(mf)}")
-            dist = distances(bpoly, opoly)
-            slack = 1e-6 * diag
-            if dist.max() > d["max_error"] * (1 + 1e-4) + slack:
-                fail(tag, f"measured max distance {dist.max():.9g} > reported max_error "
-                          f"{d['max_error']:.9g} (repro: isomend extract {' '.join(src + flags)} -o m.ply)")
+            dist, slack = against_memory(tag, of, mf, d, bpoly, opoly, diag)
             if dist.mean() > d["mean_error"] * (1 + 1e-3) + slack:
                 fail(tag, f"measured mean distance {dist.mean():.9g} > reported mean_error "
                           f"{d['mean_error']:.9g}")
@@ -359,6 +353,20 @@ def test_case(exe, work, case):
     test_targets(exe, work, case, base, bpoly, bcomps, diag)
     os.remove(raw)
     print(f"  {case.name}: {time.time() - t0:.1f} s", flush=True)
+
+
+def against_memory(tag, of, mf, d, bpoly, opoly, diag):
+    """A streamed run's triangles (of) at most 1.25 x the in-memory run's (mf);
+    vtkCellLocator's distances from the undecimated mesh (bpoly) to the result
+    within the reported max_error.  Returns (the distances, the slack)."""
+    if len(of) > 1.25 * len(mf):
+        fail(tag, f"{len(of)} triangles, more than 1.25 x the in-memory run's {len(mf)}")
+    dist = distances(bpoly, opoly)
+    slack = 1e-6 * diag
+    if dist.max() > d["max_error"] * (1 + 1e-4) + slack:
+        fail(tag, f"measured max distance {dist.max():.9g} > reported max_error "
+                  f"{d['max_error']:.9g}")
+    return dist, slack
 
 
 def test_targets(exe, work, case, base, bpoly, bcomps, diag):
@@ -414,12 +422,7 @@ def test_targets(exe, work, case, base, bpoly, bcomps, diag):
         os.remove(path)
         if not check_report(tag, d, ratio, base, of, ov, True, chunk, want):
             continue
-        if len(of) > 1.25 * len(mf):
-            fail(tag, f"{len(of)} triangles, more than 1.25 x the in-memory run's {len(mf)}")
-        dist = distances(bpoly, opoly)
-        slack = 1e-6 * diag
-        if dist.max() > d["max_error"] * (1 + 1e-4) + slack:
-            fail(tag, f"measured max distance {dist.max():.9g} > reported max_error {d['max_error']:.9g}")
+        dist, slack = against_memory(tag, of, mf, d, bpoly, opoly, diag)
         if bound is not None:
             if d["max_error"] > bound * (1 + 1e-5) or dist.max() > bound * (1 + 1e-5) + slack:
                 fail(tag, f"max distance {dist.max():.9g} (reported {d['max_error']:.9g}) beyond "
