@@ -514,8 +514,9 @@ typedef struct cli_outputs {
     char *spool_buf;        /* its stdio buffer                               */
     const char *spool_flag; /* the flag that needs it, for messages           */
     const cli_sink *replay; /* pass 2's sink: --largest's filter, or the chain */
-    isomend_clean_stream *count_clean; /* --target-triangles: pass 1's clean-up */
-    uint64_t counted;       /* --target-triangles: pass 1's triangles         */
+    /* --target-triangles: pass 1's own clean-up (--min-component) and count */
+    isomend_clean_stream *count_clean;
+    uint64_t counted;
     const char *path;       /* the output, for messages                       */
     isomend_smooth_stream *smooth;
     isomend_decimate_stream *decimate;

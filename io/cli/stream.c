@@ -540,8 +540,7 @@ static int spool_replay(cli_outputs *o, const char *label)
         if (len > cap) {
             unsigned char *b = realloc(buf, (size_t)len);
             if (!b) {
-                cli_error("%s: out of memory replaying the %s scratch file", label,
-                          o->spool_flag);
+                cli_error("%s: out of memory replaying the %s scratch file", label, o->spool_flag);
                 rc = 1;
                 break;
             }
@@ -556,11 +555,10 @@ static int spool_replay(cli_outputs *o, const char *label)
         }
         const float *pos = (const float *)(const void *)buf;
         if (type == SPOOL_V || type == SPOOL_N)
-            rc = to->vertices(to->user, a, (size_t)n, pos,
-                                   type == SPOOL_N ? pos + 3 * n : NULL, NULL);
+            rc = to->vertices(to->user, a, (size_t)n, pos, type == SPOOL_N ? pos + 3 * n : NULL,
+                              NULL);
         else if (type == SPOOL_T)
-            rc = to->triangles(to->user, (size_t)n, (const uint64_t *)(const void *)buf,
-                                    NULL);
+            rc = to->triangles(to->user, (size_t)n, (const uint64_t *)(const void *)buf, NULL);
         else
             rc = to->retire(to->user, a);
         if (rc) {
@@ -772,19 +770,16 @@ int cli_outputs_finish(cli_outputs *o, int rc, const char *label, struct cli_pos
         if (o->spool) fclose(o->spool);
         o->spool = NULL;
     }
-    int replayed = 0; /* --target-triangles: the chain stopped the replay (2) */
+    int replayed = 0;              /* --target-triangles: the chain stopped the replay (2) */
     if (!o->largest && o->spool) { /* --target-triangles: pass 2, the spool into the chain */
         isomend_status st = ISOMEND_OK;
-        if (!rc && o->count_clean)
-            st = isomend_clean_stream_finish(o->count_clean, NULL);
-        if (!rc && st == ISOMEND_OK)
-            st = isomend_decimate_stream_expect(o->decimate, o->counted);
+        if (!rc && o->count_clean) st = isomend_clean_stream_finish(o->count_clean, NULL);
+        if (!rc && st == ISOMEND_OK) st = isomend_decimate_stream_expect(o->decimate, o->counted);
         if (!rc && st != ISOMEND_OK) {
             cli_error("%s: --target-triangles failed: %s", label, isomend_status_string(st));
             rc = CLI_EXIT_FAIL;
         }
-        if (!rc && (replayed = spool_replay(o, label)) == 1)
-            rc = CLI_EXIT_FAIL;
+        if (!rc && (replayed = spool_replay(o, label)) == 1) rc = CLI_EXIT_FAIL;
         fclose(o->spool);
         o->spool = NULL;
     }

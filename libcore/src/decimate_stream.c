@@ -90,11 +90,11 @@ typedef struct measured {
 struct isomend_decimate_stream {
     stream_window *w;
     double ratio;
-    uint64_t target;    /* target_triangles, 0: none                      */
-    int counted;        /* the stream's triangle count is known:          */
-    uint64_t count;     /* isomend_decimate_stream_expect()               */
-    uint64_t goal;      /* then the final target: max(ratio, target)      */
-    double max_error;   /* 0: none                                        */
+    uint64_t target;  /* target_triangles, 0: none                      */
+    int counted;      /* the stream's triangle count is known:          */
+    uint64_t count;   /* isomend_decimate_stream_expect()               */
+    uint64_t goal;    /* then the final target: max(ratio, target)      */
+    double max_error; /* 0: none                                        */
     int64_t K;
     double *q_out;      /* the last window's quadrics out (decimate_carry) */
     /* max_error: the held vertices' points (the arena), and the window's
@@ -176,8 +176,8 @@ static isomend_status measure_oldest(isomend_decimate_stream *d)
 /* The points window w's vertices stand for (max_error): a fresh vertex's
  * own, a held one's from the arena; into carry (d->wpts, d->wfirst).  0
  * without memory. */
-static int window_points(isomend_decimate_stream *d, stream_window *sw,
-                         const stream_window_mesh *w, decimate_carry *carry)
+static int window_points(isomend_decimate_stream *d, stream_window *sw, const stream_window_mesh *w,
+                         decimate_carry *carry)
 {
     const size_t nv = w->m->nv;
     size_t total = 0;
@@ -199,7 +199,8 @@ static int window_points(isomend_decimate_stream *d, stream_window *sw,
             memcpy(d->wpts + 3 * (size_t)at, w->m->pos + 3 * v, 12);
             at++;
         } else if (c->npts) {
-            memcpy(d->wpts + 3 * (size_t)at, d->pts + 3 * (size_t)c->pts_first, 12 * (size_t)c->npts);
+            memcpy(d->wpts + 3 * (size_t)at, d->pts + 3 * (size_t)c->pts_first,
+                   12 * (size_t)c->npts);
             at += c->npts;
         }
     }
@@ -262,7 +263,8 @@ static int keep_points(isomend_decimate_stream *d, stream_window *sw, const isom
                 double q[3][3];
                 for (int k = 0; k < 3; k++)
                     for (int x = 0; x < 3; x++)
-                        q[k][x] = r->pos[3 * (size_t)r->tri[3 * (size_t)tris[j] + (size_t)k] + (size_t)x];
+                        q[k][x] =
+                            r->pos[3 * (size_t)r->tri[3 * (size_t)tris[j] + (size_t)k] + (size_t)x];
                 const double e = point_triangle_distance2(p, q[0], q[1], q[2]);
                 best = e < best ? e : best;
             }
@@ -326,11 +328,13 @@ static isomend_status decimate_window(void *user, stream_window *sw, const strea
     const size_t nv = w->m->nv, nt = w->m->nt;
     if (d->target && !d->counted)
         return ISOMEND_ERR_INVALID_ARGUMENT; /* a triangle target without the count */
-    const double ratio = d->counted ? (d->count ? (double)d->goal / (double)d->count : 1.0)
-                                    : d->ratio;
+    const double ratio =
+        d->counted ? (d->count ? (double)d->goal / (double)d->count : 1.0) : d->ratio;
     const double so_far = (double)(n.triangles_in - n_top);
-    const double keep = (d->counted ? ceil((double)d->goal * so_far / (double)(d->count ? d->count : 1))
-                                    : ceil(ratio * so_far)) + (double)n_top;
+    const double keep =
+        (d->counted ? ceil((double)d->goal * so_far / (double)(d->count ? d->count : 1))
+                    : ceil(ratio * so_far)) +
+        (double)n_top;
     double target = keep - (double)n.final_triangles;
     const double least = ceil(0.5 * ratio * (double)nt);
     target = target < least ? least : target;

@@ -136,7 +136,8 @@ static double brute_distance(const isomend_mesh *m, const collected *c)
             const size_t t = (j + start) % c->nt;
             double b2 = 0;
             for (int i = 0; i < 3; i++) {
-                const double lo = box[6 * t + (size_t)i] - q[i], hi = q[i] - box[6 * t + 3 + (size_t)i];
+                const double lo = box[6 * t + (size_t)i] - q[i],
+                             hi = q[i] - box[6 * t + 3 + (size_t)i];
                 const double out = lo > 0 ? lo : hi > 0 ? hi : 0;
                 b2 += out * out;
             }
@@ -180,9 +181,8 @@ static int same_surface(const char *what, const isomend_check_report *r1,
                 what, (unsigned long long)r1->triangles, (unsigned long long)r1->hole_edges,
                 (unsigned long long)rin->hole_edges, (unsigned long long)r1->nonmanifold_edges,
                 (unsigned long long)r1->misoriented_edges,
-                (unsigned long long)r1->nonmanifold_vertices,
-                (unsigned long long)r1->border_edges, (unsigned long long)rin->border_edges,
-                (unsigned long long)r1->degenerate_triangles,
+                (unsigned long long)r1->nonmanifold_vertices, (unsigned long long)r1->border_edges,
+                (unsigned long long)rin->border_edges, (unsigned long long)r1->degenerate_triangles,
                 (unsigned long long)r1->components, (unsigned long long)rin->components,
                 (long long)r1->euler, (long long)rin->euler);
     return ok;
@@ -203,7 +203,8 @@ static void targets(const isomend_volume *vol, isomend_options *o, const isomend
     const struct {
         double ratio, max_error;
         uint64_t target;
-    } cases[] = {{0, E, 0}, {0.1, E, 0}, {0, 0, nt / 8 + 1}, {0.05, 0, nt / 6}, {0, 2 * E, nt / 12}};
+    } cases[] = {
+        {0, E, 0}, {0.1, E, 0}, {0, 0, nt / 8 + 1}, {0.05, 0, nt / 6}, {0, 2 * E, nt / 12}};
     for (size_t ci = 0; ci < sizeof cases / sizeof cases[0]; ci++) {
         isomend_decimate_options d;
         isomend_decimate_options_init(&d);
@@ -215,8 +216,8 @@ static void targets(const isomend_volume *vol, isomend_options *o, const isomend
         CHECK_EQ_INT(isomend_mesh_decimate(m, &d, &inmem, &irep), ISOMEND_OK);
         for (size_t li = 0; li < sizeof layer_sets / sizeof layer_sets[0]; li++) {
             char what[320];
-            snprintf(what, sizeof what, "%.160s ratio %g max_error %g target %llu, %lld layers", name,
-                     d.ratio, d.max_error, (unsigned long long)d.target_triangles,
+            snprintf(what, sizeof what, "%.160s ratio %g max_error %g target %llu, %lld layers",
+                     name, d.ratio, d.max_error, (unsigned long long)d.target_triangles,
                      (long long)layer_sets[li]);
             collected c1, c2;
             isomend_decimate_report rep;
@@ -239,9 +240,11 @@ static void targets(const isomend_volume *vol, isomend_options *o, const isomend
                         (unsigned long long)irep.triangles_after);
                 CHECK(0);
             }
-            if (d.max_error > 0) { /* every stream vertex within it: brute force on 1-layer chunks */
+            if (d.max_error >
+                0) { /* every stream vertex within it: brute force on 1-layer chunks */
                 const double e = layer_sets[li] == 1 ? brute_distance(m, &c1) : rep.max_error;
-                if (!(e <= d.max_error * (1 + 1e-5)) || !(rep.max_error <= d.max_error * (1 + 1e-5)) ||
+                if (!(e <= d.max_error * (1 + 1e-5)) ||
+                    !(rep.max_error <= d.max_error * (1 + 1e-5)) ||
                     !(e <= rep.max_error * (1 + 1e-3) + 1e-4) || !(rep.refused_error > 0)) {
                     fprintf(stderr, "%s: distance %g, reported %g, %llu refused by the error\n",
                             what, e, rep.max_error, (unsigned long long)rep.refused_error);
@@ -424,7 +427,8 @@ int main(void)
             if (k == 1 || k == 2) { /* the count of another volume's stream; twice */
                 CHECK_EQ_INT(isomend_decimate_stream_expect(x, 7), ISOMEND_OK);
                 if (k == 2)
-                    CHECK_EQ_INT(isomend_decimate_stream_expect(x, 7), ISOMEND_ERR_INVALID_ARGUMENT);
+                    CHECK_EQ_INT(isomend_decimate_stream_expect(x, 7),
+                                 ISOMEND_ERR_INVALID_ARGUMENT);
             } else if (k == 3) { /* after a triangle */
                 const float p[9] = {0, 0, 0, 1, 0, 0, 0, 1, 0};
                 const uint64_t ids[3] = {0, 1, 2};
