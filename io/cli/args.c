@@ -376,3 +376,13 @@ void cli_extract_options(const cli_args *a, cli_progress *bar, isomend_options *
     opts->progress = cli_progress_extract_cb; /* the bar, and how Ctrl-C cancels */
     opts->progress_user = bar;
 }
+
+int cli_chunk_layers_unused(const cli_args *a)
+{
+    if (!(a->seen & OPT_CHUNK_LAYERS) ||
+        (a->seen & (OPT_DECIMATE | OPT_TARGET_TRIANGLES | OPT_MAX_ERROR | OPT_SMOOTH)))
+        return 0;
+    cli_error("--chunk-layers: only with --decimate, --target-triangles, --max-error or --smooth "
+              "(the streamed smoothing's and decimation's chunks)");
+    return 1;
+}

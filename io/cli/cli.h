@@ -387,6 +387,10 @@ int cli_parse_args(int argc, char **argv, int first, const char *command, uint64
  * a->iso); progress through `bar`, which is also how Ctrl-C cancels. */
 void cli_extract_options(const cli_args *a, cli_progress *bar, isomend_options *opts);
 
+/* --chunk-layers is given with no step that has chunks (the smoothing, the
+ * decimation): 1 with the message printed, else 0. */
+int cli_chunk_layers_unused(const cli_args *a);
+
 /* ---- stream.c ---- */
 
 /* Which memory path `extract` takes (the rule is at the top of stream.c). */
@@ -408,7 +412,8 @@ typedef struct cli_memory_plan {
     uint64_t smooth_need;    /* the smoothing's (isomend_smooth_stream_memory)           */
     uint64_t clean_need;     /* the clean-up's (isomend_clean_stream_memory)             */
     uint64_t largest_need;   /* --largest's: isomend_largest_stream_memory and the spool's */
-                             /* buffers (CLI_SPOOL_BUFFERS)                               */
+                             /* buffers (CLI_SPOOL_BUFFERS); --target-triangles': the    */
+                             /* spool's buffers and pass 1's clean-up (clean_need)       */
 } cli_memory_plan;
 
 /* --largest's spool (stream.c): its stdio buffer, and the replay's record
@@ -504,8 +509,14 @@ typedef struct cli_outputs {
     cli_checker *checker;
     isomend_clean_stream *clean;
     isomend_largest_stream *largest;
-    FILE *spool;            /* --largest: pass 1's calls, replayed for pass 2 */
+    FILE *spool;            /* --largest, --target-triangles: pass 1's calls, */
+                            /* replayed for pass 2                            */
     char *spool_buf;        /* its stdio buffer                               */
+    const char *spool_flag; /* the flag that needs it, for messages           */
+    const cli_sink *replay; /* pass 2's sink: --largest's filter, or the chain */
+    /* --target-triangles: pass 1's own clean-up (--min-component) and count */
+    isomend_clean_stream *count_clean;
+    uint64_t counted;
     const char *path;       /* the output, for messages                       */
     isomend_smooth_stream *smooth;
     isomend_decimate_stream *decimate;
@@ -515,7 +526,7 @@ typedef struct cli_outputs {
     cli_sink writer, mapped, tee, dsink, timed_in, timed_out;
     cli_sink csink, ctimed_in, ctimed_out, ssink, stimed_in, stimed_out;
     cli_timed_sink l_in, l_out;
-    cli_sink lsink, lrecord, ltimed_out;
+    cli_sink lsink, lrecord, ltimed_out, counter;
     const cli_sink *sink;
 } cli_outputs;
 

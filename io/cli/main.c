@@ -97,9 +97,8 @@ static const char *const usage_extract =
     "                           are used when theirs do not\n"
     "  --in-memory              hold the whole mesh, then check and write it (what the\n"
     "                           steps below do anyway); streamed when it does not fit\n"
-    "  --stream                 stream even when the whole mesh would fit (with\n"
-    "                           --min-component, --largest, --smooth, --decimate: the\n"
-    "                           streamed steps below)\n"
+    "  --stream                 stream even when the whole mesh would fit (with the\n"
+    "                           steps below: their streamed versions)\n"
     "  --slice-positions Z0,Z1,...|@FILE\n"
     "                           the z of every slice (FILE: one a line, # comments),\n"
     "                           strictly increasing, for slices not evenly spaced;\n"
@@ -110,12 +109,13 @@ static const char *const usage_extract =
     "  --smooth N               N windowed sinc iterations (VTK's filter), volume kept\n"
     "  --decimate RATIO         keep RATIO of the triangles (0.1: a tenth)\n"
     "  --target-triangles N     keep N triangles\n"
-    "  --max-error E            no collapse farther than E (world units) from the surface\n"
-    "                           it replaces; alone: decimate as far as that allows\n"
+    "  --max-error E            no vertex of the extraction farther than E (world units)\n"
+    "                           from the result; alone: decimate as far as that allows\n"
+    "--decimate and --target-triangles together keep the larger count; --max-error\n"
+    "with either stops where the error would be exceeded.\n"
     "A streamed run (--stream, or a mesh larger than --max-memory) is post-processed\n"
-    "as it is made, still closed, by --min-component N, --smooth N and --decimate\n"
-    "RATIO; --largest K in two passes over a scratch copy of the stream beside MESH\n"
-    "(not --target-triangles, --max-error: they need the whole mesh)\n"
+    "as it is made, still closed, by every step; --largest K and --target-triangles N\n"
+    "in two passes over a scratch copy of the stream beside MESH (the first counts)\n"
     "  --chunk-layers N         the streamed smoothing's and decimation's chunks of N\n"
     "                           layers (default: from the slice size, fewer under a\n"
     "                           tight --max-memory)\n"
@@ -317,11 +317,7 @@ static int cmd_extract(int argc, char **argv)
                   (a.seen & OPT_IN_MEMORY) ? "--in-memory" : "--pages");
         return CLI_EXIT_USAGE;
     }
-    if ((a.seen & OPT_CHUNK_LAYERS) && !(a.seen & (OPT_DECIMATE | OPT_SMOOTH))) {
-        cli_error("--chunk-layers: only with --decimate or --smooth (the streamed smoothing's and "
-                  "decimation's chunks)");
-        return CLI_EXIT_USAGE;
-    }
+    if (cli_chunk_layers_unused(&a)) return CLI_EXIT_USAGE;
     int quiet = (a.seen & OPT_QUIET) != 0;
     int json_stdout = a.json && strcmp(a.json, "-") == 0;
     FILE *text = json_stdout ? stderr : stdout;
@@ -345,31 +341,14 @@ static int cmd_extract(int argc, char **argv)
     const int small_pages = a.pages == CLI_PAGES_SMALL;
     /* the mesh goes to the file as it is made, checked on the way, unless the
      * run needs it whole: post-processing, --in-memory, --pages (and fits;
-     * --stream: never); a streamed --min-component, --smooth, --decimate
-     * work as the mesh is made, --largest in two passes over a spool */
+     * --stream: never); a streamed --min-component, --smooth, --decimate,
+     * --max-error work as the mesh is made, --largest and --target-triangles
+     * in two passes over a spool */
     const int whole_mesh =
         !(a.seen & OPT_STREAM) && (a.seen & (OPT_POST | OPT_IN_MEMORY | OPT_PAGES)) != 0;
     cli_memory_plan plan;
     cli_memory_plan_make(&src.desc, &opts, fmt, a.max_memory, whole_mesh, &a.post, &plan);
     rc = plan_fits(&plan, &src);
-    const uint64_t whole_only = OPT_TARGET_TRIANGLES | OPT_MAX_ERROR;
-    if (!rc && (a.seen & whole_only) && plan.stream) {
-        const char *flag = (a.seen & OPT_TARGET_TRIANGLES) ? "--target-triangles" : "--max-error";
-        char need[32], limit[32];
-        if (a.seen & OPT_STREAM)
-            cli_error("%s: %s works on the whole mesh in memory, not with --stream; a streamed "
-                      "mesh can be post-processed by --min-component N, --largest K, --smooth N "
-                      "and --decimate RATIO only",
-                      src.label, flag);
-        else
-            cli_error("%s: %s works on the whole mesh in memory, which needs about %s, more than "
-                      "%s (%s); a streamed mesh can be post-processed by --min-component N, "
-                      "--largest K, --smooth N and --decimate RATIO only",
-                      src.label, flag, cli_bytes_text(plan.in_memory, need, sizeof need),
-                      plan.limit_given ? "--max-memory" : "the memory available",
-                      cli_bytes_text(plan.limit, limit, sizeof limit));
-        rc = CLI_EXIT_FAIL;
-    }
     if (rc) goto fail_source;
 
     /* The whole mesh: the volume is loaded, the mesh checked, then written.

@@ -38,7 +38,9 @@
  *            passes' (isomend_largest_stream_memory: the live vertices, one
  *            layer's held triangles) and the spool's buffers
  *            (CLI_SPOOL_BUFFERS; the spool itself is on the output's disk:
- *            about 12 (24 with normals) bytes a vertex, 24 a triangle), the smoothing's chunk and band
+ *            about 12 (24 with normals) bytes a vertex, 24 a triangle); with
+ *            --target-triangles (no --largest) the spool's buffers and the
+ *            clean-up its counting pass runs of its own; the smoothing's chunk and band
  *            (isomend_smooth_stream_memory) and the decimation's chunk
  *            (isomend_decimate_stream_memory), the chunk height the one
  *            that fits what is left (--chunk-layers: the one given)
@@ -103,7 +105,8 @@ void cli_memory_plan_make(const isomend_volume *desc, const isomend_options *opt
                           isomend_mesh_format format, uint64_t max_memory, int whole_mesh,
                           const cli_post *post, cli_memory_plan *p)
 {
-    const int decimate = post && post->ratio > 0, smooth = post && post->smooth > 0;
+    const int decimate = post && (post->ratio > 0 || post->target || post->max_error > 0);
+    const int smooth = post && post->smooth > 0;
     const int clean = post && post->min_component > 0;
     const int64_t chunk_layers = post ? post->chunk_layers : 0;
     memset(p, 0, sizeof *p);
@@ -161,6 +164,10 @@ void cli_memory_plan_make(const isomend_volume *desc, const isomend_options *opt
         } else if (clean) {
             p->clean_need = isomend_clean_stream_memory(&v, opts);
             streaming += (double)p->clean_need;
+        }
+        if (post->target && !largest) { /* its spool; pass 1's own clean-up */
+            p->largest_need = (uint64_t)(CLI_SPOOL_BUFFERS * MIB) + p->clean_need;
+            streaming += (double)p->largest_need;
         }
         if (smooth || decimate) {
             const double left = p->limit ? (double)p->limit - streaming : 0.0;
@@ -416,8 +423,9 @@ static void outputs_free(cli_outputs *o)
     free(o->spool_buf);
     o->spool_buf = NULL;
     isomend_clean_stream_destroy(o->clean);
+    isomend_clean_stream_destroy(o->count_clean);
     isomend_smooth_stream_destroy(o->smooth);
-    o->clean = NULL;
+    o->clean = o->count_clean = NULL;
     o->smooth = NULL;
     isomend_decimate_stream_destroy(o->decimate);
     cli_checker_destroy(o->checker);
@@ -446,8 +454,10 @@ int cli_outputs_commit(cli_outputs *o)
 }
 
 /*
- * --largest's spool: the calls pass 1 gets, in records of three 64-bit
- * words (type, a, b) and a payload, replayed for pass 2:
+ * The spool of --largest and --target-triangles: the calls pass 1 gets, in
+ * records of three 64-bit words (type, a, b) and a payload, replayed for
+ * pass 2 (--target-triangles: pass 1 counts the triangles the decimation
+ * will get, which its target needs, isomend_decimate_stream_expect()):
  *   V  a = first id, b = count; count x 3 floats (positions)
  *   N  as V, then count x 3 floats (normals)
  *   T  b = count; count x 3 ids
@@ -463,7 +473,8 @@ static int spool_put(cli_outputs *o, uint64_t type, uint64_t a, uint64_t b, cons
     const uint64_t head[3] = {type, a, b};
     if (fwrite(head, sizeof head, 1, o->spool) != 1 ||
         (n1 && fwrite(p1, 1, n1, o->spool) != n1) || (n2 && fwrite(p2, 1, n2, o->spool) != n2)) {
-        cli_error("%s: cannot write the --largest scratch file: %s", o->path, strerror(errno));
+        cli_error("%s: cannot write the %s scratch file: %s", o->path, o->spool_flag,
+                  strerror(errno));
         return 1;
     }
     return 0;
@@ -499,8 +510,9 @@ static int spool_retire(void *user, uint64_t floor)
  * printed (the filter's own failures by the caller). */
 static int spool_replay(cli_outputs *o, const char *label)
 {
+    const cli_sink *to = o->replay;
     if (fflush(o->spool) != 0 || fseeko(o->spool, 0, SEEK_SET) != 0) {
-        cli_error("%s: cannot read back the --largest scratch file: %s", o->path,
+        cli_error("%s: cannot read back the %s scratch file: %s", o->path, o->spool_flag,
                   strerror(errno));
         return 1;
     }
@@ -521,14 +533,14 @@ static int spool_replay(cli_outputs *o, const char *label)
         const uint64_t len = type == SPOOL_V ? 12 * n : type == SPOOL_N ? 24 * n
                              : type == SPOOL_T ? 24 * n : 0;
         if (got != sizeof head || type < SPOOL_V || type > SPOOL_R || n > (SIZE_MAX >> 5)) {
-            cli_error("%s: the --largest scratch file is damaged", o->path);
+            cli_error("%s: the %s scratch file is damaged", o->path, o->spool_flag);
             rc = 1;
             break;
         }
         if (len > cap) {
             unsigned char *b = realloc(buf, (size_t)len);
             if (!b) {
-                cli_error("%s: out of memory replaying the --largest scratch file", label);
+                cli_error("%s: out of memory replaying the %s scratch file", label, o->spool_flag);
                 rc = 1;
                 break;
             }
@@ -536,27 +548,26 @@ static int spool_replay(cli_outputs *o, const char *label)
             cap = (size_t)len;
         }
         if (len && fread(buf, 1, (size_t)len, o->spool) != len) {
-            cli_error("%s: cannot read back the --largest scratch file: %s", o->path,
+            cli_error("%s: cannot read back the %s scratch file: %s", o->path, o->spool_flag,
                       ferror(o->spool) ? strerror(errno) : "it ends early");
             rc = 1;
             break;
         }
         const float *pos = (const float *)(const void *)buf;
         if (type == SPOOL_V || type == SPOOL_N)
-            rc = o->lsink.vertices(o->lsink.user, a, (size_t)n, pos,
-                                   type == SPOOL_N ? pos + 3 * n : NULL, NULL);
+            rc = to->vertices(to->user, a, (size_t)n, pos, type == SPOOL_N ? pos + 3 * n : NULL,
+                              NULL);
         else if (type == SPOOL_T)
-            rc = o->lsink.triangles(o->lsink.user, (size_t)n, (const uint64_t *)(const void *)buf,
-                                    NULL);
+            rc = to->triangles(to->user, (size_t)n, (const uint64_t *)(const void *)buf, NULL);
         else
-            rc = o->lsink.retire(o->lsink.user, a);
+            rc = to->retire(to->user, a);
         if (rc) {
             rc = 2; /* the filter or a step after it: its status says why */
             break;
         }
     }
     if (!rc && ferror(o->spool)) {
-        cli_error("%s: cannot read back the --largest scratch file: %s", o->path,
+        cli_error("%s: cannot read back the %s scratch file: %s", o->path, o->spool_flag,
                   strerror(errno));
         rc = 1;
     }
@@ -564,12 +575,66 @@ static int spool_replay(cli_outputs *o, const char *label)
     return rc;
 }
 
+/* The spool opened (o->spool_flag names why) and its recording sink
+ * (o->lrecord, which passes pass 1 on to o->lsink); 0, or 1 with the
+ * message printed and o aborted. */
+static int spool_begin(cli_outputs *o, const char *path)
+{
+    char smsg[ISOMEND_FILEIO_MSG_SIZE];
+    if (isomend_spool_open(path, &o->spool, smsg, sizeof smsg) != ISOMEND_FILEIO_OK) {
+        o->spool = NULL;
+        cli_error("%s: %s", o->spool_flag, smsg);
+        cli_outputs_abort(o);
+        return 1;
+    }
+    o->spool_buf = malloc(1u << 20);
+    if (o->spool_buf) setvbuf(o->spool, o->spool_buf, _IOFBF, 1u << 20);
+    o->lrecord = (cli_sink){o, spool_vertices, spool_triangles, spool_retire, NULL};
+    return 0;
+}
+
+/* A streamed clean-up (--min-component min) into `out`, its sink in *in; 0,
+ * or 1 with the message printed and o aborted. */
+static int clean_begin(cli_outputs *o, const char *label, uint64_t min, const cli_sink *out,
+                       isomend_clean_stream **cs, cli_sink *in)
+{
+    const isomend_status st = isomend_clean_stream_begin(min, out, cs);
+    if (st != ISOMEND_OK) {
+        cli_error("%s: clean-up failed: %s", label, isomend_status_string(st));
+        cli_outputs_abort(o);
+        return 1;
+    }
+    isomend_clean_stream_sink(*cs, in);
+    return 0;
+}
+
+/* --target-triangles' pass 1 ends here: the triangles counted. */
+static int count_vertices(void *user, uint64_t first, size_t count, const float *pos,
+                          const float *nrm, const uint64_t *keys)
+{
+    (void)user, (void)first, (void)count, (void)pos, (void)nrm, (void)keys;
+    return 0;
+}
+
+static int count_triangles(void *user, size_t count, const uint64_t *ids, const uint8_t *origins)
+{
+    (void)ids, (void)origins;
+    ((cli_outputs *)user)->counted += count;
+    return 0;
+}
+
+static int count_retire(void *user, uint64_t floor)
+{
+    (void)user, (void)floor;
+    return 0;
+}
+
 int cli_outputs_begin(cli_outputs *o, const char *path, isomend_mesh_format fmt, int normals,
                       const double *world, const char *label, const isomend_volume *desc,
                       const isomend_options *opts, uint64_t check_queue, const cli_post *post,
                       int64_t layers)
 {
-    const double ratio = post ? post->ratio : 0.0;
+    const int decimate = post && (post->ratio > 0 || post->target || post->max_error > 0);
     memset(o, 0, sizeof *o);
     char msg[ISOMEND_FILEIO_MSG_SIZE];
     if (isomend_mesh_writer_begin(path, fmt, normals, 0, &o->w, msg, sizeof msg) !=
@@ -597,11 +662,13 @@ int cli_outputs_begin(cli_outputs *o, const char *path, isomend_mesh_format fmt,
         }
         o->sink = &o->tee;
     }
-    if (ratio > 0) {
+    if (decimate) {
         cli_sink_timed(&o->timed_out, &o->t_out, o->sink);
         isomend_decimate_options d;
         isomend_decimate_options_init(&d);
-        d.ratio = ratio;
+        d.ratio = post->ratio;
+        d.target_triangles = post->target;
+        d.max_error = post->max_error;
         const isomend_status st =
             isomend_decimate_stream_begin(desc, opts, &d, layers, &o->timed_out, &o->decimate);
         if (st != ISOMEND_OK) {
@@ -630,6 +697,7 @@ int cli_outputs_begin(cli_outputs *o, const char *path, isomend_mesh_format fmt,
     }
     o->path = path;
     if (post && post->largest > 0) { /* --min-component with it */
+        o->spool_flag = "--largest";
         cli_sink_timed(&o->ltimed_out, &o->l_out, o->sink);
         const isomend_status st = isomend_largest_stream_begin(
             post->min_component, post->largest, &o->ltimed_out, &o->largest);
@@ -639,30 +707,30 @@ int cli_outputs_begin(cli_outputs *o, const char *path, isomend_mesh_format fmt,
             return 1;
         }
         isomend_largest_stream_sink(o->largest, &o->lsink);
-        char smsg[ISOMEND_FILEIO_MSG_SIZE];
-        if (isomend_spool_open(path, &o->spool, smsg, sizeof smsg) != ISOMEND_FILEIO_OK) {
-            o->spool = NULL;
-            cli_error("--largest: %s", smsg);
-            cli_outputs_abort(o);
-            return 1;
-        }
-        o->spool_buf = malloc(1u << 20);
-        if (o->spool_buf) setvbuf(o->spool, o->spool_buf, _IOFBF, 1u << 20);
-        o->lrecord = (cli_sink){o, spool_vertices, spool_triangles, spool_retire, NULL};
+        o->replay = &o->lsink; /* the same filter in both passes */
+        if (spool_begin(o, path)) return 1;
         cli_sink_timed(&o->ctimed_in, &o->l_in, &o->lrecord);
         o->sink = &o->ctimed_in;
     } else if (post && post->min_component > 0) {
         cli_sink_timed(&o->ctimed_out, &o->c_out, o->sink);
-        const isomend_status st =
-            isomend_clean_stream_begin(post->min_component, &o->ctimed_out, &o->clean);
-        if (st != ISOMEND_OK) {
-            cli_error("%s: clean-up failed: %s", label, isomend_status_string(st));
-            cli_outputs_abort(o);
+        if (clean_begin(o, label, post->min_component, &o->ctimed_out, &o->clean, &o->csink))
             return 1;
-        }
-        isomend_clean_stream_sink(o->clean, &o->csink);
         cli_sink_timed(&o->ctimed_in, &o->c_in, &o->csink);
         o->sink = &o->ctimed_in;
+    }
+    if (post && post->target && !post->largest) {
+        /* --target-triangles: pass 1 counts what the decimation will get (the
+         * stream's triangles, or those a clean-up of its own passes); pass 2
+         * replays the spool into the chain above, which the stream never fed */
+        o->spool_flag = "--target-triangles";
+        o->replay = o->sink;
+        o->counter = (cli_sink){o, count_vertices, count_triangles, count_retire, NULL};
+        o->lsink = o->counter;
+        if (post->min_component > 0 &&
+            clean_begin(o, label, post->min_component, &o->counter, &o->count_clean, &o->lsink))
+            return 1;
+        if (spool_begin(o, path)) return 1;
+        o->sink = &o->lrecord;
     }
     return 0;
 }
@@ -678,6 +746,9 @@ int cli_outputs_finish(cli_outputs *o, int rc, const char *label, struct cli_pos
         const double t0 = cli_now_ms();
         int replay = rc ? 0 : -1;
         isomend_status st = rc ? ISOMEND_OK : isomend_largest_stream_replay(o->largest);
+        if (!rc && st == ISOMEND_OK && o->decimate) /* pass 2 feeds it: its input's count */
+            st = isomend_decimate_stream_expect(o->decimate,
+                                                isomend_largest_stream_kept_triangles(o->largest));
         if (!rc && st == ISOMEND_OK)
             replay = spool_replay(o, label);
         if (replay == 1) {
@@ -697,6 +768,19 @@ int cli_outputs_finish(cli_outputs *o, int rc, const char *label, struct cli_pos
         /* both passes, less the steps after it (pass 1 calls none) */
         post->clean_ms = o->l_in.ms + (cli_now_ms() - t0) - o->l_out.ms;
         if (o->spool) fclose(o->spool);
+        o->spool = NULL;
+    }
+    int replayed = 0;              /* --target-triangles: the chain stopped the replay (2) */
+    if (!o->largest && o->spool) { /* --target-triangles: pass 2, the spool into the chain */
+        isomend_status st = ISOMEND_OK;
+        if (!rc && o->count_clean) st = isomend_clean_stream_finish(o->count_clean, NULL);
+        if (!rc && st == ISOMEND_OK) st = isomend_decimate_stream_expect(o->decimate, o->counted);
+        if (!rc && st != ISOMEND_OK) {
+            cli_error("%s: --target-triangles failed: %s", label, isomend_status_string(st));
+            rc = CLI_EXIT_FAIL;
+        }
+        if (!rc && (replayed = spool_replay(o, label)) == 1) rc = CLI_EXIT_FAIL;
+        fclose(o->spool);
         o->spool = NULL;
     }
     if (o->clean) {
@@ -737,6 +821,10 @@ int cli_outputs_finish(cli_outputs *o, int rc, const char *label, struct cli_pos
         post->chunk_layers = o->layers;
         /* its own time: its calls, less those of the sinks after it */
         post->decimate_ms = o->t_in.ms + (cli_now_ms() - d0) - o->t_out.ms;
+    }
+    if (!rc && replayed) { /* a step stopped the replay and none said why (not reached) */
+        cli_error("%s: --target-triangles: the replay stopped", label);
+        rc = CLI_EXIT_FAIL;
     }
     if (!rc && o->checker) {
         rc = cli_checker_finish(o->checker, check) ? CLI_EXIT_FAIL : CLI_EXIT_OK;

@@ -57,10 +57,11 @@ static const char *const usage =
     "Every method splits between ranks.  The continuity check is not run: use\n"
     "isomend check.\n"
     "\n"
-    "--min-component N, --largest K, --smooth N, --decimate RATIO [--chunk-layers N]:\n"
-    "rank 0 post-processes the ranks' slabs as one stream, checks and writes the mesh:\n"
-    "the file 'isomend extract --stream' with the same steps writes, for any number\n"
-    "of ranks (--largest: in two passes over a scratch copy of the stream beside MESH).\n";
+    "--min-component N, --largest K, --smooth N, --decimate RATIO, --target-triangles N,\n"
+    "--max-error E [--chunk-layers N]: rank 0 post-processes the ranks' slabs as one\n"
+    "stream, checks and writes the mesh: the file 'isomend extract --stream' with the\n"
+    "same steps writes, for any number of ranks (--largest, --target-triangles: in two\n"
+    "passes over a scratch copy of the stream beside MESH).\n";
 
 static MPI_Comm comm = MPI_COMM_WORLD;
 static int rank, ranks;
@@ -228,10 +229,12 @@ static void print_run(FILE *text, const cli_slices *sl, const cli_args *a, int i
 }
 
 /*
- * --min-component N, --largest K, --smooth N, --decimate RATIO: every rank records its
+ * The post-processing steps (--min-component N, --largest K, --smooth N,
+ * --decimate RATIO, --target-triangles N, --max-error E): every rank records its
  * slab's piece (mpi_decimate.h); rank 0 replays them as one stream into the
  * streamed steps (clean-up or --largest's two passes, smoothing, decimation:
- * cli_outputs, which spools the replay for --largest's second pass), the
+ * cli_outputs, which spools the replay for the second pass of --largest and
+ * --target-triangles), the
  * continuity check and one writer, as `isomend extract --stream` with the
  * same steps does (the same bytes), and reports.
  */
@@ -356,7 +359,8 @@ static int run(int argc, char **argv)
                        OPT_PAD | OPT_NO_NORMALS | OPT_FLIP | OPT_STATS | OPT_JSON | OPT_QUIET |
                        OPT_THREADS | OPT_FIRST | OPT_COUNT | OPT_STEP | OPT_CHANNEL | OPT_HELP |
                        OPT_PAGES | OPT_MAX_MEMORY | OPT_SLICE_POSITIONS | OPT_DECIMATE |
-                       OPT_SMOOTH | OPT_MIN_COMPONENT | OPT_LARGEST | OPT_CHUNK_LAYERS;
+                       OPT_SMOOTH | OPT_MIN_COMPONENT | OPT_LARGEST | OPT_CHUNK_LAYERS |
+                       OPT_TARGET_TRIANGLES | OPT_MAX_ERROR;
     int rc = cli_parse_args(argc, argv, 2, "extract", allowed, &a);
     if (!rc && (a.seen & OPT_HELP)) {
         if (rank == 0) fputs(usage, stdout);
@@ -375,9 +379,7 @@ static int run(int argc, char **argv)
     } else if (!rc && a.json && strcmp(a.json, a.output) == 0) {
         cli_error("--json %s: same file as -o", a.json);
         rc = CLI_EXIT_USAGE;
-    } else if (!rc && (a.seen & OPT_CHUNK_LAYERS) && !(a.seen & (OPT_DECIMATE | OPT_SMOOTH))) {
-        cli_error("--chunk-layers: only with --decimate or --smooth (the streamed smoothing's and "
-                  "decimation's chunks)");
+    } else if (!rc && cli_chunk_layers_unused(&a)) {
         rc = CLI_EXIT_USAGE;
     }
     if ((rc = agree(rc)) != 0) return rc;
@@ -458,7 +460,7 @@ static int run(int argc, char **argv)
                             "(Otsu, see 'isomend info')\n", a.iso, sl.label);
     }
     opts.iso = a.iso;
-    if (a.seen & (OPT_DECIMATE | OPT_SMOOTH | OPT_MIN_COMPONENT | OPT_LARGEST)) {
+    if (a.seen & OPT_POST) {
         rc = run_decimated(&a, &sl, &opts, fmt, first, end, iso_suggested, &jo, t_start, text);
         if (rc) cli_json_abort(&jo);
         cli_slices_close(&sl);

@@ -814,10 +814,15 @@ ISOMEND_API isomend_status isomend_mesh_clean(const isomend_mesh *mesh, uint64_t
  * ISOMEND_FLAG_NO_NORMALS, the area-weighted normal of those triangles),
  * triangles in a fixed order, retire() as vertices are done.  The mesh
  * depends on the volume, the options, the decimation's options and
- * chunk_layers only: not on the stream's threads.  Targets: ratio only
- * (target_triangles and max_error need the whole mesh:
- * ISOMEND_ERR_INVALID_ARGUMENT); each chunk keeps ratio of its triangles,
- * each band what keeps the running total at ratio of the triangles so far.
+ * chunk_layers only: not on the stream's threads.  Targets as
+ * isomend_mesh_decimate()'s: each window keeps what keeps the running total
+ * at ratio of the triangles so far; target_triangles needs the stream's
+ * triangle count beforehand (isomend_decimate_stream_expect(), from an
+ * earlier pass over a spool of the stream), the running total is then
+ * max(ratio * count, target_triangles) * (triangles so far) / count;
+ * max_error keeps every stream vertex within it of the result, as in
+ * memory: a held vertex carries the stream vertices it stands for (those
+ * not yet within max_error of its final triangles) into the next window.
  * Memory: a chunk's triangles and the bands', isomend_decimate_stream_memory().
  */
 typedef struct isomend_decimate_stream isomend_decimate_stream;
@@ -853,9 +858,21 @@ ISOMEND_API isomend_status isomend_decimate_stream_begin(const isomend_volume *d
 ISOMEND_API isomend_status isomend_decimate_stream_sink(isomend_decimate_stream *ds,
                                                         isomend_mesh_sink *sink);
 
+/* Before the stream's first triangle: the number of triangles the stream
+ * will deliver (known from an earlier pass over the same stream), which a
+ * target_triangles needs (without it the first window fails with
+ * ISOMEND_ERR_INVALID_ARGUMENT); the target is then
+ * max(ceil(ratio * triangles), target_triangles), as in memory.  A
+ * stream of another count makes isomend_decimate_stream_finish() return
+ * ISOMEND_ERR_INVALID_ARGUMENT.  ISOMEND_ERR_INVALID_ARGUMENT when called
+ * twice or after a triangle. */
+ISOMEND_API isomend_status isomend_decimate_stream_expect(isomend_decimate_stream *ds,
+                                                          uint64_t triangles);
+
 /* After the stream's finish: decimates and delivers the rest and fills the
- * report (report may be NULL): counts before and after, target
- * ratio * triangles, reached, collapses, and the distances from the
+ * report (report may be NULL): counts before and after, the target (ratio *
+ * triangles, or the expected count's target above; 0 for max_error alone),
+ * reached, collapses, and the distances from the
  * stream's vertices to the result, each measured a few chunks after its own
  * against the surface near it as it then stands (docs/postprocess.md).
  * ISOMEND_ERR_SINK when `out` stopped it. */
@@ -964,6 +981,11 @@ ISOMEND_API isomend_status isomend_largest_stream_sink(isomend_largest_stream *l
 /* After pass 1's stream ended: closes what is open, chooses the kept
  * components and starts pass 2 (the same stream again, from id 0). */
 ISOMEND_API isomend_status isomend_largest_stream_replay(isomend_largest_stream *ls);
+
+/* After isomend_largest_stream_replay(): the triangles pass 2 will pass
+ * (the kept components'), so that a step after it knows its input's size
+ * beforehand (isomend_decimate_stream_expect()); 0 before the replay. */
+ISOMEND_API uint64_t isomend_largest_stream_kept_triangles(const isomend_largest_stream *ls);
 
 /* After pass 2's stream ended: delivers the rest, fills the report (may be
  * NULL).  ISOMEND_ERR_SINK when `out` stopped it; ISOMEND_ERR_INVALID_ARGUMENT

@@ -80,9 +80,10 @@ typedef struct dec {
     size_t nwords;       /* of each */
     uint32_t pass;
     double max_dist;      /* max_error, or 0: no distance check            */
-    const float *orig;    /* the input's positions                         */
-    uint32_t *members;    /* the input vertices a vertex stands for: a list */
-    uint32_t *member_next; /* through these, from members[v]               */
+    const float *orig;    /* the points the vertices stand for: the input's  */
+                          /* positions, or decimate_carry.pts               */
+    uint32_t *members;    /* the points a vertex stands for: a list         */
+    uint32_t *member_next; /* through these (a point each), from members[v] */
     uint32_t *member_last; /* the list's last                              */
 } dec;
 
@@ -1012,6 +1013,49 @@ static isomend_status build_output(const dec *d, const isomend_mesh *in, isomend
     return ISOMEND_OK;
 }
 
+/* The kept vertices' quadrics (and with points, the points each stands
+ * for), in output order (build_output numbers the used vertices in input
+ * order); 0 without memory (nothing left allocated). */
+static int carry_out(const dec *d, decimate_carry *carry, int with_pts, size_t nv_out)
+{
+    uint8_t *used = calloc(d->nv + 1, 1);
+    carry->q_out = malloc(10 * sizeof(double) * (nv_out + 1));
+    if (with_pts) {
+        carry->pts_out = malloc((carry->pts_first[d->nv] + 1) * sizeof(uint32_t));
+        carry->pts_out_first = malloc((nv_out + 1) * sizeof(uint32_t));
+    }
+    if (!used || !carry->q_out || (with_pts && (!carry->pts_out || !carry->pts_out_first))) {
+        free(used);
+        free(carry->q_out);
+        free(carry->pts_out);
+        free(carry->pts_out_first);
+        carry->q_out = NULL;
+        carry->pts_out = carry->pts_out_first = NULL;
+        return 0;
+    }
+    for (size_t t = 0; t < d->nt; t++)
+        if (!d->tdead[t])
+            for (int k = 0; k < 3; k++)
+                used[d->tv[3 * t + (size_t)k]] = 1;
+    size_t o = 0;
+    uint32_t at = 0;
+    for (size_t v = 0; v < d->nv; v++) {
+        if (!used[v])
+            continue;
+        memcpy(carry->q_out + 10 * o, d->q + 10 * v, 10 * sizeof(double));
+        if (with_pts) {
+            carry->pts_out_first[o] = at;
+            for (uint32_t u = d->members[v]; u != NONE; u = d->member_next[u])
+                carry->pts_out[at++] = u;
+        }
+        o++;
+    }
+    if (with_pts)
+        carry->pts_out_first[o] = at;
+    free(used);
+    return 1;
+}
+
 /* --------------------------------------------------------------- the API */
 
 void isomend_decimate_options_init(isomend_decimate_options *o)
@@ -1043,7 +1087,7 @@ isomend_status mesh_decimate_to(const isomend_mesh *mesh, uint64_t target, doubl
 {
     *out = NULL;
     if (carry)
-        carry->q_out = NULL;
+        carry->q_out = NULL, carry->pts_out = carry->pts_out_first = NULL;
     if (kept)
         *kept = NULL;
     isomend_decimate_report rep;
@@ -1058,6 +1102,10 @@ isomend_status mesh_decimate_to(const isomend_mesh *mesh, uint64_t target, doubl
     rep.triangles_before = d.nt;
     rep.vertices_before = d.nv;
     rep.target_triangles = target;
+    const int carried_pts = carry && carry->pts && max_error > 0;
+    const size_t npts = carried_pts ? carry->pts_first[d.nv] : d.nv;
+    if (npts >= (size_t)UINT32_MAX)
+        return ISOMEND_ERR_TOO_LARGE;
 
     const size_t nv = d.nv ? d.nv : 1, nc = 3 * (d.nt ? d.nt : 1);
     d.p = malloc(3 * sizeof(double) * nv);
@@ -1079,20 +1127,28 @@ isomend_status mesh_decimate_to(const isomend_mesh *mesh, uint64_t target, doubl
     d.mark = calloc(nv, sizeof(uint32_t));
     if (max_error > 0) { /* only the distance check needs the members */
         d.members = malloc(nv * sizeof(uint32_t));
-        d.member_next = malloc(nv * sizeof(uint32_t));
+        d.member_next = malloc((npts ? npts : 1) * sizeof(uint32_t));
         d.member_last = malloc(nv * sizeof(uint32_t));
     }
-    d.orig = mesh->pos;
+    d.orig = carried_pts ? carry->pts : mesh->pos;
     d.max_dist = max_error;
     isomend_status status = ISOMEND_ERR_OUT_OF_MEMORY;
     if (!d.p || !d.q || !d.tv || !d.tdead || !d.merged || !d.fan_first || !d.fan || !d.cand ||
         !d.cand_tmp || !d.vf || !d.changed || !d.changed_before || !d.live || !d.border ||
         !d.cost_of || !d.mark || (max_error > 0 && (!d.members || !d.member_next || !d.member_last)))
         goto done;
-    if (d.members)
+    if (d.members && !carried_pts)
         for (size_t v = 0; v < d.nv; v++) {
             d.members[v] = d.member_last[v] = (uint32_t)v;
             d.member_next[v] = NONE;
+        }
+    if (d.members && carried_pts) /* vertex v's points, in order */
+        for (size_t v = 0; v < d.nv; v++) {
+            const uint32_t lo = carry->pts_first[v], hi = carry->pts_first[v + 1];
+            d.members[v] = lo < hi ? lo : NONE;
+            d.member_last[v] = lo < hi ? hi - 1 : NONE;
+            for (uint32_t u = lo; u < hi; u++)
+                d.member_next[u] = u + 1 < hi ? u + 1 : NONE;
         }
     for (size_t i = 0; i < 3 * d.nv; i++)
         d.p[i] = mesh->pos[i];
@@ -1155,33 +1211,14 @@ isomend_status mesh_decimate_to(const isomend_mesh *mesh, uint64_t target, doubl
     }
     rep.reached = d.alive <= target;
     status = build_output(&d, mesh, out, kept);
-    if (status == ISOMEND_OK && carry) { /* the kept vertices' quadrics, in output order */
-        carry->q_out = malloc(10 * sizeof(double) * ((*out)->nv + 1));
-        size_t o = 0;
-        if (!carry->q_out) {
-            isomend_mesh_destroy(*out);
-            *out = NULL;
-            status = ISOMEND_ERR_OUT_OF_MEMORY;
-        } else {
-            /* build_output numbers the used vertices in input order */
-            uint8_t *used = calloc(d.nv + 1, 1);
-            if (!used) {
-                free(carry->q_out);
-                carry->q_out = NULL;
-                isomend_mesh_destroy(*out);
-                *out = NULL;
-                status = ISOMEND_ERR_OUT_OF_MEMORY;
-            } else {
-                for (size_t t = 0; t < d.nt; t++)
-                    if (!d.tdead[t])
-                        for (int k = 0; k < 3; k++)
-                            used[d.tv[3 * t + (size_t)k]] = 1;
-                for (size_t v = 0; v < d.nv; v++)
-                    if (used[v])
-                        memcpy(carry->q_out + 10 * o++, d.q + 10 * v, 10 * sizeof(double));
-                free(used);
-            }
+    if (status == ISOMEND_OK && carry && !carry_out(&d, carry, carried_pts, (*out)->nv)) {
+        isomend_mesh_destroy(*out);
+        *out = NULL;
+        if (kept) {
+            free(*kept);
+            *kept = NULL;
         }
+        status = ISOMEND_ERR_OUT_OF_MEMORY;
     }
     if (status == ISOMEND_OK) {
         rep.triangles_after = (*out)->nt;

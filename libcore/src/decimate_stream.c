@@ -17,7 +17,22 @@
  * Targets.  Each window aims at the running total: ratio of the stream's
  * triangles so far, counting the triangles at the new top plane (which the
  * window cannot touch) as they are, so that the next window, where they are
- * free, reduces them.
+ * free, reduces them.  A triangle target needs the stream's count (an
+ * earlier pass over a spool of it: isomend_decimate_stream_expect()); the
+ * running total is then target * (triangles so far) / count, so the last
+ * window aims at the target itself.
+ *
+ * Maximum error.  decimate.c keeps every point a vertex stands for within
+ * max_error of the triangles around it.  In a window, a chunk's vertex
+ * stands for itself (its stream position); a held vertex for the stream
+ * vertices collapsed into it in earlier windows, carried from window to
+ * window (an arena of points, the slot's own bytes say where) less those
+ * already within max_error of its final triangles (which never change: a
+ * final triangle's vertices are final or locked in every later window).
+ * So at the start of a window every point carried by a vertex lies within
+ * max_error of its triangles in the window, as decimate.c's check assumes,
+ * and every stream vertex stays within max_error of the written surface,
+ * as in memory.
  *
  * Quadrics.  A held vertex keeps its quadric (decimate_carry, the slot's
  * own bytes): the planes of every stream triangle it stands for, so that
@@ -51,9 +66,13 @@
 #define BYTES_PER_TRIANGLE 256.0
 #define TRIANGLES_PER_SAMPLE 0.25
 
-/* A slot's own bytes: a held vertex's quadric, its triangles' planes so far. */
+/* A slot's own bytes: a held vertex's quadric, its triangles' planes so far;
+ * with max_error the stream vertices it stands for (points of the arena), or
+ * itself when it is a chunk's vertex not yet in a window (fresh). */
 typedef struct carried {
     double q[10];
+    uint32_t pts_first, npts;
+    uint32_t fresh;
 } carried;
 
 /* Floats x 9 (a triangle's corners), growable. */
@@ -71,8 +90,18 @@ typedef struct measured {
 struct isomend_decimate_stream {
     stream_window *w;
     double ratio;
+    uint64_t target;  /* target_triangles, 0: none                      */
+    int counted;      /* the stream's triangle count is known:          */
+    uint64_t count;   /* isomend_decimate_stream_expect()               */
+    uint64_t goal;    /* then the final target: max(ratio, target)      */
+    double max_error; /* 0: none                                        */
     int64_t K;
     double *q_out;      /* the last window's quadrics out (decimate_carry) */
+    /* max_error: the held vertices' points (the arena), and the window's
+     * points in and out (decimate_carry) until its result is taken */
+    float *pts;
+    float *wpts;
+    uint32_t *wfirst, *pts_out, *pts_out_first;
     uint64_t own_first; /* first id of the chunk's own vertices           */
 
     /* measuring */
@@ -144,6 +173,132 @@ static isomend_status measure_oldest(isomend_decimate_stream *d)
 
 /* ------------------------------------------------------------------ the window's hooks */
 
+/* The points window w's vertices stand for (max_error): a fresh vertex's
+ * own, a held one's from the arena; into carry (d->wpts, d->wfirst).  0
+ * without memory. */
+static int window_points(isomend_decimate_stream *d, stream_window *sw, const stream_window_mesh *w,
+                         decimate_carry *carry)
+{
+    const size_t nv = w->m->nv;
+    size_t total = 0;
+    for (size_t v = 0; v < nv; v++) {
+        const carried *c = stream_window_data(sw, w->slot[v]);
+        total += c->fresh ? 1 : c->npts;
+    }
+    if (total >= UINT32_MAX)
+        return 0;
+    d->wfirst = malloc((nv + 1) * sizeof *d->wfirst);
+    d->wpts = malloc((total + 1) * 12);
+    if (!d->wfirst || !d->wpts)
+        return 0;
+    uint32_t at = 0;
+    for (size_t v = 0; v < nv; v++) {
+        const carried *c = stream_window_data(sw, w->slot[v]);
+        d->wfirst[v] = at;
+        if (c->fresh) { /* a chunk's vertex, at its stream position */
+            memcpy(d->wpts + 3 * (size_t)at, w->m->pos + 3 * v, 12);
+            at++;
+        } else if (c->npts) {
+            memcpy(d->wpts + 3 * (size_t)at, d->pts + 3 * (size_t)c->pts_first,
+                   12 * (size_t)c->npts);
+            at += c->npts;
+        }
+    }
+    d->wfirst[nv] = at;
+    carry->pts = d->wpts;
+    carry->pts_first = d->wfirst;
+    return 1;
+}
+
+/* The window's points that still need carrying (max_error): those of r's
+ * vertices with a held triangle that lie farther than max_error from the
+ * vertex's final triangles in r, in a new arena; the other points are within
+ * it of a triangle that never changes.  0 without memory. */
+static int keep_points(isomend_decimate_stream *d, stream_window *sw, const isomend_mesh *r,
+                       const uint32_t *slot, const uint8_t *fin)
+{
+    const size_t rv = r->nv, rt = r->nt;
+    uint8_t *held = calloc(rv + 1, 1);
+    uint32_t *first = calloc(rv + 2, sizeof *first), *tris = NULL;
+    float *arena = malloc(((size_t)d->pts_out_first[rv] + 1) * 12);
+    if (!held || !first || !arena)
+        goto oom;
+    for (size_t t = 0; t < rt; t++)
+        if (!fin[t])
+            for (int k = 0; k < 3; k++)
+                held[r->tri[3 * t + (size_t)k]] = 1;
+    /* the final triangles around each vertex with a held one */
+    for (size_t t = 0; t < rt; t++)
+        for (int k = 0; fin[t] && k < 3; k++)
+            first[r->tri[3 * t + (size_t)k] + 1] += held[r->tri[3 * t + (size_t)k]];
+    for (size_t v = 0; v < rv; v++)
+        first[v + 1] += first[v];
+    tris = malloc(((size_t)first[rv] + 1) * sizeof *tris);
+    if (!tris)
+        goto oom;
+    for (size_t t = 0; t < rt; t++)
+        for (int k = 0; fin[t] && k < 3; k++) {
+            const uint32_t v = r->tri[3 * t + (size_t)k];
+            if (held[v])
+                tris[first[v]++] = (uint32_t)t;
+        }
+    for (size_t v = rv; v > 0; v--)
+        first[v] = first[v - 1];
+    first[0] = 0;
+    /* the kept points, into the new arena */
+    const double limit = d->max_error * d->max_error;
+    uint32_t at = 0;
+    for (size_t v = 0; v < rv; v++) {
+        carried *c = stream_window_data(sw, slot[v]);
+        c->fresh = 0;
+        c->pts_first = at;
+        c->npts = 0;
+        if (!held[v])
+            continue; /* all its triangles final: its points within max_error of them */
+        for (uint32_t i = d->pts_out_first[v]; i < d->pts_out_first[v + 1]; i++) {
+            const float *pf = d->wpts + 3 * (size_t)d->pts_out[i];
+            const double p[3] = {pf[0], pf[1], pf[2]};
+            double best = INFINITY;
+            for (uint32_t j = first[v]; j < first[v + 1] && best > limit; j++) {
+                double q[3][3];
+                for (int k = 0; k < 3; k++)
+                    for (int x = 0; x < 3; x++)
+                        q[k][x] =
+                            r->pos[3 * (size_t)r->tri[3 * (size_t)tris[j] + (size_t)k] + (size_t)x];
+                const double e = point_triangle_distance2(p, q[0], q[1], q[2]);
+                best = e < best ? e : best;
+            }
+            if (best > limit) {
+                memcpy(arena + 3 * (size_t)at, pf, 12);
+                at++;
+                c->npts++;
+            }
+        }
+    }
+    free(d->pts);
+    d->pts = arena;
+    free(held);
+    free(first);
+    free(tris);
+    return 1;
+oom:
+    free(held);
+    free(first);
+    free(tris);
+    free(arena);
+    return 0;
+}
+
+static void window_points_free(isomend_decimate_stream *d)
+{
+    free(d->wpts);
+    free(d->wfirst);
+    free(d->pts_out);
+    free(d->pts_out_first);
+    d->wpts = NULL;
+    d->wfirst = d->pts_out = d->pts_out_first = NULL;
+}
+
 /* Window w decimated to the running total, its vertices' quadrics carried in
  * and out. */
 static isomend_status decimate_window(void *user, stream_window *sw, const stream_window_mesh *w,
@@ -157,6 +312,7 @@ static isomend_status decimate_window(void *user, stream_window *sw, const strea
     d->soup[0].n = 0;
     free(d->q_out);
     d->q_out = NULL;
+    window_points_free(d);
 
     /* the running total at ratio, the new top plane's triangles as they are */
     uint64_t n_top = 0;
@@ -170,9 +326,17 @@ static isomend_status decimate_window(void *user, stream_window *sw, const strea
     }
     const stream_window_counts n = stream_window_counts_of(sw);
     const size_t nv = w->m->nv, nt = w->m->nt;
-    const double keep = ceil(d->ratio * (double)(n.triangles_in - n_top)) + (double)n_top;
+    if (d->target && !d->counted)
+        return ISOMEND_ERR_INVALID_ARGUMENT; /* a triangle target without the count */
+    const double ratio =
+        d->counted ? (d->count ? (double)d->goal / (double)d->count : 1.0) : d->ratio;
+    const double so_far = (double)(n.triangles_in - n_top);
+    const double keep =
+        (d->counted ? ceil((double)d->goal * so_far / (double)(d->count ? d->count : 1))
+                    : ceil(ratio * so_far)) +
+        (double)n_top;
     double target = keep - (double)n.final_triangles;
-    const double least = ceil(0.5 * d->ratio * (double)nt);
+    const double least = ceil(0.5 * ratio * (double)nt);
     target = target < least ? least : target;
     /* the held vertices' quadrics carry the planes of their earlier triangles
      * (the held ones' included); the chunk's triangles add theirs */
@@ -180,21 +344,27 @@ static isomend_status decimate_window(void *user, stream_window *sw, const strea
     if (!q_in)
         return ISOMEND_ERR_OUT_OF_MEMORY;
     for (size_t v = 0; v < nv; v++)
-        memcpy(q_in + 10 * v, stream_window_data(sw, w->slot[v]), sizeof(carried));
-    decimate_carry carry = {q_in, w->nheld, NULL};
+        memcpy(q_in + 10 * v, ((const carried *)stream_window_data(sw, w->slot[v]))->q,
+               10 * sizeof(double));
+    decimate_carry carry = {q_in, w->nheld, NULL, NULL, NULL, NULL, NULL};
     isomend_status st = ISOMEND_OK;
-    if (nt) {
+    if (d->max_error > 0 && !window_points(d, sw, w, &carry))
+        st = ISOMEND_ERR_OUT_OF_MEMORY;
+    if (nt && st == ISOMEND_OK) {
         isomend_decimate_report wr;
-        st = mesh_decimate_to(w->m, (uint64_t)target, 0.0, 0, r, kept, &carry, &wr);
+        st = mesh_decimate_to(w->m, (uint64_t)target, d->max_error, 0, r, kept, &carry, &wr);
         if (st == ISOMEND_OK) {
             d->rep.collapses += wr.collapses;
             d->rep.refused_topology += wr.refused_topology;
             d->rep.refused_geometry += wr.refused_geometry;
+            d->rep.refused_error += wr.refused_error;
             d->rep.locked_vertices += wr.locked_vertices;
         }
     }
     free(q_in);
     d->q_out = carry.q_out;
+    d->pts_out = carry.pts_out;
+    d->pts_out_first = carry.pts_out_first;
     return st;
 }
 
@@ -202,12 +372,23 @@ static isomend_status decimate_window(void *user, stream_window *sw, const strea
 static void take_result(void *user, stream_window *sw, const isomend_mesh *r, const uint32_t *slot,
                         const uint8_t *fin)
 {
-    (void)fin;
     isomend_decimate_stream *d = user;
     for (size_t v = 0; v < r->nv; v++) {
         memcpy(stream_window_pos(sw, slot[v]), r->pos + 3 * v, 12);
-        memcpy(stream_window_data(sw, slot[v]), d->q_out + 10 * v, sizeof(carried));
+        memcpy(((carried *)stream_window_data(sw, slot[v]))->q, d->q_out + 10 * v,
+               10 * sizeof(double));
     }
+    if (d->max_error > 0 && !keep_points(d, sw, r, slot, fin))
+        (void)stream_window_fail(sw, ISOMEND_ERR_OUT_OF_MEMORY);
+    window_points_free(d);
+}
+
+/* A slot made for a chunk's vertex stands for itself. */
+static void made_slot(void *user, void *data, const float *p)
+{
+    (void)user;
+    (void)p;
+    ((carried *)data)->fresh = 1;
 }
 
 /* A final triangle counts for the measurement of its window. */
@@ -301,8 +482,9 @@ isomend_status isomend_decimate_stream_begin(const isomend_volume *desc,
     *ds = NULL;
     double plane;
     if (!dopts || !out || !out->vertices || !out->triangles || !out->retire || chunk_layers < 0 ||
-        !(dopts->ratio > 0.0 && dopts->ratio <= 1.0) || dopts->target_triangles ||
-        dopts->max_error != 0.0)
+        !(dopts->ratio >= 0.0 && dopts->ratio <= 1.0) || !(dopts->max_error >= 0.0) ||
+        !isfinite(dopts->max_error) ||
+        (dopts->ratio == 0.0 && dopts->target_triangles == 0 && dopts->max_error == 0.0))
         return ISOMEND_ERR_INVALID_ARGUMENT;
     if (!plane_of(desc, opts, &plane))
         return ISOMEND_ERR_INVALID_ARGUMENT;
@@ -312,6 +494,8 @@ isomend_status isomend_decimate_stream_begin(const isomend_volume *desc,
     isomend_options defaults;
     isomend_options_init(&defaults);
     d->ratio = dopts->ratio;
+    d->target = dopts->target_triangles;
+    d->max_error = dopts->max_error;
     d->K = chunk_layers ? chunk_layers : isomend_decimate_stream_layers(desc, opts, 0);
     d->lag = (int)((MEASURE_LAYERS + d->K - 1) / d->K);
     d->lag = d->lag < 2 ? 2 : d->lag;
@@ -320,6 +504,7 @@ isomend_status isomend_decimate_stream_begin(const isomend_volume *desc,
     const stream_window_client client = {.user = d,
                                          .data_bytes = sizeof(carried),
                                          .band = RINGS,
+                                         .made = made_slot,
                                          .process = decimate_window,
                                          .settle = take_result,
                                          .final = count_final,
@@ -342,6 +527,17 @@ isomend_status isomend_decimate_stream_sink(isomend_decimate_stream *d, isomend_
     return ISOMEND_OK;
 }
 
+isomend_status isomend_decimate_stream_expect(isomend_decimate_stream *d, uint64_t triangles)
+{
+    if (!d || d->counted || stream_window_counts_of(d->w).triangles_in != 0)
+        return ISOMEND_ERR_INVALID_ARGUMENT;
+    d->counted = 1;
+    d->count = triangles;
+    const double by_ratio = ceil(d->ratio * (double)triangles);
+    d->goal = by_ratio > (double)d->target ? (uint64_t)by_ratio : d->target;
+    return ISOMEND_OK;
+}
+
 isomend_status isomend_decimate_stream_finish(isomend_decimate_stream *d,
                                               isomend_decimate_report *report)
 {
@@ -354,16 +550,18 @@ isomend_status isomend_decimate_stream_finish(isomend_decimate_stream *d,
     (void)stream_window_finish(d->w, d->own_first < next_id);
     while (stream_window_status(d->w) == ISOMEND_OK && d->npend)
         (void)measure_oldest(d);
-    const isomend_status st = stream_window_close(d->w);
+    isomend_status st = stream_window_close(d->w);
+    const stream_window_counts n = stream_window_counts_of(d->w);
+    if (st == ISOMEND_OK && d->counted && n.triangles_in != d->count) /* not the stream expected */
+        st = stream_window_fail(d->w, ISOMEND_ERR_INVALID_ARGUMENT);
     if (st != ISOMEND_OK)
         return st;
-    const stream_window_counts n = stream_window_counts_of(d->w);
     isomend_decimate_report *r = &d->rep;
     r->triangles_before = n.triangles_in;
     r->triangles_after = n.triangles_out;
     r->vertices_before = n.vertices_in;
     r->vertices_after = n.vertices_out;
-    r->target_triangles = (uint64_t)ceil(d->ratio * (double)n.triangles_in);
+    r->target_triangles = d->counted ? d->goal : (uint64_t)ceil(d->ratio * (double)n.triangles_in);
     r->reached = r->triangles_after <= r->target_triangles;
     r->max_error = d->err_max;
     r->mean_error = d->err_n ? d->err_sum / (double)d->err_n : 0.0;
@@ -378,6 +576,8 @@ void isomend_decimate_stream_destroy(isomend_decimate_stream *d)
         return;
     stream_window_destroy(d->w);
     free(d->q_out);
+    free(d->pts);
+    window_points_free(d);
     for (int j = 0; d->pend && j < d->lag + 1; j++)
         free(d->pend[j].p);
     for (int j = 0; d->soup && j < d->lag + 2; j++)

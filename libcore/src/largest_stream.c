@@ -76,6 +76,7 @@ struct isomend_largest_stream {
     size_t cap_parent;
     uint8_t *bits; /* pass 2: the seed's component is kept */
     lcomp *comps;  /* pass 1: the closed components of min_triangles */
+    uint64_t kept_triangles; /* the kept components' (after the replay)  */
     size_t ncomps, cap_comps;
     uint32_t *fresh; /* a retire's roots without a seed */
     size_t cap_fresh;
@@ -319,8 +320,10 @@ isomend_status isomend_largest_stream_replay(isomend_largest_stream *c)
     c->bits = calloc((size_t)(c->nseeds / 8 + 1), 1);
     if (!c->bits)
         return fail(c, ISOMEND_ERR_OUT_OF_MEMORY);
-    for (size_t i = 0; i < kept; i++)
+    for (size_t i = 0; i < kept; i++) {
         c->bits[c->comps[i].seed >> 3] |= (uint8_t)(1u << (c->comps[i].seed & 7));
+        c->kept_triangles += c->comps[i].triangles;
+    }
     for (uint64_t s = 0; s < c->nseeds; s++) /* a parent is smaller: done already */
         if (c->parent[s] != s && (c->bits[c->parent[s] >> 3] >> (c->parent[s] & 7)) & 1)
             c->bits[s >> 3] |= (uint8_t)(1u << (s & 7));
@@ -337,6 +340,11 @@ isomend_status isomend_largest_stream_replay(isomend_largest_stream *c)
     c->nseeds = 0;
     c->pass = 2;
     return ISOMEND_OK;
+}
+
+uint64_t isomend_largest_stream_kept_triangles(const isomend_largest_stream *c)
+{
+    return c && c->pass >= 2 ? c->kept_triangles : 0;
 }
 
 isomend_status isomend_largest_stream_finish(isomend_largest_stream *c,

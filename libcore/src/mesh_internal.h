@@ -68,10 +68,18 @@ typedef struct decimate_carry {
     const double *q_in;  /* 10 an input vertex, added to its quadric (NULL: none)    */
     size_t planes_from;  /* only triangles from this one on add their planes         */
     double *q_out;       /* out: 10 an output vertex, malloc'ed (the caller frees)  */
+    /* max_error: the points an input vertex stands for, which the check keeps
+     * within max_error (NULL: each vertex stands for itself, at mesh->pos) */
+    const float *pts;          /* 3 floats a point                                  */
+    const uint32_t *pts_first; /* nv + 1: vertex v's are [pts_first[v], pts_first[v + 1]) */
+    uint32_t *pts_out;         /* out (with pts): the points of the output vertices, */
+    uint32_t *pts_out_first;   /* by vertex (nv_out + 1 of these); malloc'ed        */
 } decimate_carry;
 /* carry (may be NULL): quadrics carried in and out, for a decimation in
  * pieces whose earlier triangles' planes are already in their vertices'
- * quadrics (decimate_stream.c). */
+ * quadrics (decimate_stream.c); with max_error and pts, the points each
+ * vertex stands for carried in and out (the stream's vertices a held vertex
+ * was collapsed from, which must stay within max_error of its triangles). */
 isomend_status mesh_decimate_to(const isomend_mesh *mesh, uint64_t target, double max_error,
                                 int measure, isomend_mesh **out, uint32_t **kept,
                                 decimate_carry *carry, isomend_decimate_report *report);

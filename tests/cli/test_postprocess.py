@@ -39,12 +39,11 @@ they are.  For each, every option alone and in combinations:
   post-processing's threads follow the process's cores), and the same bytes twice;
 - bad values (--decimate 0, 1.5, x, --max-error -1, --smooth 0, 20000,
   --min-component 0, ...) are usage errors (exit 2) with one line naming the
-  flag and no output file; isomend-mpi refuses --target-triangles,
-  --max-error (exit 2); `mpirun -n N isomend-mpi extract --decimate R` writes the bytes of
-  `isomend extract --stream --decimate R` for N = 1, 2, 3, closed; a
-  --max-memory that forces streaming refuses the steps that need the whole
-  mesh (all but --decimate RATIO) with exit 1, the message naming the flag and
-  no file.
+  flag and no output file; `mpirun -n N isomend-mpi extract` with --decimate
+  R, --target-triangles N, --max-error E and --decimate R --max-error E
+  writes the bytes of `isomend extract --stream` with the same flags for
+  N = 1, 2, 3, closed, the report's counts and target those of the streamed
+  run (the streamed targets themselves: test_postprocess_stream.py).
 
 The independent checkers are first run on deliberately broken meshes (a
 removed triangle, a flipped one, a triangle used three times, a moved
@@ -506,17 +505,14 @@ def test_errors(exe, mpi, mpirun, work, samples):
         lines = err.strip().splitlines()
         if rc != 2 or len(lines) != 1 or flag not in lines[0] or os.path.exists(out):
             fail(f"bad {' '.join(flags)}", f"exit {rc}, stderr {err.strip()!r}, file {os.path.exists(out)}")
-    if mpi:
+    if mpi:  # isomend-mpi's bad values: usage errors as isomend's
         env = clitest.mpi_env()
-        # isomend-mpi cleans, smooths and decimates (as the streamed run:
-        # test_postprocess_stream.py and mpi_decimate below); the steps that need the
-        # whole mesh it does not take
-        for flags in (["--max-error", "1"], ["--target-triangles", "100"]):
+        for flags in (["--max-error", "-1"], ["--target-triangles", "0"]):
             p = subprocess.run([mpirun, "-n", "1", mpi, "extract", anat, "--pad", "-o", out, *flags],
                                cwd=work, capture_output=True, text=True, env=env, timeout=120)
             if p.returncode != 2 or flags[0] not in p.stderr or os.path.exists(out):
                 fail(f"isomend-mpi {' '.join(flags)}", f"exit {p.returncode}, stderr {p.stderr.strip()!r}")
-    # --max-memory forcing the streamed path: refused with the need, nothing written
+    # --max-memory forcing the streamed path
     rc, o, err = run(exe, ["extract", anat, "--pad", "-q", "-o", out, "--json", "-"], work)
     j = json.loads(o)
     os.remove(out)
@@ -526,61 +522,59 @@ def test_errors(exe, mpi, mpirun, work, samples):
         fail("--max-memory alone", f"the streamed run failed: exit {rc}, {err.strip()}")
     if os.path.exists(out):
         os.remove(out)
-    # the steps that need the whole mesh are refused on a streamed run (the
-    # streamed --min-component, --smooth, --decimate are test_postprocess_stream.py's)
-    before = sorted(os.listdir(work))
-    for flags in (["--largest", "2", "--target-triangles", "100"],
-                  ["--decimate", "0.1", "--target-triangles", "100"],
-                  ["--decimate", "0.1", "--max-error", "0.5"]):
-        rc, o, err = run(exe, ["extract", anat, "--pad", "-o", out, "--max-memory", limit, *flags], work)
-        lines = err.strip().splitlines()
-        flag = flags[-2]
-        if rc != 1 or "--decimate RATIO only" not in err or "--max-memory" not in err or \
-                flag not in err or sorted(os.listdir(work)) != before:
-            fail(f"streamed {flag}", f"exit {rc}, stderr {err.strip()!r}")
-        elif len([ln for ln in lines if ln.startswith("isomend:") and "RATIO only" in ln]) != 1:
-            fail(f"streamed {flag}", f"not one message line: {lines}")
+    # (the streamed steps, --target-triangles and --max-error included, are
+    # test_postprocess_stream*.py's)
+
+
+MPI_STEPS = (["--decimate", "0.1"], ["--target-triangles", "1500"], ["--max-error", "0.8"],
+             ["--decimate", "0.2", "--max-error", "0.4"])
 
 
 def mpi_decimate(exe, mpi, mpirun, work, cases):
-    """mpirun -n N isomend-mpi extract --decimate: the bytes of isomend extract
-    --stream --decimate, for N = 1, 2, 3, chunks of 3 layers and the default;
-    its JSON check closed and equal to the streamed run's."""
+    """mpirun -n N isomend-mpi extract with the decimation's flags (MPI_STEPS):
+    the bytes of isomend extract --stream with them, for N = 1, 2, 3, chunks
+    of 3 layers and the default (--decimate; the others with chunks of 3, not
+    on the phantom);
+    its JSON check closed and equal to the streamed run's, and its report's
+    counts and target."""
     env = clitest.mpi_env()
-    for case in cases:
-        for chunk in (["--chunk-layers", "3"], []):
-            ref = os.path.join(work, f"{case.name}_dec_stream.ply")
-            rc, o, err = run(exe, ["extract", *case.args, "--decimate", "0.1", "--stream", *chunk,
-                                   "-q", "-o", ref, "--json", "-"], work)
-            if rc:
-                fail(f"{case.name} streamed decimation", err.strip())
+    for case, steps, chunk in [(c, st, ch) for c in cases for st in MPI_STEPS
+                               for ch in (["--chunk-layers", "3"], [])
+                               if st == MPI_STEPS[0] or (ch and c.name != "ct")]:
+        ref = os.path.join(work, f"{case.name}_dec_stream.ply")
+        rc, o, err = run(exe, ["extract", *case.args, *steps, "--stream", *chunk,
+                               "-q", "-o", ref, "--json", "-"], work)
+        if rc:
+            fail(f"{case.name} streamed {' '.join(steps)}", err.strip())
+            continue
+        jref = json.loads(o)
+        for n in (1, 2, 3):
+            out = os.path.join(work, f"{case.name}_dec_mpi{n}.ply")
+            p = subprocess.run([mpirun, "--oversubscribe", "-n", str(n), mpi, "extract",
+                                *case.args, *steps, *chunk, "-q", "-o", out,
+                                "--json", "-"], cwd=work, capture_output=True, text=True,
+                               env=env, timeout=300)
+            what = f"{case.name} isomend-mpi -n {n} {' '.join(steps + chunk)}"
+            if p.returncode:
+                fail(what, f"exit {p.returncode}: {p.stderr.strip()}")
                 continue
-            jref = json.loads(o)
-            for n in (1, 2, 3):
-                out = os.path.join(work, f"{case.name}_dec_mpi{n}.ply")
-                p = subprocess.run([mpirun, "--oversubscribe", "-n", str(n), mpi, "extract",
-                                    *case.args, "--decimate", "0.1", *chunk, "-q", "-o", out,
-                                    "--json", "-"], cwd=work, capture_output=True, text=True,
-                                   env=env, timeout=300)
-                what = f"{case.name} isomend-mpi -n {n} --decimate 0.1 {' '.join(chunk)}"
-                if p.returncode:
-                    fail(what, f"exit {p.returncode}: {p.stderr.strip()}")
-                    continue
-                j = json.loads(p.stdout)
-                with open(ref, "rb") as f1, open(out, "rb") as f2:
-                    same = f1.read() == f2.read()
-                if not same:
-                    fail(what, "not the bytes of isomend extract --stream --decimate")
-                elif j["check"] != jref["check"] or not (case.border or j["check"]["continuous"]):
-                    fail(what, f"check {j['check']} vs {jref['check']}")
-                elif j["postprocess"]["decimate"]["triangles_after"] != \
-                        jref["postprocess"]["decimate"]["triangles_after"]:
-                    fail(what, "another triangle count in the report")
-                else:
-                    print(f"ok   {what}: the streamed bytes, "
-                          f"{j['postprocess']['decimate']['triangles_after']} triangles")
-                os.remove(out)
-            os.remove(ref)
+            j = json.loads(p.stdout)
+            with open(ref, "rb") as f1, open(out, "rb") as f2:
+                same = f1.read() == f2.read()
+            if not same:
+                fail(what, f"not the bytes of isomend extract --stream {' '.join(steps)}")
+            elif j["check"] != jref["check"] or not (case.border or j["check"]["continuous"]):
+                fail(what, f"check {j['check']} vs {jref['check']}")
+            elif any(j["postprocess"]["decimate"][k] != jref["postprocess"]["decimate"][k]
+                     for k in ("triangles_before", "triangles_after", "target_triangles",
+                               "reached", "max_error")):
+                fail(what, f"another report: {j['postprocess']['decimate']} vs the streamed "
+                           f"{jref['postprocess']['decimate']}")
+            else:
+                print(f"ok   {what}: the streamed bytes, "
+                      f"{j['postprocess']['decimate']['triangles_after']} triangles")
+            os.remove(out)
+        os.remove(ref)
 
 
 def blob(path, n=44):

@@ -1,7 +1,9 @@
 #!/usr/bin/env python3
-"""`isomend extract --decimate RATIO` on a streamed run (`--stream`, or a mesh
-that does not fit `--max-memory`): the mesh decimated chunk by chunk as it
-streams (the core's isomend_decimate_stream_*), against independent checks.
+"""`isomend extract --decimate RATIO`, `--max-error E` and `--target-triangles
+N` on a streamed run (`--stream`, or a mesh that does not fit `--max-memory`):
+the mesh decimated chunk by chunk as it streams (the core's
+isomend_decimate_stream_*; --target-triangles in two passes over a scratch
+spool, the first counting), against independent checks.
 
 Volumes: the bundled MRI (suggested iso), a CT-like phantom in HU at 300.5
 (hollow bone balls, a torus, small fragments), padded random noise (dozens of
@@ -35,10 +37,22 @@ each, --decimate 0.1 and 0.25 with --chunk-layers 2, 5 and the default:
   is the in-memory decimation, byte for byte;
 - PLY, OBJ (vtkOBJReader, numpy: the PLY's vertices and triangles) and STL
   (`isomend check`, vtkSTLReader) of the same run;
-- bad use: --target-triangles, --max-error on a streamed run (--stream or a small --max-memory) exit 1
-  with one message naming the flag and no file; a small --max-memory with
-  --decimate alone streams (the --stream bytes); --chunk-layers 0, -3, x,
-  2.5, '', 1e3 exit 2 naming --chunk-layers, no file;
+- --max-error E (E = 0.4 % of the bounding box's diagonal) and
+  --target-triangles N (N = 8 % of the triangles), with --chunk-layers 2 and
+  the default, on every volume: the surface checks above; the same bytes on
+  --threads 1 and 2; triangles at most 1.25 x the in-memory run's with the
+  same flags; --max-error: the reported max_error and vtkCellLocator's largest
+  distance from the undecimated vertices within E (and within the reported
+  one), some collapses refused by the error, target_triangles 0;
+  --target-triangles: target_triangles N, `reached` exactly when the file has
+  at most N; and, with the default chunks, --decimate 0.1 with a larger
+  target (the target), --decimate 0.2 with a smaller one (the ratio's count)
+  and --target-triangles N with --max-error 2E (both: the target, the error
+  bound), as the in-memory run defines them;
+- bad use: a small --max-memory with --decimate alone streams (the --stream
+  bytes), so do --max-error and --target-triangles with it and the other
+  steps (exit 0, streamed, closed); --chunk-layers 0, -3, x, 2.5, '', 1e3
+  exit 2 naming --chunk-layers, no file;
 - larger than memory: a u16 gyroid-like volume 8 x --max-memory SIZE with
   --pad, `--max-memory SIZE --decimate 0.1` streams, decimates streamed,
   writes a closed mesh whose components and Euler characteristic are those
@@ -157,13 +171,22 @@ class Case:
 
 # ------------------------------------------------------------------ a volume
 
-def check_report(tag, d, ratio, before, of, ov, streamed, chunk):
-    """The decimate report against the counts, the flags and the file."""
+def wanted_target(triangles, ratio=None, target=None):
+    """The in-memory definition: the larger of ceil(ratio x triangles) and
+    the target (0: --max-error alone)."""
+    by_ratio = math.ceil(float(ratio) * triangles - 1e-9) if ratio else 0
+    return max(by_ratio, int(target or 0))
+
+
+def check_report(tag, d, ratio, before, of, ov, streamed, chunk, want_target=None):
+    """The decimate report against the counts, the flags and the file
+    (want_target: the target when not ceil(ratio x triangles))."""
     if d is None:
         fail(tag, "no postprocess.decimate in --json")
         return False
     ok = True
-    want_target = math.ceil(float(ratio) * before["triangles"] - 1e-9)
+    if want_target is None:
+        want_target = wanted_target(before["triangles"], ratio)
     if (d["triangles_before"], d["vertices_before"]) != (before["triangles"], before["vertices"]):
         fail(tag, f"report before {d['triangles_before']}/{d['vertices_before']}, the undecimated "
                   f"mesh has {before['triangles']}/{before['vertices']}")
@@ -173,8 +196,8 @@ def check_report(tag, d, ratio, before, of, ov, streamed, chunk):
                   f"{len(of)}/{len(ov)}")
         ok = False
     if d["target_triangles"] != want_target:
-        fail(tag, f"target_triangles {d['target_triangles']}, want ceil({ratio} x "
-                  f"{before['triangles']}) = {want_target}")
+        fail(tag, f"target_triangles {d['target_triangles']}, want {want_target} ({ratio} x "
+                  f"{before['triangles']} or the target)")
         ok = False
     if d["reached"] != (len(of) <= d["target_triangles"]):
         fail(tag, f"reached {d['reached']} with {len(of)} triangles for {d['target_triangles']}")
@@ -309,13 +332,7 @@ def test_case(exe, work, case):
             d = decimate_report(j)
             if not check_report(tag, d, ratio, base, of, ov, True, chunk):
                 continue
-            if len(of) > 1.25 * len(mf):
-                fail(tag, f"{len(of)} triangles, more than 1.25 x the in-memory decimation's {len(mf)}")
-            dist = distances(bpoly, opoly)
-            slack = 1e-6 * diag
-            if dist.max() > d["max_error"] * (1 + 1e-4) + slack:
-                fail(tag, f"measured max distance {dist.max():.9g} > reported max_error "
-                          f"{d['max_error']:.9g} (repro: isomend extract {' '.join(src + flags)} -o m.ply)")
+            dist, slack = against_memory(tag, of, mf, d, bpoly, opoly, diag)
             if dist.mean() > d["mean_error"] * (1 + 1e-3) + slack:
                 fail(tag, f"measured mean distance {dist.mean():.9g} > reported mean_error "
                           f"{d['mean_error']:.9g}")
@@ -333,8 +350,89 @@ def test_case(exe, work, case):
                 test_formats(exe, work, case, flags, path, j)
             os.remove(path)
         os.remove(mp)
+    test_targets(exe, work, case, base, bpoly, bcomps, diag)
     os.remove(raw)
     print(f"  {case.name}: {time.time() - t0:.1f} s", flush=True)
+
+
+def against_memory(tag, of, mf, d, bpoly, opoly, diag):
+    """A streamed run's triangles (of) at most 1.25 x the in-memory run's (mf);
+    vtkCellLocator's distances from the undecimated mesh (bpoly) to the result
+    within the reported max_error.  Returns (the distances, the slack)."""
+    if len(of) > 1.25 * len(mf):
+        fail(tag, f"{len(of)} triangles, more than 1.25 x the in-memory run's {len(mf)}")
+    dist = distances(bpoly, opoly)
+    slack = 1e-6 * diag
+    if dist.max() > d["max_error"] * (1 + 1e-4) + slack:
+        fail(tag, f"measured max distance {dist.max():.9g} > reported max_error "
+                  f"{d['max_error']:.9g}")
+    return dist, slack
+
+
+def test_targets(exe, work, case, base, bpoly, bcomps, diag):
+    """--max-error and --target-triangles streamed, alone and combined,
+    against the in-memory run with the same flags."""
+    src = case.args
+    T = base["triangles"]
+    E = f"{0.004 * diag:.6g}"
+    N = str(max(8, round(0.08 * T)))
+    runs = [(["--max-error", E], None),
+            (["--target-triangles", N], 2),
+            (["--max-error", E], 2),
+            (["--target-triangles", N], None),
+            (["--decimate", "0.1", "--target-triangles", str(round(0.15 * T))], None),
+            (["--decimate", "0.2", "--target-triangles", N], None),
+            (["--target-triangles", N, "--max-error", f"{2 * float(E):.6g}"], None)]
+    for flags, chunk in runs:
+        opts = dict(zip(flags[::2], flags[1::2]))
+        ratio, target = opts.get("--decimate"), opts.get("--target-triangles")
+        bound = float(opts["--max-error"]) if "--max-error" in opts else None
+        want = wanted_target(T, ratio, target)
+        mp = os.path.join(work, f"{case.name}_tmem.ply")
+        tag = f"{case.name} --in-memory {' '.join(flags)}"
+        rc, jm, err = extract(exe, work, src, ["--in-memory", *flags], mp)
+        if rc:
+            fail(tag, f"exit {rc}: {err.strip()}")
+            continue
+        mv, mf, mpoly = check_surface(exe, work, tag, mp, jm, base, bcomps)
+        check_report(tag, decimate_report(jm), ratio, base, mf, mv, False, None, want)
+        os.remove(mp)
+        cflags = ["--chunk-layers", str(chunk)] if chunk else []
+        sflags = ["--stream", *flags, *cflags]
+        tag = f"{case.name} {' '.join(sflags)}"
+        paths = []
+        for t in ("1", "2"):
+            path = os.path.join(work, f"{case.name}_t{t}.ply")
+            rc, j, err = extract(exe, work, src, [*sflags, "--threads", t], path)
+            if rc:
+                fail(tag, f"--threads {t}: exit {rc}: {err.strip()} (repro: isomend extract "
+                          f"{' '.join(src + sflags)} -o m.ply)")
+                break
+            paths.append((path, j))
+        if len(paths) != 2:
+            continue
+        (path, j), (other, _) = paths
+        if not clitest.same_file(path, other):
+            fail(tag, "--threads 1 and --threads 2 write different files")
+        os.remove(other)
+        if not j["streamed"]:
+            fail(tag, "--json says not streamed")
+        ov, of, opoly = check_surface(exe, work, tag, path, j, base, bcomps)
+        d = decimate_report(j)
+        os.remove(path)
+        if not check_report(tag, d, ratio, base, of, ov, True, chunk, want):
+            continue
+        dist, slack = against_memory(tag, of, mf, d, bpoly, opoly, diag)
+        if bound is not None:
+            if d["max_error"] > bound * (1 + 1e-5) or dist.max() > bound * (1 + 1e-5) + slack:
+                fail(tag, f"max distance {dist.max():.9g} (reported {d['max_error']:.9g}) beyond "
+                          f"--max-error {bound}")
+            if d["refused_error"] == 0:
+                fail(tag, "no collapse refused by --max-error: the bound was not exercised")
+        print(f"  {' '.join(flags + cflags):>52s}: {len(of):6d} tri (in memory {len(mf):6d}, "
+              f"{len(of) / max(1, len(mf)):.3f}x; target {d['target_triangles']}, reached "
+              f"{d['reached']}); max dist {dist.max():.4g} (reported {d['max_error']:.4g}, "
+              f"in memory {decimate_report(jm)['max_error']:.4g})", flush=True)
 
 
 def test_formats(exe, work, case, flags, ply, j):
@@ -383,24 +481,24 @@ def test_errors(exe, work, samples):
     os.remove(out)
     limit = str((j["memory_estimate"] + j["memory_streaming"]) // 2)
     iso = repr(j["iso"])  # given: no "using the suggested level" line on stderr
-    # (--largest is streamed: test_postprocess_stream_largest.py)
-    refused = [(["--stream", "--min-component", "5", "--max-error", "0.5"], "--max-error"),
-               (["--stream", "--target-triangles", "100"], "--target-triangles"),
-               (["--stream", "--decimate", "0.1", "--max-error", "0.5"], "--max-error"),
-               (["--stream", "--max-error", "0.5"], "--max-error"),
-               (["--stream", "--decimate", "0.1", "--target-triangles", "100"], "--target-triangles"),
-               (["--max-memory", limit, "--smooth", "3", "--target-triangles", "100"],
-                "--target-triangles"),
-               (["--max-memory", limit, "--largest", "1", "--max-error", "0.1"], "--max-error")]
-    for flags, flag in refused:
-        tag = f"refused {' '.join(flags)}"
-        rc, o, err = run(exe, ["extract", anat, "--pad", "--iso", iso, "-q", "-o", out, *flags], work)
-        lines = [ln for ln in err.strip().splitlines() if ln.startswith("isomend")]
-        if rc != 1 or flag not in err or len(lines) != 1 or sorted(os.listdir(work)) != before:
-            fail(tag, f"exit {rc} (want 1), stderr {err.strip()!r} (want one message naming {flag}), "
-                      f"files {sorted(set(os.listdir(work)) - set(before))}")
+    # under that --max-memory the targets stream too, with the other steps
+    for flags in (["--min-component", "5", "--max-error", "0.5"],
+                  ["--smooth", "3", "--target-triangles", "3000"],
+                  ["--largest", "1", "--max-error", "1", "--target-triangles", "1500"]):
+        tag = f"--max-memory {limit} {' '.join(flags)}"
+        rc, o, err = run(exe, ["extract", anat, "--pad", "--iso", iso, "-q", "-o", out,
+                               "--max-memory", limit, *flags, "--json", "-"], work)
+        j = json.loads(o) if rc == 0 else None
+        d = decimate_report(j)
+        if rc or not j["streamed"] or not (d or {}).get("streamed") or \
+                not (j["check"] or {}).get("continuous"):
+            fail(tag, f"exit {rc} {err.strip()}, streamed {j and j['streamed']}, {d}, "
+                      f"check {j and j['check']}")
         else:
-            print(f"ok   {tag}: {lines[0]}")
+            print(f"ok   {tag}: streamed, {d['triangles_after']} triangles, target "
+                  f"{d['target_triangles']}, largest error {d['max_error']:.4g}, closed")
+        if os.path.exists(out):
+            os.remove(out)
     # the streamed decimation under that --max-memory: streamed without --stream
     mp = os.path.join(work, "limited.ply")
     rc, o, err = run(exe, ["extract", anat, "--pad", "-q", "-o", mp, "--max-memory", limit,

@@ -25,9 +25,9 @@ issue:
   triangles) cleaned, smoothed (--smooth 1: a larger N's band does not fit
   32M beside the rest) and decimated within the limit plus the program's
   fixed overhead (peak by wait4), closed (about 80 s);
-- --target-triangles, --max-error still refused on a streamed (--largest:
-  test_postprocess_stream_largest.py)
-  run (tested in test_postprocess_stream.py and test_postprocess.py).
+- (--largest: test_postprocess_stream_largest.py; --target-triangles and
+  --max-error on a streamed run: test_postprocess_stream.py, on isomend-mpi:
+  test_postprocess.py).
 
 usage: test_postprocess_stream_steps.py --isomend PATH --samples DIR --work DIR
          --peak-rss PATH [--no-memory-bounds] [--isomend-mpi PATH --mpirun PATH]

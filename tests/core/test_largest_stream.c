@@ -10,6 +10,8 @@
  *     isomend_mesh_clean(mesh, min, keep): the same multiset of triangles by
  *     their corners' positions, the same check report and report counts;
  *   - one retire a layer, as the stream's;
+ *   - isomend_largest_stream_kept_triangles(): 0 before replay(), then the
+ *     triangles pass 2 passes;
  *   - the same bytes whatever the threads of either pass (1, 2, 3);
  *   - a second pass that is not the first's stream is refused at finish;
  *   - bad arguments are refused and a sink that stops stops the stream.
@@ -42,14 +44,20 @@ static isomend_status stream_largest(const isomend_volume *vol, const isomend_vo
         return st;
     isomend_mesh_sink in;
     isomend_largest_stream_sink(ls, &in);
+    uint64_t kept = 0; /* what replay() says pass 2 will pass */
     for (int pass = 0; pass < 2 && st == ISOMEND_OK; pass++) {
         const isomend_volume *v = pass && vol2 ? vol2 : vol;
         o.threads = pass ? t2 : t1;
         st = stream_volume(v, &o, &in);
-        if (st == ISOMEND_OK && pass == 0)
+        if (st == ISOMEND_OK && pass == 0) {
+            CHECK_EQ_INT(isomend_largest_stream_kept_triangles(ls), 0);
             st = isomend_largest_stream_replay(ls);
+            kept = isomend_largest_stream_kept_triangles(ls);
+        }
     }
     const isomend_status fs = isomend_largest_stream_finish(ls, rep);
+    if (st == ISOMEND_OK && fs == ISOMEND_OK && !vol2)
+        CHECK_EQ_INT(kept, c->nt);
     isomend_largest_stream_destroy(ls);
     if (st == ISOMEND_OK)
         st = fs;
