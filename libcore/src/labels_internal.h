@@ -1,0 +1,79 @@
+/*
+ * labels_internal.h - what the label-map extraction's two files share
+ * (private): labels.c (the API, the labels' codes, the slabs on threads,
+ * the meshes joined from the slabs' parts) and labels_sweep.c (one slab's
+ * sweep: samples to codes, vertices, triangles).
+ *
+ * Codes.  Each sample of the marched grid becomes a uint32 code: the index
+ * 0 .. count - 1 of its value among the requested labels, `count` (OTHER)
+ * for any other value, `count + 1` (PAD) for the padding layer.  Every
+ * decision of the sweep (which edges are cut, each label's cube
+ * configuration) compares codes only, so it is the same for every voxel
+ * type and needs no look-up after the conversion.
+ */
+#ifndef ISOMEND_LABELS_INTERNAL_H
+#define ISOMEND_LABELS_INTERNAL_H
+
+#include "mesh_internal.h"
+
+#include <stdatomic.h>
+
+/* A slab's triangle refers to vertex f of the next slab's first slice as
+ * LABEL_FOREIGN | f (that slice belongs to the next slab). */
+#define LABEL_FOREIGN 0x80000000u
+
+/* One label's part of one slab: its vertices (ids local to the slab, in the
+ * order of the whole mesh) and triangles. */
+typedef struct label_part {
+    float *pos, *nrm;
+    uint32_t *tri;
+    uint8_t *org;
+    size_t nv, nt, cap_v, cap_t;
+    uint32_t foreign; /* vertices of the next slab's first slice numbered here */
+} label_part;
+
+/* What every slab reads: the volume, the marched grid, the codes, the options. */
+typedef struct label_job {
+    const char *data;
+    isomend_type type;
+    int64_t st[3];      /* byte strides of the volume                   */
+    int64_t n[3], N[3]; /* volume and marched grid (N = n + 2 pad)      */
+    int64_t pad;        /* 0 or 1                                       */
+    double o[3], h[3], inv2h[3];
+    uint32_t count; /* requested labels: codes 0 .. count - 1       */
+    /* value -> code: a table for 8- and 16-bit types (value - table_min), a
+     * sorted list of the requested values for 32-bit ones */
+    const uint32_t *table;
+    int64_t table_min;
+    const int64_t *sorted;
+    const uint32_t *sorted_code;
+    int method; /* ISOMEND_METHOD_MC, _DURST or _DMC            */
+    int flip, normals, origins;
+    atomic_int cancel; /* a slab failed, or progress asked to stop     */
+    isomend_progress_fn progress;
+    void *progress_user;
+} label_job;
+
+#define LABEL_RING 4
+
+/* One slab of layers, swept by one thread. */
+typedef struct label_slab {
+    label_job *job;
+    int64_t k0, k1;   /* layers [k0, k1); slices [k0, k1) are its own, */
+    int last;         /* and [k0, N2) for the last slab               */
+    int reports;      /* this slab calls the progress callback        */
+    label_part *part; /* job->count                                   */
+    uint64_t *voxels; /* job->count: samples of each label in its slices */
+    uint32_t *codes[LABEL_RING];
+    int64_t held[LABEL_RING]; /* the slice each code slot holds, -1: none     */
+    uint32_t *ids[2];         /* per slice: 3 axes x N0 N1 edges x 2 ids       */
+    isomend_status status;
+} label_slab;
+
+/* labels_sweep.c: the code of a value (OTHER when not requested). */
+uint32_t label_code(const label_job *job, int64_t value);
+/* labels_sweep.c: sweeps the slab (its scratch arrays allocated by the
+ * caller); sets and returns s->status. */
+isomend_status label_slab_run(label_slab *s);
+
+#endif /* ISOMEND_LABELS_INTERNAL_H */
