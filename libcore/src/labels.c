@@ -180,10 +180,23 @@ static isomend_status labels_present(const isomend_volume *vol, int64_t **values
         uint64_t *hist = calloc(range, sizeof(uint64_t));
         if (!hist)
             return ISOMEND_ERR_OUT_OF_MEMORY;
+        const int64_t size = (int64_t)label_type_size(vol->type);
         for (int64_t k = 0; k < vol->dims[2]; k++)
-            for (int64_t j = 0; j < vol->dims[1]; j++)
-                for (int64_t i = 0; i < vol->dims[0]; i++)
-                    hist[sample_at(vol, st, i, j, k) - min]++;
+            for (int64_t j = 0; j < vol->dims[1]; j++) {
+                const uint8_t *row = (const uint8_t *)vol->data + j * st[1] + k * st[2];
+                if (vol->type == ISOMEND_U8 && st[0] == 1) /* the common case, vectorised */
+                    for (int64_t i = 0; i < vol->dims[0]; i++)
+                        hist[row[i]]++;
+                else if (vol->type == ISOMEND_U16 && st[0] == size)
+                    for (int64_t i = 0; i < vol->dims[0]; i++) {
+                        uint16_t v;
+                        memcpy(&v, row + 2 * i, 2);
+                        hist[v]++;
+                    }
+                else
+                    for (int64_t i = 0; i < vol->dims[0]; i++)
+                        hist[sample_at(vol, st, i, j, k) - min]++;
+            }
         size_t n = 0;
         for (size_t v = 0; v < range; v++)
             n += hist[v] != 0;
@@ -327,6 +340,16 @@ typedef struct join_job {
     isomend_status *status;
 } join_job;
 
+/* `bytes` for an array that continues *first (a part's array, taken over:
+ * realloc moves large blocks by remapping, without a copy), else new. */
+static void *take_array(void **first, size_t bytes)
+{
+    void *p = realloc(*first, bytes ? bytes : 1);
+    if (p)
+        *first = NULL;
+    return p;
+}
+
 static isomend_status join_label(const join_job *jj, size_t l, isomend_mesh *m)
 {
     const label_job *job = jj->job;
@@ -339,27 +362,30 @@ static isomend_status join_label(const join_job *jj, size_t l, isomend_mesh *m)
         return ISOMEND_ERR_TOO_LARGE;
     m->nv = (size_t)nv;
     m->nt = (size_t)nt;
-    m->pos = malloc(sizeof(float) * 3 * (nv ? nv : 1));
-    m->nrm = job->normals ? malloc(sizeof(float) * 3 * (nv ? nv : 1)) : NULL;
-    m->tri = malloc(sizeof(uint32_t) * 3 * (nt ? nt : 1));
-    m->org = job->origins ? malloc(nt ? nt : 1) : NULL;
+    /* the first slab's arrays become the mesh's, the others are appended */
+    label_part *p0 = &jj->slab[0].part[l];
+    m->pos = take_array((void **)&p0->pos, sizeof(float) * 3 * nv);
+    m->nrm = job->normals ? take_array((void **)&p0->nrm, sizeof(float) * 3 * nv) : NULL;
+    m->tri = take_array((void **)&p0->tri, sizeof(uint32_t) * 3 * nt);
+    m->org = job->origins ? take_array((void **)&p0->org, nt) : NULL;
     if (!m->pos || !m->tri || (job->normals && !m->nrm) || (job->origins && !m->org))
         return ISOMEND_ERR_OUT_OF_MEMORY;
     uint64_t base = 0, at_t = 0;
     for (int s = 0; s < jj->nslabs; s++) {
         label_part *p = &jj->slab[s].part[l];
         const uint64_t next = base + p->nv;
-        if (p->nv) {
+        if (s > 0 && p->nv) {
             memcpy(m->pos + 3 * base, p->pos, sizeof(float) * 3 * p->nv);
             if (job->normals)
                 memcpy(m->nrm + 3 * base, p->nrm, sizeof(float) * 3 * p->nv);
         }
         uint32_t *out = m->tri + 3 * at_t;
+        const uint32_t *in = s > 0 ? p->tri : out;
         for (size_t q = 0; q < 3 * p->nt; q++) {
-            const uint32_t id = p->tri[q];
+            const uint32_t id = in[q];
             out[q] = (uint32_t)(id & LABEL_FOREIGN ? next + (id & ~LABEL_FOREIGN) : base + id);
         }
-        if (job->origins && p->nt)
+        if (s > 0 && job->origins && p->nt)
             memcpy(m->org + at_t, p->org, p->nt);
         at_t += p->nt;
         base = next;
@@ -596,12 +622,15 @@ isomend_status isomend_labels_extract(const isomend_volume *vol, const int64_t *
         job->h[a] = vol->spacing[a];
         job->inv2h[a] = 0.5 / vol->spacing[a];
         job->o[a] = vol->origin[a] - (double)pad * vol->spacing[a];
+        job->inner_lo[a] = pad + 1;
+        job->inner_hi[a] = pad + vol->dims[a] - 2;
     }
     job->count = (uint32_t)r->count;
     job->method = o->method;
     job->flip = (o->flags & ISOMEND_FLAG_FLIP) != 0;
     job->normals = !(o->flags & ISOMEND_FLAG_NO_NORMALS);
     job->origins = !(o->flags & ISOMEND_FLAG_NO_ORIGINS);
+    label_job_tables(job);
     atomic_init(&job->cancel, 0);
     job->progress = o->progress;
     job->progress_user = o->progress_user;

@@ -49,6 +49,14 @@ typedef struct label_job {
     const uint32_t *sorted_code;
     int method; /* ISOMEND_METHOD_MC, _DURST or _DMC            */
     int flip, normals, origins;
+    int64_t inner_lo[3], inner_hi[3]; /* marched samples with 6 neighbours in the volume */
+    /* The normal of an interior vertex by the indicator's six central
+     * differences at its two ends (each -1, 0 or 1; d0x d0y d0z d1x d1y d1z
+     * in base 3), computed once by make_vertex()'s formula; zero[]: no
+     * direction (the edge's is taken). */
+    float normal[729][3];
+    uint8_t zero[729];
+    uint16_t cut[256]; /* the cube edges a configuration cuts (bit e) */
     atomic_int cancel; /* a slab failed, or progress asked to stop     */
     isomend_progress_fn progress;
     void *progress_user;
@@ -70,6 +78,10 @@ typedef struct label_slab {
     isomend_status status;
 } label_slab;
 
+/* labels_sweep.c: the normal table of the job (its h, inv2h, flip set). */
+void label_normal_table(label_job *job);
+/* labels_sweep.c: the job's tables, normal and cut (its inv2h and flip set). */
+void label_job_tables(label_job *job);
 /* labels_sweep.c: the code of a value (OTHER when not requested). */
 uint32_t label_code(const label_job *job, int64_t value);
 /* labels_sweep.c: sweeps the slab (its scratch arrays allocated by the

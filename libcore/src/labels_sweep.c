@@ -215,11 +215,51 @@ static inline double indicator_gradient(const label_job *job, const near_slices 
     return 0.0;
 }
 
+/* make_vertex()'s normal from the gradients g0, g1 at the edge's ends
+ * (t = 1/2), or 0 when it is no direction (then the caller takes the edge's). */
+static int indicator_normal(const label_job *job, const double g0[3], const double g1[3],
+                            float *nrm)
+{
+    const double t = 0.5;
+    double n[3];
+    for (int c = 0; c < 3; c++)
+        n[c] = -((1.0 - t) * g0[c] + t * g1[c]);
+    const double len = sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
+    if (!(len > 0.0) || !isfinite(len))
+        return 0;
+    const double scale = (job->flip ? -1.0 : 1.0) / len;
+    for (int c = 0; c < 3; c++)
+        nrm[c] = (float)(scale * n[c]);
+    return 1;
+}
+
+void label_job_tables(label_job *job)
+{
+    for (unsigned cfg = 0; cfg < 256; cfg++) {
+        unsigned cut = 0; /* bit e: the two corners of edge e differ */
+        for (int e = 0; e < 12; e++)
+            cut |= ((cfg >> cube_edge_corner[e][0] ^ cfg >> cube_edge_corner[e][1]) & 1u) << e;
+        job->cut[cfg] = (uint16_t)cut;
+    }
+    for (int q = 0; q < 729; q++) {
+        double g[2][3];
+        int r = q;
+        for (int e = 1; e >= 0; e--) /* index: d0x d0y d0z d1x d1y d1z, base 3, d0x first */
+            for (int c = 2; c >= 0; c--) {
+                g[e][c] = (double)(r % 3 - 1) * job->inv2h[c];
+                r /= 3;
+            }
+        job->zero[q] = (uint8_t)!indicator_normal(job, g[0], g[1], job->normal[q]);
+    }
+}
+
 /*
  * The vertex of label code L on the edge from marched sample (i, j, m)
  * along axis a: make_vertex()'s position and normal for L's indicator at
- * level 0.5 (t = 1/2 for every cut edge, padding ends included; its fast
- * path and its general path compute the same numbers).
+ * level 0.5 (t = 1/2 for every cut edge, padding ends included).  An edge
+ * whose ends have all their neighbours in the volume takes its normal from
+ * the job's table (the same numbers: the differences are -1, 0 or 1 times
+ * inv2h); the others compute it as gradient_component() does.
  */
 static void label_vertex(const label_job *job, const near_slices *ns, int64_t i, int64_t j,
                          int64_t m, int a, uint32_t L, float *pos, float *nrm)
@@ -227,32 +267,49 @@ static void label_vertex(const label_job *job, const near_slices *ns, int64_t i,
     const int64_t p0[3] = {i, j, m};
     int64_t p1[3] = {i, j, m};
     p1[a]++;
-    const double t = 0.5;
     for (int c = 0; c < 3; c++) {
-        const double x = (double)p0[c] + (c == a ? t : 0.0);
+        const double x = (double)p0[c] + (c == a ? 0.5 : 0.0);
         pos[c] = (float)(job->o[c] + x * job->h[c]);
     }
     if (!nrm)
         return;
-    const double f0 = indicator(job, ns, p0[0], p0[1], p0[2], L);
-    const double f1 = indicator(job, ns, p1[0], p1[1], p1[2], L);
-    const int valid = !isnan(f0) && !isnan(f1);
-    const int inside0 = f0 >= 0.5; /* NaN: outside */
-    double n[3] = {0, 0, 0}, len = 0.0;
-    if (valid) {
-        for (int c = 0; c < 3; c++) {
-            const double g0 = indicator_gradient(job, ns, p0, c, f0, L);
-            const double g1 = indicator_gradient(job, ns, p1, c, f1, L);
-            n[c] = -((1.0 - t) * g0 + t * g1);
+    int inner = 1;
+    for (int c = 0; c < 3; c++)
+        inner &= p0[c] >= job->inner_lo[c] && p1[c] <= job->inner_hi[c];
+    if (inner) {
+        const int64_t N0 = job->N[0];
+        int q = 0;
+        for (int e = 0; e < 2; e++) {
+            const int64_t *p = e ? p1 : p0;
+            const uint32_t *mid = ns->sl[p[2] - (ns->m - 1)] + p[1] * N0 + p[0];
+            const uint32_t *below = ns->sl[p[2] - ns->m] + p[1] * N0 + p[0];
+            const uint32_t *above = ns->sl[p[2] - ns->m + 2] + p[1] * N0 + p[0];
+            q = q * 3 + (int)(mid[1] == L) - (int)(mid[-1] == L) + 1;
+            q = q * 3 + (int)(mid[N0] == L) - (int)(mid[-N0] == L) + 1;
+            q = q * 3 + (int)(*above == L) - (int)(*below == L) + 1;
         }
-        len = sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
+        if (!job->zero[q]) {
+            memcpy(nrm, job->normal[q], sizeof(float) * 3);
+            return;
+        }
+    } else {
+        const double f0 = indicator(job, ns, p0[0], p0[1], p0[2], L);
+        const double f1 = indicator(job, ns, p1[0], p1[1], p1[2], L);
+        if (!isnan(f0) && !isnan(f1)) {
+            double g0[3], g1[3];
+            for (int c = 0; c < 3; c++) {
+                g0[c] = indicator_gradient(job, ns, p0, c, f0, L);
+                g1[c] = indicator_gradient(job, ns, p1, c, f1, L);
+            }
+            if (indicator_normal(job, g0, g1, nrm))
+                return;
+        }
     }
-    if (!(len > 0.0) || !isfinite(len)) {
-        n[0] = n[1] = n[2] = 0.0;
-        n[a] = inside0 ? 1.0 : -1.0;
-        len = 1.0;
-    }
-    const double scale = (job->flip ? -1.0 : 1.0) / len;
+    /* no direction: the edge's, from the inside end towards the outside */
+    const double f0 = indicator(job, ns, p0[0], p0[1], p0[2], L);
+    double n[3] = {0.0, 0.0, 0.0};
+    n[a] = f0 >= 0.5 ? 1.0 : -1.0; /* NaN: outside */
+    const double scale = job->flip ? -1.0 : 1.0;
     for (int c = 0; c < 3; c++)
         nrm[c] = (float)(scale * n[c]);
 }
@@ -415,9 +472,15 @@ static int march_label(label_slab *s, const cube_row *cr, int64_t i, const uint3
     const unsigned nt = mc_tri_count[cfg];
     if (!grow_triangles(p, nt + 6, job->origins))
         return 0;
+        /* the ids of the cut edges only (a few of the twelve): the id maps are
+     * large, and each look-up may miss the cache */
+#define EDGE_ID(e) cr->edge[e][2 * i + (v[cube_edge_corner[e][0]] == L ? 0 : 1)]
     uint32_t id[12];
-    for (int e = 0; e < 12; e++) /* the pair's slot: is the edge's lower end L? */
-        id[e] = cr->edge[e][2 * i + (v[cube_edge_corner[e][0]] == L ? 0 : 1)];
+    for (unsigned cut = job->cut[cfg]; cut; cut &= cut - 1) {
+        const int e = __builtin_ctz(cut);
+        id[e] = EDGE_ID(e);
+    }
+#undef EDGE_ID
     uint32_t *out = p->tri + 3 * p->nt;
     const signed char *te = mc_tri_edges[cfg];
     for (unsigned q = 0; q < nt; q++, te += 3) {
