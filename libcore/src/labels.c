@@ -653,3 +653,12 @@ const isomend_mesh *isomend_labels_mesh(const isomend_labels *r, size_t index)
 {
     return r && index < r->count ? r->mesh[index] : NULL;
 }
+
+isomend_mesh *isomend_labels_take_mesh(isomend_labels *r, size_t index)
+{
+    if (!r || index >= r->count)
+        return NULL;
+    isomend_mesh *m = r->mesh[index];
+    r->mesh[index] = NULL;
+    return m;
+}
