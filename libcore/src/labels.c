@@ -55,9 +55,9 @@ static size_t small_range(isomend_type type, int64_t *min)
     }
 }
 
-static isomend_status check_volume(const isomend_volume *vol, int pad)
+static isomend_status check_volume(const isomend_volume *vol, int pad, int need_data)
 {
-    if (!vol || !vol->data || !label_type_size(vol->type))
+    if (!vol || (need_data && !vol->data) || !label_type_size(vol->type))
         return ISOMEND_ERR_INVALID_ARGUMENT;
     const int64_t min = pad ? 1 : 2;
     for (int a = 0; a < 3; a++) {
@@ -241,7 +241,7 @@ isomend_status isomend_labels_present(const isomend_volume *vol, int64_t *values
     if (!count)
         return ISOMEND_ERR_INVALID_ARGUMENT;
     *count = 0;
-    isomend_status status = check_volume(vol, 1);
+    isomend_status status = check_volume(vol, 1, 1);
     if (status != ISOMEND_OK)
         return status;
     int64_t *v;
@@ -283,7 +283,7 @@ static void free_parts(label_part *part, size_t count)
     free(part);
 }
 
-static void free_slab(label_slab *s, size_t count)
+void label_slab_free(label_slab *s, size_t count)
 {
     free_parts(s->part, count);
     free(s->voxels);
@@ -291,9 +291,10 @@ static void free_slab(label_slab *s, size_t count)
         free(s->codes[r]);
     free(s->ids[0]);
     free(s->ids[1]);
+    free(s->cols);
 }
 
-static int alloc_slab(label_slab *s, label_job *job)
+int label_slab_alloc(label_slab *s, label_job *job)
 {
     const size_t plane = (size_t)job->N[0] * (size_t)job->N[1];
     s->job = job;
@@ -304,6 +305,9 @@ static int alloc_slab(label_slab *s, label_job *job)
         ok = (s->codes[r] = malloc(sizeof(uint32_t) * plane)) && ok;
     for (int r = 0; r < 2; r++)
         ok = (s->ids[r] = malloc(sizeof(uint32_t) * 6 * plane)) && ok;
+    ok = (s->cols = malloc(sizeof(int64_t) * (size_t)job->N[0])) && ok;
+    for (int r = 0; r < LABEL_RING; r++)
+        s->held[r] = -1;
     return ok;
 }
 
@@ -450,6 +454,28 @@ static int build_codes(label_job *job, const int64_t *value, uint32_t **table, i
     return 1;
 }
 
+isomend_status label_join_all(label_job *job, label_slab *slab, int nslabs, isomend_labels *r)
+{
+    for (int s = 0; s < nslabs; s++) { /* the scratch arrays, before the join */
+        for (int q = 0; q < LABEL_RING; q++) {
+            free(slab[s].codes[q]);
+            slab[s].codes[q] = NULL;
+        }
+        for (uint32_t l = 0; l < job->count; l++)
+            r->voxels[l] += slab[s].voxels[l];
+    }
+    isomend_status *st = calloc(job->count ? job->count : 1, sizeof(isomend_status));
+    if (!st)
+        return ISOMEND_ERR_OUT_OF_MEMORY;
+    join_job jj = {job, slab, nslabs, r->mesh, st};
+    parallel_for_from(job->count, 2, join_range, &jj);
+    isomend_status status = ISOMEND_OK;
+    for (uint32_t l = 0; l < job->count && status == ISOMEND_OK; l++)
+        status = st[l];
+    free(st);
+    return status;
+}
+
 static isomend_status run_slabs(label_job *job, int nthreads, isomend_labels *r)
 {
     const int64_t layers = job->N[2] - 1;
@@ -465,7 +491,7 @@ static isomend_status run_slabs(label_job *job, int nthreads, isomend_labels *r)
         slab[s].k1 = layers * (s + 1) / nslabs;
         slab[s].last = s == nslabs - 1;
         slab[s].reports = s == 0;
-        if (!alloc_slab(&slab[s], job))
+        if (!label_slab_alloc(&slab[s], job))
             status = ISOMEND_ERR_OUT_OF_MEMORY;
     }
     if (status == ISOMEND_OK) {
@@ -485,41 +511,30 @@ static isomend_status run_slabs(label_job *job, int nthreads, isomend_labels *r)
             if (slab[s].status != ISOMEND_OK && slab[s].status != ISOMEND_ERR_CANCELLED)
                 status = slab[s].status;
     }
-    if (status == ISOMEND_OK) {
-        for (int s = 0; s < nslabs; s++) { /* the scratch arrays, before the join */
-            for (int q = 0; q < LABEL_RING; q++) {
-                free(slab[s].codes[q]);
-                slab[s].codes[q] = NULL;
-            }
-            for (uint32_t l = 0; l < job->count; l++)
-                r->voxels[l] += slab[s].voxels[l];
-        }
-        isomend_status *st = calloc(job->count ? job->count : 1, sizeof(isomend_status));
-        if (!st) {
-            status = ISOMEND_ERR_OUT_OF_MEMORY;
-        } else {
-            join_job jj = {job, slab, nslabs, r->mesh, st};
-            parallel_for_from(job->count, 2, join_range, &jj);
-            for (uint32_t l = 0; l < job->count && status == ISOMEND_OK; l++)
-                status = st[l];
-            free(st);
-        }
-    }
+    if (status == ISOMEND_OK)
+        status = label_join_all(job, slab, nslabs, r);
     for (int s = 0; slab && s < nslabs; s++)
-        free_slab(&slab[s], job->count);
+        label_slab_free(&slab[s], job->count);
     free(slab);
     free(tid);
     free(started);
     return status;
 }
 
-isomend_status isomend_labels_extract(const isomend_volume *vol, const int64_t *labels,
-                                      size_t count, const isomend_options *opts,
-                                      isomend_labels **out)
+void label_setup_free(label_setup *su)
 {
-    if (!out)
-        return ISOMEND_ERR_INVALID_ARGUMENT;
-    *out = NULL;
+    free(su->table);
+    free(su->sorted);
+    free(su->sorted_code);
+    free(su->job);
+    isomend_labels_destroy(su->result);
+    memset(su, 0, sizeof *su);
+}
+
+isomend_status label_setup_begin(const isomend_volume *vol, const int64_t *labels, size_t count,
+                                 const isomend_options *opts, int need_data, label_setup *su)
+{
+    memset(su, 0, sizeof *su);
     isomend_options defaults;
     isomend_options_init(&defaults);
     const isomend_options *o = opts ? opts : &defaults;
@@ -530,13 +545,13 @@ isomend_status isomend_labels_extract(const isomend_volume *vol, const int64_t *
         o->method != ISOMEND_METHOD_DMC)
         return ISOMEND_ERR_UNSUPPORTED;
     const int pad = (o->flags & ISOMEND_FLAG_PAD) != 0;
-    isomend_status status = check_volume(vol, pad);
+    isomend_status status = check_volume(vol, pad, need_data || !labels);
     if (status != ISOMEND_OK)
         return status;
     if (count >= (size_t)LABEL_FOREIGN - 2)
         return ISOMEND_ERR_TOO_LARGE;
 
-    isomend_labels *r = calloc(1, sizeof *r);
+    isomend_labels *r = su->result = calloc(1, sizeof *r);
     if (!r)
         return ISOMEND_ERR_OUT_OF_MEMORY;
     if (!labels) { /* every label present but 0 */
@@ -544,7 +559,7 @@ isomend_status isomend_labels_extract(const isomend_volume *vol, const int64_t *
         status = labels_present(vol, &r->value, &n, &r->count);
         free(n);
         if (status != ISOMEND_OK) {
-            isomend_labels_destroy(r);
+            label_setup_free(su);
             return status;
         }
         size_t keep = 0;
@@ -555,16 +570,13 @@ isomend_status isomend_labels_extract(const isomend_volume *vol, const int64_t *
     } else {
         r->count = count;
         r->value = malloc(sizeof(int64_t) * (count ? count : 1));
-        if (!r->value) {
-            isomend_labels_destroy(r);
+        int64_t *check = malloc(sizeof(int64_t) * (count ? count : 1));
+        if (!r->value || !check) {
+            free(check);
+            label_setup_free(su);
             return ISOMEND_ERR_OUT_OF_MEMORY;
         }
         memcpy(r->value, labels, sizeof(int64_t) * count);
-        int64_t *check = malloc(sizeof(int64_t) * (count ? count : 1));
-        if (!check) {
-            isomend_labels_destroy(r);
-            return ISOMEND_ERR_OUT_OF_MEMORY;
-        }
         memcpy(check, labels, sizeof(int64_t) * count);
         qsort(check, count, sizeof(int64_t), cmp_value);
         for (size_t l = 1; l < count; l++)
@@ -572,24 +584,20 @@ isomend_status isomend_labels_extract(const isomend_volume *vol, const int64_t *
                 status = ISOMEND_ERR_INVALID_ARGUMENT; /* a label twice */
         free(check);
         if (status != ISOMEND_OK) {
-            isomend_labels_destroy(r);
+            label_setup_free(su);
             return status;
         }
     }
     r->voxels = calloc(r->count ? r->count : 1, sizeof(uint64_t));
     r->mesh = calloc(r->count ? r->count : 1, sizeof(isomend_mesh *));
-    if (!r->voxels || !r->mesh) {
-        isomend_labels_destroy(r);
-        return ISOMEND_ERR_OUT_OF_MEMORY;
-    }
-
-    label_job *job = calloc(1, sizeof *job);
-    if (!job) {
-        isomend_labels_destroy(r);
+    label_job *job = su->job = calloc(1, sizeof *job);
+    if (!r->voxels || !r->mesh || !job) {
+        label_setup_free(su);
         return ISOMEND_ERR_OUT_OF_MEMORY;
     }
     job->data = vol->data;
     job->type = vol->type;
+    job->size = (int64_t)label_type_size(vol->type);
     volume_strides(vol, job->st);
     job->pad = pad;
     for (int a = 0; a < 3; a++) {
@@ -610,28 +618,36 @@ isomend_status isomend_labels_extract(const isomend_volume *vol, const int64_t *
     atomic_init(&job->cancel, 0);
     job->progress = o->progress;
     job->progress_user = o->progress_user;
-
-    uint32_t *table = NULL, *sorted_code = NULL;
-    int64_t *sorted = NULL;
-    status = build_codes(job, r->value, &table, &sorted, &sorted_code) ? ISOMEND_OK
-                                                                       : ISOMEND_ERR_OUT_OF_MEMORY;
-    if (status == ISOMEND_OK) {
-        long cores = sysconf(_SC_NPROCESSORS_ONLN);
-        int nthreads = o->threads > 0 ? o->threads : cores < 1 ? 1 : (int)cores;
-        status = run_slabs(job, nthreads > 64 ? 64 : nthreads, r);
+    if (!build_codes(job, r->value, &su->table, &su->sorted, &su->sorted_code)) {
+        label_setup_free(su);
+        return ISOMEND_ERR_OUT_OF_MEMORY;
     }
-    free(table);
-    free(sorted);
-    free(sorted_code);
-    free(job);
-    if (status != ISOMEND_OK) {
-        isomend_labels_destroy(r);
-        return status;
-    }
-    if (o->progress)
-        (void)o->progress(o->progress_user, 1.0);
-    *out = r;
     return ISOMEND_OK;
+}
+
+isomend_status isomend_labels_extract(const isomend_volume *vol, const int64_t *labels,
+                                      size_t count, const isomend_options *opts,
+                                      isomend_labels **out)
+{
+    if (!out)
+        return ISOMEND_ERR_INVALID_ARGUMENT;
+    *out = NULL;
+    label_setup su;
+    isomend_status status = label_setup_begin(vol, labels, count, opts, 1, &su);
+    if (status != ISOMEND_OK)
+        return status;
+    const int threads = opts ? opts->threads : 0;
+    const long cores = sysconf(_SC_NPROCESSORS_ONLN);
+    const int nthreads = threads > 0 ? threads : cores < 1 ? 1 : (int)cores;
+    status = run_slabs(su.job, nthreads > 64 ? 64 : nthreads, su.result);
+    if (status == ISOMEND_OK) {
+        if (opts && opts->progress)
+            (void)opts->progress(opts->progress_user, 1.0);
+        *out = su.result;
+        su.result = NULL;
+    }
+    label_setup_free(&su);
+    return status;
 }
 
 size_t isomend_labels_count(const isomend_labels *r)
