@@ -272,6 +272,14 @@ for name, vol in cases:
         pa, pb = key_set(positions(files[A])[0]), key_set(positions(files[B])[0])
         check(mp <= pa and mp <= pb, f"{name}: labels {A} and {B} do not share their boundary")
     check(shared > 0, f"{name}: no touching pair tested")
+    # streamed (--stream: a slice at a time, the labels listed by a first pass): the same bytes
+    ds = os.path.join(W, name + "_stream") + "/"
+    js = extract_json(src, ds, "--labels", "all", "--pad", "--stream")
+    if js:
+        check([e["triangles"] for e in js["labels"]] == [e["triangles"] for e in j["labels"]],
+              f"{name}: streamed triangles differ")
+        for e, es in zip(j["labels"], js["labels"]):
+            check(same_file(e["file"], es["file"]), f"{name}: --stream differs ({e['value']})")
     # the same bytes at 1 thread
     d1 = os.path.join(W, name + "_t1") + "/"
     j1 = extract_json(src, d1, "--labels", "all", "--pad", "--threads", "1")
@@ -308,6 +316,10 @@ if not args.no_peers:
                                  np.diag([SPACING[0], SPACING[1], SPACING[2], 1.0])), path)
         d = os.path.join(W, f"nifti_{np.dtype(dt).name}") + "/"
         j = extract_json(path, d, "--labels", "all", "--pad")
+        if np.dtype(dt) == np.int16:  # the importer's slices streamed: the same files
+            js = extract_json(path, d[:-1] + "_stream/", "--labels", "all", "--pad", "--stream")
+            for e, es in zip(j["labels"] if j else [], js["labels"] if js else []):
+                check(same_file(e["file"], es["file"]), f"NIfTI --stream: label {e['value']}")
         if j and ref:
             check([e["value"] for e in j["labels"]] == [x + off for x in (1, 4, 5)],
                   f"NIfTI {np.dtype(dt).name}: labels {[e['value'] for e in j['labels']]}")
@@ -430,6 +442,8 @@ refused(["extract", zero, "--labels", "all", "-o", out], "no label", [out], "all
 fl = os.path.join(W, "float.nrrd")
 write_nrrd(fl, nested().astype(np.float32) + 0.25)
 refused(["extract", fl, "--labels", "all", "-o", out], "--labels", [out], "float NRRD", 1)
+refused(["extract", fl, "--labels", "all", "--stream", "-o", out], "--stream", [out],
+        "float NRRD streamed", 1)
 # a float volume of whole numbers is a label map
 write_nrrd(fl, nested().astype(np.float32))
 j = extract_json(fl, os.path.join(W, "float_whole.ply"), "--labels", "1,4,5", "--pad")
