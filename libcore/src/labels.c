@@ -59,15 +59,9 @@ static isomend_status check_volume(const isomend_volume *vol, int pad, int need_
 {
     if (!vol || (need_data && !vol->data) || !label_type_size(vol->type))
         return ISOMEND_ERR_INVALID_ARGUMENT;
-    const int64_t min = pad ? 1 : 2;
-    for (int a = 0; a < 3; a++) {
-        if (vol->dims[a] < min || vol->dims[a] > ((int64_t)1 << 31))
-            return ISOMEND_ERR_BAD_DIMENSIONS;
-        if (!(vol->spacing[a] > 0.0) || !isfinite(vol->spacing[a]))
-            return ISOMEND_ERR_BAD_SPACING;
-        if (!isfinite(vol->origin[a]))
-            return ISOMEND_ERR_INVALID_ARGUMENT;
-    }
+    const isomend_status checked = volume_grid_check(vol, pad);
+    if (checked != ISOMEND_OK)
+        return checked;
     return vol->slice_origins ? ISOMEND_ERR_UNSUPPORTED : ISOMEND_OK;
 }
 
