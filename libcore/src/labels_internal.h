@@ -132,6 +132,20 @@ int label_march_layer(label_slab *s, int64_t k);
  * caller); sets and returns s->status. */
 isomend_status label_slab_run(label_slab *s);
 
+/* labels.c: a label type's sample size (0: not a label type); the range of
+ * an 8- or 16-bit type (its smallest value, the count; 0 for 32-bit); the
+ * volume checked (data needed or not); its byte strides; int64_t order. */
+size_t label_type_size(isomend_type type);
+size_t label_small_range(isomend_type type, int64_t *min);
+isomend_status label_check_volume(const isomend_volume *vol, int pad, int need_data);
+void label_strides(const isomend_volume *vol, int64_t st[3]);
+int label_cmp_value(const void *a, const void *b);
+
+/* labels_present.c: the labels present, ascending, and their samples, as
+ * malloc'ed arrays. */
+isomend_status label_list_present(const isomend_volume *vol, int64_t **values, uint64_t **voxels,
+                                  size_t *count);
+
 /* labels.c: what the in-memory extraction and the stream share. */
 typedef struct label_setup {
     label_job *job;
