@@ -221,6 +221,10 @@ for name, vol in cases:
     if not j or not jm:
         continue
     labels = [e["value"] for e in j["labels"]]
+    if name == "checkerboard":  # every voxel its own octahedron, for both labels
+        for e in j["labels"]:
+            check(e["triangles"] == 8 * e["voxels"] and e["vertices"] == 6 * e["voxels"] and
+                  e["components"] == e["voxels"], f"checkerboard label {e['value']}: {e}")
     check(labels == sorted(int(x) for x in np.unique(vol) if x != 0), f"{name}: labels {labels}")
     vox = {int(x): int((vol == x).sum()) for x in labels}
     peers = None
