@@ -334,6 +334,21 @@ if not args.no_peers:
                       f"NIfTI {np.dtype(dt).name} label {e['value']}: not closed")
                 if not args.no_peers:
                     check(vtk_closed(e["file"]) == (0, 0), f"NIfTI label {e['value']}: VTK edges")
+    # a radiological NIfTI (det < 0, as most are): placed by its affine in patient LPS, each
+    # label still closed (VTK on the written files) and outward (positive signed volume)
+    path = os.path.join(W, "labels_mirror.nii.gz")
+    aff = np.array([[-0.8, 0, 0, 10], [0, 0.9, 0, -5], [0, 0, 1.5, 3], [0, 0, 0, 1.0]])
+    nib.save(nib.Nifti1Image(np.ascontiguousarray(base.transpose(2, 1, 0)), aff), path)
+    for flags in ([], ["--ras"]):
+        d = os.path.join(W, "nifti_mirror" + "".join(flags)) + "/"
+        j = extract_json(path, d, "--labels", "all", "--pad", *flags)
+        for e in j["labels"] if j else []:
+            p, t = positions(e["file"])
+            q = p.astype(np.float64)[t.astype(np.int64)]
+            vol = np.einsum("ij,ij->i", q[:, 0], np.cross(q[:, 1], q[:, 2])).sum() / 6.0
+            check(vol > 0, f"mirrored NIfTI {flags} label {e['value']}: signed volume {vol}")
+            if not args.no_peers:
+                check(vtk_closed(e["file"]) == (0, 0), f"mirrored NIfTI label {e['value']}: VTK")
     # float samples that are not whole numbers: refused, nothing written
     path = os.path.join(W, "float.nii.gz")
     nib.save(nib.Nifti1Image(base.astype(np.float32).transpose(2, 1, 0) * 0.5, np.eye(4)), path)
