@@ -358,6 +358,33 @@ static const char *refused_option(uint64_t seen)
     return NULL;
 }
 
+/* 1 when files can be made in folder `out` (existing, or its parent); else 0
+ * with the message printed. */
+static int folder_creatable(const char *out)
+{
+    char dir[ISOMEND_FILEIO_PATH_MAX];
+    snprintf(dir, sizeof dir, "%s", out);
+    size_t len = strlen(dir);
+    while (len > 1 && dir[len - 1] == '/') dir[--len] = '\0';
+    struct stat sb;
+    if (stat(dir, &sb) == 0) {
+        if (access(dir, W_OK | X_OK) == 0) return 1;
+        cli_error("-o %s: cannot create files in this folder: %s", out, strerror(errno));
+        return 0;
+    }
+    char *slash = strrchr(dir, '/');
+    if (slash == dir)
+        slash[1] = '\0';
+    else if (slash)
+        *slash = '\0';
+    else
+        snprintf(dir, sizeof dir, ".");
+    if (stat(dir, &sb) == 0 && S_ISDIR(sb.st_mode) && access(dir, W_OK | X_OK) == 0) return 1;
+    cli_error("-o %s: cannot create the folder in '%s': %s", out, dir,
+              errno ? strerror(errno) : "not a writable folder");
+    return 0;
+}
+
 /* 1 when -o names a folder: a trailing '/' or an existing folder. */
 static int output_is_folder(const char *out)
 {
@@ -430,15 +457,23 @@ int cli_extract_labels(cli_args *a)
         }
         names_from = "--label-table";
     }
-    if (!folder) { /* the outputs must be creatable before any work is done */
+    /* the outputs must be creatable before any work is done: a file's temporary
+     * file, or a writable folder (or its writable parent, when it is to be made) */
+    int creatable = 1;
+    if (!folder) {
         isomend_atomic_file probe;
-        if (isomend_atomic_open(&probe, a->output, msg, sizeof msg) != ISOMEND_FILEIO_OK) {
+        creatable = isomend_atomic_open(&probe, a->output, msg, sizeof msg) == ISOMEND_FILEIO_OK;
+        if (creatable)
+            isomend_atomic_abort(&probe);
+        else
             cli_error("%s", msg);
-            label_table_free(&table);
-            free(want);
-            return CLI_EXIT_FAIL;
-        }
-        isomend_atomic_abort(&probe);
+    } else if (!folder_creatable(a->output)) {
+        creatable = 0;
+    }
+    if (!creatable) {
+        label_table_free(&table);
+        free(want);
+        return CLI_EXIT_FAIL;
     }
 
     const int quiet = (a->seen & OPT_QUIET) != 0;

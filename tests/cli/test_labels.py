@@ -455,6 +455,9 @@ refused(["extract", src, "--iso", "3", "--label-table", bad_table, "-o", os.path
         "--label-table", [os.path.join(W, "x.ply")], "table without --labels", 2)
 refused(["extract", src, "--labels", "all", "--format", "stl", "-o", os.path.join(W, "y.ply")],
         "--format", [os.path.join(W, "y.ply")], "--format with a file", 2)
+deep = os.path.join(W, "no", "such", "folder") + "/"
+refused(["extract", src, "--labels", "all", "-o", deep], "cannot create the folder", [deep],
+        "folder in a missing folder", 1)
 zero = os.path.join(W, "zero.nrrd")
 write_nrrd(zero, np.zeros((4, 4, 4), np.uint8))
 refused(["extract", zero, "--labels", "all", "-o", out], "no label", [out], "all background", 1)
