@@ -87,31 +87,22 @@ void label_normal_table(label_job *job);
  * is not a label type. */
 static inline int64_t load_label(isomend_type type, const char *p)
 {
+#define LOAD_AS(T)                                                                                 \
+    {                                                                                              \
+        T v;                                                                                       \
+        memcpy(&v, p, sizeof v);                                                                   \
+        return v;                                                                                  \
+    }
     switch ((int)type) {
     case ISOMEND_U8: return *(const uint8_t *)p;
     case ISOMEND_I8: return *(const int8_t *)p;
-    case ISOMEND_U16: {
-        uint16_t v;
-        memcpy(&v, p, sizeof v);
-        return v;
-    }
-    case ISOMEND_I16: {
-        int16_t v;
-        memcpy(&v, p, sizeof v);
-        return v;
-    }
-    case ISOMEND_U32: {
-        uint32_t v;
-        memcpy(&v, p, sizeof v);
-        return v;
-    }
-    case ISOMEND_I32: {
-        int32_t v;
-        memcpy(&v, p, sizeof v);
-        return v;
-    }
+    case ISOMEND_U16: LOAD_AS(uint16_t)
+    case ISOMEND_I16: LOAD_AS(int16_t)
+    case ISOMEND_U32: LOAD_AS(uint32_t)
+    case ISOMEND_I32: LOAD_AS(int32_t)
     default: return 0;
     }
+#undef LOAD_AS
 }
 
 /* labels_sweep.c: the job's tables, normal and cut (its inv2h and flip set). */
