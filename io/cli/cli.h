@@ -559,6 +559,8 @@ int cli_stream_extract(cli_source *s, const isomend_options *opts, const cli_sin
 /* `extract SOURCE --labels ...` (a label map's surfaces): an exit code, the
  * message printed. */
 int cli_extract_labels(cli_args *a);
+/* `info SOURCE --labels all`: the labels present, their voxels, names and colours. */
+int cli_info_labels(cli_args *a);
 
 /* ---- report.c ---- */
 

@@ -145,6 +145,21 @@ static void safe_name(const char *in, char *out, size_t size)
     if (k == 0 || out[0] == '.') out[0] = '_';
 }
 
+/* A label's file-safe name and colour: from the table, else label_N and the palette. */
+static void name_and_color(const label_table *t, int64_t value, char *name, size_t size,
+                           uint8_t rgb[3])
+{
+    const label_entry *e = label_table_find(t, value);
+    if (e && e->name[0])
+        safe_name(e->name, name, size);
+    else
+        snprintf(name, size, "label_%" PRId64, value);
+    if (e && e->has_color)
+        memcpy(rgb, e->rgb, 3);
+    else
+        label_table_color(value, rgb);
+}
+
 /* Everything of one label the outputs need. */
 typedef struct label_out {
     int64_t value;
@@ -568,22 +583,14 @@ int cli_extract_labels(cli_args *a)
         label_out *l = &lo[q];
         l->value = isomend_labels_value(res, q);
         l->mesh = isomend_labels_mesh(res, q);
-        const label_entry *e = label_table_find(&table, l->value);
         char base[LABEL_NAME_MAX];
-        if (e && e->name[0])
-            safe_name(e->name, base, sizeof base);
-        else
-            snprintf(base, sizeof base, "label_%" PRId64, l->value);
+        name_and_color(&table, l->value, base, sizeof base, l->rgb);
         snprintf(l->name, sizeof l->name, "%s", base);
         for (size_t r = 0, k = 2; r < q; r++) /* unique: name_2, name_3, ... */
             if (strcmp(lo[r].name, l->name) == 0) {
                 snprintf(l->name, sizeof l->name, "%s_%zu", base, k++);
                 r = (size_t)-1;
             }
-        if (e && e->has_color)
-            memcpy(l->rgb, e->rgb, 3);
-        else
-            label_table_color(l->value, l->rgb);
         if (isomend_mesh_check(l->mesh, &l->check) != ISOMEND_OK) {
             cli_error("%s: continuity check of label %" PRId64 " failed", src.label, l->value);
             rc = CLI_EXIT_FAIL;
@@ -732,6 +739,96 @@ done:
     free(copy);
     label_table_free(&table);
     free(want);
+    cli_source_close(&src);
+    return rc;
+}
+
+int cli_info_labels(cli_args *a)
+{
+    if (strcmp(a->labels, "all") != 0) {
+        cli_error("--labels: info lists every label: use --labels all");
+        return CLI_EXIT_USAGE;
+    }
+    label_table table = {NULL, 0, 0, ""};
+    char msg[ISOMEND_FILEIO_MSG_SIZE];
+    if (a->label_table && label_table_read(a->label_table, &table, msg, sizeof msg)) {
+        cli_error("%s", msg);
+        return CLI_EXIT_FAIL;
+    }
+    const int quiet = (a->seen & OPT_QUIET) != 0;
+    cli_json_out jo;
+    cli_progress bar;
+    cli_source src;
+    int rc = cli_json_prepare(&jo, a->json);
+    if (rc) {
+        label_table_free(&table);
+        return rc;
+    }
+    cli_progress_init(&bar, !quiet && isatty(STDERR_FILENO));
+    cli_active_progress = &bar;
+    a->src.progress = &bar;
+    rc = cli_source_open(a->positional, a->npositional, &a->src, &src);
+    if (rc) {
+        cli_json_abort(&jo);
+        label_table_free(&table);
+        return rc;
+    }
+    void *copy = NULL;
+    int64_t *values = NULL;
+    uint64_t *voxels = NULL;
+    size_t n = 0;
+    isomend_volume vol;
+    rc = cli_source_load(&src);
+    if (!rc) rc = label_samples(&src, &vol, &copy);
+    cli_progress_clear(&bar);
+    if (!rc && !a->label_table && strcmp(src.kind, "nrrd") == 0 &&
+        label_table_from_nrrd(a->positional[0], &table, msg, sizeof msg) < 0) {
+        cli_error("%s", msg);
+        rc = CLI_EXIT_FAIL;
+    }
+    if (!rc) {
+        isomend_labels_present(&vol, NULL, NULL, 0, &n);
+        values = malloc(sizeof(int64_t) * (n ? n : 1));
+        voxels = malloc(sizeof(uint64_t) * (n ? n : 1));
+        if (!values || !voxels) {
+            cli_error("%s: out of memory listing the labels", src.label);
+            rc = CLI_EXIT_FAIL;
+        } else {
+            isomend_labels_present(&vol, values, voxels, n, &n);
+        }
+    }
+    FILE *text = jo.to_stdout ? stderr : stdout;
+    FILE *jf = rc ? NULL : cli_json_stream(&jo);
+    if (!rc && !quiet)
+        fprintf(text, "%s: %zu label values (0 is the background unless listed)\n", src.label, n);
+    if (jf) {
+        fprintf(jf, "{\"command\": \"info\", \"version\": \"%s\", \"source\": ", isomend_version());
+        cli_json_string(jf, src.label);
+        fprintf(jf, ", \"labels\": [");
+    }
+    for (size_t q = 0; !rc && q < n; q++) {
+        char name[LABEL_NAME_MAX];
+        uint8_t rgb[3];
+        name_and_color(&table, values[q], name, sizeof name, rgb);
+        if (!quiet)
+            fprintf(text, "  %" PRId64 " %s: %" PRIu64 " voxels, colour %u %u %u\n", values[q],
+                    name, voxels[q], rgb[0], rgb[1], rgb[2]);
+        if (jf) {
+            fprintf(jf, "%s{\"value\": %" PRId64 ", \"name\": ", q ? ", " : "", values[q]);
+            cli_json_string(jf, name);
+            fprintf(jf, ", \"color\": [%u, %u, %u], \"voxels\": %" PRIu64 "}", rgb[0], rgb[1],
+                    rgb[2], voxels[q]);
+        }
+    }
+    if (jf) fprintf(jf, "]}\n");
+    if (rc)
+        cli_json_abort(&jo);
+    else
+        rc = cli_json_finish(&jo);
+    free(values);
+    free(voxels);
+    free(copy);
+    label_table_free(&table);
     cli_source_close(&src);
     return rc;
 }
