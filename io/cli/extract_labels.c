@@ -501,18 +501,8 @@ int cli_extract_labels(cli_args *a)
     label_out *lo = NULL;
     void *copy = NULL;
     size_t n = 0;
-    rc = cli_json_prepare(&jo, a->json);
+    rc = cli_open_source_for(a, quiet, &jo, &bar, &src);
     if (rc) {
-        label_table_free(&table);
-        free(want);
-        return rc;
-    }
-    cli_progress_init(&bar, !quiet && isatty(STDERR_FILENO));
-    cli_active_progress = &bar;
-    a->src.progress = &bar;
-    rc = cli_source_open(a->positional, a->npositional, &a->src, &src);
-    if (rc) {
-        cli_json_abort(&jo);
         label_table_free(&table);
         free(want);
         return rc;
@@ -759,17 +749,8 @@ int cli_info_labels(cli_args *a)
     cli_json_out jo;
     cli_progress bar;
     cli_source src;
-    int rc = cli_json_prepare(&jo, a->json);
+    int rc = cli_open_source_for(a, quiet, &jo, &bar, &src);
     if (rc) {
-        label_table_free(&table);
-        return rc;
-    }
-    cli_progress_init(&bar, !quiet && isatty(STDERR_FILENO));
-    cli_active_progress = &bar;
-    a->src.progress = &bar;
-    rc = cli_source_open(a->positional, a->npositional, &a->src, &src);
-    if (rc) {
-        cli_json_abort(&jo);
         label_table_free(&table);
         return rc;
     }

@@ -235,29 +235,6 @@ static void print_geometry(FILE *fp, const cli_geometry *g, int64_t nz)
 
 /* ------------------------------------------------------------------ extract */
 
-/*
- * The start shared by `extract` and `info`: prepares the --json output, sets
- * up the progress bar (stderr a terminal and not --quiet) and opens SOURCE
- * (no sample read yet), then prints the slices' geometry warning if any
- * (stderr, even with --quiet: it is about the result).  On failure nothing
- * is left open and the exit code is returned.
- */
-static int open_source_for(cli_args *a, int quiet, cli_json_out *jo, cli_progress *bar,
-                           cli_source *s)
-{
-    int rc = cli_json_prepare(jo, a->json);
-    if (rc) return rc;
-    cli_progress_init(bar, !quiet && isatty(STDERR_FILENO));
-    cli_active_progress = bar;
-    a->src.progress = bar;
-    rc = cli_source_open(a->positional, a->npositional, &a->src, s);
-    if (rc)
-        cli_json_abort(jo);
-    else /* uneven gaps, a missing slice: said once, the mesh is still made */
-        cli_print_geometry_warning(s->label, &s->geometry);
-    return rc;
-}
-
 /* Refuses a plan whose streaming path does not fit the limit either. */
 static int plan_fits(const cli_memory_plan *p, const cli_source *s)
 {
@@ -356,7 +333,7 @@ static int cmd_extract(int argc, char **argv)
     cli_json_out jo;
     cli_progress bar;
     cli_source src;
-    rc = open_source_for(&a, quiet, &jo, &bar, &src);
+    rc = cli_open_source_for(&a, quiet, &jo, &bar, &src);
     if (rc) return rc;
 
     isomend_options opts;
@@ -720,7 +697,7 @@ static int cmd_info(int argc, char **argv)
     cli_progress bar;
     cli_source src;
     a.src.list_series = 1;
-    rc = open_source_for(&a, quiet, &jo, &bar, &src);
+    rc = cli_open_source_for(&a, quiet, &jo, &bar, &src);
     if (rc) return rc;
     if (src.series_listed) {
         /* several series, none chosen: the list is the answer */
