@@ -99,6 +99,7 @@ IO_STATUS_NAMES = {
 IO_ERR_CANCELLED = 10
 
 TYPE_U8, TYPE_I8, TYPE_U16, TYPE_I16, TYPE_I32, TYPE_F32, TYPE_F64 = range(7)
+TYPE_U32 = 7  # ISOMEND_U32: label maps only (extract_labels)
 _DTYPE_TO_TYPE = {
     np.dtype(np.uint8): TYPE_U8, np.dtype(np.int8): TYPE_I8,
     np.dtype(np.uint16): TYPE_U16, np.dtype(np.int16): TYPE_I16,
@@ -440,6 +441,13 @@ def _core_lib():
         _declare(lib, "isomend_mesh_clean", c_int,
                  [ctypes.c_void_p, ctypes.c_uint64, ctypes.c_uint64, P(ctypes.c_void_p),
                   P(CleanReport)])
+        _declare(lib, "isomend_labels_extract", c_int,
+                 [P(Volume), ctypes.c_void_p, c_size, P(Options), P(ctypes.c_void_p)])
+        _declare(lib, "isomend_labels_count", c_size, [ctypes.c_void_p])
+        _declare(lib, "isomend_labels_value", ctypes.c_int64, [ctypes.c_void_p, c_size])
+        _declare(lib, "isomend_labels_voxels", ctypes.c_uint64, [ctypes.c_void_p, c_size])
+        _declare(lib, "isomend_labels_take_mesh", ctypes.c_void_p, [ctypes.c_void_p, c_size])
+        _declare(lib, "isomend_labels_destroy", None, [ctypes.c_void_p])
         _declare(lib, "isomend_case_of", c_int, [ctypes.c_uint])
         _declare(lib, "isomend_case_triangles", c_int, [ctypes.c_uint, P(c_int)])
         _core, _core_path = lib, path
@@ -1133,6 +1141,83 @@ def extract(volume, iso, method="dmc", spacing=None, origin=None, pad=False, fli
     mesh.volume_origin = tuple(first_slice) if first_slice else tuple(vol.origin)
     mesh.volume_spacing = tuple(vol.spacing)
     return postprocess(mesh, **post)
+
+
+def _label_array(volume):
+    """A label map as an array of a label type (no copy when it is one): bool
+    as uint8; int64/uint64 and floats whose values are whole numbers in the
+    32-bit range as uint32 (no negative value) or int32."""
+    a = volume if isinstance(volume, np.ndarray) else np.asarray(volume)
+    if a.dtype == np.bool_:
+        return a.view(np.uint8)
+    if a.dtype in (np.dtype(np.uint8), np.dtype(np.int8), np.dtype(np.uint16),
+                   np.dtype(np.int16), np.dtype(np.int32), np.dtype(np.uint32)):
+        return a
+    if a.dtype.kind not in "iuf":
+        raise TypeError("volume: a label map holds integers, got dtype %s" % a.dtype)
+    if a.dtype.kind == "f" and a.size and not np.array_equal(a, np.floor(a)):
+        raise ValueError("volume: a label map holds integers; this one has fractions or NaN")
+    lo, hi = (a.min(), a.max()) if a.size else (0, 0)
+    if lo >= 0 and hi <= 0xFFFFFFFF:
+        return a.astype(np.uint32)
+    if lo >= -(1 << 31) and hi < (1 << 31):
+        return a.astype(np.int32)
+    raise ValueError("volume: labels from %d to %d do not fit 32 bits" % (lo, hi))
+
+
+def extract_labels(volume, labels=None, method="dmc", spacing=None, origin=None, pad=True,
+                   flip=False, normals=True, origins=True, threads=0, axes="zyx",
+                   progress=None):
+    """Every label's surface of a label map (a segmentation), in one pass.
+
+    volume: 3D integer array (uint8 ... int32, uint32; whole-number floats and
+            int64 are converted), ``array[z, y, x]`` unless ``axes`` says otherwise.
+    labels: the label values to extract, or None for every value present but 0.
+    method: "dmc" (default), "mc" or "durst"; pad (default True here): closed
+            surfaces; the other arguments as for extract().
+    Returns a dict {label value: Mesh}, in the order asked (None: ascending);
+    each Mesh's surface is the label's indicator's at 0.5 (extract() of
+    ``volume == L`` at iso 0.5, the same arrays), ``mesh.voxels`` its samples.
+    A label that is not in the volume has an empty Mesh and 0 voxels.
+    Raises IsomendError (Cancelled when cancelled), ValueError, TypeError.
+    """
+    arr = _label_array(volume)
+    u32 = arr.dtype == np.uint32
+    vol, keep = _as_volume(arr.view(np.int32) if u32 else arr, axes, spacing, origin)
+    if u32:
+        vol.type = TYPE_U32
+    want = None
+    if labels is not None:
+        want = np.ascontiguousarray([int(v) for v in labels], dtype=np.int64)
+        if len(set(want.tolist())) != len(want):
+            raise ValueError("labels: a value is listed twice")
+    prog = _Progress(progress) if progress is not None else None
+    opts = _options(None, method, pad, flip, normals, origins, threads, prog)
+    lib = _core_lib()
+    res = ctypes.c_void_p()
+    status = lib.isomend_labels_extract(
+        ctypes.byref(vol), want.ctypes.data if want is not None and len(want) else None,
+        len(want) if want is not None else 0, ctypes.byref(opts), ctypes.byref(res))
+    del keep
+    if prog is not None:
+        prog.reraise()
+    if status != 0:
+        _raise_core(status, "isomend_labels_extract")
+    out = {}
+    try:
+        name = lib.isomend_method_name(opts.method).decode()
+        for q in range(lib.isomend_labels_count(res)):
+            value = lib.isomend_labels_value(res, q)
+            handle = lib.isomend_labels_take_mesh(res, q)
+            mesh = _wrap_mesh(lib, ctypes.c_void_p(handle), {}, 0.5, name, normals, origins, None)
+            mesh.label = value
+            mesh.voxels = lib.isomend_labels_voxels(res, q)
+            mesh.volume_origin = tuple(vol.origin)
+            mesh.volume_spacing = tuple(vol.spacing)
+            out[value] = mesh
+    finally:
+        lib.isomend_labels_destroy(res)
+    return out
 
 
 def check(positions, triangles, box=None):

@@ -34,6 +34,7 @@ static const struct {
     {"--max-error", OPT_MAX_ERROR, 1}, {"--smooth", OPT_SMOOTH, 1},
     {"--min-component", OPT_MIN_COMPONENT, 1}, {"--largest", OPT_LARGEST, 1},
     {"--stream", OPT_STREAM, 0}, {"--chunk-layers", OPT_CHUNK_LAYERS, 1},
+    {"--labels", OPT_LABELS, 1}, {"--label-table", OPT_LABEL_TABLE, 1}, {"--format", OPT_FORMAT, 1},
 };
 
 static int parse_raw(const char *v, cli_source_opts *o)
@@ -328,6 +329,23 @@ int cli_parse_args(int argc, char **argv, int first, const char *command, uint64
                 cli_error("--pages: '%s' is not huge or small", value);
                 return CLI_EXIT_USAGE;
             }
+            break;
+        case OPT_LABELS:
+            if (!*value) {
+                cli_error("--labels: empty (all, or L1,L2,...)");
+                return CLI_EXIT_USAGE;
+            }
+            a->labels = value; /* parsed by extract_labels.c */
+            break;
+        case OPT_LABEL_TABLE: a->label_table = value; break;
+        case OPT_FORMAT:
+            if (strcmp(value, "ply") && strcmp(value, "obj") && strcmp(value, "stl")) {
+                cli_error("--format: '%s' is not ply, obj or stl", value);
+                return CLI_EXIT_USAGE;
+            }
+            a->format = strcmp(value, "ply") == 0   ? "x.ply"
+                        : strcmp(value, "obj") == 0 ? "x.obj"
+                                                    : "x.stl";
             break;
         case OPT_MAX_MEMORY:
             if (!cli_parse_size(value, &a->max_memory) || a->max_memory == 0) {

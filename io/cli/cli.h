@@ -104,6 +104,10 @@ extern cli_progress *cli_active_progress;
 extern volatile int cli_interrupted;
 void cli_install_signal_handlers(void);
 
+/* The exit code of an extraction's status, 0 for ISOMEND_OK; else the
+ * message printed: "LABEL: interrupted" (130) or "LABEL: WHAT failed: ..." (1). */
+int cli_extract_status(isomend_status st, const char *label, const char *what);
+
 /* Writes a JSON string literal (with quotes) for `s`. */
 void cli_json_string(FILE *fp, const char *s);
 
@@ -347,6 +351,9 @@ enum {
 #define OPT_IN_MEMORY ((uint64_t)1 << 32)       /* --in-memory: the whole mesh, then written */
 #define OPT_STREAM ((uint64_t)1 << 33)          /* --stream: streamed even when it would fit */
 #define OPT_CHUNK_LAYERS ((uint64_t)1 << 34)    /* --chunk-layers: the streamed decimation's */
+#define OPT_LABELS       ((uint64_t)1 << 35)    /* --labels all|L1,L2: a label map's surfaces */
+#define OPT_LABEL_TABLE  ((uint64_t)1 << 36)    /* --label-table FILE: names and colours     */
+#define OPT_FORMAT       ((uint64_t)1 << 37)    /* --format ply|obj|stl: -o FOLDER/'s files  */
 #define OPT_POST \
     (OPT_DECIMATE | OPT_TARGET_TRIANGLES | OPT_MAX_ERROR | OPT_SMOOTH | OPT_MIN_COMPONENT | OPT_LARGEST)
 
@@ -374,6 +381,10 @@ typedef struct cli_args {
     enum { CLI_PAGES_HUGE, CLI_PAGES_SMALL } pages; /* --pages */
     double box[6];
     uint64_t max_memory;                    /* --max-memory, 0 = not given */
+    const char *labels;                     /* --labels as given               */
+    const char *label_table;                /* --label-table FILE              */
+    const char *format;                     /* --format: "x.ply" etc., for     */
+                                            /* isomend_mesh_format_of()        */
     cli_post post;
     cli_source_opts src;
 } cli_args;
@@ -542,6 +553,12 @@ void cli_outputs_abort(cli_outputs *o);
 
 int cli_stream_extract(cli_source *s, const isomend_options *opts, const cli_sink *sink,
                        isomend_stats *stats);
+
+/* ---- extract_labels.c ---- */
+
+/* `extract SOURCE --labels ...` (a label map's surfaces): an exit code, the
+ * message printed. */
+int cli_extract_labels(cli_args *a);
 
 /* ---- report.c ---- */
 

@@ -119,6 +119,16 @@ static const char *const usage_extract =
     "  --chunk-layers N         the streamed smoothing's and decimation's chunks of N\n"
     "                           layers (default: from the slice size, fewer under a\n"
     "                           tight --max-memory)\n"
+    "Label maps (segmentations; integer samples), every label in one pass:\n"
+    "  --labels all|L1,L2,...   one closed surface a label (all: every label but 0);\n"
+    "                           -o FOLDER/ writes one file a label (NAME or label_N),\n"
+    "                           -o FILE.ply all with a label and colour a face,\n"
+    "                           -o FILE.obj a group a label and FILE.mtl's colours\n"
+    "                           (with --stream the slices are read one at a time)\n"
+    "  --format ply|obj|stl     the files of -o FOLDER/ (default ply)\n"
+    "  --label-table FILE       names and colours: 3D Slicer .ctbl/.txt, FreeSurfer\n"
+    "                           LUT, ITK-SNAP label description (a .seg.nrrd's own\n"
+    "                           Segment*_ keys are read without it)\n"
 #ifdef ISOMEND_HAVE_IO
     "  --first N --count N --step N   printf-pattern slice range\n"
     "  --channel N|luma         channel of multi-channel images\n"
@@ -288,12 +298,18 @@ static int cmd_extract(int argc, char **argv)
                        OPT_THREADS | OPT_FIRST | OPT_COUNT | OPT_STEP | OPT_CHANNEL | OPT_HELP |
                        OPT_PAGES | OPT_MAX_MEMORY | OPT_SERIES | OPT_GRID_AXES | OPT_RAS |
                        OPT_SLICE_POSITIONS | OPT_POST | OPT_IN_MEMORY | OPT_STREAM |
-                       OPT_CHUNK_LAYERS;
+                       OPT_CHUNK_LAYERS | OPT_LABELS | OPT_LABEL_TABLE | OPT_FORMAT;
     int rc = cli_parse_args(argc, argv, 2, "extract", allowed, &a);
     if (rc) return rc;
     if (a.seen & OPT_HELP) {
         fputs(usage_extract, stdout);
         return CLI_EXIT_OK;
+    }
+    if (a.seen & OPT_LABELS) return cli_extract_labels(&a); /* a label map */
+    if (a.seen & (OPT_LABEL_TABLE | OPT_FORMAT)) {
+        cli_error("%s: only with --labels (a label map's surfaces)",
+                  (a.seen & OPT_LABEL_TABLE) ? "--label-table" : "--format");
+        return CLI_EXIT_USAGE;
     }
     if (a.npositional == 0) {
         cli_error("extract: missing SOURCE (see isomend extract --help)");
@@ -459,16 +475,8 @@ static int cmd_extract(int argc, char **argv)
         isomend_status st = isomend_extract(&src.desc, &opts, &mesh, &stats);
         cli_progress_clear(&bar);
         tm.extract_ms = cli_now_ms() - t0;
-        if (st == ISOMEND_ERR_CANCELLED) {
-            cli_error("%s: interrupted", src.label);
-            rc = CLI_EXIT_INTERRUPTED;
-            goto fail_source;
-        }
-        if (st != ISOMEND_OK) {
-            cli_error("%s: extraction failed: %s", src.label, isomend_status_string(st));
-            rc = CLI_EXIT_FAIL;
-            goto fail_source;
-        }
+        rc = cli_extract_status(st, src.label, "extraction");
+        if (rc) goto fail_source;
         if (cli_interrupted) { /* after the last progress call: still nothing written */
             cli_error("%s: interrupted", src.label);
             rc = CLI_EXIT_INTERRUPTED;

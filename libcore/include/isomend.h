@@ -132,8 +132,12 @@ typedef enum isomend_type {
     ISOMEND_F64 = 6
 } isomend_type;
 #define ISOMEND_TYPE_COUNT 7
+/* uint32 samples, for label maps only (isomend_labels_*): not a type of the
+ * scalar extraction, whose switches over isomend_type it stays out of. */
+#define ISOMEND_U32 ((isomend_type)7)
 
-/* Size in bytes of one sample, 0 for an invalid type. */
+/* Size in bytes of one sample, 0 for an invalid type (and for ISOMEND_U32,
+ * which only isomend_labels_* take). */
 ISOMEND_API size_t isomend_type_size(isomend_type type);
 /* "u8", "i8", "u16", "i16", "i32", "f32", "f64"; NULL for an invalid type. */
 ISOMEND_API const char *isomend_type_name(isomend_type type);
@@ -1026,6 +1030,103 @@ ISOMEND_API isomend_status isomend_smooth_stream_finish(isomend_smooth_stream *s
 
 /* Accepts NULL. */
 ISOMEND_API void isomend_smooth_stream_destroy(isomend_smooth_stream *ss);
+
+/* ------------------------------------------------------------- label maps */
+
+/*
+ * Label maps (segmentations: TotalSegmentator, 3D Slicer, FreeSurfer): an
+ * integer volume whose samples are label values.  The surface of label L is
+ * the surface of its indicator (1 where the sample is L, 0 elsewhere) at
+ * level 0.5: exactly isomend_extract()'s mesh of that indicator (as a u8
+ * volume, iso 0.5) with the same method and flags, byte for byte, vertex
+ * order, normals and origins included.  Every vertex is the midpoint of a
+ * grid edge whose two samples differ, so where two labels touch, their
+ * surfaces have the same vertex positions on the shared boundary.  Each
+ * label's normals come from its own indicator (pointing out of the label,
+ * into the label with ISOMEND_FLAG_FLIP).
+ *
+ * All the labels are extracted in one pass over the volume, not one a label:
+ * a cube whose eight samples are not all equal is marched once for each
+ * requested label among its corners.  The meshes do not depend on the
+ * thread count (slabs of slices, one a thread).
+ *
+ * Types: ISOMEND_U8, _I8, _U16, _I16, _U32, _I32 (ISOMEND_ERR_INVALID_ARGUMENT
+ * for the float types).  Methods: ISOMEND_METHOD_DMC (the default; each
+ * label's surface a closed oriented 2-manifold with ISOMEND_FLAG_PAD),
+ * _DURST and _MC; the others ISOMEND_ERR_UNSUPPORTED.  Ambiguous faces: on a
+ * label's indicator every ambiguous face has its saddle exactly at 0.5; the
+ * table methods do not test it: the MC table separates the label's corners
+ * on such a face in a cube with at most 4 of them and joins them in a cube
+ * with 5 or more, and DMC adds its quadrilateral where two cubes disagree
+ * (docs/labels.md: why this and not the face methods' tie rule, under which
+ * two labels on a checkerboard would both be joined and cross).  Options:
+ * iso is ignored; the flags as for isomend_extract() (SMALL_PAGES changes
+ * nothing: the meshes are malloc'ed); slice origins: ISOMEND_ERR_UNSUPPORTED.
+ * Progress as for isomend_extract() (every 16 slices of the first slab).
+ */
+typedef struct isomend_labels isomend_labels;
+
+/*
+ * The labels present in `vol` (any label type), ascending, and their sample
+ * counts: *count receives how many there are; the first `capacity` go to
+ * `values` and `voxels` (either may be NULL).  One pass over the volume.
+ */
+ISOMEND_API isomend_status isomend_labels_present(const isomend_volume *vol, int64_t *values,
+                                                  uint64_t *voxels, size_t capacity, size_t *count);
+
+/*
+ * The surfaces of `labels[0 .. count - 1]` (distinct values, in that order;
+ * a label absent from the volume gets an empty mesh and 0 voxels), or with
+ * labels NULL of every label present but 0 (the background), ascending.
+ * `opts` NULL: the defaults.  On success *out receives the result (destroy
+ * with isomend_labels_destroy()); on failure NULL.  A value twice:
+ * ISOMEND_ERR_INVALID_ARGUMENT.
+ */
+ISOMEND_API isomend_status isomend_labels_extract(const isomend_volume *vol, const int64_t *labels,
+                                                  size_t count, const isomend_options *opts,
+                                                  isomend_labels **out);
+
+/* The number of labels of a result, each one's value, its samples in the
+ * volume, and its mesh (owned by the result: valid until
+ * isomend_labels_destroy(); isomend_mesh_check() and the accessors work on
+ * it, never isomend_mesh_destroy()).  Out of range: 0 / NULL. */
+ISOMEND_API size_t isomend_labels_count(const isomend_labels *result);
+ISOMEND_API int64_t isomend_labels_value(const isomend_labels *result, size_t index);
+ISOMEND_API uint64_t isomend_labels_voxels(const isomend_labels *result, size_t index);
+ISOMEND_API const isomend_mesh *isomend_labels_mesh(const isomend_labels *result, size_t index);
+
+/* Hands the mesh of label `index` over to the caller (destroy it with
+ * isomend_mesh_destroy()); the result keeps its value and voxels and has no
+ * mesh for it any more (isomend_labels_mesh() then returns NULL).  NULL when
+ * out of range or already taken.  For bindings that own each mesh. */
+ISOMEND_API isomend_mesh *isomend_labels_take_mesh(isomend_labels *result, size_t index);
+
+/* Accepts NULL. */
+ISOMEND_API void isomend_labels_destroy(isomend_labels *result);
+
+/*
+ * A label map streamed: slices pushed one at a time, in z order (each
+ * contiguous, x fastest, desc->type, desc->dims[0] x dims[1] samples; the
+ * data and strides of `desc` are not used), the surfaces made as the slices
+ * arrive, and the result isomend_labels_extract()'s, byte for byte, at
+ * finish.  The stream holds 4 slices of codes (4 bytes a sample) and 2 of
+ * edge ids (24 bytes a sample) besides the meshes; one thread (opts->threads
+ * is not used), no progress calls.  `labels` must be given (a stream cannot
+ * list the labels present: isomend_labels_present() on the slices does).
+ * Too many slices, or too few at finish: ISOMEND_ERR_SLICE_COUNT (sticky).
+ */
+typedef struct isomend_labels_stream isomend_labels_stream;
+
+ISOMEND_API isomend_status isomend_labels_stream_begin(const isomend_volume *desc,
+                                                       const int64_t *labels, size_t count,
+                                                       const isomend_options *opts,
+                                                       isomend_labels_stream **out);
+ISOMEND_API isomend_status isomend_labels_stream_push(isomend_labels_stream *s, const void *slice);
+/* Once: the result into *out (NULL on failure). */
+ISOMEND_API isomend_status isomend_labels_stream_finish(isomend_labels_stream *s,
+                                                        isomend_labels **out);
+/* Accepts NULL. */
+ISOMEND_API void isomend_labels_stream_destroy(isomend_labels_stream *s);
 
 /* ------------------------------------------------------------ case tables */
 

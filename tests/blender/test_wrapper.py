@@ -70,6 +70,7 @@ def test_struct_layouts_and_constants_match_the_headers():
     assert (isomend.TYPE_U8, isomend.TYPE_I8, isomend.TYPE_U16, isomend.TYPE_I16, isomend.TYPE_I32,
             isomend.TYPE_F32, isomend.TYPE_F64) == tuple(
         c["ISOMEND_" + t] for t in ("U8", "I8", "U16", "I16", "I32", "F32", "F64"))
+    assert isomend.TYPE_U32 == c["ISOMEND_U32"]
     assert isomend.METHODS["mc"] == c["ISOMEND_METHOD_MC"]
     assert isomend.METHODS["durst"] == c["ISOMEND_METHOD_DURST"]
     assert isomend.METHODS["dmc"] == c["ISOMEND_METHOD_DMC"]
@@ -785,3 +786,52 @@ def test_nifti_source_is_placed_by_its_sform_in_patient_space(tmp_path):
     ijk = (np.linalg.inv(nib.load(path).affine) @ np.c_[ras, np.ones(len(ras))].T).T[:, :3]
     on_edge = (np.abs(ijk - np.round(ijk)) < 1e-4).sum(axis=1) >= 2
     assert on_edge.all(), ijk[~on_edge][:3]
+
+
+# ------------------------------------------------------------ label maps
+
+def label_map():
+    """Nested shells (labels 1, 4, 5) and a box (7) touching the outer shell."""
+    z, y, x = np.indices((15, 16, 18)).astype(float)
+    r = np.sqrt((x - 8.2) ** 2 + (y - 7.6) ** 2 + (z - 7.1) ** 2)
+    v = np.select([r < 3, r < 5.2, r < 7], [5, 4, 1], 0).astype(np.uint8)
+    v[3:12, 3:12, 14:17] = 7
+    return v
+
+
+def test_extract_labels_equals_extract_of_each_indicator():
+    v = label_map()
+    meshes = isomend.extract_labels(v, spacing=(0.5, 1.0, 2.0), origin=(1, 2, 3), threads=2)
+    assert list(meshes) == [1, 4, 5, 7]
+    for value, m in meshes.items():
+        ref = isomend.extract((v == value).astype(np.uint8), 0.5, spacing=(0.5, 1.0, 2.0),
+                              origin=(1, 2, 3), pad=True, threads=1)
+        same_mesh(m, ref)
+        np.testing.assert_array_equal(m.normals, ref.normals)
+        np.testing.assert_array_equal(m.origins, ref.origins)
+        assert m.label == value and m.voxels == int((v == value).sum())
+        rep = isomend.check(m.positions, m.triangles, box=m.grid_box)
+        assert rep["hole_edges"] == 0 and rep["border_edges"] == 0
+        assert rep["nonmanifold_edges"] == 0 and rep["misoriented_edges"] == 0
+
+
+def test_extract_labels_types_order_and_errors():
+    v = label_map()
+    base = isomend.extract_labels(v, labels=[7, 1])
+    assert list(base) == [7, 1]
+    for arr, labels in [(v.astype(np.uint32) + 4000000000, [4000000007, 4000000001]),
+                        (v.astype(np.int64) - 3, [4, -2]), (v.astype(np.float64), [7, 1]),
+                        (v.astype(np.int16) * -1, [-7, -1])]:
+        got = isomend.extract_labels(arr, labels=labels)
+        for (a, ma), (b, mb) in zip(base.items(), got.items()):
+            same_mesh(ma, mb)
+    absent = isomend.extract_labels(v, labels=[9])
+    assert absent[9].triangle_count == 0 and absent[9].voxels == 0
+    with pytest.raises(ValueError):
+        isomend.extract_labels(v.astype(np.float32) + 0.5)
+    with pytest.raises(ValueError):
+        isomend.extract_labels(v, labels=[1, 1])
+    with pytest.raises(TypeError):
+        isomend.extract_labels(v.astype(np.complex64))
+    with pytest.raises(isomend.IsomendError):
+        isomend.extract_labels(v, method="mc33")
