@@ -358,7 +358,6 @@ static const char *refused_option(uint64_t seen)
         {OPT_DECIMATE, "--decimate"},
         {OPT_TARGET_TRIANGLES, "--target-triangles"},
         {OPT_MAX_ERROR, "--max-error"},
-        {OPT_SMOOTH, "--smooth"},
         {OPT_MIN_COMPONENT, "--min-component"},
         {OPT_LARGEST, "--largest"},
 
@@ -499,6 +498,9 @@ int cli_extract_labels(cli_args *a)
     cli_source src;
     isomend_labels *res = NULL;
     label_out *lo = NULL;
+    isomend_mesh **smoothed = NULL; /* --smooth: every label's, smoothed together */
+    isomend_smooth_report *sreport = NULL;
+    double smooth_ms = 0;
     void *copy = NULL;
     size_t n = 0;
     rc = cli_open_source_for(a, quiet, &jo, &bar, &src);
@@ -561,6 +563,31 @@ int cli_extract_labels(cli_args *a)
             goto done;
         }
 
+    /* --smooth: the labels' surfaces smoothed together, so that where two
+     * labels touch their surfaces still meet */
+    if (a->post.smooth > 0) {
+        const isomend_mesh **in = calloc(n, sizeof *in);
+        smoothed = calloc(n, sizeof *smoothed);
+        sreport = calloc(n, sizeof *sreport);
+        if (!in || !smoothed || !sreport) {
+            free(in);
+            cli_error("%s: out of memory", src.label);
+            rc = CLI_EXIT_FAIL;
+            goto done;
+        }
+        for (size_t q = 0; q < n; q++)
+            in[q] = isomend_labels_mesh(res, q);
+        t0 = cli_now_ms();
+        st = isomend_meshes_smooth(in, n, a->post.smooth, smoothed, sreport);
+        smooth_ms = cli_now_ms() - t0;
+        free(in);
+        if (st != ISOMEND_OK) {
+            cli_error("--smooth %d: %s", a->post.smooth, isomend_status_string(st));
+            rc = CLI_EXIT_FAIL;
+            goto done;
+        }
+    }
+
     /* names, colours, checks, the world map */
     lo = calloc(n, sizeof *lo);
     if (!lo) {
@@ -572,7 +599,7 @@ int cli_extract_labels(cli_args *a)
     for (size_t q = 0; q < n && !rc; q++) {
         label_out *l = &lo[q];
         l->value = isomend_labels_value(res, q);
-        l->mesh = isomend_labels_mesh(res, q);
+        l->mesh = smoothed ? smoothed[q] : isomend_labels_mesh(res, q);
         char base[LABEL_NAME_MAX];
         name_and_color(&table, l->value, base, sizeof base, l->rgb);
         snprintf(l->name, sizeof l->name, "%s", base);
@@ -656,8 +683,22 @@ int cli_extract_labels(cli_args *a)
                     : lo[q].check.border_edges          ? "continuous, open at the border"
                                                         : "closed",
                     lo[q].file);
+        if (smoothed)
+            for (size_t q = 0; q < n; q++)
+                fprintf(text,
+                        "  smoothing of %" PRId64 " %s (with its neighbours): %" PRIu64
+                        " vertices moved, at most %.4g; volume %.6g -> %.6g (%+.3f %%)\n",
+                        lo[q].value, lo[q].name, sreport[q].moved_vertices,
+                        sreport[q].max_displacement, sreport[q].volume_before,
+                        sreport[q].volume_after,
+                        sreport[q].volume_before != 0
+                            ? 100 * (sreport[q].volume_after - sreport[q].volume_before) /
+                                  fabs(sreport[q].volume_before)
+                            : 0.0);
         fprintf(text, "time: read %.1f ms, extract %.1f ms, check %.1f ms, write %.1f ms\n",
                 src.read_ms, extract_ms, check_ms, write_ms);
+        if (smoothed)
+            fprintf(text, "time: smoothing %.1f ms\n", smooth_ms);
     }
     FILE *jf = cli_json_stream(&jo);
     if (jf) {
@@ -698,14 +739,21 @@ int cli_extract_labels(cli_args *a)
                     ", \"triangles_by_origin\": {\"table\": %" PRIu64 ", \"durst\": %" PRIu64
                     ", \"mend\": %" PRIu64 "}",
                     by[ISOMEND_ORIGIN_TABLE], by[ISOMEND_ORIGIN_DURST], by[ISOMEND_ORIGIN_MEND]);
+            if (smoothed)
+                fprintf(jf,
+                        ", \"smooth\": {\"iterations\": %d, \"moved_vertices\": %" PRIu64
+                        ", \"max_displacement\": %.9g, \"volume_before\": %.17g, "
+                        "\"volume_after\": %.17g}",
+                        a->post.smooth, sreport[q].moved_vertices, sreport[q].max_displacement,
+                        sreport[q].volume_before, sreport[q].volume_after);
             fprintf(jf, ", \"check\": ");
             cli_json_check(jf, &lo[q].check);
             fprintf(jf, "}");
         }
         fprintf(jf,
-                "], \"timings_ms\": {\"read\": %.3f, \"extract\": %.3f, \"check\": %.3f, "
-                "\"write\": %.3f}}\n",
-                src.read_ms, extract_ms, check_ms, write_ms);
+                "], \"timings_ms\": {\"read\": %.3f, \"extract\": %.3f, \"smooth\": %.3f, "
+                "\"check\": %.3f, \"write\": %.3f}}\n",
+                src.read_ms, extract_ms, smooth_ms, check_ms, write_ms);
         rc = cli_json_finish(&jo);
         if (rc) { /* the JSON was asked for: a run without it is a failure */
             for (size_t q = 0; q < n; q++) unlink(lo[q].file);
@@ -725,6 +773,10 @@ done:
         free(lo[q].world_tri);
     }
     free(lo);
+    for (size_t q = 0; smoothed && q < n; q++)
+        isomend_mesh_destroy(smoothed[q]);
+    free(smoothed);
+    free(sreport);
     isomend_labels_destroy(res);
     free(copy);
     label_table_free(&table);

@@ -782,6 +782,26 @@ typedef struct isomend_smooth_report {
 ISOMEND_API isomend_status isomend_mesh_smooth(const isomend_mesh *mesh, int iterations,
                                                isomend_mesh **out, isomend_smooth_report *report);
 
+/*
+ * Surfaces that meet, smoothed together so that they still meet: a label
+ * map's meshes (isomend_labels_mesh()), whose vertices where two labels
+ * touch are one grid edge's midpoint in both.  The meshes' vertices are made
+ * one set (a vertex is the same in every mesh where its position is the
+ * same, bit for bit), each vertex's neighbours those it has in any of its
+ * meshes, and isomend_mesh_smooth()'s filter runs once on that set: a
+ * shared vertex moves once and stays shared.  A vertex locked in one of its
+ * meshes stays.  No volume is restored (an offset along one side's normals
+ * would part the sides): reports[i] (may be NULL; `count` of them) gives
+ * mesh i's volume before and after, its moved vertices and the largest
+ * move.  out[0 .. count - 1] receive new meshes (the inputs' triangles),
+ * all NULL on failure.  The result does not depend on the threads.
+ * ISOMEND_ERR_INVALID_ARGUMENT for iterations < 0 or > 10000 or a NULL
+ * mesh; ISOMEND_ERR_TOO_LARGE from 2^32 - 1 vertices or corners in all.
+ */
+ISOMEND_API isomend_status isomend_meshes_smooth(const isomend_mesh *const *meshes, size_t count,
+                                                 int iterations, isomend_mesh **out,
+                                                 isomend_smooth_report *reports);
+
 typedef struct isomend_clean_report {
     uint64_t components_before, components_after; /* through shared vertices */
     uint64_t triangles_removed, vertices_removed;

@@ -57,6 +57,14 @@ isomend_status mesh_copy_frame(isomend_mesh *dst, const isomend_mesh *src);
 void mesh_area_normals(isomend_mesh *m, const float *keep);
 int mesh_free_vertices(const isomend_mesh *m, team *tm, uint8_t *free_flag, uint32_t **first,
                        uint32_t **next, uint32_t **prev);
+/* smooth.c: the windowed sinc filter of `iterations` (>= 1) steps on n
+ * vertices whose neighbours are nb[first[v] .. first[v + 1]) (free_v[v] 0:
+ * the vertex stays), from the centred positions x0 into out, on team tm
+ * (NULL: this thread); x0, b and out hold 3 n + 4 floats (x0's last 4
+ * zero), b and deg (n bytes) scratch.  0 without memory. */
+int sinc_filter(team *tm, size_t n, const uint32_t *first, const uint32_t *nb,
+                const uint8_t *free_v, const float *x0, float *b, uint8_t *deg, float *out,
+                int iterations);
 /* fn(arg, lo, hi) over [0, n) in ranges on up to 8 threads (one below 32768
  * items, or where threads cannot start); returns when all are done. */
 void parallel_for(size_t n, void (*fn)(void *arg, size_t lo, size_t hi), void *arg);

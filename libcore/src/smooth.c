@@ -201,6 +201,70 @@ static void filter_range(void *arg, size_t lo, size_t hi)
 #endif
 }
 
+/* The windowed sinc filter of `iterations` (>= 1) steps on n vertices
+ * whose neighbours are nb[first[v] .. first[v + 1]) (free_v[v] 0: the
+ * vertex stays), from the centred positions x0 into out, on team tm; x0,
+ * b and out hold 3 n + 4 floats (x0's last 4 zero: the zero vertex), b
+ * and deg (n bytes) are scratch.  0 without memory. */
+int sinc_filter(team *tm, size_t n, const uint32_t *first, const uint32_t *nb,
+                const uint8_t *free_v, const float *x0, float *b, uint8_t *deg, float *out,
+                int iterations)
+{
+    const size_t nv = n;
+    double *c = malloc(8 * ((size_t)iterations + 1));
+    uint32_t *row = malloc(ROW * sizeof(uint32_t) * (nv ? nv : 1));
+    if (!c || !row) {
+        free(c);
+        free(row);
+        return 0;
+    }
+    for (int d = 0; d < 4; d++) /* the zero vertex */
+        b[3 * nv + (size_t)d] = out[3 * nv + (size_t)d] = 0;
+    sinc_coefficients(iterations, c);
+    row_job rj = {first, nb, free_v, row, deg, nv};
+    team_for(tm, nv, row_range, &rj);
+    float inv[DEG_MANY + 1];
+    inv[0] = inv[DEG_MANY] = 0;
+    for (int d = 1; d < DEG_MANY; d++)
+        inv[d] = 1.0f / (float)d;
+    /* Clenshaw: b_(N+1) = b_(N+2) = 0, b_k = c_k x0 + 2 M b_(k+1) - b_(k+2)
+     * down to k = 1, result c_0 x0 + M b_1 - b_2; b_N = c_N x0 is not
+     * stored, and the b_k alternate between two arrays, b_2 in the
+     * output's so that the last step writes over it */
+    const int N = iterations;
+    float *buf[2] = {N % 2 ? out : b, N % 2 ? b : out};
+    filter_job job = {first, nb, row, deg, inv, x0, x0, NULL, NULL, 0, 0, 0};
+    if (N >= 2) {
+        job.ck = (float)c[N - 1]; /* b_(N-1) = c_(N-1) x0 + c_N 2 M x0 */
+        job.g = x0;
+        job.gs = (float)c[N];
+        job.h = NULL;
+        job.hs = 0;
+        job.out = buf[0];
+        team_for(tm, nv, filter_range, &job);
+        for (int k = N - 2; k >= 1; k--) {
+            const int i = (N - 1 - k) % 2;
+            job.ck = (float)c[k];
+            job.g = buf[1 - i]; /* b_(k+1) */
+            job.gs = 1;
+            job.h = k == N - 2 ? NULL : buf[i]; /* b_(k+2), or c_N x0 */
+            job.hs = k == N - 2 ? (float)c[N] : 0;
+            job.out = buf[i];
+            team_for(tm, nv, filter_range, &job);
+        }
+    }
+    job.ck = (float)c[0]; /* c_0 x0 + M b_1 - b_2 */
+    job.g = N >= 2 ? buf[(N - 2) % 2] : x0;
+    job.gs = N >= 2 ? 0.5f : (float)(0.5 * c[1]);
+    job.h = N >= 3 ? buf[(N - 3) % 2] : NULL;
+    job.hs = N == 2 ? (float)c[2] : 0;
+    job.out = out;
+    team_for(tm, nv, filter_range, &job);
+    free(c);
+    free(row);
+    return 1;
+}
+
 /* Each vertex's area-weighted normal sum N (twice the area of its
  * triangles, right-hand winding; stored in float), its area |N| / 6 and its
  * part of the enclosed volume, p . N / 18, from its fan (the next and prev
@@ -485,15 +549,14 @@ isomend_status isomend_mesh_smooth(const isomend_mesh *mesh, int iterations, iso
      * compacts it at the fault, which made a 1.5 M-vertex smoothing take
      * 190 ms or 400-560 ms by turns (malloc: 250-285 ms, steadily) */
     uint8_t *free_v = malloc(nv1);
-    uint32_t *first = NULL, *next = NULL, *prev = NULL, *row = NULL, *label = malloc(nv1 * sizeof(uint32_t));
+    uint32_t *first = NULL, *next = NULL, *prev = NULL, *label = malloc(nv1 * sizeof(uint32_t));
     float *xa = malloc(12 * nv1 + 16), *xb = malloc(12 * nv1 + 16), *nrm = malloc(12 * nv1);
     double *vv = malloc(8 * nv1), *va = malloc(8 * nv1);
-    double *c = malloc(8 * ((size_t)iterations + 1));
     double *v0 = NULL, *v1 = NULL, *area = NULL, *edge = NULL, *delta = NULL, *part = NULL;
     uint8_t *seen = NULL;
     isomend_mesh *m = calloc(1, sizeof(*m));
     team *tm = NULL;
-    if (!free_v || !label || !xa || !xb || !nrm || !vv || !va || !c || !m)
+    if (!free_v || !label || !xa || !xb || !nrm || !vv || !va || !m)
         goto done;
     for (int d = 0; d < 4; d++) /* the zero vertex nv (and its fourth float) */
         xa[3 * nv + (size_t)d] = xb[3 * nv + (size_t)d] = 0;
@@ -565,52 +628,10 @@ isomend_status isomend_mesh_smooth(const isomend_mesh *mesh, int iterations, iso
     if (iterations > 0) {
         centre_job cj = {mesh->pos, mid, xa};
         team_for(tm, nv, centre_range, &cj);
-        sinc_coefficients(iterations, c);
-        /* the rows, and the neighbour counts in nrm while the filter runs
-         * (the fans write it before and after) */
-        row = malloc(ROW * sizeof(uint32_t) * nv1);
-        if (!row)
+        /* the neighbour counts in nrm while the filter runs (the fans write
+         * it before and after) */
+        if (!sinc_filter(tm, nv, first, next, free_v, xa, xb, (uint8_t *)nrm, m->pos, iterations))
             goto done;
-        uint8_t *deg = (uint8_t *)nrm;
-        row_job rj = {first, next, free_v, row, deg, nv};
-        team_for(tm, nv, row_range, &rj);
-        float inv[DEG_MANY + 1];
-        inv[0] = inv[DEG_MANY] = 0;
-        for (int d = 1; d < DEG_MANY; d++)
-            inv[d] = 1.0f / (float)d;
-        /* Clenshaw: b_(N+1) = b_(N+2) = 0, b_k = c_k x0 + 2 M b_(k+1) - b_(k+2)
-         * down to k = 1, result c_0 x0 + M b_1 - b_2; b_N = c_N x0 is not
-         * stored, and the b_k alternate between two arrays, b_2 in the
-         * output's so that the last step writes over it */
-        const int n = iterations;
-        float *buf[2] = {n % 2 ? m->pos : xb, n % 2 ? xb : m->pos};
-        filter_job job = {first, next, row, deg, inv, xa, xa, NULL, NULL, 0, 0, 0};
-        if (n >= 2) {
-            job.ck = (float)c[n - 1]; /* b_(N-1) = c_(N-1) x0 + c_N 2 M x0 */
-            job.g = xa;
-            job.gs = (float)c[n];
-            job.h = NULL;
-            job.hs = 0;
-            job.out = buf[0];
-            team_for(tm, nv, filter_range, &job);
-            for (int k = n - 2; k >= 1; k--) {
-                const int i = (n - 1 - k) % 2;
-                job.ck = (float)c[k];
-                job.g = buf[1 - i]; /* b_(k+1) */
-                job.gs = 1;
-                job.h = k == n - 2 ? NULL : buf[i]; /* b_(k+2), or c_N x0 */
-                job.hs = k == n - 2 ? (float)c[n] : 0;
-                job.out = buf[i];
-                team_for(tm, nv, filter_range, &job);
-            }
-        }
-        job.ck = (float)c[0]; /* c_0 x0 + M b_1 - b_2 */
-        job.g = n >= 2 ? buf[(n - 2) % 2] : xa;
-        job.gs = n >= 2 ? 0.5f : (float)(0.5 * c[1]);
-        job.h = n >= 3 ? buf[(n - 3) % 2] : NULL;
-        job.hs = n == 2 ? (float)c[2] : 0;
-        job.out = m->pos;
-        team_for(tm, nv, filter_range, &job);
     }
     /* back to the mesh's coordinates; locked vertices exactly where they were */
     out_job oj = {mesh, free_v, nrm, mid, m->pos, NULL, vv, iterations > 0};
@@ -680,14 +701,12 @@ done:
     free(first);
     free(next);
     free(prev);
-    free(row);
     free(label);
     free(xa);
     free(xb);
     free(nrm);
     free(vv);
     free(va);
-    free(c);
     free(v0);
     free(v1);
     free(area);
