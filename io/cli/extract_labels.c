@@ -17,6 +17,7 @@
 
 #include "cli.h"
 
+#include "label_samples.h"
 #include "label_table.h"
 #include "label_writer.h"
 #include "mesh_io.h"
@@ -24,7 +25,6 @@
 #include <dirent.h>
 #include <errno.h>
 #include <inttypes.h>
-#include <math.h>
 #include <stdlib.h>
 #include <string.h>
 #include <sys/stat.h>
@@ -72,63 +72,6 @@ static int parse_labels(const char *value, int64_t **values, size_t *count)
     }
     *values = v;
     *count = k;
-    return CLI_EXIT_OK;
-}
-
-/* The label volume of a loaded source: its own samples when they are of an
- * integer type, else an i32/u32 copy of whole-number float samples (*copy,
- * to free).  Exit code, message printed. */
-static int label_samples(const cli_source *s, isomend_volume *vol, void **copy)
-{
-    *vol = s->desc;
-    *copy = NULL;
-    if (vol->type != ISOMEND_F32 && vol->type != ISOMEND_F64) return CLI_EXIT_OK;
-    const int64_t nx = vol->dims[0], ny = vol->dims[1], nz = vol->dims[2];
-    const size_t n = (size_t)(nx * ny * nz);
-    const int64_t ts = (int64_t)isomend_type_size(vol->type);
-    const int64_t st[3] = {vol->strides[0] ? vol->strides[0] : ts,
-                           vol->strides[1] ? vol->strides[1] : ts * nx,
-                           vol->strides[2] ? vol->strides[2] : ts * nx * ny};
-    int negative = 0;
-    for (int pass = 0; pass < 2; pass++) {
-        size_t q = 0;
-        for (int64_t k = 0; k < nz; k++)
-            for (int64_t j = 0; j < ny; j++)
-                for (int64_t i = 0; i < nx; i++, q++) {
-                    const double v = cli_sample_value(
-                        (const char *)vol->data + i * st[0] + j * st[1] + k * st[2], vol->type);
-                    if (pass == 0) {
-                        if (!(v == floor(v)) || v < -2147483648.0 || v > 4294967295.0) {
-                            cli_error("--labels: %s has %s sample %.9g at (%" PRId64 ", %" PRId64
-                                      ", %" PRId64 "): a label map holds integers",
-                                      s->label, isnan(v) ? "a NaN" : "the non-integer", v, i, j, k);
-                            return CLI_EXIT_FAIL;
-                        }
-                        negative |= v < 0;
-                        continue;
-                    }
-                    if (negative) {
-                        if (v > 2147483647.0) {
-                            cli_error("--labels: %s has labels below 0 and above 2^31 - 1, which "
-                                      "no 32-bit integer type holds",
-                                      s->label);
-                            free(*copy);
-                            *copy = NULL;
-                            return CLI_EXIT_FAIL;
-                        }
-                        ((int32_t *)*copy)[q] = (int32_t)v;
-                    } else {
-                        ((uint32_t *)*copy)[q] = (uint32_t)v;
-                    }
-                }
-        if (pass == 0 && !(*copy = malloc(4 * (n ? n : 1)))) {
-            cli_error("%s: out of memory copying the labels", s->label);
-            return CLI_EXIT_FAIL;
-        }
-    }
-    isomend_volume_init(vol, *copy, negative ? ISOMEND_I32 : ISOMEND_U32, nx, ny, nz);
-    memcpy(vol->spacing, s->desc.spacing, sizeof vol->spacing);
-    memcpy(vol->origin, s->desc.origin, sizeof vol->origin);
     return CLI_EXIT_OK;
 }
 
@@ -376,7 +319,10 @@ int cli_extract_labels(cli_args *a)
     }
     rc = cli_source_load(&src);
     isomend_volume vol;
-    if (!rc) rc = label_samples(&src, &vol, &copy);
+    if (!rc && label_samples_integer(&src.desc, src.label, &vol, &copy, msg, sizeof msg)) {
+        cli_error("--labels: %s", msg);
+        rc = CLI_EXIT_FAIL;
+    }
     if (rc) goto done;
     if (!names_from && strcmp(src.kind, "nrrd") == 0) {
         const int got = label_table_from_nrrd(a->positional[0], &table, msg, sizeof msg);
@@ -430,22 +376,15 @@ int cli_extract_labels(cli_args *a)
         label_out *l = &lo[q];
         l->value = isomend_labels_value(res, q);
         l->mesh = isomend_labels_mesh(res, q);
-        const label_entry *e = label_table_find(&table, l->value);
-        char base[LABEL_NAME_MAX];
-        if (e && e->name[0])
-            safe_name(e->name, base, sizeof base);
-        else
-            snprintf(base, sizeof base, "label_%" PRId64, l->value);
+        char shown[LABEL_NAME_MAX], base[LABEL_NAME_MAX];
+        label_describe(&table, l->value, shown, sizeof shown, l->rgb);
+        safe_name(shown, base, sizeof base);
         snprintf(l->name, sizeof l->name, "%s", base);
         for (size_t r = 0, k = 2; r < q; r++) /* unique: name_2, name_3, ... */
             if (strcmp(lo[r].name, l->name) == 0) {
                 snprintf(l->name, sizeof l->name, "%s_%zu", base, k++);
                 r = (size_t)-1;
             }
-        if (e && e->has_color)
-            memcpy(l->rgb, e->rgb, 3);
-        else
-            label_table_color(l->value, l->rgb);
         if (isomend_mesh_check(l->mesh, &l->check) != ISOMEND_OK) {
             cli_error("%s: continuity check of label %" PRId64 " failed", src.label, l->value);
             rc = CLI_EXIT_FAIL;
