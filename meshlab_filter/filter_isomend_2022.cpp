@@ -101,6 +101,23 @@ std::map<std::string, QVariant> FilterIsomendPlugin::applyFilter(const QAction *
     if (!ok)
         fail(QString::fromStdString(run.error()));
 
+    if (!run.labels().empty()) { /* a label map: a layer a label */
+        std::vector<MeshModel *> made;
+        try {
+            isomend_meshlab::add_label_layers(md, run, cb, made);
+        } catch (const std::bad_alloc &) {
+            for (MeshModel *m : made)
+                md.delMesh(m->id());
+            fail("out of memory while copying the labels into MeshLab");
+        }
+        for (MeshModel *m : made)
+            log("layer \"%s\": %d vertices, %d faces", qUtf8Printable(m->label()), m->cm.vn,
+                m->cm.fn);
+        postConditionMask = MeshModel::MM_NONE;
+        if (cb)
+            cb(100, "isomend: done");
+        return {{"labels", QVariant::fromValue<qulonglong>(made.size())}};
+    }
     MeshModel *m = md.addNewMesh("", QString::fromStdString(run.layer_name()), true);
     if (!m)
         fail("MeshLab could not create a new layer");

@@ -67,6 +67,11 @@ inline void fill_parameters(RichParameterList &par)
                          tip(job::kParamSmooth)));
     par.addParam(RichFloat(job::kParamDecimate, static_cast<float>(d.decimate_ratio),
                            label(job::kParamDecimate), tip(job::kParamDecimate)));
+    /* label maps: one layer a label */
+    par.addParam(RichString(job::kParamLabels, qs(d.labels.c_str()), label(job::kParamLabels),
+                            tip(job::kParamLabels)));
+    par.addParam(RichString(job::kParamLabelTable, qs(d.label_table.c_str()),
+                            label(job::kParamLabelTable), tip(job::kParamLabelTable)));
 }
 
 /* Reads the values back. */
@@ -94,6 +99,10 @@ inline isomend_filter::Params read_parameters(const RichParameterList &par)
         p.smooth_iterations = par.getInt(job::kParamSmooth);
     if (par.hasParameter(job::kParamDecimate))
         p.decimate_ratio = par.getFloat(job::kParamDecimate);
+    if (par.hasParameter(job::kParamLabels))
+        p.labels = par.getString(job::kParamLabels).toStdString();
+    if (par.hasParameter(job::kParamLabelTable))
+        p.label_table = par.getString(job::kParamLabelTable).toStdString();
     return p;
 }
 
@@ -143,6 +152,31 @@ inline void copy_mesh(const isomend_mesh *src, CMeshO &cm, vcg::CallBackPos *cb,
     vcg::tri::UpdateNormal<CMeshO>::PerFaceNormalized(cm);
     if (!nrm)
         vcg::tri::UpdateNormal<CMeshO>::PerVertexNormalized(cm);
+}
+
+/*
+ * Label-map mode (run.labels() not empty): one new layer a label, named
+ * after it, its colour on every vertex and face (MeshLab shows the vertex
+ * colour; a PLY export keeps both).  The layers made are appended to
+ * `made` as they are created, so that the adapter can remove them all when
+ * one fails (std::bad_alloc).
+ */
+inline void add_label_layers(MeshDocument &md, const isomend_filter::Job &run, vcg::CallBackPos *cb,
+                             std::vector<MeshModel *> &made)
+{
+    for (const isomend_filter::LabelLayer &l : run.labels()) {
+        MeshModel *m = md.addNewMesh("", QString::fromStdString(l.name), true);
+        if (!m)
+            throw std::bad_alloc();
+        made.push_back(m);
+        copy_mesh(l.mesh, m->cm, cb, run.world_transform());
+        m->updateDataMask(MeshModel::MM_VERTCOLOR | MeshModel::MM_FACECOLOR);
+        const vcg::Color4b c(l.rgb[0], l.rgb[1], l.rgb[2], 255);
+        for (auto &v : m->cm.vert)
+            v.C() = c;
+        for (auto &f : m->cm.face)
+            f.C() = c;
+    }
 }
 
 } // namespace isomend_meshlab

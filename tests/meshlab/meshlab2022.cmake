@@ -34,7 +34,7 @@ set(_harness --harness $<TARGET_FILE:meshlab_run_filter>
   --plugin $<TARGET_FILE:filter_isomend>
   --plugin ${_ml_stock}/libfilter_measure.so --plugin ${_ml_stock}/libio_base.so
   --cli $<TARGET_FILE:isomend_cli>)
-foreach(name counts topology holes errors dicom)
+foreach(name counts topology holes errors dicom labels)
   add_test(NAME meshlab2022_${name}
     COMMAND ${ISOMEND_PYTHON} ${CMAKE_CURRENT_SOURCE_DIR}/test_meshlab.py ${name} ${_harness}
             --work ${CMAKE_CURRENT_BINARY_DIR}/work2022_${name})
