@@ -106,6 +106,7 @@ IO_STATUS_NAMES = {
 IO_ERR_CANCELLED = 10
 
 TYPE_U8, TYPE_I8, TYPE_U16, TYPE_I16, TYPE_I32, TYPE_F32, TYPE_F64 = range(7)
+TYPE_U32 = 7  # ISOMEND_U32: label maps only (extract_labels)
 _DTYPE_TO_TYPE = {
     np.dtype(np.uint8): TYPE_U8, np.dtype(np.int8): TYPE_I8,
     np.dtype(np.uint16): TYPE_U16, np.dtype(np.int16): TYPE_I16,
@@ -113,7 +114,6 @@ _DTYPE_TO_TYPE = {
     np.dtype(np.float64): TYPE_F64,
 }
 _TYPE_TO_DTYPE = {v: k for k, v in _DTYPE_TO_TYPE.items()}
-TYPE_U32 = 7  # ISOMEND_U32: label maps only
 # The dtypes a label map is read in place with (bool as uint8).
 _LABEL_DTYPE_TO_TYPE = {np.dtype(np.uint8): TYPE_U8, np.dtype(np.int8): TYPE_I8,
                         np.dtype(np.uint16): TYPE_U16, np.dtype(np.int16): TYPE_I16,
@@ -457,7 +457,7 @@ def _core_lib():
         _declare(lib, "isomend_labels_count", c_size, [ctypes.c_void_p])
         _declare(lib, "isomend_labels_value", ctypes.c_int64, [ctypes.c_void_p, c_size])
         _declare(lib, "isomend_labels_voxels", ctypes.c_uint64, [ctypes.c_void_p, c_size])
-        _declare(lib, "isomend_labels_mesh", ctypes.c_void_p, [ctypes.c_void_p, c_size])
+        _declare(lib, "isomend_labels_take_mesh", ctypes.c_void_p, [ctypes.c_void_p, c_size])
         _declare(lib, "isomend_labels_destroy", None, [ctypes.c_void_p])
         _declare(lib, "isomend_case_of", c_int, [ctypes.c_uint])
         _declare(lib, "isomend_case_triangles", c_int, [ctypes.c_uint, P(c_int)])
@@ -675,28 +675,29 @@ def _slice_positions(value, what, count=None):
 
 
 def _label_array(array):
-    """A label map's samples as the core reads them: the integer dtypes in
-    place (bool as uint8); int64/uint64 copied to int32/uint32 when every
-    value fits; anything else refused with the reason."""
+    """A label map's samples as the core reads them: the integer dtypes up to
+    32 bits in place (bool as uint8); int64/uint64 and floats whose values are
+    all whole numbers in the 32-bit range copied to uint32 (no negative value)
+    or int32; anything else refused with the reason."""
     if not isinstance(array, np.ndarray):
         array = np.asarray(array)
     dt = array.dtype
     if dt == np.bool_:
         return array.view(np.uint8)
-    if dt.kind not in "iu":
-        raise TypeError("labels: a label map holds integers, got dtype %s (a float array of whole "
-                        "numbers: .astype(numpy.int32); a file: extract_labels_source() takes "
-                        "whole-number floats)" % dt)
-    if dt.itemsize > 4:
-        lo, hi = (int(array.min()), int(array.max())) if array.size else (0, 0)
-        if lo >= 0 and hi <= 0xFFFFFFFF:
-            return array.astype(np.uint32)
-        if lo >= -2**31 and hi < 2**31:
-            return array.astype(np.int32)
-        raise ValueError("labels: values %d..%d do not fit a 32-bit integer type" % (lo, hi))
-    if not dt.isnative:
-        array = array.astype(dt.newbyteorder("="))
-    return array
+    if dt.kind not in "iuf":
+        raise TypeError("labels: a label map holds integers, got dtype %s" % dt)
+    if dt.kind in "iu" and dt.itemsize <= 4:
+        return array if dt.isnative else array.astype(dt.newbyteorder("="))
+    if dt.kind == "f" and array.size and not np.array_equal(array, np.floor(array)):
+        bad = np.argwhere(~(array == np.floor(array)))[0]
+        raise ValueError("labels: a label map holds integers; this one has %r at index %s"
+                         % (array[tuple(bad)].item(), tuple(int(i) for i in bad)))
+    lo, hi = (int(array.min()), int(array.max())) if array.size else (0, 0)
+    if lo >= 0 and hi <= 0xFFFFFFFF:
+        return array.astype(np.uint32)
+    if lo >= -2**31 and hi < 2**31:
+        return array.astype(np.int32)
+    raise ValueError("labels: values %d..%d do not fit a 32-bit integer type" % (lo, hi))
 
 
 def _as_volume(array, axes, spacing, origin, slice_positions=None, label_map=False):
@@ -1086,16 +1087,12 @@ def _take_mesh(handle, stats, iso, method_id, want_normals, want_origins, world=
     return _wrap_mesh(lib, handle, _stats_dict(stats), iso, name, want_normals, want_origins, world)
 
 
-def _wrap_mesh(lib, handle, stats, iso, method_name, want_normals, want_origins, world,
-               owner=None):
+def _wrap_mesh(lib, handle, stats, iso, method_name, want_normals, want_origins, world):
     """A Mesh over the C mesh ``handle`` (owned from now on: destroyed with
     the Mesh's last array, or at once if this fails).  The Mesh keeps the C
     mesh (``_c``) for the post-processing methods, which work on it; with
-    ``world`` its arrays are a mapped copy and ``_world`` the map.  ``owner``:
-    the memory that keeps ``handle`` alive when the Mesh does not own it (a
-    label's mesh, owned by its labels result)."""
-    if owner is None:
-        owner = _MeshMemory(handle)  # destroys the handle if anything below fails
+    ``world`` its arrays are a mapped copy and ``_world`` the map."""
+    owner = _MeshMemory(handle)  # destroys the handle if anything below fails
     nv = lib.isomend_mesh_vertex_count(handle)
     nt = lib.isomend_mesh_triangle_count(handle)
     box = (ctypes.c_double * 6)()
@@ -1211,31 +1208,6 @@ class _Closable:
 
 # ------------------------------------------------------------ label maps
 
-class _LabelsResult:
-    """Owns an isomend_labels result: destroyed once the last of its label
-    meshes' arrays is released."""
-
-    def __init__(self, handle):
-        self._handle = handle
-
-    def __del__(self):
-        handle, self._handle = self._handle, None
-        if handle is not None and _core is not None:
-            _core.isomend_labels_destroy(handle)
-
-
-class _LabelMeshMemory(_MeshMemory):
-    """A label's mesh: owned by the result (never isomend_mesh_destroy'ed), which
-    it keeps alive."""
-
-    def __init__(self, result, handle):
-        super().__init__(handle)
-        self._result = result
-
-    def __del__(self):
-        self._handle = None
-
-
 class _LabelNames(_Closable):
     """An isomend_io_label_names set (or none: every label is label_N with
     the palette's colour).  name(value) -> (name, (r, g, b), known)."""
@@ -1298,25 +1270,32 @@ def _label_options(method, pad, flip, normals, origins, threads, progress):
     opts = _options(None, method, pad, flip, normals, origins, threads, progress)
     name = _core_lib().isomend_method_name(opts.method).decode()
     if name not in _LABEL_METHODS:
-        raise ValueError("method: a label map takes dmc (the default), mc or durst, not %r" % name)
+        raise IsomendError("method: a label map takes dmc (the default), mc or durst, not %r"
+                           % name, 9, "UNSUPPORTED")
     return opts
 
 
 def _label_meshes(result, method_id, normals, origins, world, names):
-    """{value: Mesh} of an isomend_labels result (owned from now on), each
-    Mesh with label, voxels, name, color (r, g, b, 0..255) and names_from."""
+    """{value: Mesh} of an isomend_labels result (destroyed here), each Mesh
+    owning its C mesh (isomend_labels_take_mesh), with label, voxels, name,
+    color (r, g, b, 0..255) and names_from."""
     lib = _core_lib()
-    owner = _LabelsResult(result)
+    try:
+        return _take_label_meshes(lib, result, method_id, normals, origins, world, names)
+    finally:
+        lib.isomend_labels_destroy(result)
+
+
+def _take_label_meshes(lib, result, method_id, normals, origins, world, names):
     method_name = lib.isomend_method_name(method_id).decode()
     out = {}
     for q in range(lib.isomend_labels_count(result)):
         value = int(lib.isomend_labels_value(result, q))
-        handle = ctypes.c_void_p(lib.isomend_labels_mesh(result, q))
+        handle = ctypes.c_void_p(lib.isomend_labels_take_mesh(result, q))
         stats = {"vertices": lib.isomend_mesh_vertex_count(handle),
                  "triangles": lib.isomend_mesh_triangle_count(handle),
                  "voxels": int(lib.isomend_labels_voxels(result, q))}
-        mesh = _wrap_mesh(lib, handle, stats, 0.5, method_name, normals, origins, world,
-                          owner=_LabelMeshMemory(owner, handle))
+        mesh = _wrap_mesh(lib, handle, stats, 0.5, method_name, normals, origins, world)
         if mesh.origins is not None:
             by = np.bincount(mesh.origins, minlength=3)[:3].tolist()
             stats["triangles_by_origin"] = dict(zip(ORIGIN_NAMES, by))
@@ -1352,19 +1331,20 @@ def _names_of_table(label_table):
         return _LabelNames(lib, names)
 
 
-def extract_labels(volume, labels="all", method="dmc", spacing=None, origin=None, pad=False,
+def extract_labels(volume, labels=None, method="dmc", spacing=None, origin=None, pad=True,
                    flip=False, normals=True, origins=True, threads=0, axes="zyx", progress=None,
                    label_table=None):
     """The surface of each label of a label map (a segmentation), all labels in
     one pass over the volume (isomend_labels_extract).
 
     volume:  3D integer array (uint8, int8, uint16, int16, int32, uint32 read in
-             place; bool as uint8; int64/uint64 copied when the values fit 32
-             bits; a float array is refused), axes as for extract().
-    labels:  "all" (every value present but 0, the background), an integer, a
-             list of distinct integers, or "L1,L2,...".
-    method:  "dmc" (default: with pad=True each label a closed oriented
-             2-manifold), "mc" or "durst".
+             place; bool as uint8; int64/uint64 and floats whose values are all
+             whole numbers copied as uint32 or int32 when they fit 32 bits; a
+             fraction or NaN is refused), axes as for extract().
+    labels:  None or "all" (every value present but 0, the background), an
+             integer, a list of distinct integers, or "L1,L2,...".
+    method:  "dmc" (default: with pad, the default here, each label a closed
+             oriented 2-manifold), "mc" or "durst".
     label_table: a colour table file (3D Slicer .ctbl/.txt, FreeSurfer's LUT,
              ITK-SNAP's label description) for the names and colours; else
              label_N and a fixed palette.
@@ -1377,7 +1357,8 @@ def extract_labels(volume, labels="all", method="dmc", spacing=None, origin=None
     ``color`` ((r, g, b) 0..255), ``voxels`` and ``names_from`` besides
     extract()'s attributes (its ``stats``: vertices, triangles, voxels,
     triangles_by_origin).  Raises IsomendError for a label not in the volume
-    or none but 0, TypeError/ValueError for bad arguments."""
+    (as the command line and the hosts refuse it), for none but 0 and for a
+    method labels do not take, TypeError/ValueError for bad arguments."""
     values, count = _labels_argument(labels)
     vol, keep = _as_volume(volume, axes, spacing, origin, label_map=True)
     prog = _Progress(progress) if progress is not None else None
@@ -1798,7 +1779,7 @@ class Source(_Closable):
                     "label_table" if path else "label names")
         return _LabelNames(self._lib, names)
 
-    def extract_labels(self, labels="all", method="dmc", pad=False, flip=False, normals=True,
+    def extract_labels(self, labels=None, method="dmc", pad=True, flip=False, normals=True,
                        origins=True, threads=0, progress=None, label_table=None):
         """Loads the volume and extracts the surface of each label of this label
         map (isomend_io_labels_extract): see extract_labels() for the
@@ -1971,7 +1952,7 @@ def open_source(paths, **kwargs):
     return Source(paths, **kwargs)
 
 
-def extract_labels_source(paths, labels="all", method="dmc", pad=False, flip=False, normals=True,
+def extract_labels_source(paths, labels=None, method="dmc", pad=True, flip=False, normals=True,
                           origins=True, threads=0, progress=None, label_table=None, **open_kwargs):
     """open_source(paths, **open_kwargs) then Source.extract_labels(...): a
     label map file (NIfTI, NRRD or 3D Slicer .seg.nrrd, raw with raw_dims and

@@ -104,6 +104,10 @@ extern cli_progress *cli_active_progress;
 extern volatile int cli_interrupted;
 void cli_install_signal_handlers(void);
 
+/* The exit code of an extraction's status, 0 for ISOMEND_OK; else the
+ * message printed: "LABEL: interrupted" (130) or "LABEL: WHAT failed: ..." (1). */
+int cli_extract_status(isomend_status st, const char *label, const char *what);
+
 /* Writes a JSON string literal (with quotes) for `s`. */
 void cli_json_string(FILE *fp, const char *s);
 

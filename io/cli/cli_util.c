@@ -231,3 +231,14 @@ void cli_json_string(FILE *fp, const char *s)
     }
     fputc('"', fp);
 }
+
+int cli_extract_status(isomend_status st, const char *label, const char *what)
+{
+    if (st == ISOMEND_OK) return CLI_EXIT_OK;
+    if (st == ISOMEND_ERR_CANCELLED) {
+        cli_error("%s: interrupted", label);
+        return CLI_EXIT_INTERRUPTED;
+    }
+    cli_error("%s: %s failed: %s", label, what, isomend_status_string(st));
+    return CLI_EXIT_FAIL;
+}

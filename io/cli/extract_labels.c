@@ -340,16 +340,9 @@ int cli_extract_labels(cli_args *a)
     isomend_status st = isomend_labels_extract(&vol, want, nwant, &opts, &res);
     cli_progress_clear(&bar);
     const double extract_ms = cli_now_ms() - t0;
-    if (st == ISOMEND_ERR_CANCELLED || (st == ISOMEND_OK && cli_interrupted)) {
-        cli_error("%s: interrupted", src.label);
-        rc = CLI_EXIT_INTERRUPTED;
-        goto done;
-    }
-    if (st != ISOMEND_OK) {
-        cli_error("%s: label extraction failed: %s", src.label, isomend_status_string(st));
-        rc = CLI_EXIT_FAIL;
-        goto done;
-    }
+    rc = cli_extract_status(st == ISOMEND_OK && cli_interrupted ? ISOMEND_ERR_CANCELLED : st,
+                            src.label, "label extraction");
+    if (rc) goto done;
     n = isomend_labels_count(res);
     if (n == 0) {
         cli_error("--labels all: %s has no label but the background 0", src.label);

@@ -474,16 +474,8 @@ static int cmd_extract(int argc, char **argv)
         isomend_status st = isomend_extract(&src.desc, &opts, &mesh, &stats);
         cli_progress_clear(&bar);
         tm.extract_ms = cli_now_ms() - t0;
-        if (st == ISOMEND_ERR_CANCELLED) {
-            cli_error("%s: interrupted", src.label);
-            rc = CLI_EXIT_INTERRUPTED;
-            goto fail_source;
-        }
-        if (st != ISOMEND_OK) {
-            cli_error("%s: extraction failed: %s", src.label, isomend_status_string(st));
-            rc = CLI_EXIT_FAIL;
-            goto fail_source;
-        }
+        rc = cli_extract_status(st, src.label, "extraction");
+        if (rc) goto fail_source;
         if (cli_interrupted) { /* after the last progress call: still nothing written */
             cli_error("%s: interrupted", src.label);
             rc = CLI_EXIT_INTERRUPTED;

@@ -1095,6 +1095,12 @@ ISOMEND_API int64_t isomend_labels_value(const isomend_labels *result, size_t in
 ISOMEND_API uint64_t isomend_labels_voxels(const isomend_labels *result, size_t index);
 ISOMEND_API const isomend_mesh *isomend_labels_mesh(const isomend_labels *result, size_t index);
 
+/* Hands the mesh of label `index` over to the caller (destroy it with
+ * isomend_mesh_destroy()); the result keeps its value and voxels and has no
+ * mesh for it any more (isomend_labels_mesh() then returns NULL).  NULL when
+ * out of range or already taken.  For bindings that own each mesh. */
+ISOMEND_API isomend_mesh *isomend_labels_take_mesh(isomend_labels *result, size_t index);
+
 /* Accepts NULL. */
 ISOMEND_API void isomend_labels_destroy(isomend_labels *result);
 

@@ -88,31 +88,7 @@ static void volume_strides(const isomend_volume *vol, int64_t st[3])
 static int64_t sample_at(const isomend_volume *vol, const int64_t st[3], int64_t i, int64_t j,
                          int64_t k)
 {
-    const char *p = (const char *)vol->data + i * st[0] + j * st[1] + k * st[2];
-    switch ((int)vol->type) {
-    case ISOMEND_U8: return *(const uint8_t *)p;
-    case ISOMEND_I8: return *(const int8_t *)p;
-    case ISOMEND_U16: {
-        uint16_t v;
-        memcpy(&v, p, 2);
-        return v;
-    }
-    case ISOMEND_I16: {
-        int16_t v;
-        memcpy(&v, p, 2);
-        return v;
-    }
-    case ISOMEND_U32: {
-        uint32_t v;
-        memcpy(&v, p, 4);
-        return v;
-    }
-    default: {
-        int32_t v;
-        memcpy(&v, p, 4);
-        return v;
-    }
-    }
+    return load_label(vol->type, (const char *)vol->data + i * st[0] + j * st[1] + k * st[2]);
 }
 
 /* A hash table of 32-bit values and their counts (open addressing). */
@@ -676,4 +652,13 @@ uint64_t isomend_labels_voxels(const isomend_labels *r, size_t index)
 const isomend_mesh *isomend_labels_mesh(const isomend_labels *r, size_t index)
 {
     return r && index < r->count ? r->mesh[index] : NULL;
+}
+
+isomend_mesh *isomend_labels_take_mesh(isomend_labels *r, size_t index)
+{
+    if (!r || index >= r->count)
+        return NULL;
+    isomend_mesh *m = r->mesh[index];
+    r->mesh[index] = NULL;
+    return m;
 }

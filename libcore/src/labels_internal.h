@@ -17,6 +17,7 @@
 #include "mesh_internal.h"
 
 #include <stdatomic.h>
+#include <string.h>
 
 /* A slab's triangle refers to vertex f of the next slab's first slice as
  * LABEL_FOREIGN | f (that slice belongs to the next slab). */
@@ -80,6 +81,37 @@ typedef struct label_slab {
 
 /* labels_sweep.c: the normal table of the job (its h, inv2h, flip set). */
 void label_normal_table(label_job *job);
+/* The label sample of `type` at p (machine byte order); 0 for a type that
+ * is not a label type. */
+static inline int64_t load_label(isomend_type type, const char *p)
+{
+    switch ((int)type) {
+    case ISOMEND_U8: return *(const uint8_t *)p;
+    case ISOMEND_I8: return *(const int8_t *)p;
+    case ISOMEND_U16: {
+        uint16_t v;
+        memcpy(&v, p, sizeof v);
+        return v;
+    }
+    case ISOMEND_I16: {
+        int16_t v;
+        memcpy(&v, p, sizeof v);
+        return v;
+    }
+    case ISOMEND_U32: {
+        uint32_t v;
+        memcpy(&v, p, sizeof v);
+        return v;
+    }
+    case ISOMEND_I32: {
+        int32_t v;
+        memcpy(&v, p, sizeof v);
+        return v;
+    }
+    default: return 0;
+    }
+}
+
 /* labels_sweep.c: the job's tables, normal and cut (its inv2h and flip set). */
 void label_job_tables(label_job *job);
 /* labels_sweep.c: the code of a value (OTHER when not requested). */

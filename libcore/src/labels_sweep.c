@@ -50,35 +50,6 @@
 
 /* ------------------------------------------------------------ codes */
 
-static inline int64_t load_label(isomend_type type, const char *p)
-{
-    switch ((int)type) {
-    case ISOMEND_U8: return *(const uint8_t *)p;
-    case ISOMEND_I8: return *(const int8_t *)p;
-    case ISOMEND_U16: {
-        uint16_t v;
-        memcpy(&v, p, sizeof v);
-        return v;
-    }
-    case ISOMEND_I16: {
-        int16_t v;
-        memcpy(&v, p, sizeof v);
-        return v;
-    }
-    case ISOMEND_U32: {
-        uint32_t v;
-        memcpy(&v, p, sizeof v);
-        return v;
-    }
-    case ISOMEND_I32: {
-        int32_t v;
-        memcpy(&v, p, sizeof v);
-        return v;
-    }
-    default: return 0;
-    }
-}
-
 uint32_t label_code(const label_job *job, int64_t value)
 {
     if (job->table)
@@ -514,18 +485,10 @@ static int march_label(label_slab *s, const cube_row *cr, int64_t i, const uint3
                 continue;
             nb = config_of(cr->c, cr->d, cr->e, cr->e + N0, i, L);
         }
-        if (!(durst || mc_is_inverted(cfg) != mc_is_inverted(nb)))
+        if (!mc_face_mended(durst, cfg, nb))
             continue;
         const signed char *l = mc_face_loop[cfg][f];
-        const uint32_t pp = id[l[0]], qq = id[l[1]], rr = id[l[2]], ss = id[l[3]];
-        const uint32_t quad[6] = {ss, rr, qq, ss, qq, pp}; /* (s, r, q), (s, q, p) */
-        out = p->tri + 3 * p->nt;
-        for (int h = 0; h < 6; h += 3) {
-            out[0] = quad[h];
-            out[1] = job->flip ? quad[h + 2] : quad[h + 1];
-            out[2] = job->flip ? quad[h + 1] : quad[h + 2];
-            out += 3;
-        }
+        mc_quad_triangles(id[l[0]], id[l[1]], id[l[2]], id[l[3]], job->flip, p->tri + 3 * p->nt);
         if (job->origins)
             memset(p->org + p->nt, durst ? ISOMEND_ORIGIN_DURST : ISOMEND_ORIGIN_MEND, 2);
         p->nt += 2;

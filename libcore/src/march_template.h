@@ -197,24 +197,18 @@ static ALWAYS_INLINE uint64_t march_layer_as(worker *w, int64_t k, const pass_ki
                             st->ambiguous_faces++;
                             st->inverted_combinations += (uint64_t)inverted;
                         }
-                        if (!quads || !(inverted || durst))
+                        if (!quads || !mc_face_mended(durst, cfg, nb))
                             continue;
                         if (count)
                             st->triangles_by_origin[quad_origin] += 2;
                         if (write) {
                             const signed char *l = mc_face_loop[cfg][f];
-                            const uint32_t p = ep[l[0]][i], q = ep[l[1]][i], r = ep[l[2]][i],
-                                           s = ep[l[3]][i];
-                            /* The quadrilateral (s, r, q, p): triangles (s, r, q) and (s, q, p). */
-                            const uint32_t quad[6] = {s, r, q, s, q, p};
-                            for (int h = 0; h < 6; h += 3) {
-                                out[0] = quad[h];
-                                out[1] = flip ? quad[h + 2] : quad[h + 1];
-                                out[2] = flip ? quad[h + 1] : quad[h + 2];
-                                if (org)
-                                    org[(out - out_first) / 3] = quad_origin;
-                                out += 3;
-                            }
+                            mc_quad_triangles(ep[l[0]][i], ep[l[1]][i], ep[l[2]][i], ep[l[3]][i],
+                                              flip, out);
+                            if (org)
+                                org[(out - out_first) / 3] = org[(out - out_first) / 3 + 1] =
+                                    quad_origin;
+                            out += 6;
                         }
                         ntri += 2;
                     }

@@ -70,6 +70,7 @@ def test_struct_layouts_and_constants_match_the_headers():
     assert (isomend.TYPE_U8, isomend.TYPE_I8, isomend.TYPE_U16, isomend.TYPE_I16, isomend.TYPE_I32,
             isomend.TYPE_F32, isomend.TYPE_F64) == tuple(
         c["ISOMEND_" + t] for t in ("U8", "I8", "U16", "I16", "I32", "F32", "F64"))
+    assert isomend.TYPE_U32 == c["ISOMEND_U32"]
     assert isomend.METHODS["mc"] == c["ISOMEND_METHOD_MC"]
     assert isomend.METHODS["durst"] == c["ISOMEND_METHOD_DURST"]
     assert isomend.METHODS["dmc"] == c["ISOMEND_METHOD_DMC"]
@@ -789,7 +790,55 @@ def test_nifti_source_is_placed_by_its_sform_in_patient_space(tmp_path):
 
 # ------------------------------------------------------------ label maps
 
-def label_map(n=20):
+def label_map():
+    """Nested shells (labels 1, 4, 5) and a box (7) touching the outer shell."""
+    z, y, x = np.indices((15, 16, 18)).astype(float)
+    r = np.sqrt((x - 8.2) ** 2 + (y - 7.6) ** 2 + (z - 7.1) ** 2)
+    v = np.select([r < 3, r < 5.2, r < 7], [5, 4, 1], 0).astype(np.uint8)
+    v[3:12, 3:12, 14:17] = 7
+    return v
+
+
+def test_extract_labels_equals_extract_of_each_indicator():
+    v = label_map()
+    meshes = isomend.extract_labels(v, spacing=(0.5, 1.0, 2.0), origin=(1, 2, 3), threads=2)
+    assert list(meshes) == [1, 4, 5, 7]
+    for value, m in meshes.items():
+        ref = isomend.extract((v == value).astype(np.uint8), 0.5, spacing=(0.5, 1.0, 2.0),
+                              origin=(1, 2, 3), pad=True, threads=1)
+        same_mesh(m, ref)
+        np.testing.assert_array_equal(m.normals, ref.normals)
+        np.testing.assert_array_equal(m.origins, ref.origins)
+        assert m.label == value and m.voxels == int((v == value).sum())
+        rep = isomend.check(m.positions, m.triangles, box=m.grid_box)
+        assert rep["hole_edges"] == 0 and rep["border_edges"] == 0
+        assert rep["nonmanifold_edges"] == 0 and rep["misoriented_edges"] == 0
+
+
+def test_extract_labels_types_order_and_errors():
+    v = label_map()
+    base = isomend.extract_labels(v, labels=[7, 1])
+    assert list(base) == [7, 1]
+    for arr, labels in [(v.astype(np.uint32) + 4000000000, [4000000007, 4000000001]),
+                        (v.astype(np.int64) - 3, [4, -2]), (v.astype(np.float64), [7, 1]),
+                        (v.astype(np.int16) * -1, [-7, -1])]:
+        got = isomend.extract_labels(arr, labels=labels)
+        for (a, ma), (b, mb) in zip(base.items(), got.items()):
+            same_mesh(ma, mb)
+    # a label that is not there is refused, as the command line and the hosts refuse it
+    with pytest.raises(isomend.IsomendError, match="label 9 is not in the volume"):
+        isomend.extract_labels(v, labels=[9])
+    with pytest.raises(ValueError):
+        isomend.extract_labels(v.astype(np.float32) + 0.5)
+    with pytest.raises(ValueError):
+        isomend.extract_labels(v, labels=[1, 1])
+    with pytest.raises(TypeError):
+        isomend.extract_labels(v.astype(np.complex64))
+    with pytest.raises(isomend.IsomendError):
+        isomend.extract_labels(v, method="mc33")
+
+
+def touching_labels(n=20):
     """array[z, y, x] of labels: two touching boxes (1, 2), a ball (7) on
     them, background 0."""
     z, y, x = np.mgrid[0:n, 0:n, 0:n]
@@ -801,7 +850,7 @@ def label_map(n=20):
 
 
 def test_extract_labels_is_each_indicator_s_surface_byte_for_byte():
-    v = label_map()
+    v = touching_labels()
     got = isomend.extract_labels(v, pad=True, spacing=(0.5, 0.6, 1.5), origin=(1, 2, 3))
     assert list(got) == [1, 2, 7]
     for value, mesh in got.items():
@@ -823,10 +872,11 @@ def test_extract_labels_is_each_indicator_s_surface_byte_for_byte():
 
 
 def test_extract_labels_dtypes_axes_and_a_list():
-    v = label_map()
+    v = touching_labels()
     ref = isomend.extract_labels(v, labels=[7, 2])
     assert list(ref) == [7, 2]
-    for dtype in (np.int8, np.uint16, np.int16, np.int32, np.uint32, np.int64, np.uint64):
+    for dtype in (np.int8, np.uint16, np.int16, np.int32, np.uint32, np.int64, np.uint64,
+                  np.float32):
         got = isomend.extract_labels(v.astype(dtype), labels="7,2")
         for value in (2, 7):
             same_mesh(got[value], ref[value])
@@ -841,9 +891,11 @@ def test_extract_labels_dtypes_axes_and_a_list():
 
 
 def test_extract_labels_refuses_bad_input_with_a_message():
-    v = label_map()
-    with pytest.raises(TypeError, match="holds integers, got dtype float32"):
-        isomend.extract_labels(v.astype(np.float32))
+    v = touching_labels()
+    f = v.astype(np.float32)
+    f[3, 4, 5] = 2.5
+    with pytest.raises(ValueError, match=r"holds integers; this one has 2.5 at index \(3, 4, 5\)"):
+        isomend.extract_labels(f)
     with pytest.raises(ValueError, match="label 2 is listed twice"):
         isomend.extract_labels(v, labels=[2, 1, 2])
     with pytest.raises(TypeError, match="not an integer label"):
@@ -854,7 +906,7 @@ def test_extract_labels_refuses_bad_input_with_a_message():
         isomend.extract_labels(v, labels=[1, 9])
     with pytest.raises(isomend.IsomendError, match="no label but the background 0"):
         isomend.extract_labels(np.zeros((4, 4, 4), np.uint8))
-    with pytest.raises(ValueError, match="takes dmc"):
+    with pytest.raises(isomend.IsomendError, match="takes dmc"):
         isomend.extract_labels(v, method="tetra")
     with pytest.raises(ValueError, match="do not fit a 32-bit"):
         isomend.extract_labels(np.full((3, 3, 3), 2**40, np.int64))
@@ -863,20 +915,20 @@ def test_extract_labels_refuses_bad_input_with_a_message():
 def test_extract_labels_names_and_colours_from_a_table(tmp_path):
     table = tmp_path / "lut.txt"
     table.write_text("# FreeSurfer LUT\n1 Left-Cortex 200 10 20 0\n7 Lesion 1 2 3 0\n")
-    got = isomend.extract_labels(label_map(), label_table=str(table))
+    got = isomend.extract_labels(touching_labels(), label_table=str(table))
     assert [(m.name, m.color) for m in got.values()] == [
         ("Left-Cortex", (200, 10, 20)), ("label_2", got[2].color), ("Lesion", (1, 2, 3))]
     assert got[1].names_from == "slicer/freesurfer"
     with pytest.raises(isomend.IsomendError, match="no_table.txt"):
-        isomend.extract_labels(label_map(), label_table=str(tmp_path / "no_table.txt"))
+        isomend.extract_labels(touching_labels(), label_table=str(tmp_path / "no_table.txt"))
     bad = tmp_path / "bad.txt"
     bad.write_text("1 Liver red green blue\n")
     with pytest.raises(isomend.IsomendError, match="line 1"):
-        isomend.extract_labels(label_map(), label_table=str(bad))
+        isomend.extract_labels(touching_labels(), label_table=str(bad))
 
 
 def test_extract_labels_source_seg_nrrd_and_nifti(tmp_path):
-    v = label_map()
+    v = touching_labels()
     seg = tmp_path / "organs.seg.nrrd"
     keys = ("Segment0_Name:=Liver\nSegment0_Color:=1 0 0\nSegment0_LabelValue:=1\n"
             "Segment1_Name:=Left kidney\nSegment1_Color:=0 0.5 1\nSegment1_LabelValue:=2\n")

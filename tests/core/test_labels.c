@@ -466,7 +466,15 @@ static void check_errors(void)
           isomend_mesh_triangle_count(isomend_labels_mesh(r, 1)) == 0);
     CHECK(isomend_mesh_triangle_count(isomend_labels_mesh(r, 0)) > 0);
     CHECK(isomend_labels_mesh(r, 2) == NULL && isomend_labels_value(r, 2) == 0);
+    /* a mesh handed over outlives the result (ASan: no double free, no leak) */
+    isomend_mesh *taken = isomend_labels_take_mesh(r, 0);
+    CHECK(taken && isomend_labels_mesh(r, 0) == NULL && isomend_labels_take_mesh(r, 0) == NULL);
+    CHECK(isomend_labels_take_mesh(r, 2) == NULL && isomend_labels_take_mesh(NULL, 0) == NULL);
+    CHECK(isomend_labels_voxels(r, 0) > 0 && isomend_labels_value(r, 0) == 2);
+    const size_t taken_nt = isomend_mesh_triangle_count(taken);
     isomend_labels_destroy(r);
+    CHECK(isomend_mesh_triangle_count(taken) == taken_nt && taken_nt > 0);
+    isomend_mesh_destroy(taken);
     isomend_labels_destroy(NULL);
     CHECK(isomend_labels_count(NULL) == 0);
     /* progress: cancelled at the first call (after 16 slices) */
