@@ -48,7 +48,7 @@ add_test(NAME meshlab2022_realdata
           --get-data ${PROJECT_SOURCE_DIR}/scripts/get-test-data.sh
           --work ${CMAKE_CURRENT_BINARY_DIR}/work2022_realdata)
 set(_ml2022_tests meshlab2022_counts meshlab2022_topology meshlab2022_holes
-  meshlab2022_errors meshlab2022_methods meshlab2022_realdata)
+  meshlab2022_errors meshlab2022_methods meshlab2022_realdata meshlab2022_labels)
 set_tests_properties(${_ml2022_tests} PROPERTIES LABELS "trixie;peer;meshlab" TIMEOUT 300)
 # get-test-data.sh unpacks into fixed temporary names: never run two at once.
 set_tests_properties(meshlab2022_realdata PROPERTIES TIMEOUT 600 RESOURCE_LOCK isomend_testdata)
