@@ -93,17 +93,10 @@ bool FilterIsomendPlugin::applyFilter(QAction *a, MeshDocument &md, const RichPa
         return fail(QString::fromStdString(run.error()));
 
     if (!run.labels().empty()) { /* a label map: a layer a label */
-        std::vector<MeshModel *> made;
-        try {
-            isomend_meshlab::add_label_layers(md, run, cb, made);
-        } catch (const std::bad_alloc &) {
-            for (MeshModel *m : made)
-                md.delMesh(m);
+        if (!isomend_meshlab::add_label_layers(
+                md, run, cb, [&md](MeshModel *m) { md.delMesh(m); },
+                [this](const std::string &line) { Log(line); }))
             return fail("out of memory while copying the labels into MeshLab");
-        }
-        for (MeshModel *m : made)
-            Log("layer \"%s\": %d vertices, %d faces", qUtf8Printable(m->label()), m->cm.vn,
-                m->cm.fn);
         if (cb)
             cb(100, "isomend: done");
         return true;

@@ -102,21 +102,14 @@ std::map<std::string, QVariant> FilterIsomendPlugin::applyFilter(const QAction *
         fail(QString::fromStdString(run.error()));
 
     if (!run.labels().empty()) { /* a label map: a layer a label */
-        std::vector<MeshModel *> made;
-        try {
-            isomend_meshlab::add_label_layers(md, run, cb, made);
-        } catch (const std::bad_alloc &) {
-            for (MeshModel *m : made)
-                md.delMesh(m->id());
+        if (!isomend_meshlab::add_label_layers(
+                md, run, cb, [&md](MeshModel *m) { md.delMesh(m->id()); },
+                [this](const std::string &line) { log(line); }))
             fail("out of memory while copying the labels into MeshLab");
-        }
-        for (MeshModel *m : made)
-            log("layer \"%s\": %d vertices, %d faces", qUtf8Printable(m->label()), m->cm.vn,
-                m->cm.fn);
         postConditionMask = MeshModel::MM_NONE;
         if (cb)
             cb(100, "isomend: done");
-        return {{"labels", QVariant::fromValue<qulonglong>(made.size())}};
+        return {{"labels", QVariant::fromValue<qulonglong>(run.labels().size())}};
     }
     MeshModel *m = md.addNewMesh("", QString::fromStdString(run.layer_name()), true);
     if (!m)

@@ -12,6 +12,7 @@
 #define ISOMEND_FILTER_ISOMEND_MESHLAB_H
 
 #include <cstdint>
+#include <functional>
 #include <string>
 #include <vector>
 
@@ -157,26 +158,38 @@ inline void copy_mesh(const isomend_mesh *src, CMeshO &cm, vcg::CallBackPos *cb,
 /*
  * Label-map mode (run.labels() not empty): one new layer a label, named
  * after it, its colour on every vertex and face (MeshLab shows the vertex
- * colour; a PLY export keeps both).  The layers made are appended to
- * `made` as they are created, so that the adapter can remove them all when
- * one fails (std::bad_alloc).
+ * colour; a PLY export keeps both), and a log line a layer.  Returns false
+ * when memory ran out, after removing every layer it had made with
+ * `remove` (the two MeshLab APIs delete a layer differently).
  */
-inline void add_label_layers(MeshDocument &md, const isomend_filter::Job &run, vcg::CallBackPos *cb,
-                             std::vector<MeshModel *> &made)
+inline bool add_label_layers(MeshDocument &md, const isomend_filter::Job &run,
+                             vcg::CallBackPos *cb, const std::function<void(MeshModel *)> &remove,
+                             const std::function<void(const std::string &)> &log)
 {
-    for (const isomend_filter::LabelLayer &l : run.labels()) {
-        MeshModel *m = md.addNewMesh("", QString::fromStdString(l.name), true);
-        if (!m)
-            throw std::bad_alloc();
-        made.push_back(m);
-        copy_mesh(l.mesh, m->cm, cb, run.world_transform());
-        m->updateDataMask(MeshModel::MM_VERTCOLOR | MeshModel::MM_FACECOLOR);
-        const vcg::Color4b c(l.rgb[0], l.rgb[1], l.rgb[2], 255);
-        for (auto &v : m->cm.vert)
-            v.C() = c;
-        for (auto &f : m->cm.face)
-            f.C() = c;
+    std::vector<MeshModel *> made;
+    try {
+        for (const isomend_filter::LabelLayer &l : run.labels()) {
+            MeshModel *m = md.addNewMesh("", QString::fromStdString(l.name), true);
+            if (!m)
+                throw std::bad_alloc();
+            made.push_back(m);
+            copy_mesh(l.mesh, m->cm, cb, run.world_transform());
+            m->updateDataMask(MeshModel::MM_VERTCOLOR | MeshModel::MM_FACECOLOR);
+            const vcg::Color4b c(l.rgb[0], l.rgb[1], l.rgb[2], 255);
+            for (auto &v : m->cm.vert)
+                v.C() = c;
+            for (auto &f : m->cm.face)
+                f.C() = c;
+        }
+    } catch (const std::bad_alloc &) {
+        for (MeshModel *m : made)
+            remove(m);
+        return false;
     }
+    for (MeshModel *m : made)
+        log("layer \"" + m->label().toStdString() + "\": " + std::to_string(m->cm.vn) +
+            " vertices, " + std::to_string(m->cm.fn) + " faces");
+    return true;
 }
 
 } // namespace isomend_meshlab

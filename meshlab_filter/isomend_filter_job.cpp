@@ -169,6 +169,24 @@ int core_progress(void *user, double fraction)
     return state->report(45 + static_cast<int>(50.0 * fraction), "isomend: extracting") ? 0 : 1;
 }
 
+/* The core's options of a run: the method, pad and flip from the parameters,
+ * every core, progress reported to `state`. */
+isomend_options core_options(const Params &params, isomend_method method, ProgressState *state)
+{
+    isomend_options opts;
+    isomend_options_init(&opts);
+    opts.method = method;
+    opts.flags = 0;
+    if (params.pad)
+        opts.flags |= ISOMEND_FLAG_PAD;
+    if (params.flip_normals)
+        opts.flags |= ISOMEND_FLAG_FLIP;
+    opts.threads = 0;
+    opts.progress = core_progress;
+    opts.progress_user = state;
+    return opts;
+}
+
 /* Owns an isomend_io_source. */
 struct SourceHandle {
     isomend_io_source *src = nullptr;
@@ -726,18 +744,8 @@ bool Job::run_unguarded(const Params &params, const ProgressFn &progress)
         vol.spacing[a] = spacing[a];
 
     /* 6. extract */
-    isomend_options opts;
-    isomend_options_init(&opts);
+    isomend_options opts = core_options(params, method.method, &state);
     opts.iso = params.iso;
-    opts.method = method.method;
-    opts.flags = 0;
-    if (params.pad)
-        opts.flags |= ISOMEND_FLAG_PAD;
-    if (params.flip_normals)
-        opts.flags |= ISOMEND_FLAG_FLIP;
-    opts.threads = 0;
-    opts.progress = core_progress;
-    opts.progress_user = &state;
     log_.push_back(format("method %s (%s), iso %g%s%s", method.display.c_str(),
                           isomend_method_name(method.method), params.iso,
                           params.pad ? ", padded" : "",
@@ -816,17 +824,7 @@ bool Job::run_labels(isomend_io_source *src, bool all, const std::vector<int64_t
     std::unique_ptr<isomend_io_label_names, void (*)(isomend_io_label_names *)> keep(
         names, isomend_io_label_names_destroy);
 
-    isomend_options opts;
-    isomend_options_init(&opts);
-    opts.method = method;
-    opts.flags = 0;
-    if (params.pad)
-        opts.flags |= ISOMEND_FLAG_PAD;
-    if (params.flip_normals)
-        opts.flags |= ISOMEND_FLAG_FLIP;
-    opts.threads = 0;
-    opts.progress = core_progress;
-    opts.progress_user = &state;
+    const isomend_options opts = core_options(params, method, &state);
     log_.push_back(format("label map: %s, method %s%s%s",
                           all ? "every label but 0" : params.labels.c_str(),
                           isomend_method_name(method), params.pad ? ", padded" : "",

@@ -36,6 +36,8 @@ import numpy as np
 import tifffile
 
 HERE = os.path.dirname(os.path.abspath(__file__))
+sys.path.insert(0, os.path.join(HERE, "..", "common"))
+import label_volumes  # noqa: E402
 
 
 def foam(shape=(30, 34, 38), seed=7):
@@ -188,20 +190,10 @@ def label_map_case(args, work):
     """A .seg.nrrd of three touching structures (two boxes and a ball, the
     segments' names and colours in its header), a colour table, a label map
     with a fraction; the CLI's per-label JSON of each good case."""
-    n = 24
-    z, y, x = np.mgrid[0:n, 0:n, 0:n]
-    v = np.zeros((n, n, n), np.uint8)
-    v[3:13, 4:18, 3:11] = 1
-    v[3:13, 4:18, 11:20] = 2
-    v[((x - 11.3) ** 2 + (y - 10.6) ** 2 + (z - 15.2) ** 2 < 4.4 ** 2) & (v == 0)] = 3
-    segments = [(1, "Liver", (1, 0, 0)), (2, "Left kidney", (0, 0.5, 1)), (3, "Tumour", (1, 1, 0))]
-    keys = "".join("Segment%d_Name:=%s\nSegment%d_Color:=%s\nSegment%d_LabelValue:=%d\n"
-                   % (i, name, i, " ".join("%g" % c for c in color), i, value)
-                   for i, (value, name, color) in enumerate(segments))
+    v = label_volumes.organs()
+    n = v.shape[0]
     seg = os.path.join(work, "organs.seg.nrrd")
-    with open(seg, "wb") as fp:
-        fp.write(("NRRD0004\ntype: uint8\ndimension: 3\nsizes: %d %d %d\nspacings: 0.8 0.8 1.5\n"
-                  "encoding: raw\n%s\n" % (n, n, n, keys)).encode() + v.tobytes())
+    label_volumes.write_seg_nrrd(seg, v, (0.8, 0.8, 1.5))
     table = os.path.join(work, "organs.ctbl")
     with open(table, "w") as fp:
         fp.write("# 3D Slicer colour table\n2 Right-Kidney 12 34 56 255\n")
@@ -222,7 +214,7 @@ def label_map_case(args, work):
         with open(out.rstrip("/") + ".json") as fp:
             return {str(l["value"]): l for l in json.load(fp)["labels"]}
 
-    return {"path": seg, "segments": segments, "table": table, "fractions": fractions,
+    return {"path": seg, "segments": label_volumes.SEGMENTS, "table": table, "fractions": fractions,
             "cli": cli([], "all")}
 
 

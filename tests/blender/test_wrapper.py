@@ -23,6 +23,9 @@ sys.path.insert(0, STAGE)
 os.environ.pop("ISOMEND_LIB_DIR", None)  # test the add-on's own lookup
 import isomend  # noqa: E402
 
+sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "common"))
+import label_volumes  # noqa: E402
+
 
 # ------------------------------------------------------------ helpers
 
@@ -838,14 +841,10 @@ def test_extract_labels_types_order_and_errors():
         isomend.extract_labels(v, method="mc33")
 
 
-def touching_labels(n=20):
-    """array[z, y, x] of labels: two touching boxes (1, 2), a ball (7) on
-    them, background 0."""
-    z, y, x = np.mgrid[0:n, 0:n, 0:n]
-    v = np.zeros((n, n, n), np.uint8)
-    v[2:10, 3:15, 2:9] = 1
-    v[2:10, 3:15, 9:16] = 2
-    v[((x - 9.2) ** 2 + (y - 8.7) ** 2 + (z - 12.6) ** 2 < 3.7 ** 2) & (v == 0)] = 7
+def touching_labels():
+    """The host tests' organs (tests/common/label_volumes.py), the ball as label 7."""
+    v = label_volumes.organs()
+    v[v == 3] = 7
     return v
 
 
@@ -930,10 +929,7 @@ def test_extract_labels_names_and_colours_from_a_table(tmp_path):
 def test_extract_labels_source_seg_nrrd_and_nifti(tmp_path):
     v = touching_labels()
     seg = tmp_path / "organs.seg.nrrd"
-    keys = ("Segment0_Name:=Liver\nSegment0_Color:=1 0 0\nSegment0_LabelValue:=1\n"
-            "Segment1_Name:=Left kidney\nSegment1_Color:=0 0.5 1\nSegment1_LabelValue:=2\n")
-    seg.write_bytes(("NRRD0004\ntype: uint8\ndimension: 3\nsizes: 20 20 20\n"
-                     "spacings: 0.5 0.6 1.5\nencoding: raw\n%s\n" % keys).encode() + v.tobytes())
+    label_volumes.write_seg_nrrd(str(seg), v, (0.5, 0.6, 1.5), label_volumes.SEGMENTS[:2])
     got = isomend.extract_labels_source(str(seg), pad=True)
     ref = isomend.extract_labels(v, pad=True, spacing=(0.5, 0.6, 1.5))
     assert list(got) == [1, 2, 7]

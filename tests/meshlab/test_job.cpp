@@ -71,13 +71,24 @@ struct TempDir {
     }
 };
 
+template <typename T> isomend_type type_of();
+template <> isomend_type type_of<uint16_t>()
+{
+    return ISOMEND_U16;
+}
+template <> isomend_type type_of<uint8_t>()
+{
+    return ISOMEND_U8;
+}
+
 /* The core's own result, for comparison. */
-isomend_mesh *direct(const std::vector<uint16_t> &v, int nx, int ny, int nz, double iso,
+template <typename T>
+isomend_mesh *direct(const std::vector<T> &v, int nx, int ny, int nz, double iso,
                      isomend_method method, unsigned flags, const double spacing[3],
                      isomend_stats *stats)
 {
     isomend_volume vol;
-    isomend_volume_init(&vol, v.data(), ISOMEND_U16, nx, ny, nz);
+    isomend_volume_init(&vol, v.data(), type_of<T>(), nx, ny, nz);
     for (int a = 0; a < 3; ++a)
         vol.spacing[a] = spacing[a];
     isomend_options opts;
@@ -483,17 +494,7 @@ void test_labels(const std::string &dir)
         std::vector<uint8_t> ind(v.size());
         for (size_t i = 0; i < v.size(); ++i)
             ind[i] = v[i] == label;
-        isomend_volume vol;
-        isomend_volume_init(&vol, ind.data(), ISOMEND_U8, nx, ny, nz);
-        for (int a = 0; a < 3; ++a)
-            vol.spacing[a] = spacing[a];
-        isomend_options opts;
-        isomend_options_init(&opts);
-        opts.iso = 0.5;
-        opts.flags = ISOMEND_FLAG_PAD;
-        isomend_mesh *mesh = nullptr;
-        CHECK_EQ_INT(isomend_extract(&vol, &opts, &mesh, nullptr), ISOMEND_OK);
-        return mesh;
+        return direct(ind, nx, ny, nz, 0.5, ISOMEND_METHOD_DMC, ISOMEND_FLAG_PAD, spacing, nullptr);
     };
 
     /* every label of the .seg.nrrd: its names and colours */

@@ -66,6 +66,9 @@ from xml.sax.saxutils import quoteattr
 
 import numpy as np
 
+sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "common"))
+from label_volumes import SEGMENTS, organs, write_seg_nrrd  # noqa: E402
+
 FILTER = "Isosurface from Slice Stack (isomend)"
 # The menu's first three methods have fixed indices; the CLI's names for them.
 METHODS = ["Disambiguated MC", "Original MC", "Durst"]
@@ -751,26 +754,18 @@ def test_methods(run, job):
     if not extra:
         print("this core builds only the thesis's three methods")
 
-def write_seg_nrrd(path, vol, spacings, segments):
-    """A 3D Slicer-style .seg.nrrd (uint8 labels, raw): its Segment*_ keys."""
-    keys = "".join("Segment%d_Name:=%s\nSegment%d_Color:=%s\nSegment%d_LabelValue:=%d\n"
-                   % (i, name, i, " ".join("%g" % c for c in color), i, value)
-                   for i, (value, name, color) in enumerate(segments))
-    header = ("NRRD0004\ntype: uint8\ndimension: 3\nsizes: %d %d %d\nspacings: %g %g %g\n"
-              "encoding: raw\n%s\n" % (vol.shape[2], vol.shape[1], vol.shape[0], *spacings, keys))
-    with open(path, "wb") as f:
-        f.write(header.encode())
-        f.write(np.ascontiguousarray(vol, np.uint8).tobytes())
-
-
-def organs(n=24):
-    """Three touching structures: two boxes side by side and a ball on them."""
-    z, y, x = np.mgrid[0:n, 0:n, 0:n]
-    v = np.zeros((n, n, n), np.uint8)
-    v[3:13, 4:18, 3:11] = 1
-    v[3:13, 4:18, 11:20] = 2
-    v[((x - 11.3) ** 2 + (y - 10.6) ** 2 + (z - 15.2) ** 2 < 4.4 ** 2) & (v == 0)] = 3
-    return v
+def expect_refusals(run, cases):
+    """Each (label, params, expected reason) run fails as MeshLab reports a
+    failed filter: no abort, the reason in the log, no output."""
+    for label, params, expect in cases:
+        print("%s:" % label)
+        rc, log, out = run.meshlab(params)
+        check(rc == run.fail_rc, "%s exit %d, not an abort (rc %d)" % (run.name, run.fail_rc, rc))
+        m = re.search(r"isomend: error: (.*)", log)
+        reason = m.group(1) if m else ""
+        check(expect in reason, "log names the reason: %r" % reason)
+        check(run.reported_failure(log, reason), "%s reports the failed filter" % run.name)
+        check(out is None, "no output file written")
 
 
 def parse_label_layers(log):
@@ -787,9 +782,9 @@ def parse_label_layers(log):
 
 def test_labels(run):
     work = run.work
-    segments = [(1, "Liver", (1, 0, 0)), (2, "Left kidney", (0, 0.5, 1)), (3, "Tumour", (1, 1, 0))]
+    segments = SEGMENTS
     seg = os.path.join(work, "organs.seg.nrrd")
-    write_seg_nrrd(seg, organs(), (0.8, 0.8, 1.5), segments)
+    write_seg_nrrd(seg, organs(), (0.8, 0.8, 1.5))
     out_dir = os.path.join(work, "cli_labels") + "/"
     subprocess.run([run.cli, "extract", seg, "--labels", "all", "--pad", "-o", out_dir,
                     "--json", out_dir.rstrip("/") + ".json", "--quiet"], check=True, timeout=120)
@@ -845,15 +840,7 @@ def test_labels(run):
         ("a table that is not there", {"source": seg, "labels": "all",
                                        "labelTable": os.path.join(work, "none.ctbl")}, "none.ctbl"),
     ]
-    for label, params, expect in cases:
-        print("%s:" % label)
-        rc, log, out = run.meshlab(params)
-        check(rc == run.fail_rc, "%s exit %d, not an abort (rc %d)" % (run.name, run.fail_rc, rc))
-        m = re.search(r"isomend: error: (.*)", log)
-        reason = m.group(1) if m else ""
-        check(expect in reason, "log names the reason: %r" % reason)
-        check(run.reported_failure(log, reason), "%s reports the failed filter" % run.name)
-        check(out is None, "no output file written")
+    expect_refusals(run, cases)
 
 
 def test_errors(run):
@@ -905,15 +892,7 @@ def test_errors(run):
         ("minComponent above every component", {"source": good, "iso": 127.5, "minComponent": 100000000},
          "minComponent"),
     ]
-    for label, params, expect in cases:
-        print("%s:" % label)
-        rc, log, out = run.meshlab(params)
-        check(rc == run.fail_rc, "%s exit %d, not an abort (rc %d)" % (run.name, run.fail_rc, rc))
-        m = re.search(r"isomend: error: (.*)", log)
-        reason = m.group(1) if m else ""
-        check(expect in reason, "log names the reason: %r" % reason)
-        check(run.reported_failure(log, reason), "%s reports the failed filter" % run.name)
-        check(out is None, "no output file written")
+    expect_refusals(run, cases)
 
     print("a good run after the failures, same folder:")
     rc, log, out = run.meshlab({"source": good, "iso": 127.5})
