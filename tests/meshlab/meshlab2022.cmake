@@ -74,7 +74,7 @@ if(ISOMEND_MESHLAB_GUI AND ISOMEND_XDOTOOL AND ISOMEND_IMPORT)
             --cli $<TARGET_FILE:isomend_cli>
             --work ${CMAKE_CURRENT_BINARY_DIR}/work2022_gui)
   set_tests_properties(meshlab2022_gui PROPERTIES LABELS "trixie;peer;meshlab" TIMEOUT 300
-    ENVIRONMENT "ISOMEND_XVFB_SCREEN=1280x900x24")
+    ENVIRONMENT "ISOMEND_XVFB_SCREEN=1280x1024x24")
 else()
   message(STATUS "meshlab2022_gui: skipped (needs meshlab, xdotool and ImageMagick's import)")
 endif()
