@@ -181,6 +181,99 @@ static int write_folder(const char *dir, isomend_mesh_format fmt, label_out *l, 
     return rc;
 }
 
+static int cmp_i64(const void *a, const void *b)
+{
+    const int64_t x = *(const int64_t *)a, y = *(const int64_t *)b;
+    return (x > y) - (x < y);
+}
+
+/* The labels present but 0, from a pass over the slices (rewound after). */
+static int list_labels(cli_source *s, void *buf, int64_t **values, size_t *count)
+{
+    int64_t *v = NULL;
+    size_t n = 0, cap = 0, got = 0;
+    int64_t slice_values[256];
+    isomend_volume one;
+    isomend_volume_init(&one, buf, s->desc.type, s->desc.dims[0], s->desc.dims[1], 1);
+    for (int64_t k = 0; k < s->desc.dims[2]; k++) {
+        int rc = cli_slices_next(s, buf);
+        if (rc) {
+            free(v);
+            return rc;
+        }
+        int64_t *sv = slice_values;
+        isomend_labels_present(&one, NULL, NULL, 0, &got);
+        if (got > 256 && !(sv = malloc(sizeof(int64_t) * got))) {
+            free(v);
+            cli_error("%s: out of memory listing the labels", s->label);
+            return CLI_EXIT_FAIL;
+        }
+        isomend_labels_present(&one, sv, NULL, got, &got);
+        if (n + got > cap) {
+            cap = 2 * (n + got);
+            int64_t *w = realloc(v, sizeof(int64_t) * cap);
+            if (!w) {
+                free(v);
+                if (sv != slice_values) free(sv);
+                cli_error("%s: out of memory listing the labels", s->label);
+                return CLI_EXIT_FAIL;
+            }
+            v = w;
+        }
+        for (size_t q = 0; q < got; q++)
+            if (sv[q] != 0) v[n++] = sv[q];
+        if (sv != slice_values) free(sv);
+        qsort(v, n, sizeof(int64_t), cmp_i64); /* unique, so n stays small */
+        size_t u = 0;
+        for (size_t q = 0; q < n; q++)
+            if (!u || v[u - 1] != v[q]) v[u++] = v[q];
+        n = u;
+    }
+    cli_slices_rewind(s);
+    *values = v;
+    *count = n;
+    return CLI_EXIT_OK;
+}
+
+/* --stream: the slices read one at a time into the core's label stream; with
+ * --labels all the labels are listed by a first pass over the slices.  An
+ * exit code for a read failure (printed); else *st is the core's status. */
+static int stream_labels(cli_source *s, int64_t **want, size_t *nwant, const isomend_options *opts,
+                         isomend_labels **res, isomend_status *st)
+{
+    void *buf = malloc(s->slice_bytes ? s->slice_bytes : 1);
+    if (!buf) {
+        cli_error("%s: out of memory for a slice", s->label);
+        return CLI_EXIT_FAIL;
+    }
+    int rc = CLI_EXIT_OK;
+    if (!*want) {
+        rc = list_labels(s, buf, want, nwant);
+        if (rc) {
+            free(buf);
+            return rc;
+        }
+    }
+    isomend_labels_stream *ls = NULL;
+    static const int64_t none = 0; /* no label at all: an empty list, refused later */
+    *st = isomend_labels_stream_begin(&s->desc, *want ? *want : &none, *nwant, opts, &ls);
+    for (int64_t k = 0; *st == ISOMEND_OK && k < s->desc.dims[2]; k++) {
+        rc = cli_slices_next(s, buf);
+        if (rc) break;
+        if (cli_interrupted) {
+            *st = ISOMEND_ERR_CANCELLED;
+            break;
+        }
+        *st = isomend_labels_stream_push(ls, buf);
+        if (opts->progress)
+            (void)opts->progress(opts->progress_user, (double)(k + 1) / (double)s->desc.dims[2]);
+    }
+    if (!rc && *st == ISOMEND_OK) *st = isomend_labels_stream_finish(ls, res);
+    isomend_labels_stream_destroy(ls);
+    free(buf);
+    return rc;
+}
+
 /* The options that do not apply to a label map: the first one given. */
 static const char *refused_option(uint64_t seen)
 {
@@ -196,7 +289,7 @@ static const char *refused_option(uint64_t seen)
         {OPT_SMOOTH, "--smooth"},
         {OPT_MIN_COMPONENT, "--min-component"},
         {OPT_LARGEST, "--largest"},
-        {OPT_STREAM, "--stream"},
+
         {OPT_IN_MEMORY, "--in-memory"},
         {OPT_CHUNK_LAYERS, "--chunk-layers"},
         {OPT_PAGES, "--pages"},
@@ -206,6 +299,33 @@ static const char *refused_option(uint64_t seen)
     for (size_t q = 0; q < sizeof refused / sizeof refused[0]; q++)
         if (seen & refused[q].id) return refused[q].name;
     return NULL;
+}
+
+/* 1 when files can be made in folder `out` (existing, or its parent); else 0
+ * with the message printed. */
+static int folder_creatable(const char *out)
+{
+    char dir[ISOMEND_FILEIO_PATH_MAX];
+    snprintf(dir, sizeof dir, "%s", out);
+    size_t len = strlen(dir);
+    while (len > 1 && dir[len - 1] == '/') dir[--len] = '\0';
+    struct stat sb;
+    if (stat(dir, &sb) == 0) {
+        if (access(dir, W_OK | X_OK) == 0) return 1;
+        cli_error("-o %s: cannot create files in this folder: %s", out, strerror(errno));
+        return 0;
+    }
+    char *slash = strrchr(dir, '/');
+    if (slash == dir)
+        slash[1] = '\0';
+    else if (slash)
+        *slash = '\0';
+    else
+        snprintf(dir, sizeof dir, ".");
+    if (stat(dir, &sb) == 0 && S_ISDIR(sb.st_mode) && access(dir, W_OK | X_OK) == 0) return 1;
+    cli_error("-o %s: cannot create the folder in '%s': %s", out, dir,
+              errno ? strerror(errno) : "not a writable folder");
+    return 0;
 }
 
 /* 1 when -o names a folder: a trailing '/' or an existing folder. */
@@ -280,15 +400,23 @@ int cli_extract_labels(cli_args *a)
         }
         names_from = "--label-table";
     }
-    if (!folder) { /* the outputs must be creatable before any work is done */
+    /* the outputs must be creatable before any work is done: a file's temporary
+     * file, or a writable folder (or its writable parent, when it is to be made) */
+    int creatable = 1;
+    if (!folder) {
         isomend_atomic_file probe;
-        if (isomend_atomic_open(&probe, a->output, msg, sizeof msg) != ISOMEND_FILEIO_OK) {
+        creatable = isomend_atomic_open(&probe, a->output, msg, sizeof msg) == ISOMEND_FILEIO_OK;
+        if (creatable)
+            isomend_atomic_abort(&probe);
+        else
             cli_error("%s", msg);
-            label_table_free(&table);
-            free(want);
-            return CLI_EXIT_FAIL;
-        }
-        isomend_atomic_abort(&probe);
+    } else if (!folder_creatable(a->output)) {
+        creatable = 0;
+    }
+    if (!creatable) {
+        label_table_free(&table);
+        free(want);
+        return CLI_EXIT_FAIL;
     }
 
     const int quiet = (a->seen & OPT_QUIET) != 0;
@@ -317,13 +445,24 @@ int cli_extract_labels(cli_args *a)
         free(want);
         return rc;
     }
-    rc = cli_source_load(&src);
-    isomend_volume vol;
-    if (!rc && label_samples_integer(&src.desc, src.label, &vol, &copy, msg, sizeof msg)) {
-        cli_error("--labels: %s", msg);
-        rc = CLI_EXIT_FAIL;
+    const int stream = (a->seen & OPT_STREAM) != 0;
+    isomend_volume vol = src.desc;
+    if (stream) {
+        if (vol.type == ISOMEND_F32 || vol.type == ISOMEND_F64) {
+            cli_error("--labels --stream: %s has %s samples; without --stream the volume is read "
+                      "whole and taken as a label map if they are all whole numbers",
+                      src.label, isomend_type_name(vol.type));
+            rc = CLI_EXIT_FAIL;
+            goto done;
+        }
+    } else {
+        rc = cli_source_load(&src);
+        if (!rc && label_samples_integer(&src.desc, src.label, &vol, &copy, msg, sizeof msg)) {
+            cli_error("--labels: %s", msg);
+            rc = CLI_EXIT_FAIL;
+        }
+        if (rc) goto done;
     }
-    if (rc) goto done;
     if (!names_from && strcmp(src.kind, "nrrd") == 0) {
         const int got = label_table_from_nrrd(a->positional[0], &table, msg, sizeof msg);
         if (got < 0) {
@@ -337,7 +476,13 @@ int cli_extract_labels(cli_args *a)
     isomend_options opts;
     cli_extract_options(a, &bar, &opts);
     double t0 = cli_now_ms();
-    isomend_status st = isomend_labels_extract(&vol, want, nwant, &opts, &res);
+    isomend_status st;
+    if (stream) {
+        rc = stream_labels(&src, &want, &nwant, &opts, &res, &st);
+        if (rc) goto done;
+    } else {
+        st = isomend_labels_extract(&vol, want, nwant, &opts, &res);
+    }
     cli_progress_clear(&bar);
     const double extract_ms = cli_now_ms() - t0;
     rc = cli_extract_status(st == ISOMEND_OK && cli_interrupted ? ISOMEND_ERR_CANCELLED : st,

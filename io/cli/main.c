@@ -124,6 +124,7 @@ static const char *const usage_extract =
     "                           -o FOLDER/ writes one file a label (NAME or label_N),\n"
     "                           -o FILE.ply all with a label and colour a face,\n"
     "                           -o FILE.obj a group a label and FILE.mtl's colours\n"
+    "                           (with --stream the slices are read one at a time)\n"
     "  --format ply|obj|stl     the files of -o FOLDER/ (default ply)\n"
     "  --label-table FILE       names and colours: 3D Slicer .ctbl/.txt, FreeSurfer\n"
     "                           LUT, ITK-SNAP label description (a .seg.nrrd's own\n"

@@ -1104,6 +1104,30 @@ ISOMEND_API isomend_mesh *isomend_labels_take_mesh(isomend_labels *result, size_
 /* Accepts NULL. */
 ISOMEND_API void isomend_labels_destroy(isomend_labels *result);
 
+/*
+ * A label map streamed: slices pushed one at a time, in z order (each
+ * contiguous, x fastest, desc->type, desc->dims[0] x dims[1] samples; the
+ * data and strides of `desc` are not used), the surfaces made as the slices
+ * arrive, and the result isomend_labels_extract()'s, byte for byte, at
+ * finish.  The stream holds 4 slices of codes (4 bytes a sample) and 2 of
+ * edge ids (24 bytes a sample) besides the meshes; one thread (opts->threads
+ * is not used), no progress calls.  `labels` must be given (a stream cannot
+ * list the labels present: isomend_labels_present() on the slices does).
+ * Too many slices, or too few at finish: ISOMEND_ERR_SLICE_COUNT (sticky).
+ */
+typedef struct isomend_labels_stream isomend_labels_stream;
+
+ISOMEND_API isomend_status isomend_labels_stream_begin(const isomend_volume *desc,
+                                                       const int64_t *labels, size_t count,
+                                                       const isomend_options *opts,
+                                                       isomend_labels_stream **out);
+ISOMEND_API isomend_status isomend_labels_stream_push(isomend_labels_stream *s, const void *slice);
+/* Once: the result into *out (NULL on failure). */
+ISOMEND_API isomend_status isomend_labels_stream_finish(isomend_labels_stream *s,
+                                                        isomend_labels **out);
+/* Accepts NULL. */
+ISOMEND_API void isomend_labels_stream_destroy(isomend_labels_stream *s);
+
 /* ------------------------------------------------------------ case tables */
 
 /*

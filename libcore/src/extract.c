@@ -115,15 +115,9 @@ static int default_threads(void)
     return n < 1 ? 1 : n > 64 ? 64 : (int)n;
 }
 
-static isomend_status validate(const isomend_volume *vol, const isomend_options *o)
+isomend_status volume_grid_check(const isomend_volume *vol, int pad)
 {
-    if (!vol || isomend_type_size(vol->type) == 0)
-        return ISOMEND_ERR_INVALID_ARGUMENT;
-    if ((unsigned)o->method >= ISOMEND_METHOD_COUNT || (o->flags & ~ISOMEND_FLAGS_ALL))
-        return ISOMEND_ERR_INVALID_ARGUMENT;
-    if (!isomend_method_available(o->method))
-        return ISOMEND_ERR_UNSUPPORTED;
-    const int64_t min = (o->flags & ISOMEND_FLAG_PAD) ? 1 : 2;
+    const int64_t min = pad ? 1 : 2;
     for (int a = 0; a < 3; a++) {
         if (vol->dims[a] < min || vol->dims[a] > ((int64_t)1 << 31))
             return ISOMEND_ERR_BAD_DIMENSIONS;
@@ -132,6 +126,20 @@ static isomend_status validate(const isomend_volume *vol, const isomend_options 
         if (!isfinite(vol->origin[a]))
             return ISOMEND_ERR_INVALID_ARGUMENT;
     }
+    return ISOMEND_OK;
+}
+
+static isomend_status validate(const isomend_volume *vol, const isomend_options *o)
+{
+    if (!vol || isomend_type_size(vol->type) == 0)
+        return ISOMEND_ERR_INVALID_ARGUMENT;
+    if ((unsigned)o->method >= ISOMEND_METHOD_COUNT || (o->flags & ~ISOMEND_FLAGS_ALL))
+        return ISOMEND_ERR_INVALID_ARGUMENT;
+    if (!isomend_method_available(o->method))
+        return ISOMEND_ERR_UNSUPPORTED;
+    const isomend_status checked = volume_grid_check(vol, (o->flags & ISOMEND_FLAG_PAD) != 0);
+    if (checked != ISOMEND_OK)
+        return checked;
     if (!isfinite(o->iso))
         return ISOMEND_ERR_BAD_ISO;
     return slice_origins_validate(vol);

@@ -3,9 +3,8 @@
  * in one pass over the volume (isomend_labels_*; the contract is in
  * isomend.h, the design and its measurements in docs/labels.md).
  *
- * This file is the driver: the arguments checked, the labels present
- * (isomend_labels_present, a histogram for 8- and 16-bit types, a hash
- * table for 32-bit ones), the value -> code map the sweep uses, the slabs
+ * This file is the driver: the arguments checked (the labels present are
+ * listed by labels_present.c), the value -> code map the sweep uses, the slabs
  * (consecutive layers, one a thread, swept by labels_sweep.c), and each
  * label's mesh joined from the slabs' parts: ids offset by the vertices of
  * the earlier slabs, a foreign id (a vertex of the next slab's first slice)
@@ -15,7 +14,6 @@
  */
 #include "labels_internal.h"
 
-#include <math.h>
 #include <pthread.h>
 #include <stdlib.h>
 #include <string.h>
@@ -29,7 +27,7 @@ struct isomend_labels {
 };
 
 /* The size of a label sample, 0 for a type that is not a label type. */
-static size_t label_type_size(isomend_type type)
+size_t label_type_size(isomend_type type)
 {
     switch ((int)type) {
     case ISOMEND_U8:
@@ -44,7 +42,7 @@ static size_t label_type_size(isomend_type type)
 
 /* The smallest value of an 8- or 16-bit type and the number of its values;
  * 0 values for 32-bit types. */
-static size_t small_range(isomend_type type, int64_t *min)
+size_t label_small_range(isomend_type type, int64_t *min)
 {
     switch ((int)type) {
     case ISOMEND_U8: *min = 0; return 256;
@@ -55,23 +53,17 @@ static size_t small_range(isomend_type type, int64_t *min)
     }
 }
 
-static isomend_status check_volume(const isomend_volume *vol, int pad)
+isomend_status label_check_volume(const isomend_volume *vol, int pad, int need_data)
 {
-    if (!vol || !vol->data || !label_type_size(vol->type))
+    if (!vol || (need_data && !vol->data) || !label_type_size(vol->type))
         return ISOMEND_ERR_INVALID_ARGUMENT;
-    const int64_t min = pad ? 1 : 2;
-    for (int a = 0; a < 3; a++) {
-        if (vol->dims[a] < min || vol->dims[a] > ((int64_t)1 << 31))
-            return ISOMEND_ERR_BAD_DIMENSIONS;
-        if (!(vol->spacing[a] > 0.0) || !isfinite(vol->spacing[a]))
-            return ISOMEND_ERR_BAD_SPACING;
-        if (!isfinite(vol->origin[a]))
-            return ISOMEND_ERR_INVALID_ARGUMENT;
-    }
+    const isomend_status checked = volume_grid_check(vol, pad);
+    if (checked != ISOMEND_OK)
+        return checked;
     return vol->slice_origins ? ISOMEND_ERR_UNSUPPORTED : ISOMEND_OK;
 }
 
-static void volume_strides(const isomend_volume *vol, int64_t st[3])
+void label_strides(const isomend_volume *vol, int64_t st[3])
 {
     const int64_t size = (int64_t)label_type_size(vol->type);
     if (vol->strides[0] == 0 && vol->strides[1] == 0 && vol->strides[2] == 0) {
@@ -83,183 +75,10 @@ static void volume_strides(const isomend_volume *vol, int64_t st[3])
     }
 }
 
-/* ------------------------------------------------------- labels present */
-
-static int64_t sample_at(const isomend_volume *vol, const int64_t st[3], int64_t i, int64_t j,
-                         int64_t k)
-{
-    return load_label(vol->type, (const char *)vol->data + i * st[0] + j * st[1] + k * st[2]);
-}
-
-/* A hash table of 32-bit values and their counts (open addressing). */
-typedef struct value_set {
-    int64_t *value;
-    uint64_t *count;
-    size_t cap, n;
-} value_set;
-
-static int set_add(value_set *s, int64_t v, uint64_t n)
-{
-    if (2 * (s->n + 1) > s->cap) {
-        const size_t cap = s->cap ? 2 * s->cap : 1024;
-        int64_t *value = malloc(sizeof(int64_t) * cap);
-        uint64_t *count = calloc(cap, sizeof(uint64_t));
-        if (!value || !count) {
-            free(value);
-            free(count);
-            return 0;
-        }
-        for (size_t q = 0; q < s->cap; q++) {
-            if (!s->count[q])
-                continue;
-            size_t h = (size_t)((uint64_t)s->value[q] * 0x9E3779B97F4A7C15ull >> 20) & (cap - 1);
-            while (count[h])
-                h = (h + 1) & (cap - 1);
-            value[h] = s->value[q];
-            count[h] = s->count[q];
-        }
-        free(s->value);
-        free(s->count);
-        s->value = value;
-        s->count = count;
-        s->cap = cap;
-    }
-    size_t h = (size_t)((uint64_t)v * 0x9E3779B97F4A7C15ull >> 20) & (s->cap - 1);
-    while (s->count[h] && s->value[h] != v)
-        h = (h + 1) & (s->cap - 1);
-    if (!s->count[h]) {
-        s->value[h] = v;
-        s->n++;
-    }
-    s->count[h] += n;
-    return 1;
-}
-
-static int cmp_value(const void *a, const void *b)
+int label_cmp_value(const void *a, const void *b)
 {
     const int64_t x = *(const int64_t *)a, y = *(const int64_t *)b;
     return (x > y) - (x < y);
-}
-
-/* The labels present, ascending, and their samples: malloc'ed arrays. */
-static isomend_status labels_present(const isomend_volume *vol, int64_t **values, uint64_t **voxels,
-                                     size_t *count)
-{
-    int64_t st[3];
-    volume_strides(vol, st);
-    int64_t min;
-    const size_t range = small_range(vol->type, &min);
-    *values = NULL;
-    *voxels = NULL;
-    *count = 0;
-    if (range) {
-        uint64_t *hist = calloc(range, sizeof(uint64_t));
-        if (!hist)
-            return ISOMEND_ERR_OUT_OF_MEMORY;
-        const int64_t size = (int64_t)label_type_size(vol->type);
-        for (int64_t k = 0; k < vol->dims[2]; k++)
-            for (int64_t j = 0; j < vol->dims[1]; j++) {
-                const uint8_t *row = (const uint8_t *)vol->data + j * st[1] + k * st[2];
-                if (vol->type == ISOMEND_U8 && st[0] == 1) /* the common case, vectorised */
-                    for (int64_t i = 0; i < vol->dims[0]; i++)
-                        hist[row[i]]++;
-                else if (vol->type == ISOMEND_U16 && st[0] == size)
-                    for (int64_t i = 0; i < vol->dims[0]; i++) {
-                        uint16_t v;
-                        memcpy(&v, row + 2 * i, 2);
-                        hist[v]++;
-                    }
-                else
-                    for (int64_t i = 0; i < vol->dims[0]; i++)
-                        hist[sample_at(vol, st, i, j, k) - min]++;
-            }
-        size_t n = 0;
-        for (size_t v = 0; v < range; v++)
-            n += hist[v] != 0;
-        *values = malloc(sizeof(int64_t) * (n ? n : 1));
-        *voxels = malloc(sizeof(uint64_t) * (n ? n : 1));
-        if (!*values || !*voxels) {
-            free(hist);
-            return ISOMEND_ERR_OUT_OF_MEMORY;
-        }
-        n = 0;
-        for (size_t v = 0; v < range; v++)
-            if (hist[v]) {
-                (*values)[n] = (int64_t)v + min;
-                (*voxels)[n++] = hist[v];
-            }
-        *count = n;
-        free(hist);
-        return ISOMEND_OK;
-    }
-    value_set s = {NULL, NULL, 0, 0};
-    isomend_status status = ISOMEND_OK;
-    for (int64_t k = 0; k < vol->dims[2] && status == ISOMEND_OK; k++)
-        for (int64_t j = 0; j < vol->dims[1] && status == ISOMEND_OK; j++) {
-            int64_t run = sample_at(vol, st, 0, j, k);
-            uint64_t n = 0;
-            for (int64_t i = 0; i < vol->dims[0]; i++) { /* runs: one insertion each */
-                const int64_t v = sample_at(vol, st, i, j, k);
-                if (v != run) {
-                    if (!set_add(&s, run, n))
-                        status = ISOMEND_ERR_OUT_OF_MEMORY;
-                    run = v;
-                    n = 0;
-                }
-                n++;
-            }
-            if (status == ISOMEND_OK && !set_add(&s, run, n))
-                status = ISOMEND_ERR_OUT_OF_MEMORY;
-        }
-    if (status == ISOMEND_OK) {
-        *values = malloc(sizeof(int64_t) * (s.n ? s.n : 1));
-        *voxels = malloc(sizeof(uint64_t) * (s.n ? s.n : 1));
-        if (!*values || !*voxels)
-            status = ISOMEND_ERR_OUT_OF_MEMORY;
-    }
-    if (status == ISOMEND_OK) {
-        size_t n = 0;
-        for (size_t q = 0; q < s.cap; q++)
-            if (s.count[q])
-                (*values)[n++] = s.value[q];
-        qsort(*values, n, sizeof(int64_t), cmp_value);
-        for (size_t q = 0; q < s.cap; q++)
-            if (s.count[q]) {
-                const int64_t *at = bsearch(&s.value[q], *values, n, sizeof(int64_t), cmp_value);
-                (*voxels)[at - *values] = s.count[q];
-            }
-        *count = n;
-    }
-    free(s.value);
-    free(s.count);
-    return status;
-}
-
-isomend_status isomend_labels_present(const isomend_volume *vol, int64_t *values, uint64_t *voxels,
-                                      size_t capacity, size_t *count)
-{
-    if (!count)
-        return ISOMEND_ERR_INVALID_ARGUMENT;
-    *count = 0;
-    isomend_status status = check_volume(vol, 1);
-    if (status != ISOMEND_OK)
-        return status;
-    int64_t *v;
-    uint64_t *n;
-    size_t have;
-    status = labels_present(vol, &v, &n, &have);
-    if (status == ISOMEND_OK) {
-        for (size_t q = 0; q < have && q < capacity; q++) {
-            if (values)
-                values[q] = v[q];
-            if (voxels)
-                voxels[q] = n[q];
-        }
-        *count = have;
-    }
-    free(v);
-    free(n);
-    return status;
 }
 
 /* ------------------------------------------------------------ the slabs */
@@ -283,7 +102,7 @@ static void free_parts(label_part *part, size_t count)
     free(part);
 }
 
-static void free_slab(label_slab *s, size_t count)
+void label_slab_free(label_slab *s, size_t count)
 {
     free_parts(s->part, count);
     free(s->voxels);
@@ -291,9 +110,10 @@ static void free_slab(label_slab *s, size_t count)
         free(s->codes[r]);
     free(s->ids[0]);
     free(s->ids[1]);
+    free(s->cols);
 }
 
-static int alloc_slab(label_slab *s, label_job *job)
+int label_slab_alloc(label_slab *s, label_job *job)
 {
     const size_t plane = (size_t)job->N[0] * (size_t)job->N[1];
     s->job = job;
@@ -304,6 +124,9 @@ static int alloc_slab(label_slab *s, label_job *job)
         ok = (s->codes[r] = malloc(sizeof(uint32_t) * plane)) && ok;
     for (int r = 0; r < 2; r++)
         ok = (s->ids[r] = malloc(sizeof(uint32_t) * 6 * plane)) && ok;
+    ok = (s->cols = malloc(sizeof(int64_t) * (size_t)job->N[0])) && ok;
+    for (int r = 0; r < LABEL_RING; r++)
+        s->held[r] = -1;
     return ok;
 }
 
@@ -414,7 +237,7 @@ static int build_codes(label_job *job, const int64_t *value, uint32_t **table, i
                        uint32_t **sorted_code)
 {
     int64_t min;
-    const size_t range = small_range(job->type, &min);
+    const size_t range = label_small_range(job->type, &min);
     if (range) {
         uint32_t *t = malloc(sizeof(uint32_t) * range);
         if (!(*table = t))
@@ -439,7 +262,7 @@ static int build_codes(label_job *job, const int64_t *value, uint32_t **table, i
         pairs[2 * l] = value[l];
         pairs[2 * l + 1] = l;
     }
-    qsort(pairs, job->count, 2 * sizeof(int64_t), cmp_value); /* by value (first) */
+    qsort(pairs, job->count, 2 * sizeof(int64_t), label_cmp_value); /* by value (first) */
     for (uint32_t l = 0; l < job->count; l++) {
         (*sorted)[l] = pairs[2 * l];
         (*sorted_code)[l] = (uint32_t)pairs[2 * l + 1];
@@ -448,6 +271,28 @@ static int build_codes(label_job *job, const int64_t *value, uint32_t **table, i
     job->sorted = *sorted;
     job->sorted_code = *sorted_code;
     return 1;
+}
+
+isomend_status label_join_all(label_job *job, label_slab *slab, int nslabs, isomend_labels *r)
+{
+    for (int s = 0; s < nslabs; s++) { /* the scratch arrays, before the join */
+        for (int q = 0; q < LABEL_RING; q++) {
+            free(slab[s].codes[q]);
+            slab[s].codes[q] = NULL;
+        }
+        for (uint32_t l = 0; l < job->count; l++)
+            r->voxels[l] += slab[s].voxels[l];
+    }
+    isomend_status *st = calloc(job->count ? job->count : 1, sizeof(isomend_status));
+    if (!st)
+        return ISOMEND_ERR_OUT_OF_MEMORY;
+    join_job jj = {job, slab, nslabs, r->mesh, st};
+    parallel_for_from(job->count, 2, join_range, &jj);
+    isomend_status status = ISOMEND_OK;
+    for (uint32_t l = 0; l < job->count && status == ISOMEND_OK; l++)
+        status = st[l];
+    free(st);
+    return status;
 }
 
 static isomend_status run_slabs(label_job *job, int nthreads, isomend_labels *r)
@@ -465,7 +310,7 @@ static isomend_status run_slabs(label_job *job, int nthreads, isomend_labels *r)
         slab[s].k1 = layers * (s + 1) / nslabs;
         slab[s].last = s == nslabs - 1;
         slab[s].reports = s == 0;
-        if (!alloc_slab(&slab[s], job))
+        if (!label_slab_alloc(&slab[s], job))
             status = ISOMEND_ERR_OUT_OF_MEMORY;
     }
     if (status == ISOMEND_OK) {
@@ -485,41 +330,30 @@ static isomend_status run_slabs(label_job *job, int nthreads, isomend_labels *r)
             if (slab[s].status != ISOMEND_OK && slab[s].status != ISOMEND_ERR_CANCELLED)
                 status = slab[s].status;
     }
-    if (status == ISOMEND_OK) {
-        for (int s = 0; s < nslabs; s++) { /* the scratch arrays, before the join */
-            for (int q = 0; q < LABEL_RING; q++) {
-                free(slab[s].codes[q]);
-                slab[s].codes[q] = NULL;
-            }
-            for (uint32_t l = 0; l < job->count; l++)
-                r->voxels[l] += slab[s].voxels[l];
-        }
-        isomend_status *st = calloc(job->count ? job->count : 1, sizeof(isomend_status));
-        if (!st) {
-            status = ISOMEND_ERR_OUT_OF_MEMORY;
-        } else {
-            join_job jj = {job, slab, nslabs, r->mesh, st};
-            parallel_for_from(job->count, 2, join_range, &jj);
-            for (uint32_t l = 0; l < job->count && status == ISOMEND_OK; l++)
-                status = st[l];
-            free(st);
-        }
-    }
+    if (status == ISOMEND_OK)
+        status = label_join_all(job, slab, nslabs, r);
     for (int s = 0; slab && s < nslabs; s++)
-        free_slab(&slab[s], job->count);
+        label_slab_free(&slab[s], job->count);
     free(slab);
     free(tid);
     free(started);
     return status;
 }
 
-isomend_status isomend_labels_extract(const isomend_volume *vol, const int64_t *labels,
-                                      size_t count, const isomend_options *opts,
-                                      isomend_labels **out)
+void label_setup_free(label_setup *su)
 {
-    if (!out)
-        return ISOMEND_ERR_INVALID_ARGUMENT;
-    *out = NULL;
+    free(su->table);
+    free(su->sorted);
+    free(su->sorted_code);
+    free(su->job);
+    isomend_labels_destroy(su->result);
+    memset(su, 0, sizeof *su);
+}
+
+isomend_status label_setup_begin(const isomend_volume *vol, const int64_t *labels, size_t count,
+                                 const isomend_options *opts, int need_data, label_setup *su)
+{
+    memset(su, 0, sizeof *su);
     isomend_options defaults;
     isomend_options_init(&defaults);
     const isomend_options *o = opts ? opts : &defaults;
@@ -530,21 +364,21 @@ isomend_status isomend_labels_extract(const isomend_volume *vol, const int64_t *
         o->method != ISOMEND_METHOD_DMC)
         return ISOMEND_ERR_UNSUPPORTED;
     const int pad = (o->flags & ISOMEND_FLAG_PAD) != 0;
-    isomend_status status = check_volume(vol, pad);
+    isomend_status status = label_check_volume(vol, pad, need_data || !labels);
     if (status != ISOMEND_OK)
         return status;
     if (count >= (size_t)LABEL_FOREIGN - 2)
         return ISOMEND_ERR_TOO_LARGE;
 
-    isomend_labels *r = calloc(1, sizeof *r);
+    isomend_labels *r = su->result = calloc(1, sizeof *r);
     if (!r)
         return ISOMEND_ERR_OUT_OF_MEMORY;
     if (!labels) { /* every label present but 0 */
         uint64_t *n = NULL;
-        status = labels_present(vol, &r->value, &n, &r->count);
+        status = label_list_present(vol, &r->value, &n, &r->count);
         free(n);
         if (status != ISOMEND_OK) {
-            isomend_labels_destroy(r);
+            label_setup_free(su);
             return status;
         }
         size_t keep = 0;
@@ -555,42 +389,35 @@ isomend_status isomend_labels_extract(const isomend_volume *vol, const int64_t *
     } else {
         r->count = count;
         r->value = malloc(sizeof(int64_t) * (count ? count : 1));
-        if (!r->value) {
-            isomend_labels_destroy(r);
+        int64_t *check = malloc(sizeof(int64_t) * (count ? count : 1));
+        if (!r->value || !check) {
+            free(check);
+            label_setup_free(su);
             return ISOMEND_ERR_OUT_OF_MEMORY;
         }
         memcpy(r->value, labels, sizeof(int64_t) * count);
-        int64_t *check = malloc(sizeof(int64_t) * (count ? count : 1));
-        if (!check) {
-            isomend_labels_destroy(r);
-            return ISOMEND_ERR_OUT_OF_MEMORY;
-        }
         memcpy(check, labels, sizeof(int64_t) * count);
-        qsort(check, count, sizeof(int64_t), cmp_value);
+        qsort(check, count, sizeof(int64_t), label_cmp_value);
         for (size_t l = 1; l < count; l++)
             if (check[l] == check[l - 1])
                 status = ISOMEND_ERR_INVALID_ARGUMENT; /* a label twice */
         free(check);
         if (status != ISOMEND_OK) {
-            isomend_labels_destroy(r);
+            label_setup_free(su);
             return status;
         }
     }
     r->voxels = calloc(r->count ? r->count : 1, sizeof(uint64_t));
     r->mesh = calloc(r->count ? r->count : 1, sizeof(isomend_mesh *));
-    if (!r->voxels || !r->mesh) {
-        isomend_labels_destroy(r);
-        return ISOMEND_ERR_OUT_OF_MEMORY;
-    }
-
-    label_job *job = calloc(1, sizeof *job);
-    if (!job) {
-        isomend_labels_destroy(r);
+    label_job *job = su->job = calloc(1, sizeof *job);
+    if (!r->voxels || !r->mesh || !job) {
+        label_setup_free(su);
         return ISOMEND_ERR_OUT_OF_MEMORY;
     }
     job->data = vol->data;
     job->type = vol->type;
-    volume_strides(vol, job->st);
+    job->size = (int64_t)label_type_size(vol->type);
+    label_strides(vol, job->st);
     job->pad = pad;
     for (int a = 0; a < 3; a++) {
         job->n[a] = vol->dims[a];
@@ -610,28 +437,36 @@ isomend_status isomend_labels_extract(const isomend_volume *vol, const int64_t *
     atomic_init(&job->cancel, 0);
     job->progress = o->progress;
     job->progress_user = o->progress_user;
-
-    uint32_t *table = NULL, *sorted_code = NULL;
-    int64_t *sorted = NULL;
-    status = build_codes(job, r->value, &table, &sorted, &sorted_code) ? ISOMEND_OK
-                                                                       : ISOMEND_ERR_OUT_OF_MEMORY;
-    if (status == ISOMEND_OK) {
-        long cores = sysconf(_SC_NPROCESSORS_ONLN);
-        int nthreads = o->threads > 0 ? o->threads : cores < 1 ? 1 : (int)cores;
-        status = run_slabs(job, nthreads > 64 ? 64 : nthreads, r);
+    if (!build_codes(job, r->value, &su->table, &su->sorted, &su->sorted_code)) {
+        label_setup_free(su);
+        return ISOMEND_ERR_OUT_OF_MEMORY;
     }
-    free(table);
-    free(sorted);
-    free(sorted_code);
-    free(job);
-    if (status != ISOMEND_OK) {
-        isomend_labels_destroy(r);
-        return status;
-    }
-    if (o->progress)
-        (void)o->progress(o->progress_user, 1.0);
-    *out = r;
     return ISOMEND_OK;
+}
+
+isomend_status isomend_labels_extract(const isomend_volume *vol, const int64_t *labels,
+                                      size_t count, const isomend_options *opts,
+                                      isomend_labels **out)
+{
+    if (!out)
+        return ISOMEND_ERR_INVALID_ARGUMENT;
+    *out = NULL;
+    label_setup su;
+    isomend_status status = label_setup_begin(vol, labels, count, opts, 1, &su);
+    if (status != ISOMEND_OK)
+        return status;
+    const int threads = opts ? opts->threads : 0;
+    const long cores = sysconf(_SC_NPROCESSORS_ONLN);
+    const int nthreads = threads > 0 ? threads : cores < 1 ? 1 : (int)cores;
+    status = run_slabs(su.job, nthreads > 64 ? 64 : nthreads, su.result);
+    if (status == ISOMEND_OK) {
+        if (opts && opts->progress)
+            (void)opts->progress(opts->progress_user, 1.0);
+        *out = su.result;
+        su.result = NULL;
+    }
+    label_setup_free(&su);
+    return status;
 }
 
 size_t isomend_labels_count(const isomend_labels *r)

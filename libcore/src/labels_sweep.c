@@ -109,25 +109,20 @@ static void code_row(const label_job *job, const char *p, int64_t st, int64_t n,
 
 /* The codes of marched slice m (NULL outside the grid), converted into
  * the ring when not there yet; samples counted when m is the slab's own. */
-static const uint32_t *codes_of(label_slab *s, int64_t m)
+void label_fill_codes(label_slab *s, int64_t m, const char *slice, int64_t st0, int64_t st1)
 {
     const label_job *job = s->job;
     const int64_t N0 = job->N[0], N1 = job->N[1], N2 = job->N[2], pad = job->pad;
-    if (m < 0 || m >= N2)
-        return NULL;
     const int slot = (int)(m & (LABEL_RING - 1));
     uint32_t *dst = s->codes[slot];
-    if (s->held[slot] == m)
-        return dst;
     s->held[slot] = m;
     const uint32_t PAD = job->count + 1;
     const int own = m >= s->k0 && (s->last || m < s->k1);
     if (pad && (m == 0 || m == N2 - 1)) {
         for (int64_t q = 0; q < N0 * N1; q++)
             dst[q] = PAD;
-        return dst;
+        return;
     }
-    const char *slice = job->data + (m - pad) * job->st[2];
     for (int64_t j = 0; j < N1; j++) {
         uint32_t *row = dst + j * N0;
         if (pad && (j == 0 || j == N1 - 1)) {
@@ -137,10 +132,23 @@ static const uint32_t *codes_of(label_slab *s, int64_t m)
         }
         if (pad)
             row[0] = row[N0 - 1] = PAD;
-        code_row(job, slice + (j - pad) * job->st[1], job->st[0], job->n[0], row + pad,
-                 own ? s->voxels : NULL);
+        code_row(job, slice + (j - pad) * st1, st0, job->n[0], row + pad, own ? s->voxels : NULL);
     }
-    return dst;
+}
+
+/* The codes of marched slice m (NULL outside the grid): a volume's slice is
+ * converted into the ring when not there yet; a stream's must have been
+ * pushed (labels_stream.c pushes ahead of every use). */
+static const uint32_t *codes_of(label_slab *s, int64_t m)
+{
+    const label_job *job = s->job;
+    if (m < 0 || m >= job->N[2])
+        return NULL;
+    const int slot = (int)(m & (LABEL_RING - 1));
+    if (s->held[slot] != m)
+        label_fill_codes(s, m, job->data ? job->data + (m - job->pad) * job->st[2] : NULL,
+                         job->st[0], job->st[1]);
+    return s->codes[slot];
 }
 
 /* ------------------------------------------------------------ vertices */
@@ -374,8 +382,9 @@ static int64_t cut_columns(const uint32_t *x, const uint32_t *y, int64_t n, int6
  * upper end's; UINT32_MAX for a label not requested).  `foreign`: the next
  * slab's first slice, numbered only.
  */
-static int scan_slice(label_slab *s, int64_t m, int foreign, int64_t *cols)
+int label_scan_slice(label_slab *s, int64_t m, int foreign)
 {
+    int64_t *cols = s->cols;
     const label_job *job = s->job;
     const int64_t N0 = job->N[0], N1 = job->N[1], N2 = job->N[2], plane = N0 * N1;
     near_slices ns;
@@ -519,7 +528,7 @@ static int march_cube(label_slab *s, const cube_row *cr, int64_t i)
 }
 
 /* Marches layer k (the cubes between marched slices k and k + 1). */
-static int march_layer(label_slab *s, int64_t k)
+int label_march_layer(label_slab *s, int64_t k)
 {
     const label_job *job = s->job;
     const int64_t N0 = job->N[0], N1 = job->N[1], N2 = job->N[2], plane = N0 * N1;
@@ -566,13 +575,10 @@ static int march_layer(label_slab *s, int64_t k)
 isomend_status label_slab_run(label_slab *s)
 {
     label_job *job = s->job;
-    int64_t *cols = malloc(sizeof(int64_t) * (size_t)job->N[0]);
-    if (!cols)
-        return s->status = ISOMEND_ERR_OUT_OF_MEMORY;
     for (int r = 0; r < LABEL_RING; r++)
         s->held[r] = -1;
     s->status = ISOMEND_OK;
-    if (!scan_slice(s, s->k0, 0, cols))
+    if (!label_scan_slice(s, s->k0, 0))
         s->status = ISOMEND_ERR_OUT_OF_MEMORY;
     for (int64_t k = s->k0; k < s->k1 && s->status == ISOMEND_OK; k++) {
         if (atomic_load_explicit(&job->cancel, memory_order_relaxed)) {
@@ -580,7 +586,7 @@ isomend_status label_slab_run(label_slab *s)
             break;
         }
         /* slice k + 1 is the next slab's first slice at the end of a slab */
-        if (!scan_slice(s, k + 1, k + 1 == s->k1 && !s->last, cols) || !march_layer(s, k)) {
+        if (!label_scan_slice(s, k + 1, k + 1 == s->k1 && !s->last) || !label_march_layer(s, k)) {
             s->status = ISOMEND_ERR_OUT_OF_MEMORY;
             break;
         }
@@ -588,9 +594,7 @@ isomend_status label_slab_run(label_slab *s)
             job->progress(job->progress_user, (double)(k - s->k0 + 1) / (double)(s->k1 - s->k0)))
             s->status = ISOMEND_ERR_CANCELLED;
     }
-    /* the last slab owns the last slice, whose codes it has converted */
     if (s->status != ISOMEND_OK)
         atomic_store(&job->cancel, 1);
-    free(cols);
     return s->status;
 }

@@ -24,6 +24,11 @@ typedef struct slice_table {
     double gap;       /* the padding's gap when the volume has one slice   */
 } slice_table;
 
+/* extract.c: a volume's grid checked as every extraction checks it (the
+ * label maps too): at least 2 samples a side (1 with padding), at most 2^31;
+ * spacing > 0 and finite; origin finite.  ISOMEND_OK or the status. */
+isomend_status volume_grid_check(const isomend_volume *vol, int pad);
+
 /* ------------------------------------------------------------- the mesh */
 
 struct isomend_mesh {

@@ -221,6 +221,10 @@ for name, vol in cases:
     if not j or not jm:
         continue
     labels = [e["value"] for e in j["labels"]]
+    if name == "checkerboard":  # every voxel its own octahedron, for both labels
+        for e in j["labels"]:
+            check(e["triangles"] == 8 * e["voxels"] and e["vertices"] == 6 * e["voxels"] and
+                  e["components"] == e["voxels"], f"checkerboard label {e['value']}: {e}")
     check(labels == sorted(int(x) for x in np.unique(vol) if x != 0), f"{name}: labels {labels}")
     vox = {int(x): int((vol == x).sum()) for x in labels}
     peers = None
@@ -272,6 +276,14 @@ for name, vol in cases:
         pa, pb = key_set(positions(files[A])[0]), key_set(positions(files[B])[0])
         check(mp <= pa and mp <= pb, f"{name}: labels {A} and {B} do not share their boundary")
     check(shared > 0, f"{name}: no touching pair tested")
+    # streamed (--stream: a slice at a time, the labels listed by a first pass): the same bytes
+    ds = os.path.join(W, name + "_stream") + "/"
+    js = extract_json(src, ds, "--labels", "all", "--pad", "--stream")
+    if js:
+        check([e["triangles"] for e in js["labels"]] == [e["triangles"] for e in j["labels"]],
+              f"{name}: streamed triangles differ")
+        for e, es in zip(j["labels"], js["labels"]):
+            check(same_file(e["file"], es["file"]), f"{name}: --stream differs ({e['value']})")
     # the same bytes at 1 thread
     d1 = os.path.join(W, name + "_t1") + "/"
     j1 = extract_json(src, d1, "--labels", "all", "--pad", "--threads", "1")
@@ -308,6 +320,10 @@ if not args.no_peers:
                                  np.diag([SPACING[0], SPACING[1], SPACING[2], 1.0])), path)
         d = os.path.join(W, f"nifti_{np.dtype(dt).name}") + "/"
         j = extract_json(path, d, "--labels", "all", "--pad")
+        if np.dtype(dt) == np.int16:  # the importer's slices streamed: the same files
+            js = extract_json(path, d[:-1] + "_stream/", "--labels", "all", "--pad", "--stream")
+            for e, es in zip(j["labels"] if j else [], js["labels"] if js else []):
+                check(same_file(e["file"], es["file"]), f"NIfTI --stream: label {e['value']}")
         if j and ref:
             check([e["value"] for e in j["labels"]] == [x + off for x in (1, 4, 5)],
                   f"NIfTI {np.dtype(dt).name}: labels {[e['value'] for e in j['labels']]}")
@@ -318,6 +334,21 @@ if not args.no_peers:
                       f"NIfTI {np.dtype(dt).name} label {e['value']}: not closed")
                 if not args.no_peers:
                     check(vtk_closed(e["file"]) == (0, 0), f"NIfTI label {e['value']}: VTK edges")
+    # a radiological NIfTI (det < 0, as most are): placed by its affine in patient LPS, each
+    # label still closed (VTK on the written files) and outward (positive signed volume)
+    path = os.path.join(W, "labels_mirror.nii.gz")
+    aff = np.array([[-0.8, 0, 0, 10], [0, 0.9, 0, -5], [0, 0, 1.5, 3], [0, 0, 0, 1.0]])
+    nib.save(nib.Nifti1Image(np.ascontiguousarray(base.transpose(2, 1, 0)), aff), path)
+    for flags in ([], ["--ras"]):
+        d = os.path.join(W, "nifti_mirror" + "".join(flags)) + "/"
+        j = extract_json(path, d, "--labels", "all", "--pad", *flags)
+        for e in j["labels"] if j else []:
+            p, t = positions(e["file"])
+            q = p.astype(np.float64)[t.astype(np.int64)]
+            vol = np.einsum("ij,ij->i", q[:, 0], np.cross(q[:, 1], q[:, 2])).sum() / 6.0
+            check(vol > 0, f"mirrored NIfTI {flags} label {e['value']}: signed volume {vol}")
+            if not args.no_peers:
+                check(vtk_closed(e["file"]) == (0, 0), f"mirrored NIfTI label {e['value']}: VTK")
     # float samples that are not whole numbers: refused, nothing written
     path = os.path.join(W, "float.nii.gz")
     nib.save(nib.Nifti1Image(base.astype(np.float32).transpose(2, 1, 0) * 0.5, np.eye(4)), path)
@@ -424,12 +455,17 @@ refused(["extract", src, "--iso", "3", "--label-table", bad_table, "-o", os.path
         "--label-table", [os.path.join(W, "x.ply")], "table without --labels", 2)
 refused(["extract", src, "--labels", "all", "--format", "stl", "-o", os.path.join(W, "y.ply")],
         "--format", [os.path.join(W, "y.ply")], "--format with a file", 2)
+deep = os.path.join(W, "no", "such", "folder") + "/"
+refused(["extract", src, "--labels", "all", "-o", deep], "cannot create the folder", [deep],
+        "folder in a missing folder", 1)
 zero = os.path.join(W, "zero.nrrd")
 write_nrrd(zero, np.zeros((4, 4, 4), np.uint8))
 refused(["extract", zero, "--labels", "all", "-o", out], "no label", [out], "all background", 1)
 fl = os.path.join(W, "float.nrrd")
 write_nrrd(fl, nested().astype(np.float32) + 0.25)
 refused(["extract", fl, "--labels", "all", "-o", out], "--labels", [out], "float NRRD", 1)
+refused(["extract", fl, "--labels", "all", "--stream", "-o", out], "--stream", [out],
+        "float NRRD streamed", 1)
 # a float volume of whole numbers is a label map
 write_nrrd(fl, nested().astype(np.float32))
 j = extract_json(fl, os.path.join(W, "float_whole.ply"), "--labels", "1,4,5", "--pad")

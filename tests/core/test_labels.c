@@ -289,6 +289,33 @@ static void run_volume(const lvol *l, const int64_t *labels, size_t count, int t
                     isomend_labels_voxels(r, q))
                     check_closed(m, o.method, l->name);
             }
+            /* streamed, a slice at a time: the same bytes */
+            {
+                int64_t *values = malloc(sizeof(int64_t) * (n + 1));
+                for (size_t q = 0; q < n; q++)
+                    values[q] = isomend_labels_value(r, q);
+                isomend_labels_stream *st = NULL;
+                isomend_volume desc = vol;
+                desc.data = NULL;
+                CHECK(isomend_labels_stream_begin(&desc, values, n, &o, &st) == ISOMEND_OK);
+                for (int64_t k = 0; st && k < l->n[2]; k++)
+                    CHECK(isomend_labels_stream_push(st, (const uint8_t *)u8 +
+                                                             k * l->n[0] * l->n[1]) == ISOMEND_OK);
+                isomend_labels *rs = NULL;
+                CHECK(isomend_labels_stream_finish(st, &rs) == ISOMEND_OK);
+                CHECK(isomend_labels_count(rs) == n);
+                for (size_t q = 0; rs && q < n; q++) {
+                    CHECK(isomend_labels_voxels(rs, q) == isomend_labels_voxels(r, q));
+                    if (!same_mesh(isomend_labels_mesh(rs, q), isomend_labels_mesh(r, q))) {
+                        fprintf(stderr, "%s: label %lld streamed differs\n", l->name,
+                                (long long)values[q]);
+                        tu_failures++;
+                    }
+                }
+                isomend_labels_destroy(rs);
+                isomend_labels_stream_destroy(st);
+                free(values);
+            }
             /* other thread counts: the same bytes */
             for (int t = 2; t <= 5 && (thorough || t == 2); t += t == 3 ? 2 : 1) {
                 o.threads = t;
@@ -477,6 +504,29 @@ static void check_errors(void)
     isomend_mesh_destroy(taken);
     isomend_labels_destroy(NULL);
     CHECK(isomend_labels_count(NULL) == 0);
+    /* streams: labels required, the slice count kept */
+    isomend_labels_stream *st = NULL;
+    isomend_volume desc = vol;
+    desc.data = NULL;
+    CHECK(isomend_labels_stream_begin(&desc, NULL, 0, NULL, &st) == ISOMEND_ERR_INVALID_ARGUMENT);
+    CHECK(st == NULL);
+    desc.type = ISOMEND_F64;
+    CHECK(isomend_labels_stream_begin(&desc, one, 1, NULL, &st) == ISOMEND_ERR_INVALID_ARGUMENT);
+    desc.type = ISOMEND_U8;
+    CHECK(isomend_labels_stream_begin(&desc, one, 1, NULL, &st) == ISOMEND_OK);
+    for (int k = 0; k < 7; k++)
+        CHECK(isomend_labels_stream_push(st, (const uint8_t *)u8 + k * 72) == ISOMEND_OK);
+    CHECK(isomend_labels_stream_push(st, u8) == ISOMEND_ERR_SLICE_COUNT);
+    CHECK(isomend_labels_stream_push(st, u8) == ISOMEND_ERR_SLICE_COUNT); /* sticky */
+    CHECK(isomend_labels_stream_finish(st, &r) == ISOMEND_ERR_SLICE_COUNT && r == NULL);
+    CHECK(isomend_labels_stream_finish(st, &r) == ISOMEND_ERR_INVALID_ARGUMENT);
+    CHECK(isomend_labels_stream_push(st, u8) == ISOMEND_ERR_INVALID_ARGUMENT);
+    isomend_labels_stream_destroy(st);
+    CHECK(isomend_labels_stream_begin(&desc, one, 1, NULL, &st) == ISOMEND_OK);
+    CHECK(isomend_labels_stream_push(st, u8) == ISOMEND_OK);
+    CHECK(isomend_labels_stream_finish(st, &r) == ISOMEND_ERR_SLICE_COUNT && r == NULL);
+    isomend_labels_stream_destroy(st);
+    isomend_labels_stream_destroy(NULL);
     /* progress: cancelled at the first call (after 16 slices) */
     lvol big = voronoi(12, 20);
     void *b8 = as_type(&big, ISOMEND_U8, 0);
@@ -528,6 +578,11 @@ int main(void)
     lvol bl = noise(9, 16, 2), no = noise(5, 11, 1);
     run_volume(&bl, NULL, 0, 1);
     run_volume(&no, NULL, 0, 1);
+    lvol thin = make("thin", 9, 8, 2); /* two slices: one layer, or three with padding */
+    for (int64_t q = 0; q < 9 * 8 * 2; q++)
+        thin.v[q] = (int64_t)(rng() % 3);
+    run_volume(&thin, NULL, 0, 1);
+    free(thin.v);
     check_present(&v);
     check_present(&no);
     check_errors();
