@@ -559,6 +559,8 @@ int cli_stream_extract(cli_source *s, const isomend_options *opts, const cli_sin
 /* `extract SOURCE --labels ...` (a label map's surfaces): an exit code, the
  * message printed. */
 int cli_extract_labels(cli_args *a);
+/* `info SOURCE --labels all`: the labels present, their voxels, names and colours. */
+int cli_info_labels(cli_args *a);
 
 /* ---- report.c ---- */
 
@@ -599,6 +601,11 @@ typedef struct cli_json_out {
 int cli_json_prepare(cli_json_out *j, const char *path);
 /* The stream to print the object to, NULL when no JSON was asked for. */
 FILE *cli_json_stream(cli_json_out *j);
+/* The start of `extract` and `info` (source.c): the --json output prepared,
+ * the progress bar set up (stderr a terminal, not quiet), SOURCE opened (no
+ * sample read) and the slices' geometry warning printed.  Exit code; on
+ * failure nothing is left open. */
+int cli_open_source_for(cli_args *a, int quiet, cli_json_out *jo, cli_progress *bar, cli_source *s);
 /* Completes it (renames the file); exit code. */
 int cli_json_finish(cli_json_out *j);
 void cli_json_abort(cli_json_out *j);

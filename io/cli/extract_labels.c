@@ -88,6 +88,28 @@ static void safe_name(const char *in, char *out, size_t size)
     if (k == 0 || out[0] == '.') out[0] = '_';
 }
 
+/* The label volume of a loaded source: its own samples, or an i32/u32 copy of
+ * whole-number float samples (*copy, to free; io/common's
+ * label_samples_integer(), which the importer uses too).  Exit code, message
+ * printed. */
+static int label_samples(const cli_source *s, isomend_volume *vol, void **copy)
+{
+    char msg[ISOMEND_FILEIO_MSG_SIZE];
+    if (!label_samples_integer(&s->desc, s->label, vol, copy, msg, sizeof msg)) return CLI_EXIT_OK;
+    cli_error("--labels: %s", msg);
+    return CLI_EXIT_FAIL;
+}
+
+/* A label's file-safe name and colour: from the table, else label_N and the
+ * palette (label_describe(), the hosts' rule too). */
+static void name_and_color(const label_table *t, int64_t value, char *name, size_t size,
+                           uint8_t rgb[3])
+{
+    char shown[LABEL_NAME_MAX];
+    label_describe(t, value, shown, sizeof shown, rgb);
+    safe_name(shown, name, size);
+}
+
 /* Everything of one label the outputs need. */
 typedef struct label_out {
     int64_t value;
@@ -429,18 +451,8 @@ int cli_extract_labels(cli_args *a)
     label_out *lo = NULL;
     void *copy = NULL;
     size_t n = 0;
-    rc = cli_json_prepare(&jo, a->json);
+    rc = cli_open_source_for(a, quiet, &jo, &bar, &src);
     if (rc) {
-        label_table_free(&table);
-        free(want);
-        return rc;
-    }
-    cli_progress_init(&bar, !quiet && isatty(STDERR_FILENO));
-    cli_active_progress = &bar;
-    a->src.progress = &bar;
-    rc = cli_source_open(a->positional, a->npositional, &a->src, &src);
-    if (rc) {
-        cli_json_abort(&jo);
         label_table_free(&table);
         free(want);
         return rc;
@@ -457,10 +469,7 @@ int cli_extract_labels(cli_args *a)
         }
     } else {
         rc = cli_source_load(&src);
-        if (!rc && label_samples_integer(&src.desc, src.label, &vol, &copy, msg, sizeof msg)) {
-            cli_error("--labels: %s", msg);
-            rc = CLI_EXIT_FAIL;
-        }
+        if (!rc) rc = label_samples(&src, &vol, &copy);
         if (rc) goto done;
     }
     if (!names_from && strcmp(src.kind, "nrrd") == 0) {
@@ -514,9 +523,8 @@ int cli_extract_labels(cli_args *a)
         label_out *l = &lo[q];
         l->value = isomend_labels_value(res, q);
         l->mesh = isomend_labels_mesh(res, q);
-        char shown[LABEL_NAME_MAX], base[LABEL_NAME_MAX];
-        label_describe(&table, l->value, shown, sizeof shown, l->rgb);
-        safe_name(shown, base, sizeof base);
+        char base[LABEL_NAME_MAX];
+        name_and_color(&table, l->value, base, sizeof base, l->rgb);
         snprintf(l->name, sizeof l->name, "%s", base);
         for (size_t r = 0, k = 2; r < q; r++) /* unique: name_2, name_3, ... */
             if (strcmp(lo[r].name, l->name) == 0) {
@@ -671,6 +679,87 @@ done:
     free(copy);
     label_table_free(&table);
     free(want);
+    cli_source_close(&src);
+    return rc;
+}
+
+int cli_info_labels(cli_args *a)
+{
+    if (strcmp(a->labels, "all") != 0) {
+        cli_error("--labels: info lists every label: use --labels all");
+        return CLI_EXIT_USAGE;
+    }
+    label_table table = {NULL, 0, 0, ""};
+    char msg[ISOMEND_FILEIO_MSG_SIZE];
+    if (a->label_table && label_table_read(a->label_table, &table, msg, sizeof msg)) {
+        cli_error("%s", msg);
+        return CLI_EXIT_FAIL;
+    }
+    const int quiet = (a->seen & OPT_QUIET) != 0;
+    cli_json_out jo;
+    cli_progress bar;
+    cli_source src;
+    int rc = cli_open_source_for(a, quiet, &jo, &bar, &src);
+    if (rc) {
+        label_table_free(&table);
+        return rc;
+    }
+    void *copy = NULL;
+    int64_t *values = NULL;
+    uint64_t *voxels = NULL;
+    size_t n = 0;
+    isomend_volume vol;
+    rc = cli_source_load(&src);
+    if (!rc) rc = label_samples(&src, &vol, &copy);
+    cli_progress_clear(&bar);
+    if (!rc && !a->label_table && strcmp(src.kind, "nrrd") == 0 &&
+        label_table_from_nrrd(a->positional[0], &table, msg, sizeof msg) < 0) {
+        cli_error("%s", msg);
+        rc = CLI_EXIT_FAIL;
+    }
+    if (!rc) {
+        isomend_labels_present(&vol, NULL, NULL, 0, &n);
+        values = malloc(sizeof(int64_t) * (n ? n : 1));
+        voxels = malloc(sizeof(uint64_t) * (n ? n : 1));
+        if (!values || !voxels) {
+            cli_error("%s: out of memory listing the labels", src.label);
+            rc = CLI_EXIT_FAIL;
+        } else {
+            isomend_labels_present(&vol, values, voxels, n, &n);
+        }
+    }
+    FILE *text = jo.to_stdout ? stderr : stdout;
+    FILE *jf = rc ? NULL : cli_json_stream(&jo);
+    if (!rc && !quiet)
+        fprintf(text, "%s: %zu label values (0 is the background unless listed)\n", src.label, n);
+    if (jf) {
+        fprintf(jf, "{\"command\": \"info\", \"version\": \"%s\", \"source\": ", isomend_version());
+        cli_json_string(jf, src.label);
+        fprintf(jf, ", \"labels\": [");
+    }
+    for (size_t q = 0; !rc && q < n; q++) {
+        char name[LABEL_NAME_MAX];
+        uint8_t rgb[3];
+        name_and_color(&table, values[q], name, sizeof name, rgb);
+        if (!quiet)
+            fprintf(text, "  %" PRId64 " %s: %" PRIu64 " voxels, colour %u %u %u\n", values[q],
+                    name, voxels[q], rgb[0], rgb[1], rgb[2]);
+        if (jf) {
+            fprintf(jf, "%s{\"value\": %" PRId64 ", \"name\": ", q ? ", " : "", values[q]);
+            cli_json_string(jf, name);
+            fprintf(jf, ", \"color\": [%u, %u, %u], \"voxels\": %" PRIu64 "}", rgb[0], rgb[1],
+                    rgb[2], voxels[q]);
+        }
+    }
+    if (jf) fprintf(jf, "]}\n");
+    if (rc)
+        cli_json_abort(&jo);
+    else
+        rc = cli_json_finish(&jo);
+    free(values);
+    free(voxels);
+    free(copy);
+    label_table_free(&table);
     cli_source_close(&src);
     return rc;
 }

@@ -157,6 +157,7 @@ static const char *const usage_info =
     "usage: isomend info SOURCE [--raw NX,NY,NZ:TYPE[:le|be]] [--spacing DX,DY,DZ]\n"
     "                           [--origin X,Y,Z] [--json FILE|-] [--quiet] [--max-memory SIZE]\n"
     "                           [--slice-positions Z0,Z1,...|@FILE]\n"
+    "                           [--labels all [--label-table FILE]]\n"
 #ifdef ISOMEND_HAVE_IO
     "                           [--first N] [--count N] [--step N] [--channel N|luma]\n"
     "                           [--series N|UID] [--grid-axes] [--ras]\n"
@@ -173,7 +174,9 @@ static const char *const usage_info =
     "largest; gantry tilt; gaps over 1.5x the median); slices whose gaps differ\n"
     "from the median by more than 1 % get one warning line on stderr.\n"
     "A volume larger than --max-memory (default: the memory available) is read\n"
-    "slice by slice, twice, instead of loaded.\n";
+    "slice by slice, twice, instead of loaded.\n"
+    "With --labels all [--label-table FILE]: a label map's labels instead, each\n"
+    "with its voxels, name and colour (as extract --labels names them).\n";
 
 static const char *const usage_sample =
     "usage: isomend sample f1|f2 -o FILE.nrrd [--gzip]\n"
@@ -231,29 +234,6 @@ static void print_geometry(FILE *fp, const cli_geometry *g, int64_t nz)
 }
 
 /* ------------------------------------------------------------------ extract */
-
-/*
- * The start shared by `extract` and `info`: prepares the --json output, sets
- * up the progress bar (stderr a terminal and not --quiet) and opens SOURCE
- * (no sample read yet), then prints the slices' geometry warning if any
- * (stderr, even with --quiet: it is about the result).  On failure nothing
- * is left open and the exit code is returned.
- */
-static int open_source_for(cli_args *a, int quiet, cli_json_out *jo, cli_progress *bar,
-                           cli_source *s)
-{
-    int rc = cli_json_prepare(jo, a->json);
-    if (rc) return rc;
-    cli_progress_init(bar, !quiet && isatty(STDERR_FILENO));
-    cli_active_progress = bar;
-    a->src.progress = bar;
-    rc = cli_source_open(a->positional, a->npositional, &a->src, s);
-    if (rc)
-        cli_json_abort(jo);
-    else /* uneven gaps, a missing slice: said once, the mesh is still made */
-        cli_print_geometry_warning(s->label, &s->geometry);
-    return rc;
-}
 
 /* Refuses a plan whose streaming path does not fit the limit either. */
 static int plan_fits(const cli_memory_plan *p, const cli_source *s)
@@ -353,7 +333,7 @@ static int cmd_extract(int argc, char **argv)
     cli_json_out jo;
     cli_progress bar;
     cli_source src;
-    rc = open_source_for(&a, quiet, &jo, &bar, &src);
+    rc = cli_open_source_for(&a, quiet, &jo, &bar, &src);
     if (rc) return rc;
 
     isomend_options opts;
@@ -695,8 +675,8 @@ static int cmd_info(int argc, char **argv)
 {
     cli_args a;
     uint64_t allowed = OPT_RAW | OPT_SPACING | OPT_ORIGIN | OPT_JSON | OPT_QUIET | OPT_FIRST |
-                       OPT_COUNT | OPT_STEP | OPT_CHANNEL | OPT_HELP | OPT_MAX_MEMORY |
-                       OPT_SERIES | OPT_GRID_AXES | OPT_RAS | OPT_SLICE_POSITIONS;
+                       OPT_COUNT | OPT_STEP | OPT_CHANNEL | OPT_HELP | OPT_MAX_MEMORY | OPT_SERIES |
+                       OPT_GRID_AXES | OPT_RAS | OPT_SLICE_POSITIONS | OPT_LABELS | OPT_LABEL_TABLE;
     int rc = cli_parse_args(argc, argv, 2, "info", allowed, &a);
     if (rc) return rc;
     if (a.seen & OPT_HELP) {
@@ -707,12 +687,17 @@ static int cmd_info(int argc, char **argv)
         cli_error("info: missing SOURCE (see isomend info --help)");
         return CLI_EXIT_USAGE;
     }
+    if (a.seen & OPT_LABELS) return cli_info_labels(&a); /* a label map's labels */
+    if (a.seen & OPT_LABEL_TABLE) {
+        cli_error("--label-table: only with --labels all");
+        return CLI_EXIT_USAGE;
+    }
     int quiet = (a.seen & OPT_QUIET) != 0;
     cli_json_out jo;
     cli_progress bar;
     cli_source src;
     a.src.list_series = 1;
-    rc = open_source_for(&a, quiet, &jo, &bar, &src);
+    rc = cli_open_source_for(&a, quiet, &jo, &bar, &src);
     if (rc) return rc;
     if (src.series_listed) {
         /* several series, none chosen: the list is the answer */

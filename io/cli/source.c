@@ -26,6 +26,7 @@
 
 #include <stdlib.h>
 #include <string.h>
+#include <unistd.h>
 
 /* cli_source_open's dispatch; on failure the caller closes s. */
 static int open_kind(const char *const *paths, int n, const cli_source_opts *o,
@@ -237,4 +238,26 @@ void cli_slices_rewind(cli_source *s)
     isomend_fileio_slices_close(s->file_slices); /* the next slice opens it again */
     s->file_slices = NULL;
     s->next = 0;
+}
+
+/*
+ * The start shared by `extract`, `info` and their --labels forms: prepares the --json output, sets
+ * up the progress bar (stderr a terminal and not --quiet) and opens SOURCE
+ * (no sample read yet), then prints the slices' geometry warning if any
+ * (stderr, even with --quiet: it is about the result).  On failure nothing
+ * is left open and the exit code is returned.
+ */
+int cli_open_source_for(cli_args *a, int quiet, cli_json_out *jo, cli_progress *bar, cli_source *s)
+{
+    int rc = cli_json_prepare(jo, a->json);
+    if (rc) return rc;
+    cli_progress_init(bar, !quiet && isatty(STDERR_FILENO));
+    cli_active_progress = bar;
+    a->src.progress = bar;
+    rc = cli_source_open(a->positional, a->npositional, &a->src, s);
+    if (rc)
+        cli_json_abort(jo);
+    else /* uneven gaps, a missing slice: said once, the mesh is still made */
+        cli_print_geometry_warning(s->label, &s->geometry);
+    return rc;
 }

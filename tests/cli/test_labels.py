@@ -395,6 +395,18 @@ if j:
     check(sum(x.startswith("f ") for x in obj) == sum(e["triangles"] for e in j["labels"]),
           "OBJ: faces")
 
+# ------------------------------------------------------------ info --labels
+r = run(["info", seg, "--labels", "all", "--json", "-", "--quiet"])
+check(r.returncode == 0, f"info --labels: {r.stderr}")
+if r.returncode == 0:
+    ji = json.loads(r.stdout)
+    tv = touching()
+    want = [[int(x), int((tv == x).sum())] for x in np.unique(tv)]
+    check([[e["value"], e["voxels"]] for e in ji["labels"]] == want,
+          f"info --labels: {[[e['value'], e['voxels']] for e in ji['labels']]} != {want}")
+    check([e["name"] for e in ji["labels"]] == ["label_0", "liver_right", "kidney"] and
+          ji["labels"][1]["color"] == [255, 128, 0], f"info --labels names {ji['labels']}")
+
 # ------------------------------------------------------------ colour tables
 tables = {
     "slicer.ctbl": "# Color table file\n# 3 values\n0 Background 0 0 0 0\n3 Liver 220 100 80 255\n"
@@ -455,6 +467,8 @@ refused(["extract", src, "--iso", "3", "--label-table", bad_table, "-o", os.path
         "--label-table", [os.path.join(W, "x.ply")], "table without --labels", 2)
 refused(["extract", src, "--labels", "all", "--format", "stl", "-o", os.path.join(W, "y.ply")],
         "--format", [os.path.join(W, "y.ply")], "--format with a file", 2)
+refused(["info", seg, "--labels", "3"], "--labels all", [], "info --labels 3", 2)
+refused(["info", seg, "--label-table", bad_table], "--label-table", [], "info --label-table", 2)
 deep = os.path.join(W, "no", "such", "folder") + "/"
 refused(["extract", src, "--labels", "all", "-o", deep], "cannot create the folder", [deep],
         "folder in a missing folder", 1)
