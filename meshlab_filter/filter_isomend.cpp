@@ -92,6 +92,15 @@ bool FilterIsomendPlugin::applyFilter(QAction *a, MeshDocument &md, const RichPa
     if (!ok)
         return fail(QString::fromStdString(run.error()));
 
+    if (!run.labels().empty()) { /* a label map: a layer a label */
+        if (!isomend_meshlab::add_label_layers(
+                md, run, cb, [&md](MeshModel *m) { md.delMesh(m); },
+                [this](const std::string &line) { Log(line); }))
+            return fail("out of memory while copying the labels into MeshLab");
+        if (cb)
+            cb(100, "isomend: done");
+        return true;
+    }
     MeshModel *m = md.addNewMesh("", QString::fromStdString(run.layer_name()), true);
     if (!m)
         return fail("MeshLab could not create a new layer");

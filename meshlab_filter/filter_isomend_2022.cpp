@@ -101,6 +101,16 @@ std::map<std::string, QVariant> FilterIsomendPlugin::applyFilter(const QAction *
     if (!ok)
         fail(QString::fromStdString(run.error()));
 
+    if (!run.labels().empty()) { /* a label map: a layer a label */
+        if (!isomend_meshlab::add_label_layers(
+                md, run, cb, [&md](MeshModel *m) { md.delMesh(m->id()); },
+                [this](const std::string &line) { log(line); }))
+            fail("out of memory while copying the labels into MeshLab");
+        postConditionMask = MeshModel::MM_NONE;
+        if (cb)
+            cb(100, "isomend: done");
+        return {{"labels", QVariant::fromValue<qulonglong>(run.labels().size())}};
+    }
     MeshModel *m = md.addNewMesh("", QString::fromStdString(run.layer_name()), true);
     if (!m)
         fail("MeshLab could not create a new layer");

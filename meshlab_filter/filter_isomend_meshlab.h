@@ -12,6 +12,7 @@
 #define ISOMEND_FILTER_ISOMEND_MESHLAB_H
 
 #include <cstdint>
+#include <functional>
 #include <string>
 #include <vector>
 
@@ -67,6 +68,11 @@ inline void fill_parameters(RichParameterList &par)
                          tip(job::kParamSmooth)));
     par.addParam(RichFloat(job::kParamDecimate, static_cast<float>(d.decimate_ratio),
                            label(job::kParamDecimate), tip(job::kParamDecimate)));
+    /* label maps: one layer a label */
+    par.addParam(RichString(job::kParamLabels, qs(d.labels.c_str()), label(job::kParamLabels),
+                            tip(job::kParamLabels)));
+    par.addParam(RichString(job::kParamLabelTable, qs(d.label_table.c_str()),
+                            label(job::kParamLabelTable), tip(job::kParamLabelTable)));
 }
 
 /* Reads the values back. */
@@ -94,6 +100,10 @@ inline isomend_filter::Params read_parameters(const RichParameterList &par)
         p.smooth_iterations = par.getInt(job::kParamSmooth);
     if (par.hasParameter(job::kParamDecimate))
         p.decimate_ratio = par.getFloat(job::kParamDecimate);
+    if (par.hasParameter(job::kParamLabels))
+        p.labels = par.getString(job::kParamLabels).toStdString();
+    if (par.hasParameter(job::kParamLabelTable))
+        p.label_table = par.getString(job::kParamLabelTable).toStdString();
     return p;
 }
 
@@ -143,6 +153,43 @@ inline void copy_mesh(const isomend_mesh *src, CMeshO &cm, vcg::CallBackPos *cb,
     vcg::tri::UpdateNormal<CMeshO>::PerFaceNormalized(cm);
     if (!nrm)
         vcg::tri::UpdateNormal<CMeshO>::PerVertexNormalized(cm);
+}
+
+/*
+ * Label-map mode (run.labels() not empty): one new layer a label, named
+ * after it, its colour on every vertex and face (MeshLab shows the vertex
+ * colour; a PLY export keeps both), and a log line a layer.  Returns false
+ * when memory ran out, after removing every layer it had made with
+ * `remove` (the two MeshLab APIs delete a layer differently).
+ */
+inline bool add_label_layers(MeshDocument &md, const isomend_filter::Job &run,
+                             vcg::CallBackPos *cb, const std::function<void(MeshModel *)> &remove,
+                             const std::function<void(const std::string &)> &log)
+{
+    std::vector<MeshModel *> made;
+    try {
+        for (const isomend_filter::LabelLayer &l : run.labels()) {
+            MeshModel *m = md.addNewMesh("", QString::fromStdString(l.name), true);
+            if (!m)
+                throw std::bad_alloc();
+            made.push_back(m);
+            copy_mesh(l.mesh, m->cm, cb, run.world_transform());
+            m->updateDataMask(MeshModel::MM_VERTCOLOR | MeshModel::MM_FACECOLOR);
+            const vcg::Color4b c(l.rgb[0], l.rgb[1], l.rgb[2], 255);
+            for (auto &v : m->cm.vert)
+                v.C() = c;
+            for (auto &f : m->cm.face)
+                f.C() = c;
+        }
+    } catch (const std::bad_alloc &) {
+        for (MeshModel *m : made)
+            remove(m);
+        return false;
+    }
+    for (MeshModel *m : made)
+        log("layer \"" + m->label().toStdString() + "\": " + std::to_string(m->cm.vn) +
+            " vertices, " + std::to_string(m->cm.fn) + " faces");
+    return true;
 }
 
 } // namespace isomend_meshlab

@@ -43,7 +43,9 @@
 #include <cstdlib>
 #include <cstring>
 #include <exception>
+#include <memory>
 #include <new>
+#include <sstream>
 
 #include "isomend_io.h"
 
@@ -64,9 +66,14 @@ const char *const kFilterInfo =
     "to lower values (outwards for bright objects).<br>"
     "The log lists vertices, triangles (from the table, Durst quads, mending quads) and the "
     "number of cubes in each of the 15 elementary cases.<br>"
-    "A folder of DICOM files (or a DICOMDIR, or one multi-frame file) is read as a series: the mesh "
+    "A folder of DICOM files (or a DICOMDIR, or one multi-frame file) is read as a series: the "
+    "mesh "
     "is in patient coordinates (LPS, millimetres), CT values in Hounsfield units (bone: iso 300, "
-    "skin: iso -500).";
+    "skin: iso -500).<br>"
+    "A <b>label map</b> (a segmentation: NIfTI, 3D Slicer .seg.nrrd, NRRD, raw): set <i>labels</i> "
+    "to "
+    "<i>all</i> or to a list such as <i>1,5,7</i>: one closed layer a label, named and coloured "
+    "from <i>labelTable</i> or the .seg.nrrd's own segments (iso is not used).";
 
 const char *const kParamSource = "source";
 const char *const kParamIso = "iso";
@@ -82,6 +89,8 @@ const char *const kParamGridAxes = "dicomGridAxes";
 const char *const kParamMinComponent = "minComponent";
 const char *const kParamSmooth = "smoothIterations";
 const char *const kParamDecimate = "decimateRatio";
+const char *const kParamLabels = "labels";
+const char *const kParamLabelTable = "labelTable";
 
 namespace {
 
@@ -158,6 +167,24 @@ int core_progress(void *user, double fraction)
     if (fraction > 1.0)
         fraction = 1.0;
     return state->report(45 + static_cast<int>(50.0 * fraction), "isomend: extracting") ? 0 : 1;
+}
+
+/* The core's options of a run: the method, pad and flip from the parameters,
+ * every core, progress reported to `state`. */
+isomend_options core_options(const Params &params, isomend_method method, ProgressState *state)
+{
+    isomend_options opts;
+    isomend_options_init(&opts);
+    opts.method = method;
+    opts.flags = 0;
+    if (params.pad)
+        opts.flags |= ISOMEND_FLAG_PAD;
+    if (params.flip_normals)
+        opts.flags |= ISOMEND_FLAG_FLIP;
+    opts.threads = 0;
+    opts.progress = core_progress;
+    opts.progress_user = state;
+    return opts;
 }
 
 /* Owns an isomend_io_source. */
@@ -296,6 +323,17 @@ ParamText param_text(const char *name)
                 "Post-processing, last: the fraction of the triangles to keep (0.2 = a fifth), by "
                 "quadric edge collapse that keeps the surface closed and 2-manifold; the log says "
                 "whether the target was reached and the largest error. 0 = off."};
+    if (n == kParamLabels)
+        return {"Label map: labels",
+                "Empty: an isosurface at iso. \"all\" (every value but 0) or labels such as "
+                "\"1,5,7\": the volume is a label map (a segmentation) and each label becomes its "
+                "own layer, named and coloured, closed with pad (methods: Disambiguated MC, "
+                "Original MC, Durst; iso and post-processing are not used)."};
+    if (n == kParamLabelTable)
+        return {"Label map: colour table",
+                "Names and colours of the labels: a 3D Slicer colour table (.ctbl/.txt), "
+                "FreeSurfer's FreeSurferColorLUT.txt or an ITK-SNAP label description. Empty: a "
+                ".seg.nrrd's own segment names and colours, else label_N and a fixed palette."};
     if (n == kParamRawType)
         return {"Raw sample type",
                 "Only for a raw file: the sample type (little-endian). Ignored when rawDims is "
@@ -389,9 +427,45 @@ bool parse_raw_dims(const std::string &text, int64_t dims[3], std::string *messa
     return true;
 }
 
+bool parse_labels(const std::string &text, bool *all, std::vector<int64_t> *values,
+                  std::string *message)
+{
+    *all = false;
+    values->clear();
+    std::string t = text;
+    std::replace(t.begin(), t.end(), ',', ' ');
+    std::istringstream in(t);
+    std::string item;
+    while (in >> item) {
+        if (item == "all" && !*all && values->empty()) {
+            *all = true;
+            continue;
+        }
+        char *end = nullptr;
+        errno = 0;
+        const long long v = std::strtoll(item.c_str(), &end, 10);
+        if (*all || errno || !end || *end) {
+            *message = format("%s: \"%s\" is not \"all\" or integer labels (1,5,7)", kParamLabels,
+                              text.c_str());
+            return false;
+        }
+        if (std::find(values->begin(), values->end(), v) != values->end()) {
+            *message = format("%s: label %lld is listed twice", kParamLabels, v);
+            return false;
+        }
+        values->push_back(v);
+    }
+    if (!*all && values->empty()) {
+        *message = format("%s: no label given (\"all\", or labels such as 1,5,7)", kParamLabels);
+        return false;
+    }
+    return true;
+}
+
 Job::~Job()
 {
     isomend_mesh_destroy(mesh_);
+    isomend_labels_destroy(labels_);
 }
 
 bool Job::fail(const std::string &message)
@@ -399,6 +473,9 @@ bool Job::fail(const std::string &message)
     error_ = message;
     isomend_mesh_destroy(mesh_);
     mesh_ = nullptr;
+    label_layers_.clear();
+    isomend_labels_destroy(labels_);
+    labels_ = nullptr;
     return false;
 }
 
@@ -406,6 +483,9 @@ bool Job::run(const Params &params, const ProgressFn &progress)
 {
     isomend_mesh_destroy(mesh_);
     mesh_ = nullptr;
+    label_layers_.clear();
+    isomend_labels_destroy(labels_);
+    labels_ = nullptr;
     stats_ = isomend_stats{};
     post_ = PostReport{};
     log_.clear();
@@ -462,6 +542,30 @@ bool Job::run_unguarded(const Params &params, const ProgressFn &progress)
         return fail(format("%s: %g is not a fraction of the triangles to keep (0 = off, or up "
                            "to 1)",
                            kParamDecimate, params.decimate_ratio));
+
+    std::string labels_text = params.labels;
+    labels_text.erase(std::remove_if(labels_text.begin(), labels_text.end(),
+                                     [](unsigned char c) { return std::isspace(c) != 0; }),
+                      labels_text.end());
+    const bool label_mode = !labels_text.empty();
+    bool all_labels = false;
+    std::vector<int64_t> label_values;
+    if (label_mode) {
+        std::string message;
+        if (!parse_labels(params.labels, &all_labels, &label_values, &message))
+            return fail(message);
+        if (method.method != ISOMEND_METHOD_DMC && method.method != ISOMEND_METHOD_MC &&
+            method.method != ISOMEND_METHOD_DURST)
+            return fail(format("%s: a label map takes Disambiguated MC, Original MC or Durst, "
+                               "not %s",
+                               kParamMethod, method.display.c_str()));
+        if (params.min_component > 0 || params.smooth_iterations > 0 || params.decimate_ratio > 0.0)
+            return fail(format("%s: the post-processing (%s, %s, %s) does not apply to a label "
+                               "map (smoothing one label alone would move the boundary it shares)",
+                               kParamLabels, kParamMinComponent, kParamSmooth, kParamDecimate));
+    } else if (!params.label_table.empty()) {
+        return fail(format("%s: only with %s (a label map)", kParamLabelTable, kParamLabels));
+    }
 
     isomend_io_options io_opts;
     isomend_io_options_init(&io_opts);
@@ -621,6 +725,13 @@ bool Job::run_unguarded(const Params &params, const ProgressFn &progress)
     if (!geometry_warning.empty())
         warning_ = source + ": " + geometry_warning;
 
+    if (label_mode) {
+        if (!run_labels(handle.src, all_labels, label_values, method.method, params, &state))
+            return false;
+        log_.push_back(format("time: total %.3f s", seconds_since(t_start)));
+        return true;
+    }
+
     /* 5. read (isomend_io_load() fills every field, slice_origins included) */
     isomend_volume vol{};
     double read_seconds = 0.0;
@@ -633,18 +744,8 @@ bool Job::run_unguarded(const Params &params, const ProgressFn &progress)
         vol.spacing[a] = spacing[a];
 
     /* 6. extract */
-    isomend_options opts;
-    isomend_options_init(&opts);
+    isomend_options opts = core_options(params, method.method, &state);
     opts.iso = params.iso;
-    opts.method = method.method;
-    opts.flags = 0;
-    if (params.pad)
-        opts.flags |= ISOMEND_FLAG_PAD;
-    if (params.flip_normals)
-        opts.flags |= ISOMEND_FLAG_FLIP;
-    opts.threads = 0;
-    opts.progress = core_progress;
-    opts.progress_user = &state;
     log_.push_back(format("method %s (%s), iso %g%s%s", method.display.c_str(),
                           isomend_method_name(method.method), params.iso,
                           params.pad ? ", padded" : "",
@@ -702,6 +803,61 @@ bool Job::run_unguarded(const Params &params, const ProgressFn &progress)
     }
     log_.push_back(format("time: read %.3f s, extract %.3f s, total %.3f s", read_seconds,
                           extract_seconds, seconds_since(t_start)));
+    return true;
+}
+
+bool Job::run_labels(isomend_io_source *src, bool all, const std::vector<int64_t> &values,
+                     isomend_method method, const Params &params, void *state_ptr)
+{
+    auto &state = *static_cast<ProgressState *>(state_ptr);
+    /* names first: a bad table is refused before the volume is read */
+    isomend_io_label_names *names = nullptr;
+    std::string table = params.label_table;
+    while (!table.empty() && std::isspace(static_cast<unsigned char>(table.back())))
+        table.pop_back();
+    while (!table.empty() && std::isspace(static_cast<unsigned char>(table.front())))
+        table.erase(table.begin());
+    if (isomend_io_label_names_read(src, table.empty() ? nullptr : table.c_str(), &names) !=
+        ISOMEND_IO_OK)
+        return fail(std::string(table.empty() ? kParamSource : kParamLabelTable) + ": " +
+                    isomend_io_message(src));
+    std::unique_ptr<isomend_io_label_names, void (*)(isomend_io_label_names *)> keep(
+        names, isomend_io_label_names_destroy);
+
+    const isomend_options opts = core_options(params, method, &state);
+    log_.push_back(format("label map: %s, method %s%s%s",
+                          all ? "every label but 0" : params.labels.c_str(),
+                          isomend_method_name(method), params.pad ? ", padded" : "",
+                          params.flip_normals ? ", normals flipped" : ""));
+    const auto t0 = std::chrono::steady_clock::now();
+    const isomend_io_status st = isomend_io_labels_extract(
+        src, all ? nullptr : values.data(), all ? 0 : values.size(), &opts, &labels_);
+    if (state.cancelled || st == ISOMEND_IO_ERR_CANCELLED)
+        return fail("cancelled");
+    if (st != ISOMEND_IO_OK)
+        return fail(
+            std::string(st == ISOMEND_IO_ERR_INVALID_ARGUMENT ? kParamLabels : kParamSource) +
+            ": " + isomend_io_message(src));
+    const double seconds = seconds_since(t0);
+    const char *from = isomend_io_label_names_from(names);
+    for (size_t q = 0; q < isomend_labels_count(labels_); ++q) {
+        LabelLayer l;
+        l.value = isomend_labels_value(labels_, q);
+        l.voxels = isomend_labels_voxels(labels_, q);
+        l.mesh = isomend_labels_mesh(labels_, q);
+        char name[256];
+        isomend_io_label_name(names, l.value, name, sizeof name, l.rgb);
+        l.name = name;
+        log_.push_back(format("label %lld \"%s\": %" PRIu64 " voxels, %zu vertices, %zu triangles, "
+                              "colour %u %u %u",
+                              static_cast<long long>(l.value), name, l.voxels,
+                              isomend_mesh_vertex_count(l.mesh),
+                              isomend_mesh_triangle_count(l.mesh), l.rgb[0], l.rgb[1], l.rgb[2]));
+        label_layers_.push_back(l);
+    }
+    log_.push_back(format("%zu label%s (names from %s), extracted in %.3f s", label_layers_.size(),
+                          label_layers_.size() == 1 ? "" : "s", *from ? from : "none: label_N",
+                          seconds));
     return true;
 }
 

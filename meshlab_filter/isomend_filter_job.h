@@ -53,6 +53,11 @@ extern const char *const kParamGridAxes; /* DICOM: the series' own axes, not pat
 extern const char *const kParamMinComponent; /* drop components of fewer triangles */
 extern const char *const kParamSmooth;       /* windowed sinc smoothing iterations */
 extern const char *const kParamDecimate;     /* fraction of the triangles to keep  */
+/* Label maps (segmentations): "" = an isosurface at iso; "all" or "1,5,7" =
+ * one layer a label (isomend_io_labels_extract), named and coloured from
+ * labelTable (a colour table file) or a .seg.nrrd's own keys. */
+extern const char *const kParamLabels;
+extern const char *const kParamLabelTable;
 
 /* One choice of the "method" enum: display name and core method. */
 struct MethodChoice {
@@ -94,7 +99,24 @@ struct Params {
     int min_component = 0;         /* triangles; 0 = no clean-up              */
     int smooth_iterations = 0;     /* 0 = no smoothing, else 1..10000         */
     double decimate_ratio = 0.0;   /* 0 = no decimation, else (0, 1]          */
+    std::string labels;            /* "" = isosurface; "all" or "L1,L2,..."    */
+    std::string label_table;       /* "" = the source's own names, or none    */
 };
+
+/* One label of a label map's result: its layer's name, its colour and its
+ * mesh (owned by the Job). */
+struct LabelLayer {
+    int64_t value = 0;
+    std::string name;
+    uint8_t rgb[3] = {0, 0, 0};
+    uint64_t voxels = 0;
+    const isomend_mesh *mesh = nullptr;
+};
+
+/* Parses the labels parameter ("all", or distinct integers separated by
+ * commas or spaces): true and *all or the values; false and a message. */
+bool parse_labels(const std::string &text, bool *all, std::vector<int64_t> *values,
+                  std::string *message);
 
 /* What the post-processing steps did (a step's flag is false when its
  * parameter was 0). */
@@ -131,7 +153,12 @@ public:
      */
     bool run(const Params &params, const ProgressFn &progress);
 
+    /* The isosurface's mesh; nullptr in label-map mode (see labels()). */
     const isomend_mesh *mesh() const { return mesh_; }
+    /* Label-map mode (the labels parameter set): one entry a label, in label
+     * order, each to become a layer; empty otherwise.  The meshes are placed
+     * by world_transform() as mesh() is. */
+    const std::vector<LabelLayer> &labels() const { return label_layers_; }
     /* The map from the mesh's positions to the world (a DICOM series' patient
      * transform, 3x4 row-major) or nullptr when it is the identity; copy the
      * mesh through it with isomend_mesh_copy_transformed(). */
@@ -161,8 +188,12 @@ private:
     bool fail(const std::string &message);
     bool run_unguarded(const Params &params, const ProgressFn &progress);
     bool postprocess(const Params &params);
+    bool run_labels(isomend_io_source *src, bool all, const std::vector<int64_t> &values,
+                    isomend_method method, const Params &params, void *state);
 
     isomend_mesh *mesh_ = nullptr;
+    isomend_labels *labels_ = nullptr;
+    std::vector<LabelLayer> label_layers_;
     double world_[12] = {1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0};
     bool has_world_ = false;
     isomend_stats stats_{};

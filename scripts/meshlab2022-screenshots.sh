@@ -19,7 +19,7 @@ set -euo pipefail
 bash /src/scripts/get-test-data.sh mri_t1_small >&2
 tiff=/work/home/.cache/isomend/mri_t1_small/tiff
 iso=$(/work/build/io/isomend info "$tiff" --json - | python3 -c "import json,sys; print(json.load(sys.stdin)[\"suggested_iso\"])")
-ISOMEND_XVFB_SCREEN=1280x900x24 python3 /src/tests/meshlab/with_xvfb.py python3 /src/tests/meshlab/test_gui_2022.py \
+ISOMEND_XVFB_SCREEN=1280x1024x24 python3 /src/tests/meshlab/with_xvfb.py python3 /src/tests/meshlab/test_gui_2022.py \
   --meshlab /usr/bin/meshlab --plugin /work/build/meshlab_filter/plugins/libfilter_isomend.so \
   --cli /work/build/io/isomend --work /work/screenshots/run --source "$tiff" --iso "$iso" \
   --screenshots /work/screenshots

@@ -40,6 +40,14 @@ Conventions:
     (the volume's exact surface normals, ~2 s more per million triangles);
     without ``smooth`` the faces are flat.
   - a multi-file selection is put in natural order (s_2 before s_10).
+  - Label Map (a segmentation: NIfTI, 3D Slicer .seg.nrrd, NRRD, raw, a
+    stack): ``labels`` "all" (every value but 0) or "1,5,7"; one object per
+    label, named after it, with a material of its colour (sRGB from the
+    table, linear in Blender), all in one new collection named after the
+    file; names and colours from ``label_table`` (a colour table file),
+    else a .seg.nrrd's own segments, else label_N and a palette.  Iso and
+    the post-processing do not apply.  The label map is imported
+    synchronously (the library's job thread extracts isosurfaces only).
   - post-processing (Minimum Component, Smooth Iterations, Decimate Ratio; all
     0 = off) runs on the extracted mesh in the command line's order, on
     Blender's main thread after the library's thread ends (not cancellable);
@@ -194,6 +202,24 @@ class IMPORT_MESH_OT_slice_stack(Operator, ImportHelper):
         description="Fraction of the triangles to keep (0.2 = a fifth), by quadric edge collapse "
                     "that keeps the surface closed and 2-manifold; 0 = off",
         default=0.0, min=0.0, max=1.0, precision=3, subtype='FACTOR')
+    # a label map (segmentation): one object per label, in a new collection
+    label_map: BoolProperty(
+        name="Label Map",
+        description="The volume is a label map (a segmentation): one closed object per label, "
+                    "named and coloured, in a new collection (Iso Level and post-processing "
+                    "are not used)",
+        default=False)
+    labels: StringProperty(
+        name="Labels",
+        description="The labels to import: all (every value but 0, the background), or "
+                    "values such as 1,5,7",
+        default="all")
+    label_table: StringProperty(
+        name="Colour Table",
+        description="Names and colours of the labels: a 3D Slicer colour table, FreeSurfer's "
+                    "FreeSurferColorLUT.txt or an ITK-SNAP label description. Empty: a "
+                    ".seg.nrrd's own segments, else label_N and a fixed palette",
+        default="", subtype='FILE_PATH')
     modal_ui: BoolProperty(options={'HIDDEN', 'SKIP_SAVE'}, default=False)
 
     def draw(self, _context):
@@ -214,6 +240,12 @@ class IMPORT_MESH_OT_slice_stack(Operator, ImportHelper):
         row = layout.row()
         row.active = self.smooth
         row.prop(self, "gradient_normals")
+        layout.label(text="Label Map")
+        layout.prop(self, "label_map")
+        col = layout.column()
+        col.active = self.label_map
+        col.prop(self, "labels")
+        col.prop(self, "label_table")
         layout.label(text="Post-processing")
         layout.prop(self, "min_component")
         layout.prop(self, "smooth_iterations")
@@ -235,7 +267,11 @@ class IMPORT_MESH_OT_slice_stack(Operator, ImportHelper):
                                       series=self.series.strip() or None, grid_axes=self.grid_axes,
                                       decimate=self.decimate,
                                       smooth_iterations=self.smooth_iterations,
-                                      min_component=self.min_component)
+                                      min_component=self.min_component,
+                                      labels=self.labels.strip() if self.label_map else None,
+                                      label_table=(bpy.path.abspath(self.label_table)
+                                                   if self.label_map and self.label_table.strip()
+                                                   else None))
 
     # ---------------------------------------------------------------- running
     def invoke(self, context, event):
@@ -251,7 +287,8 @@ class IMPORT_MESH_OT_slice_stack(Operator, ImportHelper):
         except ValueError as exc:
             self.report({'ERROR'}, str(exc))
             return {'CANCELLED'}
-        if self.modal_ui and not bpy.app.background and context.window is not None:
+        if (self.modal_ui and not bpy.app.background and context.window is not None
+                and job.labels is None):
             # Cleared so that a redo (Adjust Last Operation) runs synchronously.
             self.modal_ui = False
             return self._start_modal(context, job)
@@ -339,6 +376,8 @@ class IMPORT_MESH_OT_slice_stack(Operator, ImportHelper):
         if status != 'FINISHED':
             self.report({level}, message)
             return status, message, ""
+        if job.labels is not None:
+            return self._finish_labels(context, job)
         mesh, info = job.result
         name = import_stack.stack_name(job.paths)
         t0 = time.perf_counter()
@@ -363,9 +402,50 @@ class IMPORT_MESH_OT_slice_stack(Operator, ImportHelper):
         return 'FINISHED', msg, warning
 
 
-def _make_object(context, name, buffers, smooth):
-    """Builds the Blender mesh and object from import_stack.MeshBuffers;
-    removes both if anything fails."""
+    def _finish_labels(self, context, job):
+        """One object per label, with a material of its colour, in a new
+        collection; nothing is left behind if any of it fails."""
+        meshes, info = job.result
+        name = import_stack.label_collection_name(job.paths)
+        t0 = time.perf_counter()
+        collection = bpy.data.collections.new(name)
+        made = []
+        try:
+            (context.collection or context.scene.collection).children.link(collection)
+            for value, mesh in meshes.items():
+                obj = _make_object(context, mesh.name, import_stack.mesh_buffers(mesh, self.unit_scale),
+                                   self.smooth, collection=collection, select_only=not made)
+                made.append(obj)
+                mat = bpy.data.materials.new(mesh.name)
+                mat.diffuse_color = import_stack.srgb_to_linear(mesh.color)
+                obj.data.materials.append(mat)
+                obj["isomend_label"] = int(value)
+                obj["isomend_voxels"] = int(mesh.voxels)
+                obj["isomend_method"] = mesh.method
+                obj["isomend_spacing_mm"] = [float(s) for s in info["spacing"]]
+        except Exception as exc:  # e.g. out of memory in Blender: nothing is left behind
+            for obj in made:
+                me, mats = obj.data, list(obj.data.materials)
+                bpy.data.objects.remove(obj)
+                bpy.data.meshes.remove(me)
+                for mat in mats:
+                    if mat is not None:
+                        bpy.data.materials.remove(mat)
+            bpy.data.collections.remove(collection)
+            self.report({'ERROR'}, "could not build the label objects: %s" % exc)
+            return 'CANCELLED', "could not build the label objects: %s" % exc, ""
+        msg = import_stack.label_report(name, meshes, info)
+        self.report({'INFO'}, msg)
+        if bpy.app.background:
+            print("isomend: %s (read + extract %.2f s, Blender objects %.2f s)"
+                  % (msg, job.seconds, time.perf_counter() - t0), flush=True)
+        return 'FINISHED', msg, ""
+
+
+def _make_object(context, name, buffers, smooth, collection=None, select_only=True):
+    """Builds the Blender mesh and object from import_stack.MeshBuffers, in
+    ``collection`` (default: the active one), selected and active (with
+    ``select_only`` the only selected object); removes both if anything fails."""
     nt = buffers.triangle_count
     me = bpy.data.meshes.new(name)
     obj = None
@@ -390,10 +470,11 @@ def _make_object(context, name, buffers, smooth):
             me.normals_split_custom_set_from_vertices(buffers.normals.tolist())
         obj = bpy.data.objects.new(me.name, me)
         obj.location = buffers.location
-        collection = context.collection or context.scene.collection
+        collection = collection or context.collection or context.scene.collection
         collection.objects.link(obj)
-        for other in context.selected_objects:
-            other.select_set(False)
+        if select_only:
+            for other in context.selected_objects:
+                other.select_set(False)
         obj.select_set(True)
         context.view_layer.objects.active = obj
         return obj

@@ -172,8 +172,18 @@ class ImportJob:
     ``error`` the exception; ``cancel`` says whether a cancel was asked."""
 
     def __init__(self, paths, iso, method, spacing, channel, pad, normals, series=None,
-                 grid_axes=False, decimate=0.0, smooth_iterations=0, min_component=0):
+                 grid_axes=False, decimate=0.0, smooth_iterations=0, min_component=0,
+                 labels=None, label_table=None):
         self.paths = paths
+        # a label map (issue 36): labels "all" or "1,5,7" (None: an isosurface);
+        # names and colours from label_table, else a .seg.nrrd's own keys
+        self.labels = labels
+        self.label_table = label_table or None
+        if labels is not None and (decimate or smooth_iterations or min_component):
+            raise ValueError("Label Map: the post-processing (Minimum Component, Smooth "
+                             "Iterations, Decimate Ratio) does not apply to a label map")
+        if labels is None and self.label_table:
+            raise ValueError("Colour Table: only for a Label Map")
         # post-processing of the extracted mesh, in the command line's order
         # (isomend.postprocess): clean-up, smoothing, decimation; 0 = off
         self.min_component = min_component
@@ -219,16 +229,27 @@ class ImportJob:
                         "origin": src.origin, "kind": src.kind, "format": src.format,
                         "dicom": src.dicom, "geometry": src.geometry,
                         "slice_origins": src.slice_origins}
+                if self.labels is not None:  # {value: Mesh}
+                    self.result = (src.extract_labels(labels=self.labels, method=self.method,
+                                                      pad=self.pad, normals=self.normals,
+                                                      progress=self.progress,
+                                                      label_table=self.label_table), info)
+                    info["names_from"] = next(iter(self.result[0].values())).names_from
+                    return
                 mesh = src.extract(iso=self.iso, method=self.method, pad=self.pad,
                                    normals=self.normals, origins=True, progress=self.progress)
             self.result = (self._postprocess(mesh), info)
         except Exception as exc:  # reported by the caller
             self.error = exc
-        self.seconds = time.perf_counter() - t0
+        finally:
+            self.seconds = time.perf_counter() - t0
 
     def start(self):
         """Starts the import on the C library's thread; raises if the
-        arguments are refused (nothing runs then)."""
+        arguments are refused (nothing runs then).  A label map has no job of
+        the library's own: run() it."""
+        if self.labels is not None:
+            raise ValueError("a label map is imported with run(), not on the library's thread")
         problem = library_problem()
         if problem is not None:
             raise isomend.LibraryNotFound(problem)
@@ -379,6 +400,39 @@ def report(name, mesh, info, suggested):
     if post:
         msg += "; " + post
     return msg
+
+
+def label_collection_name(paths):
+    """A label map's collection: stack_name() without a segmentation's inner
+    extension ("organs.seg.nrrd" -> "organs", "seg.nii.gz" -> "seg")."""
+    name = stack_name(paths)
+    for inner in (".seg", ".nii"):
+        if name.lower().endswith(inner) and len(name) > len(inner):
+            return name[:-len(inner)]
+    return name
+
+
+def srgb_to_linear(rgb):
+    """A label's colour (r, g, b) 0..255, sRGB as colour tables give it, as
+    Blender's linear RGBA (a material's diffuse_color), alpha 1."""
+    out = []
+    for c in rgb:
+        c = c / 255.0
+        out.append(c / 12.92 if c <= 0.04045 else ((c + 0.055) / 1.055) ** 2.4)
+    return tuple(out) + (1.0,)
+
+
+def label_report(name, meshes, info):
+    """The one-line report of a label map's import."""
+    sp = info["spacing"]
+    first = next(iter(meshes.values()))
+    parts = ", ".join("%d %s: %d triangles" % (value, m.name, m.triangle_count)
+                      for value, m in meshes.items())
+    return ("Imported %s: %d label%s (%s), %s, %dx%dx%d samples, spacing %g x %g x %g mm, "
+            "names from %s"
+            % (name, len(meshes), "" if len(meshes) == 1 else "s", parts, first.method.upper(),
+               info["dims"][0], info["dims"][1], info["dims"][2], sp[0], sp[1], sp[2],
+               first.names_from or "none (label_N)"))
 
 
 def postprocess_text(mesh):

@@ -22,6 +22,13 @@ it, and so can any script::
     small, report = mesh.decimate(ratio=0.2)  # also mesh.smooth(5), mesh.clean(min_triangles=100)
     mesh = isomend.extract(vol, 300.0, pad=True, min_component=100, smooth=5, decimate=0.2)
 
+    # a label map (segmentation): one closed surface a label, all in one pass
+    organs = isomend.extract_labels_source("seg.nii.gz", pad=True)   # {value: Mesh}
+    for value, m in organs.items():
+        print(value, m.name, m.color, m.voxels, m.triangle_count)
+    organs = isomend.extract_labels(seg, labels=[1, 5], pad=True,     # a numpy integer array
+                                    label_table="FreeSurferColorLUT.txt")
+
 Axes.  A numpy volume is indexed ``array[z, y, x]`` by default (C order, x
 fastest), which is the core's contiguous layout and how image stacks load
 (slice, row, column).  ``axes="xyz"`` says the array is ``array[x, y, z]``
@@ -75,7 +82,7 @@ import numpy as np
 
 __all__ = [
     "IsomendError", "Cancelled", "LibraryNotFound", "Mesh", "Source",
-    "extract", "check", "open_source", "extract_source",
+    "extract", "check", "open_source", "extract_source", "extract_labels", "extract_labels_source",
     "methods", "available_methods", "version", "io_version", "io_image_libraries", "library_path", "io_library_path",
     "METHODS", "ORIGIN_TABLE", "ORIGIN_DURST", "ORIGIN_MEND",
 ]
@@ -107,6 +114,10 @@ _DTYPE_TO_TYPE = {
     np.dtype(np.float64): TYPE_F64,
 }
 _TYPE_TO_DTYPE = {v: k for k, v in _DTYPE_TO_TYPE.items()}
+# The dtypes a label map is read in place with (bool as uint8).
+_LABEL_DTYPE_TO_TYPE = {np.dtype(np.uint8): TYPE_U8, np.dtype(np.int8): TYPE_I8,
+                        np.dtype(np.uint16): TYPE_U16, np.dtype(np.int16): TYPE_I16,
+                        np.dtype(np.int32): TYPE_I32, np.dtype(np.uint32): TYPE_U32}
 
 # Method ids as in isomend.h; the names come from the library itself.
 METHODS = {"mc": 0, "durst": 1, "dmc": 2, "facial": 3, "gradient": 4,
@@ -442,7 +453,7 @@ def _core_lib():
                  [ctypes.c_void_p, ctypes.c_uint64, ctypes.c_uint64, P(ctypes.c_void_p),
                   P(CleanReport)])
         _declare(lib, "isomend_labels_extract", c_int,
-                 [P(Volume), ctypes.c_void_p, c_size, P(Options), P(ctypes.c_void_p)])
+                 [P(Volume), P(ctypes.c_int64), c_size, P(Options), P(ctypes.c_void_p)])
         _declare(lib, "isomend_labels_count", c_size, [ctypes.c_void_p])
         _declare(lib, "isomend_labels_value", ctypes.c_int64, [ctypes.c_void_p, c_size])
         _declare(lib, "isomend_labels_voxels", ctypes.c_uint64, [ctypes.c_void_p, c_size])
@@ -508,6 +519,13 @@ def _io_lib():
         _declare(lib, "isomend_io_level_name", c_char_p, [c_int])
         _declare(lib, "isomend_io_level_value", c_int, [c_void_p, c_int, P(ctypes.c_double)])
         _declare(lib, "isomend_io_suggested_level", c_int, [c_void_p])
+        _declare(lib, "isomend_io_labels_extract", c_int,
+                 [c_void_p, P(ctypes.c_int64), ctypes.c_size_t, P(Options), P(c_void_p)])
+        _declare(lib, "isomend_io_label_names_read", c_int, [c_void_p, c_char_p, P(c_void_p)])
+        _declare(lib, "isomend_io_label_names_from", c_char_p, [c_void_p])
+        _declare(lib, "isomend_io_label_name", c_int,
+                 [c_void_p, ctypes.c_int64, c_char_p, ctypes.c_size_t, P(ctypes.c_uint8)])
+        _declare(lib, "isomend_io_label_names_destroy", None, [c_void_p])
         _io, _io_path = lib, path
         return lib
 
@@ -656,7 +674,33 @@ def _slice_positions(value, what, count=None):
     return z
 
 
-def _as_volume(array, axes, spacing, origin, slice_positions=None):
+def _label_array(array):
+    """A label map's samples as the core reads them: the integer dtypes up to
+    32 bits in place (bool as uint8); int64/uint64 and floats whose values are
+    all whole numbers in the 32-bit range copied to uint32 (no negative value)
+    or int32; anything else refused with the reason."""
+    if not isinstance(array, np.ndarray):
+        array = np.asarray(array)
+    dt = array.dtype
+    if dt == np.bool_:
+        return array.view(np.uint8)
+    if dt.kind not in "iuf":
+        raise TypeError("labels: a label map holds integers, got dtype %s" % dt)
+    if dt.kind in "iu" and dt.itemsize <= 4:
+        return array if dt.isnative else array.astype(dt.newbyteorder("="))
+    if dt.kind == "f" and array.size and not np.array_equal(array, np.floor(array)):
+        bad = np.argwhere(~(array == np.floor(array)))[0]
+        raise ValueError("labels: a label map holds integers; this one has %r at index %s"
+                         % (array[tuple(bad)].item(), tuple(int(i) for i in bad)))
+    lo, hi = (int(array.min()), int(array.max())) if array.size else (0, 0)
+    if lo >= 0 and hi <= 0xFFFFFFFF:
+        return array.astype(np.uint32)
+    if lo >= -2**31 and hi < 2**31:
+        return array.astype(np.int32)
+    raise ValueError("labels: values %d..%d do not fit a 32-bit integer type" % (lo, hi))
+
+
+def _as_volume(array, axes, spacing, origin, slice_positions=None, label_map=False):
     """Describes a numpy array as an isomend_volume without copying when possible.
     Returns (Volume, the arrays kept alive: the samples and the slice origins).
     ``slice_positions``: the z of each slice (one per slice along world z), for
@@ -666,7 +710,9 @@ def _as_volume(array, axes, spacing, origin, slice_positions=None):
         array = np.asarray(array)
     if array.ndim != 3:
         raise ValueError("volume: expected a 3D array, got shape %s" % (array.shape,))
-    if array.dtype == np.bool_:
+    if label_map:
+        array = _label_array(array)
+    elif array.dtype == np.bool_:
         array = array.view(np.uint8)
     elif array.dtype == np.float16:
         array = array.astype(np.float32)
@@ -674,7 +720,7 @@ def _as_volume(array, axes, spacing, origin, slice_positions=None):
         array = array.astype(np.float64)
     if array.dtype.kind in "iuf" and not array.dtype.isnative:
         array = array.astype(array.dtype.newbyteorder("="))
-    vtype = _DTYPE_TO_TYPE.get(np.dtype(array.dtype))
+    vtype = (_LABEL_DTYPE_TO_TYPE if label_map else _DTYPE_TO_TYPE).get(np.dtype(array.dtype))
     if vtype is None:
         raise TypeError("volume: unsupported dtype %s (use uint8, int8, uint16, int16, int32, "
                         "float32 or float64)" % array.dtype)
@@ -692,7 +738,7 @@ def _as_volume(array, axes, spacing, origin, slice_positions=None):
         # The C API reads all-zero strides as "contiguous": only possible here for a
         # fully broadcast array, whose samples are all equal; make it explicit.
         array = np.ascontiguousarray(array)
-        return _as_volume(array, axes, spacing, origin, slice_positions)
+        return _as_volume(array, axes, spacing, origin, slice_positions, label_map)
     sp = _triple(spacing, "spacing", 1.0)
     for i, s in enumerate(sp):
         if not (math.isfinite(s) and s > 0):
@@ -1143,81 +1189,204 @@ def extract(volume, iso, method="dmc", spacing=None, origin=None, pad=False, fli
     return postprocess(mesh, **post)
 
 
-def _label_array(volume):
-    """A label map as an array of a label type (no copy when it is one): bool
-    as uint8; int64/uint64 and floats whose values are whole numbers in the
-    32-bit range as uint32 (no negative value) or int32."""
-    a = volume if isinstance(volume, np.ndarray) else np.asarray(volume)
-    if a.dtype == np.bool_:
-        return a.view(np.uint8)
-    if a.dtype in (np.dtype(np.uint8), np.dtype(np.int8), np.dtype(np.uint16),
-                   np.dtype(np.int16), np.dtype(np.int32), np.dtype(np.uint32)):
-        return a
-    if a.dtype.kind not in "iuf":
-        raise TypeError("volume: a label map holds integers, got dtype %s" % a.dtype)
-    if a.dtype.kind == "f" and a.size and not np.array_equal(a, np.floor(a)):
-        raise ValueError("volume: a label map holds integers; this one has fractions or NaN")
-    lo, hi = (a.min(), a.max()) if a.size else (0, 0)
-    if lo >= 0 and hi <= 0xFFFFFFFF:
-        return a.astype(np.uint32)
-    if lo >= -(1 << 31) and hi < (1 << 31):
-        return a.astype(np.int32)
-    raise ValueError("volume: labels from %d to %d do not fit 32 bits" % (lo, hi))
+class _Closable:
+    """with-statement and garbage collection both call close()."""
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self.close()
+        return False
+
+    def __del__(self):
+        try:
+            self.close()
+        except Exception:
+            pass
+
+
+# ------------------------------------------------------------ label maps
+
+class _LabelNames(_Closable):
+    """An isomend_io_label_names set (or none: every label is label_N with
+    the palette's colour).  name(value) -> (name, (r, g, b), known)."""
+
+    def __init__(self, lib, handle=None):
+        self._lib = lib
+        self._handle = handle if handle is not None and handle.value else None
+        raw = lib.isomend_io_label_names_from(self._handle) if lib is not None else None
+        self.names_from = raw.decode() if raw else None
+
+    def name(self, value):
+        if self._lib is None:  # no importer library: the names the core's own values give
+            return "label_%d" % value, None, False
+        buf = ctypes.create_string_buffer(256)
+        rgb = (ctypes.c_uint8 * 3)()
+        known = self._lib.isomend_io_label_name(self._handle, int(value), buf, len(buf), rgb)
+        return buf.value.decode(errors="replace"), tuple(rgb), bool(known)
+
+    def close(self):
+        handle, self._handle = self._handle, None
+        if handle is not None:
+            self._lib.isomend_io_label_names_destroy(handle)
+
+
+def _labels_argument(labels):
+    """(ctypes int64 array or None, count) of a labels argument: "all"/None
+    (every label present but 0), an integer, an iterable of integers, or a
+    string "L1,L2,..."; distinct values."""
+    if labels is None or (isinstance(labels, str) and labels.strip().lower() == "all"):
+        return None, 0
+    if isinstance(labels, str):
+        try:
+            values = [int(t) for t in labels.split(",")]
+        except ValueError:
+            raise ValueError("labels: %r is not 'all' or integers L1,L2,..." % labels) from None
+    elif isinstance(labels, (int, np.integer)) and not isinstance(labels, bool):
+        values = [int(labels)]
+    else:
+        values = []
+        for v in labels:
+            if isinstance(v, bool) or not isinstance(v, (int, np.integer)):
+                raise TypeError("labels: %r is not an integer label" % (v,))
+            values.append(int(v))
+    if not values:
+        raise ValueError("labels: no label given (use 'all', or a list of labels)")
+    seen = set()
+    for v in values:
+        if v in seen:
+            raise ValueError("labels: label %d is listed twice" % v)
+        if not -2**63 <= v < 2**63:
+            raise ValueError("labels: %d is out of the 64-bit range" % v)
+        seen.add(v)
+    return (ctypes.c_int64 * len(values))(*values), len(values)
+
+
+_LABEL_METHODS = ("dmc", "mc", "durst")
+
+
+def _label_options(method, pad, flip, normals, origins, threads, progress):
+    opts = _options(None, method, pad, flip, normals, origins, threads, progress)
+    name = _core_lib().isomend_method_name(opts.method).decode()
+    if name not in _LABEL_METHODS:
+        raise IsomendError("method: a label map takes dmc (the default), mc or durst, not %r"
+                           % name, 9, "UNSUPPORTED")
+    return opts
+
+
+def _label_meshes(result, method_id, normals, origins, world, names):
+    """{value: Mesh} of an isomend_labels result (destroyed here), each Mesh
+    owning its C mesh (isomend_labels_take_mesh), with label, voxels, name,
+    color (r, g, b, 0..255) and names_from."""
+    lib = _core_lib()
+    try:
+        return _take_label_meshes(lib, result, method_id, normals, origins, world, names)
+    finally:
+        lib.isomend_labels_destroy(result)
+
+
+def _take_label_meshes(lib, result, method_id, normals, origins, world, names):
+    method_name = lib.isomend_method_name(method_id).decode()
+    out = {}
+    for q in range(lib.isomend_labels_count(result)):
+        value = int(lib.isomend_labels_value(result, q))
+        handle = ctypes.c_void_p(lib.isomend_labels_take_mesh(result, q))
+        stats = {"vertices": lib.isomend_mesh_vertex_count(handle),
+                 "triangles": lib.isomend_mesh_triangle_count(handle),
+                 "voxels": int(lib.isomend_labels_voxels(result, q))}
+        mesh = _wrap_mesh(lib, handle, stats, 0.5, method_name, normals, origins, world)
+        if mesh.origins is not None:
+            by = np.bincount(mesh.origins, minlength=3)[:3].tolist()
+            stats["triangles_by_origin"] = dict(zip(ORIGIN_NAMES, by))
+            stats["durst_triangles"], stats["mending_triangles"] = by[ORIGIN_DURST], by[ORIGIN_MEND]
+        mesh.label = value
+        mesh.voxels = stats["voxels"]
+        mesh.name, mesh.color, _ = names.name(value)
+        mesh.names_from = names.names_from
+        out[value] = mesh
+    return out
+
+
+def _names_of_table(label_table):
+    """_LabelNames of a colour table file (None: none), through the importer."""
+    try:
+        lib = _io_lib()
+    except LibraryNotFound:
+        if label_table is not None:
+            raise
+        return _LabelNames(None)
+    if label_table is None:
+        return _LabelNames(lib)
+    handle = ctypes.c_void_p()
+    status = lib.isomend_io_create(ctypes.byref(handle))
+    if status != 0 or not handle.value:
+        raise IsomendError("isomend_io_create: out of memory", status or 9,
+                           IO_STATUS_NAMES.get(status or 9, "?"))
+    with Source._adopt(lib, handle, []) as src:  # which frees the handle
+        names = ctypes.c_void_p()
+        status = lib.isomend_io_label_names_read(handle, os.fsencode(label_table), ctypes.byref(names))
+        if status != 0:
+            src._raise(status, "label_table")
+        return _LabelNames(lib, names)
 
 
 def extract_labels(volume, labels=None, method="dmc", spacing=None, origin=None, pad=True,
-                   flip=False, normals=True, origins=True, threads=0, axes="zyx",
-                   progress=None):
-    """Every label's surface of a label map (a segmentation), in one pass.
+                   flip=False, normals=True, origins=True, threads=0, axes="zyx", progress=None,
+                   label_table=None):
+    """The surface of each label of a label map (a segmentation), all labels in
+    one pass over the volume (isomend_labels_extract).
 
-    volume: 3D integer array (uint8 ... int32, uint32; whole-number floats and
-            int64 are converted), ``array[z, y, x]`` unless ``axes`` says otherwise.
-    labels: the label values to extract, or None for every value present but 0.
-    method: "dmc" (default), "mc" or "durst"; pad (default True here): closed
-            surfaces; the other arguments as for extract().
-    Returns a dict {label value: Mesh}, in the order asked (None: ascending);
-    each Mesh's surface is the label's indicator's at 0.5 (extract() of
-    ``volume == L`` at iso 0.5, the same arrays), ``mesh.voxels`` its samples.
-    A label that is not in the volume has an empty Mesh and 0 voxels.
-    Raises IsomendError (Cancelled when cancelled), ValueError, TypeError.
-    """
-    arr = _label_array(volume)
-    u32 = arr.dtype == np.uint32
-    vol, keep = _as_volume(arr.view(np.int32) if u32 else arr, axes, spacing, origin)
-    if u32:
-        vol.type = TYPE_U32
-    want = None
-    if labels is not None:
-        want = np.ascontiguousarray([int(v) for v in labels], dtype=np.int64)
-        if len(set(want.tolist())) != len(want):
-            raise ValueError("labels: a value is listed twice")
+    volume:  3D integer array (uint8, int8, uint16, int16, int32, uint32 read in
+             place; bool as uint8; int64/uint64 and floats whose values are all
+             whole numbers copied as uint32 or int32 when they fit 32 bits; a
+             fraction or NaN is refused), axes as for extract().
+    labels:  None or "all" (every value present but 0, the background), an
+             integer, a list of distinct integers, or "L1,L2,...".
+    method:  "dmc" (default: with pad, the default here, each label a closed
+             oriented 2-manifold), "mc" or "durst".
+    label_table: a colour table file (3D Slicer .ctbl/.txt, FreeSurfer's LUT,
+             ITK-SNAP's label description) for the names and colours; else
+             label_N and a fixed palette.
+    spacing, origin, pad, flip, normals, origins, threads, progress: as extract().
+
+    Label L's surface is its indicator's (voxel == L) at 0.5: the same mesh as
+    extract((volume == L).astype(numpy.uint8), 0.5, ...) byte for byte; where
+    two labels touch their surfaces share the boundary's vertex positions.
+    Returns {value: Mesh} in label order; each Mesh has ``label``, ``name``,
+    ``color`` ((r, g, b) 0..255), ``voxels`` and ``names_from`` besides
+    extract()'s attributes (its ``stats``: vertices, triangles, voxels,
+    triangles_by_origin).  Raises IsomendError for a label not in the volume
+    (as the command line and the hosts refuse it), for none but 0 and for a
+    method labels do not take, TypeError/ValueError for bad arguments."""
+    values, count = _labels_argument(labels)
+    vol, keep = _as_volume(volume, axes, spacing, origin, label_map=True)
     prog = _Progress(progress) if progress is not None else None
-    opts = _options(None, method, pad, flip, normals, origins, threads, prog)
-    lib = _core_lib()
-    res = ctypes.c_void_p()
-    status = lib.isomend_labels_extract(
-        ctypes.byref(vol), want.ctypes.data if want is not None and len(want) else None,
-        len(want) if want is not None else 0, ctypes.byref(opts), ctypes.byref(res))
-    del keep
-    if prog is not None:
-        prog.reraise()
-    if status != 0:
-        _raise_core(status, "isomend_labels_extract")
-    out = {}
-    try:
-        name = lib.isomend_method_name(opts.method).decode()
-        for q in range(lib.isomend_labels_count(res)):
-            value = lib.isomend_labels_value(res, q)
-            handle = lib.isomend_labels_take_mesh(res, q)
-            mesh = _wrap_mesh(lib, ctypes.c_void_p(handle), {}, 0.5, name, normals, origins, None)
-            mesh.label = value
-            mesh.voxels = lib.isomend_labels_voxels(res, q)
-            mesh.volume_origin = tuple(vol.origin)
-            mesh.volume_spacing = tuple(vol.spacing)
-            out[value] = mesh
-    finally:
-        lib.isomend_labels_destroy(res)
-    return out
+    opts = _label_options(method, pad, flip, normals, origins, threads, prog)
+    names = _names_of_table(label_table)  # a bad table is refused before any work
+    with names:
+        result = ctypes.c_void_p()
+        lib = _core_lib()
+        status = lib.isomend_labels_extract(ctypes.byref(vol), values, count, ctypes.byref(opts),
+                                            ctypes.byref(result))
+        del keep
+        if prog is not None:
+            prog.reraise()
+        if status != 0:
+            if result.value:
+                lib.isomend_labels_destroy(result)
+            _raise_core(status, "isomend_labels_extract")
+        meshes = _label_meshes(result, opts.method, normals, origins, None, names)
+    if not meshes:
+        raise IsomendError("labels: the volume has no label but the background 0", 1,
+                           "INVALID_ARGUMENT")
+    for mesh in meshes.values():
+        if mesh.voxels == 0:
+            raise IsomendError("labels: label %d is not in the volume" % mesh.label, 1,
+                               "INVALID_ARGUMENT")
+        mesh.volume_origin = tuple(vol.origin)
+        mesh.volume_spacing = tuple(vol.spacing)
+    return meshes
 
 
 def check(positions, triangles, box=None):
@@ -1325,23 +1494,6 @@ def _dicom_choices(lib, handle, series, grid_axes):
             raise ValueError("series: %r refused" % (series,))
     if grid_axes:
         lib.isomend_io_set_axes(handle, IO_AXES_GRID)
-
-
-class _Closable:
-    """with-statement and garbage collection both call close()."""
-
-    def __enter__(self):
-        return self
-
-    def __exit__(self, *exc):
-        self.close()
-        return False
-
-    def __del__(self):
-        try:
-            self.close()
-        except Exception:
-            pass
 
 
 class Source(_Closable):
@@ -1600,6 +1752,11 @@ class Source(_Closable):
         self._check(status, what)
         world = getattr(self, "world_transform", None)
         mesh = _take_mesh(handle, stats, iso_used, method_id, normals, origins, world)
+        self._place(mesh, world, described)
+        return mesh
+
+    def _place(self, mesh, world, described=None):
+        """Sets a mesh's volume_origin, volume_spacing and read_seconds."""
         vol, seconds = described or self._describe()
         origin = np.array(vol.origin[:], float)
         if vol.slice_origins:  # slices where they are: sample (0, 0, 0) is on the first
@@ -1609,7 +1766,46 @@ class Source(_Closable):
         mesh.volume_origin = tuple(origin.tolist())
         mesh.volume_spacing = tuple(vol.spacing)
         mesh.read_seconds = seconds
-        return mesh
+
+    def label_names(self, label_table=None):
+        """The names and colours of this source's labels: from ``label_table``
+        (a colour table file: 3D Slicer, FreeSurfer LUT, ITK-SNAP), else from a
+        3D Slicer .seg.nrrd's Segment*_ keys (isomend_io_label_names_read).
+        Returns a _LabelNames (empty for other sources)."""
+        h = self._require_open()
+        names = ctypes.c_void_p()
+        path = os.fsencode(label_table) if label_table is not None else None
+        self._check(self._lib.isomend_io_label_names_read(h, path, ctypes.byref(names)),
+                    "label_table" if path else "label names")
+        return _LabelNames(self._lib, names)
+
+    def extract_labels(self, labels=None, method="dmc", pad=True, flip=False, normals=True,
+                       origins=True, threads=0, progress=None, label_table=None):
+        """Loads the volume and extracts the surface of each label of this label
+        map (isomend_io_labels_extract): see extract_labels() for the
+        arguments and the result.  Float samples are taken when all are whole
+        numbers (NIfTI uint32 arrives so); names and colours from
+        ``label_table``, else a .seg.nrrd's own keys, else label_N and a palette.
+        The meshes are placed as Source.extract()'s (a NIfTI or DICOM file's
+        world transform included)."""
+        h = self._require_open()
+        self._with_progress(progress)
+        values, count = _labels_argument(labels)
+        opts = _label_options(method, pad, flip, normals, origins, threads, None)
+        names = self.label_names(label_table)  # a bad table is refused before any work
+        with names:
+            described = self._describe()
+            result = ctypes.c_void_p()
+            status = self._lib.isomend_io_labels_extract(h, values, count, ctypes.byref(opts),
+                                                         ctypes.byref(result))
+            if status != 0 and result.value:
+                _core_lib().isomend_labels_destroy(result)
+            self._check(status, "labels")
+            world = getattr(self, "world_transform", None)
+            meshes = _label_meshes(result, opts.method, normals, origins, world, names)
+        for mesh in meshes.values():
+            self._place(mesh, world, described)
+        return meshes
 
     def close(self):
         """Releases the handle and the loaded volume (idempotent)."""
@@ -1754,6 +1950,17 @@ def open_source(paths, **kwargs):
     for DICOM series (a 1-based position or a UID) and grid_axes.
     Returns a Source; raises IsomendError naming the file and the reason."""
     return Source(paths, **kwargs)
+
+
+def extract_labels_source(paths, labels=None, method="dmc", pad=True, flip=False, normals=True,
+                          origins=True, threads=0, progress=None, label_table=None, **open_kwargs):
+    """open_source(paths, **open_kwargs) then Source.extract_labels(...): a
+    label map file (NIfTI, NRRD or 3D Slicer .seg.nrrd, raw with raw_dims and
+    raw_type, an image stack) to {value: Mesh}."""
+    with Source(paths, threads=threads, progress=progress, **open_kwargs) as src:
+        return src.extract_labels(labels=labels, method=method, pad=pad, flip=flip,
+                                  normals=normals, origins=origins, threads=threads,
+                                  label_table=label_table)
 
 
 def extract_source(paths, iso=None, method="dmc", pad=False, flip=False, normals=True,

@@ -17,6 +17,7 @@
 
 #include "cli.h"
 
+#include "label_samples.h"
 #include "label_table.h"
 #include "label_writer.h"
 #include "mesh_io.h"
@@ -24,7 +25,6 @@
 #include <dirent.h>
 #include <errno.h>
 #include <inttypes.h>
-#include <math.h>
 #include <stdlib.h>
 #include <string.h>
 #include <sys/stat.h>
@@ -75,63 +75,6 @@ static int parse_labels(const char *value, int64_t **values, size_t *count)
     return CLI_EXIT_OK;
 }
 
-/* The label volume of a loaded source: its own samples when they are of an
- * integer type, else an i32/u32 copy of whole-number float samples (*copy,
- * to free).  Exit code, message printed. */
-static int label_samples(const cli_source *s, isomend_volume *vol, void **copy)
-{
-    *vol = s->desc;
-    *copy = NULL;
-    if (vol->type != ISOMEND_F32 && vol->type != ISOMEND_F64) return CLI_EXIT_OK;
-    const int64_t nx = vol->dims[0], ny = vol->dims[1], nz = vol->dims[2];
-    const size_t n = (size_t)(nx * ny * nz);
-    const int64_t ts = (int64_t)isomend_type_size(vol->type);
-    const int64_t st[3] = {vol->strides[0] ? vol->strides[0] : ts,
-                           vol->strides[1] ? vol->strides[1] : ts * nx,
-                           vol->strides[2] ? vol->strides[2] : ts * nx * ny};
-    int negative = 0;
-    for (int pass = 0; pass < 2; pass++) {
-        size_t q = 0;
-        for (int64_t k = 0; k < nz; k++)
-            for (int64_t j = 0; j < ny; j++)
-                for (int64_t i = 0; i < nx; i++, q++) {
-                    const double v = cli_sample_value(
-                        (const char *)vol->data + i * st[0] + j * st[1] + k * st[2], vol->type);
-                    if (pass == 0) {
-                        if (!(v == floor(v)) || v < -2147483648.0 || v > 4294967295.0) {
-                            cli_error("--labels: %s has %s sample %.9g at (%" PRId64 ", %" PRId64
-                                      ", %" PRId64 "): a label map holds integers",
-                                      s->label, isnan(v) ? "a NaN" : "the non-integer", v, i, j, k);
-                            return CLI_EXIT_FAIL;
-                        }
-                        negative |= v < 0;
-                        continue;
-                    }
-                    if (negative) {
-                        if (v > 2147483647.0) {
-                            cli_error("--labels: %s has labels below 0 and above 2^31 - 1, which "
-                                      "no 32-bit integer type holds",
-                                      s->label);
-                            free(*copy);
-                            *copy = NULL;
-                            return CLI_EXIT_FAIL;
-                        }
-                        ((int32_t *)*copy)[q] = (int32_t)v;
-                    } else {
-                        ((uint32_t *)*copy)[q] = (uint32_t)v;
-                    }
-                }
-        if (pass == 0 && !(*copy = malloc(4 * (n ? n : 1)))) {
-            cli_error("%s: out of memory copying the labels", s->label);
-            return CLI_EXIT_FAIL;
-        }
-    }
-    isomend_volume_init(vol, *copy, negative ? ISOMEND_I32 : ISOMEND_U32, nx, ny, nz);
-    memcpy(vol->spacing, s->desc.spacing, sizeof vol->spacing);
-    memcpy(vol->origin, s->desc.origin, sizeof vol->origin);
-    return CLI_EXIT_OK;
-}
-
 /* A file-name-safe copy of a label's name: letters, digits, '.', '-', '_'. */
 static void safe_name(const char *in, char *out, size_t size)
 {
@@ -145,19 +88,26 @@ static void safe_name(const char *in, char *out, size_t size)
     if (k == 0 || out[0] == '.') out[0] = '_';
 }
 
-/* A label's file-safe name and colour: from the table, else label_N and the palette. */
+/* The label volume of a loaded source: its own samples, or an i32/u32 copy of
+ * whole-number float samples (*copy, to free; io/common's
+ * label_samples_integer(), which the importer uses too).  Exit code, message
+ * printed. */
+static int label_samples(const cli_source *s, isomend_volume *vol, void **copy)
+{
+    char msg[ISOMEND_FILEIO_MSG_SIZE];
+    if (!label_samples_integer(&s->desc, s->label, vol, copy, msg, sizeof msg)) return CLI_EXIT_OK;
+    cli_error("--labels: %s", msg);
+    return CLI_EXIT_FAIL;
+}
+
+/* A label's file-safe name and colour: from the table, else label_N and the
+ * palette (label_describe(), the hosts' rule too). */
 static void name_and_color(const label_table *t, int64_t value, char *name, size_t size,
                            uint8_t rgb[3])
 {
-    const label_entry *e = label_table_find(t, value);
-    if (e && e->name[0])
-        safe_name(e->name, name, size);
-    else
-        snprintf(name, size, "label_%" PRId64, value);
-    if (e && e->has_color)
-        memcpy(rgb, e->rgb, 3);
-    else
-        label_table_color(value, rgb);
+    char shown[LABEL_NAME_MAX];
+    label_describe(t, value, shown, sizeof shown, rgb);
+    safe_name(shown, name, size);
 }
 
 /* Everything of one label the outputs need. */

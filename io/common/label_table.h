@@ -21,6 +21,10 @@
 
 #define LABEL_NAME_MAX 128
 
+#ifdef __cplusplus
+extern "C" {
+#endif
+
 typedef struct label_entry {
     int64_t value;
     char name[LABEL_NAME_MAX];
@@ -50,5 +54,9 @@ const label_entry *label_table_find(const label_table *t, int64_t value);
 void label_table_color(int64_t value, uint8_t rgb[3]);
 
 void label_table_free(label_table *t);
+
+#ifdef __cplusplus
+}
+#endif
 
 #endif

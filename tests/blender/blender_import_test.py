@@ -13,7 +13,10 @@ winding) and outward custom normals; the spacing and unit scale in the
 object's dimensions and the origin in its location; the importer's geometry
 warning in the import's outcome (``last_import``) exactly when the CLI gives
 one, and for a series whose slices are not evenly spaced the vertices at the
-slices' true positions (issue 34).  Broken inputs must make
+slices' true positions (issue 34).  A label map (issue 36): one object per
+label in one new collection, named after its segment, with a material of
+its colour and the CLI's per-label counts, closed; a colour table's names;
+refusals leave nothing behind.  Broken inputs must make
 the operator raise RuntimeError with the reason and leave nothing behind.
 Any failed assertion exits non-zero (--python-exit-code 1).
 """
@@ -321,6 +324,86 @@ if post:
                                     spacing=pp["spacing"])
     check("decimated" not in module.last_import.get("message", "x decimated"),
           "a plain import reports post-processing: %r" % module.last_import.get("message"))
+
+# ------------------------------------------------------------ label maps (issue 36)
+lab = SPEC.get("labels")
+if lab:
+    def nothing_left():
+        return (len(bpy.data.objects), len(bpy.data.meshes), len(bpy.data.materials),
+                len(bpy.data.collections)) == (0, 0, 0, 0)
+
+    reset()
+    folder, fname = os.path.split(lab["path"])
+    r = bpy.ops.import_mesh.slice_stack(directory=folder, files=[{"name": fname}], label_map=True,
+                                        pad=True, unit_scale=1.0)
+    check(r == {"FINISHED"}, "label map: operator returned %s" % r)
+    cols = list(bpy.data.collections)
+    check(len(cols) == 1 and cols[0].name == "organs", "label map: one collection 'organs': %s"
+          % [c.name for c in cols])
+    objs = {o.name: o for o in (cols[0].objects if cols else [])}
+    check(sorted(objs) == sorted(name for _, name, _ in lab["segments"]),
+          "label map: objects %s" % sorted(objs))
+    check(len(bpy.data.objects) == 3, "label map: %d objects in all" % len(bpy.data.objects))
+    for value, name, color in lab["segments"]:
+        obj = objs.get(name)
+        if obj is None:
+            continue
+        me, cli = obj.data, lab["cli"][str(value)]
+        check((len(me.vertices), len(me.polygons)) == (cli["vertices"], cli["triangles"]),
+              "label %s: %d vertices, %d triangles; the CLI's %d, %d"
+              % (name, len(me.vertices), len(me.polygons), cli["vertices"], cli["triangles"]))
+        ei = np.empty(len(me.loops), np.int32)
+        me.loops.foreach_get("edge_index", ei)
+        uses = np.bincount(ei, minlength=len(me.edges))
+        check(bool((uses == 2).all()), "label %s: %d edges not used exactly twice"
+              % (name, int((uses != 2).sum())))
+        check(me.validate(verbose=True) is False, "label %s: mesh.validate() repaired it" % name)
+        check(obj["isomend_label"] == value, "label %s: isomend_label %r" % (name, obj["isomend_label"]))
+        mats = list(me.materials)
+        want = module.import_stack.srgb_to_linear(tuple(round(255 * c) for c in color))
+        check(len(mats) == 1 and mats[0].name == name
+              and np.allclose(tuple(mats[0].diffuse_color), want, atol=1e-6),
+              "label %s: material %s, want colour %s" % (name, [(m.name, tuple(m.diffuse_color))
+                                                          for m in mats], want))
+        if value == 1:  # the box of 8 x 14 x 10 voxels, spacing (0.8, 0.8, 1.5), unit_scale 1
+            check(np.allclose(tuple(obj.dimensions), (6.4, 11.2, 15.0), atol=1e-4),
+                  "label %s: dimensions %s, not 6.4 x 11.2 x 15" % (name, tuple(obj.dimensions)))
+    print("label map: %s" % module.last_import.get("message"), flush=True)
+    check("names from seg.nrrd" in module.last_import.get("message", ""),
+          "label map report: %r" % module.last_import.get("message"))
+
+    # one label, named and coloured by a colour table
+    reset()
+    r = bpy.ops.import_mesh.slice_stack(directory=folder, files=[{"name": fname}], label_map=True,
+                                        labels="2", label_table=lab["table"], pad=True)
+    objs = list(bpy.data.objects)
+    check(r == {"FINISHED"} and [o.name for o in objs] == ["Right-Kidney"],
+          "label 2 with a table: %s %s" % (r, [o.name for o in objs]))
+    if objs:
+        check(np.allclose(tuple(objs[0].data.materials[0].diffuse_color),
+                          module.import_stack.srgb_to_linear((12, 34, 56)), atol=1e-6),
+              "label 2: the table's colour")
+
+    # refusals: a RuntimeError naming the reason, nothing left behind
+    folder_f, fname_f = os.path.split(lab["fractions"])
+    for what, kwargs, expect in (
+            ("a label not present", dict(directory=folder, files=[{"name": fname}], labels="1,9"),
+             "label 9 is not in"),
+            ("a label listed twice", dict(directory=folder, files=[{"name": fname}], labels="2,2"),
+             "listed twice"),
+            ("a fraction", dict(directory=folder_f, files=[{"name": fname_f}]), "non-integer sample 1.5"),
+            ("a missing table", dict(directory=folder, files=[{"name": fname}],
+                                     label_table=lab["table"] + ".missing"), "cannot open"),
+            ("post-processing", dict(directory=folder, files=[{"name": fname}], smooth_iterations=3),
+             "does not apply to a label map")):
+        reset()
+        try:
+            bpy.ops.import_mesh.slice_stack(label_map=True, **kwargs)
+            check(False, "label map, %s: no RuntimeError" % what)
+        except RuntimeError as exc:
+            check(expect in str(exc), "label map, %s: %r does not mention %r" % (what, str(exc), expect))
+            print("label map error ok: %s" % str(exc).strip(), flush=True)
+        check(nothing_left(), "label map, %s: something was left behind" % what)
 
 # ------------------------------------------------------------ errors leave nothing behind
 for err in SPEC["errors"]:

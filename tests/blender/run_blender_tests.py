@@ -9,6 +9,8 @@
 3. runs Blender in background mode with a fresh user-scripts/config/cache/tmp
    folder (nothing in $HOME), which installs the add-on package, enables it and
    runs blender_import_test.py on those cases;
+   with a label map (a 3D Slicer .seg.nrrd of three touching structures),
+   compared with `isomend extract --labels all` per label;
 4. checks that Blender reported (WARNING) the importer's geometry warning for
    each series whose slices are not evenly spaced (issue 34).
 
@@ -34,6 +36,8 @@ import numpy as np
 import tifffile
 
 HERE = os.path.dirname(os.path.abspath(__file__))
+sys.path.insert(0, os.path.join(HERE, "..", "common"))
+import label_volumes  # noqa: E402
 
 
 def foam(shape=(30, 34, 38), seed=7):
@@ -180,6 +184,38 @@ def real_stack_case(args, work):
           % (folder, suggested, sugg["triangles"], iso, explicit["triangles"]))
     return {"directory": folder, "iso": iso, "suggested": suggested, "cli_explicit": explicit,
             "cli_suggested": sugg}
+
+
+def label_map_case(args, work):
+    """A .seg.nrrd of three touching structures (two boxes and a ball, the
+    segments' names and colours in its header), a colour table, a label map
+    with a fraction; the CLI's per-label JSON of each good case."""
+    v = label_volumes.organs()
+    n = v.shape[0]
+    seg = os.path.join(work, "organs.seg.nrrd")
+    label_volumes.write_seg_nrrd(seg, v, (0.8, 0.8, 1.5))
+    table = os.path.join(work, "organs.ctbl")
+    with open(table, "w") as fp:
+        fp.write("# 3D Slicer colour table\n2 Right-Kidney 12 34 56 255\n")
+    fractions = os.path.join(work, "fractions.nrrd")
+    f = v.astype(np.float32)
+    f[5, 5, 5] = 1.5
+    with open(fractions, "wb") as fp:
+        fp.write(("NRRD0004\ntype: float\ndimension: 3\nsizes: %d %d %d\nencoding: raw\n"
+                  "endian: little\n\n" % (n, n, n)).encode() + f.astype("<f4").tobytes())
+
+    def cli(extra, tag):
+        out = os.path.join(work, "labels_%s" % tag) + "/"
+        cmd = [args.cli, "extract", seg, "--labels", "all", "--pad", "-o", out, "--json",
+               out.rstrip("/") + ".json", "--quiet"] + extra
+        r = subprocess.run(cmd, capture_output=True, text=True, timeout=120)
+        if r.returncode != 0:
+            sys.exit("isomend CLI failed (%s): %s" % (" ".join(cmd), r.stderr.strip()))
+        with open(out.rstrip("/") + ".json") as fp:
+            return {str(l["value"]): l for l in json.load(fp)["labels"]}
+
+    return {"path": seg, "segments": label_volumes.SEGMENTS, "table": table, "fractions": fractions,
+            "cli": cli([], "all")}
 
 
 def main():
@@ -357,6 +393,11 @@ def main():
                                                 "smooth_iterations": 5, "decimate": 0.2},
                 "cli": cli_post, "plain_triangles": cases[0]["cli"]["triangles"]}
 
+    # issue 36: a label map, one object per label (the CLI's per-label counts)
+    labels = None
+    if args.mode == "background":
+        labels = label_map_case(args, work)
+
     explicit = None
     if args.get_test_data and args.mode == "background":
         explicit = real_stack_case(args, work)
@@ -364,7 +405,8 @@ def main():
     spec = os.path.join(work, "cases.json")
     with open(spec, "w") as fp:
         json.dump({"package": os.path.abspath(args.package), "install": args.install, "cases": cases,
-                   "errors": errors, "big": big, "explicit_iso": explicit, "postprocess": post},
+                   "errors": errors, "big": big, "explicit_iso": explicit, "postprocess": post,
+                   "labels": labels},
                   fp, indent=1)
 
     env = blender_env(work, "")

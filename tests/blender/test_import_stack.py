@@ -484,3 +484,44 @@ def test_bl_info_and_the_extension_manifest_agree():
     assert bl_info["blender"] == (3, 4, 0) and manifest["blender_version_min"] == "4.2.0"
     assert manifest["platforms"] == ["linux-x64"]
     assert set(manifest["permissions"]) == {"files"}
+
+
+# ------------------------------------------------------------ label maps (issue 36)
+
+def test_label_collection_name_drops_a_segmentation_s_inner_extension():
+    assert import_stack.label_collection_name(["/d/organs.seg.nrrd"]) == "organs"
+    assert import_stack.label_collection_name(["/d/seg.nii.gz"]) == "seg"
+    assert import_stack.label_collection_name(["/d/aseg.nrrd"]) == "aseg"
+    assert import_stack.label_collection_name(["/d/.seg.nrrd"]) == ".seg"
+
+
+def test_srgb_to_linear_is_blender_s_conversion():
+    assert import_stack.srgb_to_linear((0, 255, 10)) == (0.0, 1.0, 10 / 255 / 12.92, 1.0)
+    r = import_stack.srgb_to_linear((128, 0, 0))[0]
+    assert abs(r - 0.2158605) < 1e-6  # Blender shows sRGB 128 as linear 0.216
+
+
+def test_label_job_refuses_what_does_not_apply_and_runs_synchronously(tmp_path):
+    with pytest.raises(ValueError, match="does not apply to a label map"):
+        import_stack.ImportJob(["x.nii"], None, "dmc", None, -1, True, True, labels="all",
+                               decimate=0.5)
+    with pytest.raises(ValueError, match="only for a Label Map"):
+        import_stack.ImportJob(["x.nii"], None, "dmc", None, -1, True, True, label_table="t.txt")
+    job = import_stack.ImportJob(["x.nii"], None, "dmc", None, -1, True, True, labels="all")
+    with pytest.raises(ValueError, match="run\\(\\)"):
+        job.start()
+    v = np.zeros((6, 7, 8), np.uint8)
+    v[1:4, 2:5, 2:6] = 3
+    path = tmp_path / "one.nrrd"
+    path.write_bytes(b"NRRD0004\ntype: uint8\ndimension: 3\nsizes: 8 7 6\nencoding: raw\n\n"
+                     + v.tobytes())
+    job = import_stack.ImportJob([str(path)], None, "dmc", None, -1, True, True, labels="all")
+    job.run()
+    assert job.error is None and job.outcome()[0] == "FINISHED"
+    meshes, info = job.result
+    assert list(meshes) == [3] and meshes[3].name == "label_3" and info["names_from"] is None
+    assert "1 label (3 label_3: %d triangles)" % meshes[3].triangle_count in \
+        import_stack.label_report("one", meshes, info)
+    job = import_stack.ImportJob([str(path)], None, "dmc", None, -1, True, True, labels="4")
+    job.run()
+    assert job.outcome()[:2] == ("CANCELLED", "ERROR") and "label 4 is not in" in str(job.error)

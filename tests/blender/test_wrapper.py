@@ -23,6 +23,9 @@ sys.path.insert(0, STAGE)
 os.environ.pop("ISOMEND_LIB_DIR", None)  # test the add-on's own lookup
 import isomend  # noqa: E402
 
+sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "common"))
+import label_volumes  # noqa: E402
+
 
 # ------------------------------------------------------------ helpers
 
@@ -825,8 +828,9 @@ def test_extract_labels_types_order_and_errors():
         got = isomend.extract_labels(arr, labels=labels)
         for (a, ma), (b, mb) in zip(base.items(), got.items()):
             same_mesh(ma, mb)
-    absent = isomend.extract_labels(v, labels=[9])
-    assert absent[9].triangle_count == 0 and absent[9].voxels == 0
+    # a label that is not there is refused, as the command line and the hosts refuse it
+    with pytest.raises(isomend.IsomendError, match="label 9 is not in the volume"):
+        isomend.extract_labels(v, labels=[9])
     with pytest.raises(ValueError):
         isomend.extract_labels(v.astype(np.float32) + 0.5)
     with pytest.raises(ValueError):
@@ -835,3 +839,125 @@ def test_extract_labels_types_order_and_errors():
         isomend.extract_labels(v.astype(np.complex64))
     with pytest.raises(isomend.IsomendError):
         isomend.extract_labels(v, method="mc33")
+
+
+def touching_labels():
+    """The host tests' organs (tests/common/label_volumes.py), the ball as label 7."""
+    v = label_volumes.organs()
+    v[v == 3] = 7
+    return v
+
+
+def test_extract_labels_is_each_indicator_s_surface_byte_for_byte():
+    v = touching_labels()
+    got = isomend.extract_labels(v, pad=True, spacing=(0.5, 0.6, 1.5), origin=(1, 2, 3))
+    assert list(got) == [1, 2, 7]
+    for value, mesh in got.items():
+        ref = isomend.extract((v == value).astype(np.uint8), 0.5, pad=True,
+                              spacing=(0.5, 0.6, 1.5), origin=(1, 2, 3))
+        same_mesh(mesh, ref)
+        np.testing.assert_array_equal(mesh.normals, ref.normals)
+        np.testing.assert_array_equal(mesh.origins, ref.origins)
+        assert mesh.label == value and mesh.voxels == int((v == value).sum())
+        assert mesh.name == "label_%d" % value and len(mesh.color) == 3
+        assert mesh.check()["hole_edges"] == 0 and mesh.check()["nonmanifold_edges"] == 0
+        assert mesh.stats["triangles"] == mesh.triangle_count
+        assert mesh.volume_origin == (1.0, 2.0, 3.0)
+    # touching labels share their boundary's vertex positions
+    shared = set(map(tuple, got[1].positions)) & set(map(tuple, got[2].positions))
+    assert len(shared) > 50
+    # the palette gives distinct colours to these values
+    assert len({m.color for m in got.values()}) == 3
+
+
+def test_extract_labels_dtypes_axes_and_a_list():
+    v = touching_labels()
+    ref = isomend.extract_labels(v, labels=[7, 2])
+    assert list(ref) == [7, 2]
+    for dtype in (np.int8, np.uint16, np.int16, np.int32, np.uint32, np.int64, np.uint64,
+                  np.float32):
+        got = isomend.extract_labels(v.astype(dtype), labels="7,2")
+        for value in (2, 7):
+            same_mesh(got[value], ref[value])
+    # a Fortran-order [x, y, z] view: the same meshes, no copy needed
+    got = isomend.extract_labels(np.asfortranarray(v.transpose(2, 1, 0)), labels=7, axes="xyz")
+    same_mesh(got[7], ref[7])
+    # the meshes outlive the result's other labels and the input
+    one = isomend.extract_labels(v.copy(), labels=[1])[1]
+    import gc
+    gc.collect()
+    assert one.check()["hole_edges"] == 0
+
+
+def test_extract_labels_refuses_bad_input_with_a_message():
+    v = touching_labels()
+    f = v.astype(np.float32)
+    f[3, 4, 5] = 2.5
+    with pytest.raises(ValueError, match=r"holds integers; this one has 2.5 at index \(3, 4, 5\)"):
+        isomend.extract_labels(f)
+    with pytest.raises(ValueError, match="label 2 is listed twice"):
+        isomend.extract_labels(v, labels=[2, 1, 2])
+    with pytest.raises(TypeError, match="not an integer label"):
+        isomend.extract_labels(v, labels=[1, 2.5])
+    with pytest.raises(ValueError, match="'all' or integers"):
+        isomend.extract_labels(v, labels="1,two")
+    with pytest.raises(isomend.IsomendError, match="label 9 is not in the volume"):
+        isomend.extract_labels(v, labels=[1, 9])
+    with pytest.raises(isomend.IsomendError, match="no label but the background 0"):
+        isomend.extract_labels(np.zeros((4, 4, 4), np.uint8))
+    with pytest.raises(isomend.IsomendError, match="takes dmc"):
+        isomend.extract_labels(v, method="tetra")
+    with pytest.raises(ValueError, match="do not fit a 32-bit"):
+        isomend.extract_labels(np.full((3, 3, 3), 2**40, np.int64))
+
+
+def test_extract_labels_names_and_colours_from_a_table(tmp_path):
+    table = tmp_path / "lut.txt"
+    table.write_text("# FreeSurfer LUT\n1 Left-Cortex 200 10 20 0\n7 Lesion 1 2 3 0\n")
+    got = isomend.extract_labels(touching_labels(), label_table=str(table))
+    assert [(m.name, m.color) for m in got.values()] == [
+        ("Left-Cortex", (200, 10, 20)), ("label_2", got[2].color), ("Lesion", (1, 2, 3))]
+    assert got[1].names_from == "slicer/freesurfer"
+    with pytest.raises(isomend.IsomendError, match="no_table.txt"):
+        isomend.extract_labels(touching_labels(), label_table=str(tmp_path / "no_table.txt"))
+    bad = tmp_path / "bad.txt"
+    bad.write_text("1 Liver red green blue\n")
+    with pytest.raises(isomend.IsomendError, match="line 1"):
+        isomend.extract_labels(touching_labels(), label_table=str(bad))
+
+
+def test_extract_labels_source_seg_nrrd_and_nifti(tmp_path):
+    v = touching_labels()
+    seg = tmp_path / "organs.seg.nrrd"
+    label_volumes.write_seg_nrrd(str(seg), v, (0.5, 0.6, 1.5), label_volumes.SEGMENTS[:2])
+    got = isomend.extract_labels_source(str(seg), pad=True)
+    ref = isomend.extract_labels(v, pad=True, spacing=(0.5, 0.6, 1.5))
+    assert list(got) == [1, 2, 7]
+    for value in got:
+        same_mesh(got[value], ref[value])
+    assert (got[1].name, got[1].color) == ("Liver", (255, 0, 0))
+    assert (got[2].name, got[2].color) == ("Left kidney", (0, 128, 255))
+    assert got[7].name == "label_7" and got[7].names_from == "seg.nrrd"
+    with isomend.open_source(str(seg)) as src:
+        two = src.extract_labels(labels=[2], pad=True)
+    same_mesh(two[2], ref[2])
+    with pytest.raises(isomend.IsomendError, match="label 5 is not in .*organs.seg.nrrd"):
+        isomend.extract_labels_source(str(seg), labels=[5])
+
+    nib = pytest.importorskip("nibabel")
+    # NIfTI uint32 arrives as f64 and is taken as whole numbers; placed by its affine
+    A = np.diag([0.5, 0.6, 1.5, 1.0])
+    nii = str(tmp_path / "seg.nii.gz")
+    nib.save(nib.Nifti1Image(v.transpose(2, 1, 0).astype(np.uint32), A), nii)
+    got = isomend.extract_labels_source(nii, pad=True)
+    assert list(got) == [1, 2, 7]
+    for value in got:
+        # RAS -> LPS: x and y negated
+        np.testing.assert_allclose(got[value].positions * [-1, -1, 1], ref[value].positions,
+                                   atol=1e-5)
+        assert got[value].triangle_count == ref[value].triangle_count
+    f = v.astype(np.float32)
+    f[4, 5, 6] = 0.25
+    nib.save(nib.Nifti1Image(f.transpose(2, 1, 0), A), str(tmp_path / "frac.nii.gz"))
+    with pytest.raises(isomend.IsomendError, match=r"non-integer sample 0.25 at \(6, 5, 4\)"):
+        isomend.extract_labels_source(str(tmp_path / "frac.nii.gz"))

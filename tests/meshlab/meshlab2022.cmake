@@ -34,7 +34,7 @@ set(_harness --harness $<TARGET_FILE:meshlab_run_filter>
   --plugin $<TARGET_FILE:filter_isomend>
   --plugin ${_ml_stock}/libfilter_measure.so --plugin ${_ml_stock}/libio_base.so
   --cli $<TARGET_FILE:isomend_cli>)
-foreach(name counts topology holes errors dicom)
+foreach(name counts topology holes errors dicom labels)
   add_test(NAME meshlab2022_${name}
     COMMAND ${ISOMEND_PYTHON} ${CMAKE_CURRENT_SOURCE_DIR}/test_meshlab.py ${name} ${_harness}
             --work ${CMAKE_CURRENT_BINARY_DIR}/work2022_${name})
@@ -48,7 +48,7 @@ add_test(NAME meshlab2022_realdata
           --get-data ${PROJECT_SOURCE_DIR}/scripts/get-test-data.sh
           --work ${CMAKE_CURRENT_BINARY_DIR}/work2022_realdata)
 set(_ml2022_tests meshlab2022_counts meshlab2022_topology meshlab2022_holes
-  meshlab2022_errors meshlab2022_methods meshlab2022_realdata)
+  meshlab2022_errors meshlab2022_methods meshlab2022_realdata meshlab2022_labels)
 set_tests_properties(${_ml2022_tests} PROPERTIES LABELS "trixie;peer;meshlab" TIMEOUT 300)
 # get-test-data.sh unpacks into fixed temporary names: never run two at once.
 set_tests_properties(meshlab2022_realdata PROPERTIES TIMEOUT 600 RESOURCE_LOCK isomend_testdata)
@@ -74,7 +74,7 @@ if(ISOMEND_MESHLAB_GUI AND ISOMEND_XDOTOOL AND ISOMEND_IMPORT)
             --cli $<TARGET_FILE:isomend_cli>
             --work ${CMAKE_CURRENT_BINARY_DIR}/work2022_gui)
   set_tests_properties(meshlab2022_gui PROPERTIES LABELS "trixie;peer;meshlab" TIMEOUT 300
-    ENVIRONMENT "ISOMEND_XVFB_SCREEN=1280x900x24")
+    ENVIRONMENT "ISOMEND_XVFB_SCREEN=1280x1024x24")
 else()
   message(STATUS "meshlab2022_gui: skipped (needs meshlab, xdotool and ImageMagick's import)")
 endif()

@@ -16,11 +16,13 @@
  *     MainWindow::executeFilter does (log, data-mask requirements, global
  *     parameters joined, post-condition, compaction);
  *   - --save writes the current layer through the io plugin MeshLab picks for
- *     the extension (here libio_base's PLY), with the vertex normals.
+ *     the extension (here libio_base's PLY), with the vertex normals
+ *     (--save-colors: and the vertex colours, meshlabserver's -m vn vc).
  *
  * Usage: meshlab_run_filter [--plugin FILE.so]... [--log FILE] STEP...
  *   STEP:  --filter NAME [--set PARAM=VALUE]...   apply a filter
  *          --save FILE                           save the current layer
+ *          --save-colors FILE                    the same with vertex colours
  *          --list NAME                           print a filter's parameters
  * Output on stdout: one JSON object per line, per plugin loaded and per step
  * ({"filter": ..., "ok": true, "outputs": {...}, "layers": N, "vn": ..,
@@ -115,7 +117,7 @@ bool progress(const int percent, const char *stage)
 }
 
 struct Step {
-    enum Kind { FILTER, SAVE, LIST } kind;
+    enum Kind { FILTER, SAVE, LIST, SAVE_COLORS } kind;
     QString name;                                    /* filter name or file */
     std::vector<std::pair<QString, QString>> values; /* --set */
 };
@@ -124,7 +126,7 @@ int usage(const char *message)
 {
     std::fprintf(stderr, "meshlab_run_filter: %s\n", message);
     std::fprintf(stderr, "usage: meshlab_run_filter [--plugin FILE.so]... [--log FILE] "
-                         "(--filter NAME [--set P=V]... | --save FILE | --list NAME)...\n");
+                         "(--filter NAME [--set P=V]... | --save[-colors] FILE | --list NAME)...\n");
     return 2;
 }
 
@@ -244,7 +246,9 @@ public:
             io->setLog(&md_.Log);
             int capability = 0, defaults = 0;
             io->exportMaskCapability(extension, capability, defaults);
-            const int mask = capability & vcg::tri::io::Mask::IOM_VERTNORMAL;
+            const int mask =
+                capability & (vcg::tri::io::Mask::IOM_VERTNORMAL |
+                              (step.kind == Step::SAVE_COLORS ? vcg::tri::io::Mask::IOM_VERTCOLOR : 0));
             RichParameterList save_par = io->initSaveParameter(extension, *md_.mm());
             io->save(extension, step.name, *md_.mm(), mask, save_par, nullptr);
         } catch (const MLException &e) {
@@ -334,6 +338,8 @@ int main(int argc, char **argv)
             steps.push_back({Step::FILTER, args[++i], {}});
         } else if (a == "--save" && has_value) {
             steps.push_back({Step::SAVE, args[++i], {}});
+        } else if (a == "--save-colors" && has_value) {
+            steps.push_back({Step::SAVE_COLORS, args[++i], {}});
         } else if (a == "--list" && has_value) {
             steps.push_back({Step::LIST, args[++i], {}});
         } else if (a == "--set" && has_value) {
@@ -366,8 +372,8 @@ int main(int argc, char **argv)
     int rc = 0;
     for (const Step &step : steps) {
         rc = step.kind == Step::FILTER ? run.filter(step)
-             : step.kind == Step::SAVE ? run.save(step)
-                                       : run.list(step);
+             : step.kind == Step::LIST ? run.list(step)
+                                       : run.save(step);
         if (rc != 0)
             break;
     }

@@ -15,14 +15,14 @@ it as a user would:
      filter's reason, and is still running.
 ImageMagick's `import` takes screenshots of the menu, the dialog, the result
 and the failure (kept in --work, or cropped into --screenshots for the
-README).  Menu coordinates assume MeshLab 2022.02's layout in a 1280x900
+README).  Menu coordinates assume MeshLab 2022.02's layout in a 1280x1024
 screen; the filter dialog's fields are found in a capture of the dialog (its
 height follows the plugin's description and parameters), its buttons at its
 bottom edge.  Every step waits for what it needs (a window, the fields drawn,
 a line in MeshLab's log) instead of sleeping, and a failed step names itself
 and leaves a capture fail-<step>.png in --work.
 
-Usage: ISOMEND_XVFB_SCREEN=1280x900x24 with_xvfb.py test_gui_2022.py --meshlab MESHLAB --plugin LIB.so --cli ISOMEND
+Usage: ISOMEND_XVFB_SCREEN=1280x1024x24 with_xvfb.py test_gui_2022.py --meshlab MESHLAB --plugin LIB.so --cli ISOMEND
            --work DIR [--source SRC --iso LEVEL] [--screenshots DIR]
 Without --source, a torus stack is generated (40^3 u8, iso 127.5).
 """
@@ -39,7 +39,7 @@ import numpy as np
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 from test_meshlab import FILTER, check, failures, read_ply, sphere_and_torus, write_tiff_folder  # noqa: E402
 
-SCREEN = (1280, 900)
+SCREEN = (1280, 1024)
 # Filters menu, its "Create New Mesh Layer" submenu, the filter's entry
 # (alphabetical among MeshLab 2022.02's creation filters, after "Implicit Surface")
 MENU_FILTERS = (116, 9)

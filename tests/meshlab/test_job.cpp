@@ -6,7 +6,10 @@
  * a run on a raw volume gives exactly the core's mesh (positions, normals,
  * triangles, statistics) with the spacing/pad/flip parameters applied, that
  * progress is monotonic, and that every bad parameter fails with a message
- * naming it and leaves no mesh.
+ * naming it and leaves no mesh.  Label maps (the labels parameter): a
+ * layer a label, each exactly the core's mesh of its indicator, named and
+ * coloured from a .seg.nrrd's keys, a colour table or the palette, and every
+ * bad label parameter or sample refused with its message.
  */
 #include <algorithm>
 #include <cmath>
@@ -68,13 +71,24 @@ struct TempDir {
     }
 };
 
+template <typename T> isomend_type type_of();
+template <> isomend_type type_of<uint16_t>()
+{
+    return ISOMEND_U16;
+}
+template <> isomend_type type_of<uint8_t>()
+{
+    return ISOMEND_U8;
+}
+
 /* The core's own result, for comparison. */
-isomend_mesh *direct(const std::vector<uint16_t> &v, int nx, int ny, int nz, double iso,
+template <typename T>
+isomend_mesh *direct(const std::vector<T> &v, int nx, int ny, int nz, double iso,
                      isomend_method method, unsigned flags, const double spacing[3],
                      isomend_stats *stats)
 {
     isomend_volume vol;
-    isomend_volume_init(&vol, v.data(), ISOMEND_U16, nx, ny, nz);
+    isomend_volume_init(&vol, v.data(), type_of<T>(), nx, ny, nz);
     for (int a = 0; a < 3; ++a)
         vol.spacing[a] = spacing[a];
     isomend_options opts;
@@ -432,6 +446,195 @@ void test_errors(const std::string &dir)
     }
 }
 
+/* A label map: two touching boxes (1, 2), a ball (7), background 0. */
+std::vector<uint16_t> make_labels(int nx, int ny, int nz)
+{
+    std::vector<uint16_t> v(static_cast<size_t>(nx) * ny * nz, 0);
+    for (int z = 0; z < nz; ++z)
+        for (int y = 0; y < ny; ++y)
+            for (int x = 0; x < nx; ++x) {
+                uint16_t l = 0;
+                if (x >= 2 && x < 9 && y >= 3 && y < 12 && z >= 2 && z < 10)
+                    l = 1;
+                else if (x >= 9 && x < 15 && y >= 3 && y < 12 && z >= 2 && z < 10)
+                    l = 2;
+                else if (std::hypot(std::hypot(x - 12.2, y - 12.4), z - 11.7) < 3.6)
+                    l = 7;
+                v[(static_cast<size_t>(z) * ny + y) * nx + x] = l;
+            }
+    return v;
+}
+
+bool write_file(const std::string &path, const std::string &head, const void *data, size_t bytes)
+{
+    FILE *f = std::fopen(path.c_str(), "wb");
+    if (!f)
+        return false;
+    bool ok = std::fwrite(head.data(), 1, head.size(), f) == head.size() &&
+              (!bytes || std::fwrite(data, 1, bytes, f) == bytes);
+    return std::fclose(f) == 0 && ok;
+}
+
+void test_labels(const std::string &dir)
+{
+    const int nx = 18, ny = 17, nz = 16;
+    const std::vector<uint16_t> v = make_labels(nx, ny, nz);
+    const std::string seg = dir + "/organs.seg.nrrd", raw = dir + "/organs.raw";
+    const std::string header =
+        "NRRD0004\ntype: uint16\ndimension: 3\nsizes: 18 17 16\nspacings: 0.5 0.5 1.5\n"
+        "endian: little\nencoding: raw\n"
+        "Segment0_Name:=Liver\nSegment0_Color:=1 0 0\nSegment0_LabelValue:=1\n"
+        "Segment1_Name:=Left kidney\nSegment1_Color:=0 0.5 1\nSegment1_LabelValue:=2\n"
+        "Segment2_Name:=Tumour\nSegment2_Color:=1 1 0\nSegment2_LabelValue:=7\n\n";
+    CHECK(write_file(seg, header, v.data(), v.size() * 2));
+    CHECK(write_file(raw, "", v.data(), v.size() * 2));
+
+    /* the core's mesh of each label's indicator, for comparison */
+    auto indicator = [&](int64_t label, const double spacing[3]) {
+        std::vector<uint8_t> ind(v.size());
+        for (size_t i = 0; i < v.size(); ++i)
+            ind[i] = v[i] == label;
+        return direct(ind, nx, ny, nz, 0.5, ISOMEND_METHOD_DMC, ISOMEND_FLAG_PAD, spacing, nullptr);
+    };
+
+    /* every label of the .seg.nrrd: its names and colours */
+    job::Params p = job::default_params();
+    p.source = seg;
+    p.labels = " all ";
+    job::Job run;
+    std::vector<int> seen;
+    CHECK(run.run(p, [&seen](int percent, const char *) {
+        seen.push_back(percent);
+        return true;
+    }));
+    if (!run.error().empty())
+        std::fprintf(stderr, "labels run: %s\n", run.error().c_str());
+    CHECK(run.mesh() == nullptr);
+    CHECK(std::is_sorted(seen.begin(), seen.end()));
+    const double sp[3] = {0.5, 0.5, 1.5};
+    const struct {
+        int64_t value;
+        const char *name;
+        uint8_t rgb[3];
+    } want[] = {
+        {1, "Liver", {255, 0, 0}}, {2, "Left kidney", {0, 128, 255}}, {7, "Tumour", {255, 255, 0}}};
+    CHECK_EQ_INT(run.labels().size(), 3);
+    for (size_t q = 0; q < run.labels().size() && q < 3; ++q) {
+        const job::LabelLayer &l = run.labels()[q];
+        CHECK_EQ_INT(l.value, want[q].value);
+        CHECK(l.name == want[q].name);
+        CHECK(std::memcmp(l.rgb, want[q].rgb, 3) == 0);
+        isomend_mesh *ref = indicator(l.value, sp);
+        check_same_mesh(l.mesh, ref);
+        isomend_check_report rep;
+        CHECK_EQ_INT(isomend_mesh_check(l.mesh, &rep), ISOMEND_OK);
+        CHECK_EQ_INT(rep.hole_edges + rep.nonmanifold_edges + rep.misoriented_edges, 0);
+        isomend_mesh_destroy(ref);
+        bool logged = false;
+        for (const std::string &line : run.log_lines())
+            logged |= contains(line, ("\"" + std::string(want[q].name) + "\"").c_str());
+        CHECK(logged);
+    }
+    bool names_logged = false;
+    for (const std::string &line : run.log_lines())
+        names_logged |= contains(line, "names from seg.nrrd");
+    CHECK(names_logged);
+
+    /* two labels of the raw file, names from a colour table, then none */
+    const std::string table = dir + "/organs.txt";
+    const std::string lut = "# FreeSurfer-style\n2 Kidney 10 20 30 0\n7 Lesion 200 100 50 0\n";
+    CHECK(write_file(table, lut, nullptr, 0));
+    p = job::default_params();
+    p.source = raw;
+    p.raw_dims = "18 17 16";
+    p.raw_type_index = ISOMEND_U16;
+    p.labels = "7, 2";
+    p.label_table = table;
+    p.method_index = 1; /* Original MC: also taken */
+    CHECK(run.run(p, nullptr));
+    CHECK_EQ_INT(run.labels().size(), 2);
+    if (run.labels().size() == 2) {
+        CHECK_EQ_INT(run.labels()[0].value, 7);
+        CHECK(run.labels()[0].name == "Lesion");
+        CHECK(run.labels()[1].name == "Kidney");
+        const uint8_t c[3] = {10, 20, 30};
+        CHECK(std::memcmp(run.labels()[1].rgb, c, 3) == 0);
+    }
+    p.label_table.clear();
+    p.method_index = 0;
+    CHECK(run.run(p, nullptr));
+    CHECK_EQ_INT(run.labels().size(), 2);
+    if (run.labels().size() == 2) {
+        CHECK(run.labels()[0].name == "label_7");
+        uint8_t c[3];
+        isomend_io_label_name(nullptr, 7, nullptr, 0, c);
+        CHECK(std::memcmp(run.labels()[0].rgb, c, 3) == 0);
+        const double unit[3] = {1, 1, 1};
+        isomend_mesh *ref = indicator(7, unit);
+        check_same_mesh(run.labels()[0].mesh, ref);
+        isomend_mesh_destroy(ref);
+    }
+
+    /* refusals: each names its parameter or the reason, and leaves no layer */
+    std::vector<float> fv(v.begin(), v.end());
+    fv[100] = 0.5f;
+    const std::string fraw = dir + "/fractions.raw";
+    CHECK(write_file(fraw, "", fv.data(), fv.size() * 4));
+    static std::string s_raw, s_seg, s_fraw, s_missing;
+    s_raw = raw, s_seg = seg, s_fraw = fraw, s_missing = dir + "/none.ctbl";
+    struct Case {
+        const char *what;
+        void (*change)(job::Params &);
+        const char *expect;
+    };
+    const Case cases[] = {
+        {"twice", [](job::Params &q) { q.labels = "1,2,1"; }, "labels: label 1 is listed twice"},
+        {"not a number", [](job::Params &q) { q.labels = "1,x"; }, "labels:"},
+        {"all and more", [](job::Params &q) { q.labels = "all,3"; }, "labels:"},
+        {"absent", [](job::Params &q) { q.labels = "1,9"; }, "label 9 is not in"},
+        {"post-processing", [](job::Params &q) { q.smooth_iterations = 3; }, "does not apply"},
+        {"table alone",
+         [](job::Params &q) {
+             q.labels.clear();
+             q.label_table = s_missing;
+         },
+         "labelTable: only with labels"},
+        {"missing table", [](job::Params &q) { q.label_table = s_missing; }, "none.ctbl"},
+        {"fractions",
+         [](job::Params &q) {
+             q.source = s_fraw;
+             q.raw_type_index = ISOMEND_F32;
+         },
+         "non-integer sample 0.5"},
+    };
+    for (const Case &c : cases) {
+        job::Params q = job::default_params();
+        q.source = s_raw;
+        q.raw_dims = "18 17 16";
+        q.raw_type_index = ISOMEND_U16;
+        q.labels = "all";
+        c.change(q);
+        job::Job bad;
+        CHECK(!bad.run(q, nullptr));
+        CHECK(bad.labels().empty() && bad.mesh() == nullptr);
+        if (!contains(bad.error(), c.expect)) {
+            std::fprintf(stderr, "%s: expected \"%s\" in \"%s\"\n", c.what, c.expect,
+                         bad.error().c_str());
+            CHECK(false);
+        }
+    }
+    /* a method a label map does not take (the menu's 4th entry, when built) */
+    if (job::method_choices().size() > 3) {
+        job::Params q = job::default_params();
+        q.source = s_seg;
+        q.labels = "all";
+        q.method_index = 3;
+        job::Job bad;
+        CHECK(!bad.run(q, nullptr));
+        CHECK(contains(bad.error(), "method: a label map takes"));
+    }
+}
+
 } // namespace
 
 int main(int argc, char **argv)
@@ -453,5 +656,6 @@ int main(int argc, char **argv)
     test_parsing();
     test_run(dir.path);
     test_errors(dir.path);
+    test_labels(dir.path);
     TEST_EXIT();
 }

@@ -42,6 +42,13 @@ Usage (run by ctest):
   methods   every method the menu lists after the first three (facial,
             gradient, asymptotic, tetra, mc33 when the core builds them), by
             index: the CLI's mesh for that method, closed on the tiled F1.
+  labels    a label map (a 3D Slicer .seg.nrrd of three touching structures):
+            labels=all gives one layer a label, named after its segment,
+            each with the CLI's (--labels all --json) vertex and face counts
+            and the segment's colour on its vertices in the saved PLY;
+            labels=2 alone, a colour table's names; a label not in the map,
+            a fraction in the samples, a label listed twice are reported
+            failures naming the reason, with no output.
   errors    bad sources and parameters: a reported failure (meshlabserver
             exit 255, the harness exit 1 with MeshLab's MLException), never an
             abort, the reason in the log, no output file; the filter is listed
@@ -58,6 +65,9 @@ import sys
 from xml.sax.saxutils import quoteattr
 
 import numpy as np
+
+sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "common"))
+from label_volumes import SEGMENTS, organs, write_seg_nrrd  # noqa: E402
 
 FILTER = "Isosurface from Slice Stack (isomend)"
 # The menu's first three methods have fixed indices; the CLI's names for them.
@@ -138,7 +148,7 @@ def mlx(params, topology=False):
     p = {"source": "", "iso": 0.5, "method": 0, "spacingX": 0, "spacingY": 0, "spacingZ": 0,
          "channel": -1, "pad": True, "flipNormals": False, "rawDims": "", "rawType": 0,
          "dicomSeries": "", "dicomGridAxes": False, "minComponent": 0, "smoothIterations": 0,
-         "decimateRatio": 0.0}
+         "decimateRatio": 0.0, "labels": "", "labelTable": ""}
     p.update(params)
     names = p.pop("enum_names", METHODS)
     enum_methods = " ".join('enum_val%d=%s' % (i, quoteattr(m)) for i, m in enumerate(names))
@@ -163,7 +173,9 @@ def mlx(params, topology=False):
               '  <Param type="RichBool" name="dicomGridAxes" value="%s"/>' % b(p["dicomGridAxes"]),
               '  <Param type="RichInt" name="minComponent" value="%d"/>' % p["minComponent"],
               '  <Param type="RichInt" name="smoothIterations" value="%d"/>' % p["smoothIterations"],
-              '  <Param type="RichFloat" name="decimateRatio" value="%r"/>' % float(p["decimateRatio"])]
+              '  <Param type="RichFloat" name="decimateRatio" value="%r"/>' % float(p["decimateRatio"]),
+              '  <Param type="RichString" name="labels" value=%s/>' % quoteattr(str(p["labels"])),
+              '  <Param type="RichString" name="labelTable" value=%s/>' % quoteattr(str(p["labelTable"]))]
     lines.append(" </filter>")
     if topology:
         lines.append(' <filter name="Compute Topological Measures"/>')
@@ -208,7 +220,7 @@ class ServerRunner(Runner):
         super().__init__(cli, work)
         self.server = os.path.join(prefix, "bin", "meshlabserver")
 
-    def meshlab(self, params, topology=False, save=True):
+    def meshlab(self, params, topology=False, save=True, colors=False):
         """Runs the filter; returns (exit code, log text, output path or None)."""
         self.n += 1
         base = os.path.join(self.work, "ml%02d" % self.n)
@@ -220,7 +232,7 @@ class ServerRunner(Runner):
                 os.remove(p)
         cmd = [self.server, "-l", log, "-s", script]
         if save:
-            cmd += ["-o", out, "-m", "vn"]
+            cmd += ["-o", out, "-m", "vn"] + (["vc"] if colors else [])
         r = subprocess.run(cmd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, timeout=120)
         self.last_output = r.stdout.decode(errors="replace")
         text = open(log, errors="replace").read() if os.path.exists(log) else ""
@@ -269,8 +281,9 @@ class HarnessRunner(Runner):
             print(self.last_output[-2000:] + r.stderr.decode(errors="replace")[-2000:])
         return r.returncode
 
-    def meshlab(self, params, topology=False, save=True):
-        """Runs the filter; returns (exit code, log text, output path or None)."""
+    def meshlab(self, params, topology=False, save=True, colors=False):
+        """Runs the filter; returns (exit code, log text, output path or None);
+        ``colors``: the saved PLY has the vertex colours too."""
         self.n += 1
         base = os.path.join(self.work, "ml%02d" % self.n)
         log, out = base + ".log", base + ".ply"
@@ -289,7 +302,7 @@ class HarnessRunner(Runner):
         if topology:
             steps += ["--filter", "Compute Topological Measures"]
         if save:
-            steps += ["--save", out]
+            steps += ["--save-colors" if colors else "--save", out]
         with open(base + ".args", "w") as f:
             f.write("\n".join(steps) + "\n")
         rc = self.run(steps, log)
@@ -741,6 +754,93 @@ def test_methods(run, job):
     if not extra:
         print("this core builds only the thesis's three methods")
 
+def expect_refusals(run, cases):
+    """Each (label, params, expected reason) run fails as MeshLab reports a
+    failed filter: no abort, the reason in the log, no output."""
+    for label, params, expect in cases:
+        print("%s:" % label)
+        rc, log, out = run.meshlab(params)
+        check(rc == run.fail_rc, "%s exit %d, not an abort (rc %d)" % (run.name, run.fail_rc, rc))
+        m = re.search(r"isomend: error: (.*)", log)
+        reason = m.group(1) if m else ""
+        check(expect in reason, "log names the reason: %r" % reason)
+        check(run.reported_failure(log, reason), "%s reports the failed filter" % run.name)
+        check(out is None, "no output file written")
+
+
+def parse_label_layers(log):
+    """The adapter's 'layer "NAME": V vertices, F faces' lines (MeshLab's own
+    counts of each new layer) and the job's 'label N "NAME": ... colour R G B'."""
+    layers = {m.group(1): (int(m.group(2)), int(m.group(3)))
+              for m in re.finditer(r'layer "([^"]*)": (\d+) vertices, (\d+) faces', log)}
+    labels = {int(m.group(1)): (m.group(2), int(m.group(3)), int(m.group(4)),
+                                tuple(int(c) for c in m.group(5).split()))
+              for m in re.finditer(r'label (-?\d+) "([^"]*)": \d+ voxels, (\d+) vertices, '
+                                   r'(\d+) triangles, colour (\d+ \d+ \d+)', log)}
+    return layers, labels
+
+
+def test_labels(run):
+    work = run.work
+    segments = SEGMENTS
+    seg = os.path.join(work, "organs.seg.nrrd")
+    write_seg_nrrd(seg, organs(), (0.8, 0.8, 1.5))
+    out_dir = os.path.join(work, "cli_labels") + "/"
+    subprocess.run([run.cli, "extract", seg, "--labels", "all", "--pad", "-o", out_dir,
+                    "--json", out_dir.rstrip("/") + ".json", "--quiet"], check=True, timeout=120)
+    with open(out_dir.rstrip("/") + ".json") as f:
+        cli = {l["value"]: l for l in json.load(f)["labels"]}
+
+    print("labels=all of a .seg.nrrd:")
+    rc, log, out = run.meshlab({"source": seg, "labels": "all", "pad": True}, colors=True)
+    check(rc == 0, "exit 0 (rc %d)" % rc)
+    layers, labels = parse_label_layers(log)
+    check(sorted(labels) == [1, 2, 3], "the log lists labels 1, 2, 3: %s" % sorted(labels))
+    for value, name, color in segments:
+        rgb = tuple(int(round(255 * c)) for c in color)
+        got = labels.get(value)
+        if not check(got is not None, "label %d in the log" % value):
+            continue
+        check(got[0] == name and got[3] == rgb, "label %d is %r, colour %s: %s" % (value, name, rgb, got))
+        want = (cli[value]["vertices"], cli[value]["triangles"])
+        check(got[1:3] == want, "label %d: the CLI's %d vertices, %d triangles (job: %s)"
+              % (value, want[0], want[1], got[1:3]))
+        check(layers.get(name) == want, "MeshLab's layer %r has the CLI's counts %s: %s"
+              % (name, want, layers.get(name)))
+    if check(out is not None, "the current layer (the last label) saved"):
+        verts, tris = read_ply(out)
+        check(len(tris) == cli[3]["triangles"], "the saved layer is Tumour's surface (%d faces)"
+              % len(tris))
+        if check(verts.dtype.names is not None and "red" in verts.dtype.names,
+                 "the PLY has vertex colours"):
+            rgb = np.stack([verts["red"], verts["green"], verts["blue"]], 1)
+            check(bool((rgb == (255, 255, 0)).all()), "every vertex has Tumour's colour")
+
+    print("labels=2, names from a colour table:")
+    table = os.path.join(work, "organs.ctbl")
+    with open(table, "w") as f:
+        f.write("# 3D Slicer colour table\n2 Right-Kidney 12 34 56 255\n")
+    rc, log, out = run.meshlab({"source": seg, "labels": "2", "labelTable": table, "pad": True})
+    layers, labels = parse_label_layers(log)
+    check(rc == 0 and sorted(labels) == [2], "exit 0, label 2 only: %s" % sorted(labels))
+    check(labels.get(2, ("",))[0] == "Right-Kidney" and labels[2][3] == (12, 34, 56),
+          "named and coloured by the table: %s" % (labels.get(2),))
+    check(list(layers) == ["Right-Kidney"], "one layer, Right-Kidney: %s" % list(layers))
+
+    fractions = os.path.join(work, "fractions.raw")
+    f = organs().astype(np.float32)
+    f[5, 5, 5] = 1.5
+    f.tofile(fractions)
+    cases = [
+        ("a label not in the map", {"source": seg, "labels": "1,9"}, "label 9 is not in"),
+        ("a label listed twice", {"source": seg, "labels": "2,2"}, "listed twice"),
+        ("a fraction in the samples", {"source": fractions, "rawDims": "24 24 24", "rawType": 5,
+                                       "labels": "all"}, "non-integer sample 1.5"),
+        ("a table that is not there", {"source": seg, "labels": "all",
+                                       "labelTable": os.path.join(work, "none.ctbl")}, "none.ctbl"),
+    ]
+    expect_refusals(run, cases)
+
 
 def test_errors(run):
     work = run.work
@@ -791,15 +891,7 @@ def test_errors(run):
         ("minComponent above every component", {"source": good, "iso": 127.5, "minComponent": 100000000},
          "minComponent"),
     ]
-    for label, params, expect in cases:
-        print("%s:" % label)
-        rc, log, out = run.meshlab(params)
-        check(rc == run.fail_rc, "%s exit %d, not an abort (rc %d)" % (run.name, run.fail_rc, rc))
-        m = re.search(r"isomend: error: (.*)", log)
-        reason = m.group(1) if m else ""
-        check(expect in reason, "log names the reason: %r" % reason)
-        check(run.reported_failure(log, reason), "%s reports the failed filter" % run.name)
-        check(out is None, "no output file written")
+    expect_refusals(run, cases)
 
     print("a good run after the failures, same folder:")
     rc, log, out = run.meshlab({"source": good, "iso": 127.5})
@@ -904,7 +996,8 @@ def test_dicom_uneven(run, dicom):
 
 def main():
     ap = argparse.ArgumentParser()
-    ap.add_argument("test", choices=["counts", "topology", "holes", "errors", "realdata", "methods", "dicom"])
+    ap.add_argument("test", choices=["counts", "topology", "holes", "errors", "realdata", "methods",
+                                     "dicom", "labels"])
     ap.add_argument("--job", help="test_meshlab_job (methods)")
     ap.add_argument("--get-data", help="scripts/get-test-data.sh (realdata)")
     ap.add_argument("--prefix", help="MeshLab 2020.09: the private prefix with meshlabserver")
@@ -932,7 +1025,7 @@ def main():
         test_methods(run, a.job)
     else:
         {"counts": test_counts, "topology": test_topology, "holes": test_holes,
-         "errors": test_errors, "dicom": test_dicom}[a.test](run)
+         "errors": test_errors, "dicom": test_dicom, "labels": test_labels}[a.test](run)
     runs = sum(1 for f in os.listdir(a.work) if f.endswith(".mlx") or f.endswith(".args"))
     print("%d %s run(s); %s" % (runs, run.name, "FAILED: %d" % len(failures) if failures else "all ok"))
     return 1 if failures else 0

@@ -697,6 +697,54 @@ ISOMEND_IO_API isomend_io_status isomend_io_extract(isomend_io_source *src,
                                                     isomend_mesh **out_mesh,
                                                     isomend_stats *stats);
 
+/* ---- label maps (segmentations) ---- */
+
+/*
+ * Loads the volume (isomend_io_load) and extracts the surfaces of its labels
+ * with the core's isomend_labels_extract(): labels[0 .. count - 1], or with
+ * count 0 every label present but 0, ascending.  Options, progress (stage
+ * EXTRACT through the source's callback when opts->progress is NULL) and
+ * cancellation as for isomend_io_extract(); opts->iso is ignored.  The
+ * meshes are in the grid's frame, as isomend_io_extract()'s: place them with
+ * isomend_io_world_transform().  Refused, with a message naming the source:
+ * float samples that are not all whole numbers (a NIfTI uint32 map arrives
+ * as f64 and is taken as u32 or i32), slices not evenly spaced
+ * (ISOMEND_IO_ERR_UNSUPPORTED); a listed label that is not in the volume, a
+ * volume with no label but 0 (ISOMEND_IO_ERR_INVALID_ARGUMENT); what the core
+ * refuses (a method other than dmc, mc, durst; a label listed twice) is
+ * ISOMEND_IO_ERR_EXTRACT with the core's text.  On success *out holds the
+ * core's result: destroy it with isomend_labels_destroy().
+ */
+ISOMEND_IO_API isomend_io_status isomend_io_labels_extract(isomend_io_source *src,
+                                                           const int64_t *labels, size_t count,
+                                                           const isomend_options *opts,
+                                                           isomend_labels **out);
+
+/*
+ * Label names and colours (io/common/label_table.h, as `isomend extract
+ * --labels` takes them).  `path` non-NULL: a colour table file (3D Slicer
+ * .ctbl/.txt, FreeSurfer's LUT, ITK-SNAP's label description); `src` then
+ * only receives the message and need not be open.  `path` NULL: the opened
+ * source's own names, a 3D Slicer .seg.nrrd's Segment*_Name/_Color/
+ * _LabelValue keys (an empty set for any other source).  Failures
+ * (unreadable or malformed table, malformed keys) leave *out NULL and the
+ * message in isomend_io_message(src).
+ */
+typedef struct isomend_io_label_names isomend_io_label_names;
+ISOMEND_IO_API isomend_io_status isomend_io_label_names_read(isomend_io_source *src,
+                                                             const char *path,
+                                                             isomend_io_label_names **out);
+/* Where the names come from: "slicer/freesurfer", "itk-snap", "seg.nrrd",
+ * or "" for an empty set (and for NULL). */
+ISOMEND_IO_API const char *isomend_io_label_names_from(const isomend_io_label_names *names);
+/* The name (truncated to name_size - 1 bytes) and colour a label is shown
+ * with: the set's, else "label_N" and a fixed 20-colour palette by value.
+ * `names` may be NULL; name or rgb may be NULL.  1 when the set has the value. */
+ISOMEND_IO_API int isomend_io_label_name(const isomend_io_label_names *names, int64_t value,
+                                         char *name, size_t name_size, uint8_t rgb[3]);
+/* Accepts NULL. */
+ISOMEND_IO_API void isomend_io_label_names_destroy(isomend_io_label_names *names);
+
 /* ---- the same, on a thread of the library's own ---- */
 
 /*

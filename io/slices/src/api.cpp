@@ -26,6 +26,8 @@
 #include <system_error>
 #include <thread>
 
+#include "label_samples.h"
+#include "label_table.h"
 #include "volume_readers.h"
 
 using namespace isomend_io;
@@ -1098,6 +1100,111 @@ ISOMEND_IO_API isomend_io_status isomend_io_extract(isomend_io_source *src, cons
                           std::string("extraction failed: ") + isomend_status_string(st));
     });
 }
+
+// ---------------------------------------------------------------- label maps
+
+namespace {
+
+// The source as messages name it: its file, or its first slice's.
+std::string source_name(const isomend_io_source *s) {
+    if (s->nifti) return s->nifti->path;
+    if (s->is_file_volume) return s->file_info.path;
+    return s->slices.empty() ? std::string("the source") : s->slices.front().path;
+}
+
+} // namespace
+
+struct isomend_io_label_names {
+    label_table table{nullptr, 0, 0, ""};
+    ~isomend_io_label_names() { label_table_free(&table); }
+};
+
+ISOMEND_IO_API isomend_io_status isomend_io_labels_extract(isomend_io_source *src, const int64_t *labels,
+                                                           size_t count, const isomend_options *opts,
+                                                           isomend_labels **out) {
+    if (out) *out = nullptr;
+    if (!src || src->in_job) return ISOMEND_IO_ERR_INVALID_ARGUMENT;
+    return guard(src, [&] {
+        require_open(src);
+        if (!out) throw IoError(ISOMEND_IO_ERR_INVALID_ARGUMENT, "out is NULL");
+        if (count && !labels) throw IoError(ISOMEND_IO_ERR_INVALID_ARGUMENT, "labels is NULL");
+        isomend_volume loaded, vol;
+        do_load(src, &loaded, nullptr);
+        if (loaded.slice_origins)
+            throw IoError(ISOMEND_IO_ERR_UNSUPPORTED,
+                          source_name(src) + ": a label map's slices must be evenly spaced");
+        const std::string name = source_name(src);
+        void *copy = nullptr;
+        char msg[512];
+        if (label_samples_integer(&loaded, name.c_str(), &vol, &copy, msg, sizeof msg))
+            throw IoError(ISOMEND_IO_ERR_UNSUPPORTED, msg);
+        std::unique_ptr<void, void (*)(void *)> keep(copy, free);
+        isomend_options o;
+        if (opts) o = *opts;
+        else isomend_options_init(&o);
+        ExtractProgress ep{src->opts.progress, src->opts.progress_user};
+        if (!o.progress && ep.fn) {
+            o.progress = extract_progress;
+            o.progress_user = &ep;
+        }
+        isomend_labels *res = nullptr;
+        isomend_status st = isomend_labels_extract(&vol, labels, count, &o, &res);
+        if (st == ISOMEND_ERR_CANCELLED) throw IoError(ISOMEND_IO_ERR_CANCELLED, "cancelled during extraction");
+        if (st != ISOMEND_OK)
+            throw IoError(ISOMEND_IO_ERR_EXTRACT,
+                          std::string("label extraction failed: ") + isomend_status_string(st));
+        std::unique_ptr<isomend_labels, void (*)(isomend_labels *)> result(res, isomend_labels_destroy);
+        const size_t n = isomend_labels_count(res);
+        if (n == 0)
+            throw IoError(ISOMEND_IO_ERR_INVALID_ARGUMENT, name + " has no label but the background 0");
+        for (size_t q = 0; q < n; q++)
+            if (isomend_labels_voxels(res, q) == 0)
+                throw IoError(ISOMEND_IO_ERR_INVALID_ARGUMENT,
+                              "label " + std::to_string(isomend_labels_value(res, q)) + " is not in " + name);
+        *out = result.release();
+    });
+}
+
+ISOMEND_IO_API isomend_io_status isomend_io_label_names_read(isomend_io_source *src, const char *path,
+                                                             isomend_io_label_names **out) {
+    if (out) *out = nullptr;
+    if (!src || src->in_job) return ISOMEND_IO_ERR_INVALID_ARGUMENT;
+    return guard(src, [&] {
+        if (!out) throw IoError(ISOMEND_IO_ERR_INVALID_ARGUMENT, "out is NULL");
+        std::unique_ptr<isomend_io_label_names> names(new isomend_io_label_names);
+        char msg[512];
+        if (path) {
+            if (label_table_read(path, &names->table, msg, sizeof msg)) {
+                // io/common names the command line's option; here the file is the subject
+                const char *opt = "--label-table ";
+                throw IoError(ISOMEND_IO_ERR_UNREADABLE,
+                              std::strncmp(msg, opt, std::strlen(opt)) ? msg : msg + std::strlen(opt));
+            }
+        } else {
+            require_open(src);
+            if (src->is_file_volume && src->kind == ISOMEND_IO_KIND_NRRD &&
+                label_table_from_nrrd(src->file_info.path, &names->table, msg, sizeof msg) < 0)
+                throw IoError(ISOMEND_IO_ERR_CORRUPT, msg);
+        }
+        *out = names.release();
+    });
+}
+
+ISOMEND_IO_API const char *isomend_io_label_names_from(const isomend_io_label_names *names) {
+    return names && names->table.count ? names->table.source : "";
+}
+
+ISOMEND_IO_API int isomend_io_label_name(const isomend_io_label_names *names, int64_t value, char *name,
+                                         size_t name_size, uint8_t rgb[3]) {
+    char buf[LABEL_NAME_MAX];
+    uint8_t c[3];
+    const int known = label_describe(names ? &names->table : nullptr, value, buf, sizeof buf, c);
+    if (name && name_size) snprintf(name, name_size, "%s", buf);
+    if (rgb) memcpy(rgb, c, 3);
+    return known;
+}
+
+ISOMEND_IO_API void isomend_io_label_names_destroy(isomend_io_label_names *names) { delete names; }
 
 // ---------------------------------------------------------------- DICOM
 
