@@ -306,12 +306,6 @@ static const char *refused_option(uint64_t seen)
     } refused[] = {
         {OPT_ISO, "--iso (a label's surface is at 0.5 of its indicator)"},
         {OPT_STATS, "--stats"},
-        {OPT_DECIMATE, "--decimate"},
-        {OPT_TARGET_TRIANGLES, "--target-triangles"},
-        {OPT_MAX_ERROR, "--max-error"},
-        {OPT_MIN_COMPONENT, "--min-component"},
-        {OPT_LARGEST, "--largest"},
-
         {OPT_IN_MEMORY, "--in-memory"},
         {OPT_CHUNK_LAYERS, "--chunk-layers"},
         {OPT_PAGES, "--pages"},
@@ -348,6 +342,80 @@ static int folder_creatable(const char *out)
     cli_error("-o %s: cannot create the folder in '%s': %s", out, dir,
               errno ? strerror(errno) : "not a writable folder");
     return 0;
+}
+
+/* The steps of `p` on the n labels' meshes cur[] (replaced by the results,
+ * which owned[] holds): clean-up a label at a time, smoothing and decimation
+ * all together (isomend_meshes_smooth, isomend_meshes_decimate); each
+ * label's report in r[].  An exit code, the message printed. */
+static int label_steps(const cli_post *p, size_t n, const isomend_mesh **cur, isomend_mesh **owned,
+                       cli_post_report *r)
+{
+    isomend_mesh **next = calloc(n ? n : 1, sizeof *next);
+    isomend_smooth_report *sr = calloc(n ? n : 1, sizeof *sr);
+    isomend_decimate_report *dr = calloc(n ? n : 1, sizeof *dr);
+    int rc = CLI_EXIT_OK;
+    isomend_status st = ISOMEND_OK;
+    const char *step = NULL;
+    if (!next || !sr || !dr) {
+        cli_error("--labels: out of memory for the steps");
+        rc = CLI_EXIT_FAIL;
+        goto done;
+    }
+    for (int k = 0; k < 3 && !rc; k++) {
+        double t0 = cli_now_ms();
+        if (k == 0 && (p->min_component || p->largest)) {
+            step = p->largest ? "--largest" : "--min-component";
+            for (size_t q = 0; q < n && st == ISOMEND_OK; q++)
+                st = isomend_mesh_clean(cur[q], p->min_component, p->largest, &next[q], &r[q].clean);
+        } else if (k == 1 && p->smooth > 0) {
+            step = "--smooth";
+            st = isomend_meshes_smooth(cur, n, p->smooth, next, sr);
+        } else if (k == 2 && (p->ratio > 0 || p->target || p->max_error > 0)) {
+            step = p->ratio > 0 ? "--decimate" : p->target ? "--target-triangles" : "--max-error";
+            isomend_decimate_options d;
+            isomend_decimate_options_init(&d);
+            d.ratio = p->ratio;
+            d.target_triangles = p->target;
+            d.max_error = p->max_error;
+            st = isomend_meshes_decimate(cur, n, &d, next, dr);
+        } else {
+            continue;
+        }
+        const double ms = cli_now_ms() - t0;
+        if (st != ISOMEND_OK) {
+            cli_error("--labels: %s: %s", step, isomend_status_string(st));
+            rc = CLI_EXIT_FAIL;
+            for (size_t q = 0; q < n; q++) {
+                isomend_mesh_destroy(next[q]);
+                next[q] = NULL;
+            }
+            break;
+        }
+        for (size_t q = 0; q < n; q++) {
+            isomend_mesh_destroy(owned[q]);
+            owned[q] = next[q];
+            cur[q] = next[q];
+            next[q] = NULL;
+            if (k == 0) {
+                r[q].cleaned = 1;
+                r[q].clean_ms = ms;
+            } else if (k == 1) {
+                r[q].smoothed = 1;
+                r[q].smooth = sr[q];
+                r[q].smooth_ms = ms;
+            } else {
+                r[q].decimated = 1;
+                r[q].decimate = dr[q];
+                r[q].decimate_ms = ms;
+            }
+        }
+    }
+done:
+    free(next);
+    free(sr);
+    free(dr);
+    return rc;
 }
 
 /* 1 when -o names a folder: a trailing '/' or an existing folder. */
@@ -449,9 +517,10 @@ int cli_extract_labels(cli_args *a)
     cli_source src;
     isomend_labels *res = NULL;
     label_out *lo = NULL;
-    isomend_mesh **smoothed = NULL; /* --smooth: every label's, smoothed together */
-    isomend_smooth_report *sreport = NULL;
-    double smooth_ms = 0;
+    const isomend_mesh **cur = NULL; /* each label's mesh after the steps so far */
+    isomend_mesh **owned = NULL;     /* ... those the steps made */
+    cli_post_report *pr = NULL;      /* each label's steps */
+    int post = 0;
     void *copy = NULL;
     size_t n = 0;
     rc = cli_open_source_for(a, quiet, &jo, &bar, &src);
@@ -514,30 +583,23 @@ int cli_extract_labels(cli_args *a)
             goto done;
         }
 
-    /* --smooth: the labels' surfaces smoothed together, so that where two
-     * labels touch their surfaces still meet */
-    if (a->post.smooth > 0) {
-        const isomend_mesh **in = calloc(n, sizeof *in);
-        smoothed = calloc(n, sizeof *smoothed);
-        sreport = calloc(n, sizeof *sreport);
-        if (!in || !smoothed || !sreport) {
-            free(in);
-            cli_error("%s: out of memory", src.label);
-            rc = CLI_EXIT_FAIL;
-            goto done;
-        }
-        for (size_t q = 0; q < n; q++)
-            in[q] = isomend_labels_mesh(res, q);
-        t0 = cli_now_ms();
-        st = isomend_meshes_smooth(in, n, a->post.smooth, smoothed, sreport);
-        smooth_ms = cli_now_ms() - t0;
-        free(in);
-        if (st != ISOMEND_OK) {
-            cli_error("--smooth %d: %s", a->post.smooth, isomend_status_string(st));
-            rc = CLI_EXIT_FAIL;
-            goto done;
-        }
+    /* the steps: clean-up a label at a time (dropping a label's islands
+     * leaves its neighbours' surfaces closed), smoothing and decimation of
+     * all the labels together, so that where two labels touch their surfaces
+     * still meet */
+    cur = calloc(n, sizeof *cur);
+    owned = calloc(n, sizeof *owned);
+    pr = calloc(n, sizeof *pr);
+    if (!cur || !owned || !pr) {
+        cli_error("%s: out of memory", src.label);
+        rc = CLI_EXIT_FAIL;
+        goto done;
     }
+    for (size_t q = 0; q < n; q++)
+        cur[q] = isomend_labels_mesh(res, q);
+    rc = label_steps(&a->post, n, cur, owned, pr);
+    if (rc) goto done;
+    post = pr[0].cleaned || pr[0].smoothed || pr[0].decimated;
 
     /* names, colours, checks, the world map */
     lo = calloc(n, sizeof *lo);
@@ -550,7 +612,7 @@ int cli_extract_labels(cli_args *a)
     for (size_t q = 0; q < n && !rc; q++) {
         label_out *l = &lo[q];
         l->value = isomend_labels_value(res, q);
-        l->mesh = smoothed ? smoothed[q] : isomend_labels_mesh(res, q);
+        l->mesh = cur[q];
         char base[LABEL_NAME_MAX];
         name_and_color(&table, l->value, base, sizeof base, l->rgb);
         snprintf(l->name, sizeof l->name, "%s", base);
@@ -634,22 +696,12 @@ int cli_extract_labels(cli_args *a)
                     : lo[q].check.border_edges          ? "continuous, open at the border"
                                                         : "closed",
                     lo[q].file);
-        if (smoothed)
-            for (size_t q = 0; q < n; q++)
-                fprintf(text,
-                        "  smoothing of %" PRId64 " %s (with its neighbours): %" PRIu64
-                        " vertices moved, at most %.4g; volume %.6g -> %.6g (%+.3f %%)\n",
-                        lo[q].value, lo[q].name, sreport[q].moved_vertices,
-                        sreport[q].max_displacement, sreport[q].volume_before,
-                        sreport[q].volume_after,
-                        sreport[q].volume_before != 0
-                            ? 100 * (sreport[q].volume_after - sreport[q].volume_before) /
-                                  fabs(sreport[q].volume_before)
-                            : 0.0);
+        for (size_t q = 0; post && q < n; q++) {
+            fprintf(text, "  %" PRId64 " %s:\n", lo[q].value, lo[q].name);
+            cli_print_post(text, &pr[q]);
+        }
         fprintf(text, "time: read %.1f ms, extract %.1f ms, check %.1f ms, write %.1f ms\n",
                 src.read_ms, extract_ms, check_ms, write_ms);
-        if (smoothed)
-            fprintf(text, "time: smoothing %.1f ms\n", smooth_ms);
     }
     FILE *jf = cli_json_stream(&jo);
     if (jf) {
@@ -690,21 +742,16 @@ int cli_extract_labels(cli_args *a)
                     ", \"triangles_by_origin\": {\"table\": %" PRIu64 ", \"durst\": %" PRIu64
                     ", \"mend\": %" PRIu64 "}",
                     by[ISOMEND_ORIGIN_TABLE], by[ISOMEND_ORIGIN_DURST], by[ISOMEND_ORIGIN_MEND]);
-            if (smoothed)
-                fprintf(jf,
-                        ", \"smooth\": {\"iterations\": %d, \"moved_vertices\": %" PRIu64
-                        ", \"max_displacement\": %.9g, \"volume_before\": %.17g, "
-                        "\"volume_after\": %.17g}",
-                        a->post.smooth, sreport[q].moved_vertices, sreport[q].max_displacement,
-                        sreport[q].volume_before, sreport[q].volume_after);
+            if (post)
+                cli_json_post(jf, &pr[q]);
             fprintf(jf, ", \"check\": ");
             cli_json_check(jf, &lo[q].check);
             fprintf(jf, "}");
         }
         fprintf(jf,
-                "], \"timings_ms\": {\"read\": %.3f, \"extract\": %.3f, \"smooth\": %.3f, "
-                "\"check\": %.3f, \"write\": %.3f}}\n",
-                src.read_ms, extract_ms, smooth_ms, check_ms, write_ms);
+                "], \"timings_ms\": {\"read\": %.3f, \"extract\": %.3f, \"check\": %.3f, "
+                "\"write\": %.3f}}\n",
+                src.read_ms, extract_ms, check_ms, write_ms);
         rc = cli_json_finish(&jo);
         if (rc) { /* the JSON was asked for: a run without it is a failure */
             for (size_t q = 0; q < n; q++) unlink(lo[q].file);
@@ -724,10 +771,11 @@ done:
         free(lo[q].world_tri);
     }
     free(lo);
-    for (size_t q = 0; smoothed && q < n; q++)
-        isomend_mesh_destroy(smoothed[q]);
-    free(smoothed);
-    free(sreport);
+    for (size_t q = 0; owned && q < n; q++)
+        isomend_mesh_destroy(owned[q]);
+    free(owned);
+    free(cur);
+    free(pr);
     isomend_labels_destroy(res);
     free(copy);
     label_table_free(&table);

@@ -802,6 +802,22 @@ ISOMEND_API isomend_status isomend_meshes_smooth(const isomend_mesh *const *mesh
                                                  int iterations, isomend_mesh **out,
                                                  isomend_smooth_report *reports);
 
+/*
+ * Surfaces that meet (a label map's meshes, as isomend_meshes_smooth()
+ * takes them) decimated so that they still meet: every vertex that another
+ * of the meshes holds too (the same position) is locked, so no edge touching
+ * it collapses; the surfaces two meshes share, and the ring of triangles
+ * around them, stay as they are in both, and the rest of each mesh is
+ * decimated with `opts` as isomend_mesh_decimate() does (ratio and
+ * target_triangles a mesh; every guarantee of it).  A mesh that touches the
+ * others all over keeps its triangles.  out[0 .. count - 1] receive new
+ * meshes, all NULL on failure; reports[i] (may be NULL) mesh i's.
+ */
+ISOMEND_API isomend_status isomend_meshes_decimate(const isomend_mesh *const *meshes, size_t count,
+                                                   const isomend_decimate_options *opts,
+                                                   isomend_mesh **out,
+                                                   isomend_decimate_report *reports);
+
 typedef struct isomend_clean_report {
     uint64_t components_before, components_after; /* through shared vertices */
     uint64_t triangles_removed, vertices_removed;

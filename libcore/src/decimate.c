@@ -1160,7 +1160,9 @@ isomend_status mesh_decimate_to(const isomend_mesh *mesh, uint64_t target, doubl
     if (!mesh_free_vertices(mesh, NULL, d.vf, NULL, NULL, NULL))
         goto done;
     for (size_t v = 0; v < d.nv; v++) {
-        d.vf[v] = d.vf[v] ? 0 : V_LOCKED; /* unused vertices are locked too */
+        d.vf[v] = d.vf[v] && !(carry && carry->locked && carry->locked[v])
+                      ? 0
+                      : V_LOCKED; /* unused vertices are locked too, and those asked */
         rep.locked_vertices += d.vf[v] && d.fan_first[v + 1] > d.fan_first[v];
     }
     quadric_job qj = {&d, carry ? carry->planes_from : 0, carry ? carry->q_in : NULL};

@@ -346,7 +346,7 @@ static isomend_status decimate_window(void *user, stream_window *sw, const strea
     for (size_t v = 0; v < nv; v++)
         memcpy(q_in + 10 * v, ((const carried *)stream_window_data(sw, w->slot[v]))->q,
                10 * sizeof(double));
-    decimate_carry carry = {q_in, w->nheld, NULL, NULL, NULL, NULL, NULL};
+    decimate_carry carry = {q_in, w->nheld, NULL, NULL, NULL, NULL, NULL, NULL};
     isomend_status st = ISOMEND_OK;
     if (d->max_error > 0 && !window_points(d, sw, w, &carry))
         st = ISOMEND_ERR_OUT_OF_MEMORY;

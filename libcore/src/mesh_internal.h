@@ -65,6 +65,14 @@ int mesh_free_vertices(const isomend_mesh *m, team *tm, uint8_t *free_flag, uint
 int sinc_filter(team *tm, size_t n, const uint32_t *first, const uint32_t *nb,
                 const uint8_t *free_v, const float *x0, float *b, uint8_t *deg, float *out,
                 int iterations);
+/* smooth_shared.c: meshes that meet, their vertices one set by position
+ * (shared_vertex_set: gid[base[i] + v] the set vertex of mesh i's vertex
+ * v, pos its position, slot a hash table of cap entries, a power of two at
+ * least twice the vertices; returns the set's size); a mesh's enclosed
+ * volume (signed). */
+size_t shared_vertex_set(const isomend_mesh *const *meshes, size_t count, uint32_t *slot,
+                         size_t cap, uint32_t *gid, size_t *base, float *pos);
+double mesh_volume(const float *pos, const uint32_t *tri, size_t nt);
 /* fn(arg, lo, hi) over [0, n) in ranges on up to 8 threads (one below 32768
  * items, or where threads cannot start); returns when all are done. */
 void parallel_for(size_t n, void (*fn)(void *arg, size_t lo, size_t hi), void *arg);
@@ -87,6 +95,7 @@ typedef struct decimate_carry {
     const uint32_t *pts_first; /* nv + 1: vertex v's are [pts_first[v], pts_first[v + 1]) */
     uint32_t *pts_out;         /* out (with pts): the points of the output vertices, */
     uint32_t *pts_out_first;   /* by vertex (nv_out + 1 of these); malloc'ed        */
+    const uint8_t *locked;     /* nv: non-zero for a vertex that stays (NULL: none) */
 } decimate_carry;
 /* carry (may be NULL): quadrics carried in and out, for a decimation in
  * pieces whose earlier triangles' planes are already in their vertices'

@@ -42,8 +42,37 @@ static uint64_t position_hash(const float *p)
     return h;
 }
 
+/* The meshes' vertices as one set (a vertex the same in every mesh where
+ * its position is the same, bit for bit): gid[base[i] + v] is vertex v of
+ * mesh i's set vertex, pos (3 floats a set vertex) the first occurrence's
+ * position; slot (cap entries, a power of two >= twice the vertices) the
+ * hash table.  Returns the set's size. */
+size_t shared_vertex_set(const isomend_mesh *const *meshes, size_t count, uint32_t *slot,
+                         size_t cap, uint32_t *gid, size_t *base, float *pos)
+{
+    memset(slot, 0xff, cap * sizeof(uint32_t));
+    size_t n = 0;
+    for (size_t i = 0, at = 0; i < count; i++) {
+        base[i] = at;
+        const isomend_mesh *m = meshes[i];
+        for (size_t v = 0; v < m->nv; v++, at++) {
+            const float *p = m->pos + 3 * v;
+            size_t h = (size_t)position_hash(p) & (cap - 1);
+            while (slot[h] != UINT32_MAX && memcmp(pos + 3 * (size_t)slot[h], p, 12) != 0)
+                h = (h + 1) & (cap - 1);
+            if (slot[h] == UINT32_MAX) {
+                slot[h] = (uint32_t)n;
+                memcpy(pos + 3 * n, p, 12);
+                n++;
+            }
+            gid[at] = slot[h];
+        }
+    }
+    return n;
+}
+
 /* The enclosed volume of a mesh's triangles (signed, double sums). */
-static double mesh_volume(const float *pos, const uint32_t *tri, size_t nt)
+double mesh_volume(const float *pos, const uint32_t *tri, size_t nt)
 {
     double v = 0;
     for (size_t t = 0; t < nt; t++) {
@@ -95,26 +124,8 @@ isomend_status isomend_meshes_smooth(const isomend_mesh *const *meshes, size_t c
     team *tm = NULL;
     if (!slot || !gid || !first || !nb || !free_v || !deg || !vfree || !x0 || !b || !y || !base)
         goto done;
-    memset(slot, 0xff, cap * sizeof(uint32_t));
     memset(free_v, 1, n1);
-    /* the set: a vertex's first occurrence (meshes in order) is its position */
-    size_t n = 0;
-    for (size_t i = 0, at = 0; i < count; i++) {
-        base[i] = at;
-        const isomend_mesh *m = meshes[i];
-        for (size_t v = 0; v < m->nv; v++, at++) {
-            const float *p = m->pos + 3 * v;
-            size_t h = (size_t)position_hash(p) & (cap - 1);
-            while (slot[h] != UINT32_MAX && memcmp(x0 + 3 * (size_t)slot[h], p, 12) != 0)
-                h = (h + 1) & (cap - 1);
-            if (slot[h] == UINT32_MAX) {
-                slot[h] = (uint32_t)n;
-                memcpy(x0 + 3 * n, p, 12);
-                n++;
-            }
-            gid[at] = slot[h];
-        }
-    }
+    const size_t n = shared_vertex_set(meshes, count, slot, cap, gid, base, x0);
     /* each set vertex's neighbours: its meshes' rings, merged */
     for (size_t i = 0; i < count; i++) {
         const isomend_mesh *m = meshes[i];

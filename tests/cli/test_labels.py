@@ -459,8 +459,8 @@ refused(["extract", src, "--labels", "all", "--label-table", bad_table, "-o", ou
 refused(["extract", src, "--labels", "all", "-o", os.path.join(W, "bad.stl")], "STL",
         [os.path.join(W, "bad.stl")], "STL for all labels", 2)
 refused(["extract", src, "--labels", "all", "--iso", "3", "-o", out], "--iso", [out], "--iso", 2)
-refused(["extract", src, "--labels", "all", "--decimate", "0.5", "-o", out], "--decimate", [out],
-        "--decimate", 2)
+refused(["extract", src, "--labels", "all", "--chunk-layers", "4", "-o", out], "--chunk-layers",
+        [out], "--chunk-layers", 2)
 refused(["extract", src, "--labels", "all", "--method", "mc33", "-o", out], "--method", [out],
         "mc33", 2)
 refused(["extract", src, "--iso", "3", "--label-table", bad_table, "-o", os.path.join(W, "x.ply")],

@@ -1,5 +1,6 @@
 /*
- * test_labels_smooth.c - isomend_meshes_smooth() on a label map's meshes:
+ * test_labels_smooth.c - isomend_meshes_smooth() and isomend_meshes_decimate()
+ * on a label map's meshes.  Smoothing:
  * every label's smoothed mesh keeps its triangles and stays closed,
  * manifold and oriented (isomend_mesh_check: holes, non-manifold and
  * misoriented edges, components, Euler characteristic as before); a vertex
@@ -10,7 +11,9 @@
  * label's volume stays within 1 % (no restoration: the filter alone; not
  * on the checkerboard, a one-voxel pattern that a low pass removes); 0
  * iterations changes nothing; two runs give the same bytes; bad arguments
- * are refused.
+ * are refused.  Decimation (to 0.3): each label closed with its components
+ * and Euler characteristic, every vertex two labels share still a vertex of
+ * both (locked), fewer triangles in all; bad arguments refused.
  *
  * Label maps: two touching boxes, three labels meeting along a line, a
  * ball inside a shell (nested), a small two-label checkerboard (every face
@@ -188,6 +191,69 @@ next:
     isomend_labels_destroy(r);
 }
 
+/* Decimated together: each label closed with its topology, every vertex
+ * two labels share still in both (locked), fewer triangles in all. */
+static void run_decimate(lmap l, double ratio)
+{
+    isomend_volume vol;
+    isomend_volume_init(&vol, l.v, ISOMEND_U8, l.n[0], l.n[1], l.n[2]);
+    isomend_options o;
+    isomend_options_init(&o);
+    o.flags |= ISOMEND_FLAG_PAD;
+    isomend_labels *r = NULL;
+    CHECK(isomend_labels_extract(&vol, NULL, 0, &o, &r) == ISOMEND_OK);
+    if (!r)
+        return;
+    const size_t n = isomend_labels_count(r);
+    const isomend_mesh *in[8];
+    isomend_mesh *out[8] = {0};
+    isomend_decimate_report rep[8];
+    for (size_t q = 0; q < n && q < 8; q++)
+        in[q] = isomend_labels_mesh(r, q);
+    enum { CAP = 200000 };
+    shared *sh = malloc(CAP * sizeof(shared));
+    const size_t nsh = find_shared(in, n, sh, CAP);
+    isomend_decimate_options d;
+    isomend_decimate_options_init(&d);
+    d.ratio = ratio;
+    CHECK(isomend_meshes_decimate(in, n, &d, out, rep) == ISOMEND_OK);
+    size_t before = 0, after = 0;
+    for (size_t q = 0; q < n; q++) {
+        if (!out[q])
+            goto next;
+        isomend_check_report c0, c1;
+        CHECK(isomend_mesh_check(in[q], &c0) == ISOMEND_OK);
+        CHECK(isomend_mesh_check(out[q], &c1) == ISOMEND_OK);
+        CHECK(c1.hole_edges == 0 && c1.border_edges == 0 && c1.nonmanifold_edges == 0 &&
+              c1.misoriented_edges == 0);
+        CHECK(same_check(&c0, &c1));
+        before += isomend_mesh_triangle_count(in[q]);
+        after += isomend_mesh_triangle_count(out[q]);
+        CHECK_EQ_INT(rep[q].triangles_after, isomend_mesh_triangle_count(out[q]));
+    }
+    /* every shared position still a vertex of both meshes */
+    size_t lost = 0;
+    for (size_t s = 0; s < nsh; s++) {
+        const float *p = isomend_mesh_positions(in[sh[s].p]) + 3 * sh[s].a;
+        for (int side = 0; side < 2; side++) {
+            const isomend_mesh *m = out[side ? sh[s].q : sh[s].p];
+            size_t v = 0;
+            while (v < isomend_mesh_vertex_count(m) && memcmp(isomend_mesh_positions(m) + 3 * v, p, 12))
+                v++;
+            lost += v == isomend_mesh_vertex_count(m);
+        }
+    }
+    CHECK_EQ_INT(lost, 0);
+    CHECK(after < before);
+    printf("%s decimated to %.2f together: %zu -> %zu triangles, %zu shared vertices kept in both\n",
+           l.name, ratio, before, after, nsh);
+next:
+    for (size_t q = 0; q < n; q++)
+        isomend_mesh_destroy(out[q]);
+    free(sh);
+    isomend_labels_destroy(r);
+}
+
 int main(void)
 {
     lmap maps[] = {touching(), three(), nested(), checker()};
@@ -195,6 +261,8 @@ int main(void)
         run(maps[i], 0);
         run(maps[i], 5);
         run(maps[i], 20);
+        if (strcmp(maps[i].name, "checkerboard") != 0) /* (all shared: nothing to decimate) */
+            run_decimate(maps[i], 0.3);
         free(maps[i].v);
     }
     /* refused */
@@ -207,5 +275,12 @@ int main(void)
     CHECK(isomend_meshes_smooth(none, 0, 10001, out, NULL) == ISOMEND_ERR_INVALID_ARGUMENT);
     CHECK(isomend_meshes_smooth(none, 0, 5, NULL, NULL) == ISOMEND_ERR_INVALID_ARGUMENT);
     CHECK(isomend_meshes_smooth(none, 0, 5, out, NULL) == ISOMEND_OK);
+    isomend_decimate_options d;
+    isomend_decimate_options_init(&d);
+    CHECK(isomend_meshes_decimate(none, 0, &d, out, NULL) == ISOMEND_ERR_INVALID_ARGUMENT); /* no target */
+    d.ratio = 0.5;
+    CHECK(isomend_meshes_decimate(none, 1, &d, out, NULL) == ISOMEND_ERR_INVALID_ARGUMENT);
+    CHECK(isomend_meshes_decimate(none, 0, NULL, out, NULL) == ISOMEND_ERR_INVALID_ARGUMENT);
+    CHECK(isomend_meshes_decimate(none, 0, &d, out, NULL) == ISOMEND_OK);
     TEST_EXIT();
 }
