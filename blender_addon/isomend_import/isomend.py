@@ -459,6 +459,11 @@ def _core_lib():
         _declare(lib, "isomend_labels_voxels", ctypes.c_uint64, [ctypes.c_void_p, c_size])
         _declare(lib, "isomend_labels_take_mesh", ctypes.c_void_p, [ctypes.c_void_p, c_size])
         _declare(lib, "isomend_labels_destroy", None, [ctypes.c_void_p])
+        _declare(lib, "isomend_meshes_smooth", c_int,
+                 [P(ctypes.c_void_p), c_size, c_int, P(ctypes.c_void_p), P(SmoothReport)])
+        _declare(lib, "isomend_meshes_decimate", c_int,
+                 [P(ctypes.c_void_p), c_size, P(DecimateOptions), P(ctypes.c_void_p),
+                  P(DecimateReport)])
         _declare(lib, "isomend_case_of", c_int, [ctypes.c_uint])
         _declare(lib, "isomend_case_triangles", c_int, [ctypes.c_uint, P(c_int)])
         _core, _core_path = lib, path
@@ -1306,6 +1311,60 @@ def _take_label_meshes(lib, result, method_id, normals, origins, world, names):
         mesh.names_from = names.names_from
         out[value] = mesh
     return out
+
+
+def _labels_step(meshes, step, call, report_type):
+    """{value: Mesh} of a step on a label map's meshes together; the C call
+    `call(handles, n, outs, reports)`; (meshes, {value: report})."""
+    values = list(meshes)
+    n = len(values)
+    lib = _core_lib()
+    handles = (ctypes.c_void_p * max(n, 1))(*[meshes[k]._handle(step) for k in values])
+    outs = (ctypes.c_void_p * max(n, 1))()
+    reps = (report_type * max(n, 1))()
+    status = call(lib, handles, n, outs, reps)
+    if status != 0:
+        for q in range(n):
+            if outs[q]:
+                lib.isomend_mesh_destroy(ctypes.c_void_p(outs[q]))
+        _raise_core(status, "isomend_meshes_" + step)
+    out, reports = {}, {}
+    for q, value in enumerate(values):
+        rep = _struct_dict(reps[q])
+        if "reached" in rep:
+            rep["reached"] = bool(rep["reached"])
+        m = meshes[value]._derived(ctypes.c_void_p(outs[q]), step, rep)
+        for attr in ("label", "voxels", "name", "color", "names_from"):
+            setattr(m, attr, getattr(meshes[value], attr, None))
+        out[value], reports[value] = m, rep
+    return out, reports
+
+
+def smooth_labels(meshes, iterations):
+    """A label map's meshes ({value: Mesh}, as extract_labels() gives them)
+    smoothed together (isomend_meshes_smooth): the windowed sinc filter of
+    Mesh.smooth(), a vertex two labels share moved once, so neighbouring
+    surfaces still meet exactly; no volume restored.  Returns ({value: Mesh},
+    {value: report}) with Mesh.smooth()'s report keys."""
+    iterations = _count(iterations, "iterations")
+    if iterations > 10000:
+        raise ValueError("iterations: %d is more than 10000" % iterations)
+    return _labels_step(meshes, "smooth",
+                        lambda lib, h, n, o, r: lib.isomend_meshes_smooth(h, n, iterations, o, r),
+                        SmoothReport)
+
+
+def decimate_labels(meshes, ratio=None, target_triangles=None, max_error=None):
+    """A label map's meshes ({value: Mesh}) decimated together
+    (isomend_meshes_decimate): the vertices another label holds too stay, so
+    the surfaces two labels share stay in both; the rest of each mesh as
+    Mesh.decimate() with these targets (a label each).  Returns ({value:
+    Mesh}, {value: report})."""
+    opts = _decimate_options(ratio, target_triangles, max_error)
+    return _labels_step(meshes, "decimate",
+                        lambda lib, h, n, o, r: lib.isomend_meshes_decimate(h, n, ctypes.byref(opts),
+                                                                            o, r),
+                        DecimateReport)
 
 
 def _names_of_table(label_table):

@@ -818,6 +818,55 @@ def test_extract_labels_equals_extract_of_each_indicator():
         assert rep["nonmanifold_edges"] == 0 and rep["misoriented_edges"] == 0
 
 
+def test_labels_smoothed_and_decimated_together():
+    v = label_map()
+    meshes = isomend.extract_labels(v)
+    def shared(ms):
+        """(a, b, position) of the positions two labels' meshes both hold."""
+        out = []
+        keys = list(ms)
+        for i, a in enumerate(keys):
+            pa = {tuple(p) for p in ms[a].positions.tolist()}
+            for b in keys[i + 1:]:
+                out += [(a, b, p) for p in {tuple(p) for p in ms[b].positions.tolist()} & pa]
+        return out
+    before = shared(meshes)
+    assert before
+    smoothed, reports = isomend.smooth_labels(meshes, 10)
+    for value, m in smoothed.items():
+        rep = m.check()
+        assert rep["hole_edges"] == rep["border_edges"] == rep["nonmanifold_edges"] == 0
+        assert rep["misoriented_edges"] == 0 and rep["euler"] == meshes[value].check()["euler"]
+        np.testing.assert_array_equal(m.triangles, meshes[value].triangles)
+        assert m.label == value and m.name == meshes[value].name
+        assert reports[value]["moved_vertices"] > 0
+        assert abs(reports[value]["volume_after"] / reports[value]["volume_before"] - 1) < 0.02
+    # the pairs of vertices shared before are shared after: each index's new position
+    for a, b, p in before:
+        ia = np.flatnonzero((meshes[a].positions == p).all(axis=1))[0]
+        ib = np.flatnonzero((meshes[b].positions == p).all(axis=1))[0]
+        np.testing.assert_array_equal(smoothed[a].positions[ia], smoothed[b].positions[ib])
+    # each label alone (Mesh.smooth) parts them: the test can fail
+    alone = {k: m.smooth(10)[0] for k, m in meshes.items()}
+    parted = 0
+    for a, b, p in before:
+        ia = np.flatnonzero((meshes[a].positions == p).all(axis=1))[0]
+        ib = np.flatnonzero((meshes[b].positions == p).all(axis=1))[0]
+        parted += not np.array_equal(alone[a].positions[ia], alone[b].positions[ib])
+    assert parted > 0
+    decimated, dreps = isomend.decimate_labels(smoothed, ratio=0.3)
+    kept = shared(decimated)
+    assert {(a, b, p) for a, b, p in shared(smoothed)} <= set(kept)
+    assert sum(m.triangle_count for m in decimated.values()) < sum(m.triangle_count for m in smoothed.values())
+    for value, m in decimated.items():
+        rep = m.check()
+        assert rep["hole_edges"] == rep["border_edges"] == rep["nonmanifold_edges"] == 0
+        assert rep["euler"] == meshes[value].check()["euler"]
+        assert dreps[value]["triangles_after"] == m.triangle_count
+    with pytest.raises(ValueError):
+        isomend.smooth_labels(meshes, -1)
+
+
 def test_extract_labels_types_order_and_errors():
     v = label_map()
     base = isomend.extract_labels(v, labels=[7, 1])
