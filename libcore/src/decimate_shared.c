@@ -26,35 +26,23 @@ isomend_status isomend_meshes_decimate(const isomend_mesh *const *meshes, size_t
                                        const isomend_decimate_options *o, isomend_mesh **out,
                                        isomend_decimate_report *reports)
 {
-    if (!out || (count && !meshes))
-        return ISOMEND_ERR_INVALID_ARGUMENT;
-    for (size_t i = 0; i < count; i++)
-        out[i] = NULL;
+    vertex_set set;
+    isomend_status status = vertex_set_build(meshes, count, out, 0, &set);
+    if (status != ISOMEND_OK)
+        return status;
     if (!o || !(o->ratio >= 0.0 && o->ratio <= 1.0) || !(o->max_error >= 0.0) ||
-        !isfinite(o->max_error) || (o->ratio == 0.0 && o->target_triangles == 0 && o->max_error == 0.0))
+        !isfinite(o->max_error) || (o->ratio == 0.0 && o->target_triangles == 0 && o->max_error == 0.0)) {
+        vertex_set_free(&set);
         return ISOMEND_ERR_INVALID_ARGUMENT;
-    size_t total = 0;
-    for (size_t i = 0; i < count; i++) {
-        if (!meshes[i])
-            return ISOMEND_ERR_INVALID_ARGUMENT;
-        total += meshes[i]->nv;
     }
-    if (total >= UINT32_MAX)
-        return ISOMEND_ERR_TOO_LARGE;
-    size_t cap = 16;
-    while (cap < 2 * total)
-        cap *= 2;
-    const size_t n1 = total ? total : 1;
-    isomend_status status = ISOMEND_ERR_OUT_OF_MEMORY;
-    uint32_t *slot = malloc(cap * sizeof(uint32_t)), *gid = malloc(n1 * sizeof(uint32_t));
+    status = ISOMEND_ERR_OUT_OF_MEMORY;
+    const size_t n1 = set.total ? set.total : 1;
+    const uint32_t *gid = set.gid;
+    const size_t *base = set.base;
     uint32_t *owners = calloc(n1, sizeof(uint32_t)); /* meshes holding a set vertex */
     uint8_t *locked = malloc(n1);
-    float *pos = malloc(12 * n1);
-    size_t *base = malloc((count ? count : 1) * sizeof(size_t));
-    if (!slot || !gid || !owners || !locked || !pos || !base)
+    if (!owners || !locked)
         goto done;
-    const size_t n = shared_vertex_set(meshes, count, slot, cap, gid, base, pos);
-    (void)n;
     for (size_t i = 0; i < count; i++)
         for (size_t v = 0; v < meshes[i]->nv; v++)
             owners[gid[base[i] + v]]++;
@@ -77,15 +65,9 @@ isomend_status isomend_meshes_decimate(const isomend_mesh *const *meshes, size_t
     status = ISOMEND_OK;
 done:
     if (status != ISOMEND_OK)
-        for (size_t i = 0; i < count; i++) {
-            isomend_mesh_destroy(out[i]);
-            out[i] = NULL;
-        }
-    free(slot);
-    free(gid);
+        meshes_destroy(out, count);
+    vertex_set_free(&set);
     free(owners);
     free(locked);
-    free(pos);
-    free(base);
     return status;
 }

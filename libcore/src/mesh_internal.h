@@ -65,13 +65,25 @@ int mesh_free_vertices(const isomend_mesh *m, team *tm, uint8_t *free_flag, uint
 int sinc_filter(team *tm, size_t n, const uint32_t *first, const uint32_t *nb,
                 const uint8_t *free_v, const float *x0, float *b, uint8_t *deg, float *out,
                 int iterations);
-/* smooth_shared.c: meshes that meet, their vertices one set by position
- * (shared_vertex_set: gid[base[i] + v] the set vertex of mesh i's vertex
- * v, pos its position, slot a hash table of cap entries, a power of two at
- * least twice the vertices; returns the set's size); a mesh's enclosed
- * volume (signed). */
-size_t shared_vertex_set(const isomend_mesh *const *meshes, size_t count, uint32_t *slot,
-                         size_t cap, uint32_t *gid, size_t *base, float *pos);
+/* smooth_shared.c: meshes that meet (a label map's), their vertices one set
+ * (a vertex the same in every mesh where its position is the same, bit for
+ * bit).  vertex_set_build() checks the arguments of isomend_meshes_*()
+ * (out[] cleared; INVALID_ARGUMENT for NULL out, meshes or mesh,
+ * TOO_LARGE from 2^32 vertices or corners in all), then fills the set:
+ * gid[base[i] + v] is vertex v of mesh i's set vertex, pos (3 floats a set
+ * vertex, `pad` floats more) the first occurrence's position.
+ * meshes_destroy() clears out[] on a failure; mesh_volume() is a mesh's
+ * enclosed volume (signed). */
+typedef struct vertex_set {
+    size_t total, corners, n; /* the meshes' vertices and corners; the set's vertices */
+    uint32_t *gid;
+    size_t *base;
+    float *pos;
+} vertex_set;
+isomend_status vertex_set_build(const isomend_mesh *const *meshes, size_t count,
+                                isomend_mesh **out, size_t pad, vertex_set *set);
+void vertex_set_free(vertex_set *set);
+void meshes_destroy(isomend_mesh **out, size_t count);
 double mesh_volume(const float *pos, const uint32_t *tri, size_t nt);
 /* fn(arg, lo, hi) over [0, n) in ranges on up to 8 threads (one below 32768
  * items, or where threads cannot start); returns when all are done. */

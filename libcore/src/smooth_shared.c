@@ -42,33 +42,74 @@ static uint64_t position_hash(const float *p)
     return h;
 }
 
-/* The meshes' vertices as one set (a vertex the same in every mesh where
- * its position is the same, bit for bit): gid[base[i] + v] is vertex v of
- * mesh i's set vertex, pos (3 floats a set vertex) the first occurrence's
- * position; slot (cap entries, a power of two >= twice the vertices) the
- * hash table.  Returns the set's size. */
-size_t shared_vertex_set(const isomend_mesh *const *meshes, size_t count, uint32_t *slot,
-                         size_t cap, uint32_t *gid, size_t *base, float *pos)
+isomend_status vertex_set_build(const isomend_mesh *const *meshes, size_t count,
+                                isomend_mesh **out, size_t pad, vertex_set *set)
 {
+    memset(set, 0, sizeof(*set));
+    if (!out || (count && !meshes))
+        return ISOMEND_ERR_INVALID_ARGUMENT;
+    for (size_t i = 0; i < count; i++)
+        out[i] = NULL;
+    for (size_t i = 0; i < count; i++) {
+        if (!meshes[i])
+            return ISOMEND_ERR_INVALID_ARGUMENT;
+        set->total += meshes[i]->nv;
+        set->corners += 3 * meshes[i]->nt;
+    }
+    if (set->total >= UINT32_MAX || set->corners >= UINT32_MAX)
+        return ISOMEND_ERR_TOO_LARGE;
+    size_t cap = 16;
+    while (cap < 2 * set->total)
+        cap *= 2;
+    const size_t n1 = set->total ? set->total : 1;
+    uint32_t *slot = malloc(cap * sizeof(uint32_t)); /* the set's vertices, by hash */
+    set->gid = malloc(n1 * sizeof(uint32_t));
+    set->base = malloc((count ? count : 1) * sizeof(size_t));
+    set->pos = malloc(12 * n1 + sizeof(float) * pad);
+    if (!slot || !set->gid || !set->base || !set->pos) {
+        free(slot);
+        vertex_set_free(set);
+        return ISOMEND_ERR_OUT_OF_MEMORY;
+    }
     memset(slot, 0xff, cap * sizeof(uint32_t));
     size_t n = 0;
-    for (size_t i = 0, at = 0; i < count; i++) {
-        base[i] = at;
+    for (size_t i = 0, at = 0; i < count; i++) { /* a vertex's first occurrence: its position */
+        set->base[i] = at;
         const isomend_mesh *m = meshes[i];
         for (size_t v = 0; v < m->nv; v++, at++) {
             const float *p = m->pos + 3 * v;
             size_t h = (size_t)position_hash(p) & (cap - 1);
-            while (slot[h] != UINT32_MAX && memcmp(pos + 3 * (size_t)slot[h], p, 12) != 0)
+            while (slot[h] != UINT32_MAX && memcmp(set->pos + 3 * (size_t)slot[h], p, 12) != 0)
                 h = (h + 1) & (cap - 1);
             if (slot[h] == UINT32_MAX) {
                 slot[h] = (uint32_t)n;
-                memcpy(pos + 3 * n, p, 12);
+                memcpy(set->pos + 3 * n, p, 12);
                 n++;
             }
-            gid[at] = slot[h];
+            set->gid[at] = slot[h];
         }
     }
-    return n;
+    set->n = n;
+    free(slot);
+    return ISOMEND_OK;
+}
+
+void vertex_set_free(vertex_set *set)
+{
+    free(set->gid);
+    free(set->base);
+    free(set->pos);
+    set->gid = NULL;
+    set->base = NULL;
+    set->pos = NULL;
+}
+
+void meshes_destroy(isomend_mesh **out, size_t count)
+{
+    for (size_t i = 0; i < count; i++) {
+        isomend_mesh_destroy(out[i]);
+        out[i] = NULL;
+    }
 }
 
 /* The enclosed volume of a mesh's triangles (signed, double sums). */
@@ -95,37 +136,26 @@ isomend_status isomend_meshes_smooth(const isomend_mesh *const *meshes, size_t c
                                      int iterations, isomend_mesh **out,
                                      isomend_smooth_report *reports)
 {
-    if (!out || (count && !meshes))
+    vertex_set set;
+    isomend_status status = vertex_set_build(meshes, count, out, 4, &set);
+    if (status != ISOMEND_OK)
+        return status;
+    if (iterations < 0 || iterations > 10000) {
+        vertex_set_free(&set);
         return ISOMEND_ERR_INVALID_ARGUMENT;
-    for (size_t i = 0; i < count; i++)
-        out[i] = NULL;
-    if (iterations < 0 || iterations > 10000)
-        return ISOMEND_ERR_INVALID_ARGUMENT;
-    size_t total = 0, corners = 0;
-    for (size_t i = 0; i < count; i++) {
-        if (!meshes[i])
-            return ISOMEND_ERR_INVALID_ARGUMENT;
-        total += meshes[i]->nv;
-        corners += 3 * meshes[i]->nt;
     }
-    if (total >= UINT32_MAX || corners >= UINT32_MAX)
-        return ISOMEND_ERR_TOO_LARGE;
-    isomend_status status = ISOMEND_ERR_OUT_OF_MEMORY;
-    size_t cap = 16;
-    while (cap < 2 * total)
-        cap *= 2;
-    const size_t n1 = total ? total : 1;
-    uint32_t *slot = malloc(cap * sizeof(uint32_t)); /* the set: its vertices, by hash */
-    uint32_t *gid = malloc(n1 * sizeof(uint32_t));   /* mesh vertex -> set vertex       */
+    status = ISOMEND_ERR_OUT_OF_MEMORY;
+    const size_t n1 = set.total ? set.total : 1, corners = set.corners, n = set.n;
+    const uint32_t *gid = set.gid;
+    const size_t *base = set.base;
+    float *x0 = set.pos; /* the set's positions, then centred */
     uint32_t *first = calloc(n1 + 1, sizeof(uint32_t)), *nb = malloc((corners ? corners : 1) * 4);
     uint8_t *free_v = malloc(n1), *deg = malloc(n1), *vfree = malloc(n1);
-    float *x0 = malloc(12 * n1 + 16), *b = malloc(12 * n1 + 16), *y = malloc(12 * n1 + 16);
-    size_t *base = malloc((count ? count : 1) * sizeof(size_t));
+    float *b = malloc(12 * n1 + 16), *y = malloc(12 * n1 + 16);
     team *tm = NULL;
-    if (!slot || !gid || !first || !nb || !free_v || !deg || !vfree || !x0 || !b || !y || !base)
+    if (!first || !nb || !free_v || !deg || !vfree || !b || !y)
         goto done;
     memset(free_v, 1, n1);
-    const size_t n = shared_vertex_set(meshes, count, slot, cap, gid, base, x0);
     /* each set vertex's neighbours: its meshes' rings, merged */
     for (size_t i = 0; i < count; i++) {
         const isomend_mesh *m = meshes[i];
@@ -252,21 +282,15 @@ isomend_status isomend_meshes_smooth(const isomend_mesh *const *meshes, size_t c
     status = ISOMEND_OK;
 done:
     if (status != ISOMEND_OK)
-        for (size_t i = 0; i < count; i++) {
-            isomend_mesh_destroy(out[i]);
-            out[i] = NULL;
-        }
+        meshes_destroy(out, count);
     team_stop(tm);
-    free(slot);
-    free(gid);
+    vertex_set_free(&set);
     free(first);
     free(nb);
     free(free_v);
     free(deg);
     free(vfree);
-    free(x0);
     free(b);
     free(y);
-    free(base);
     return status;
 }

@@ -116,7 +116,9 @@ static int same_position(const isomend_mesh *const *m, const shared *s)
                   isomend_mesh_positions(m[s->q]) + 3 * s->b, 12) == 0;
 }
 
-static void run(lmap l, int iterations)
+/* Every label of map l, padded (DMC): the result, its meshes in in[] (at
+ * most 8), their count in *n; NULL on failure (recorded). */
+static isomend_labels *extract_padded(lmap l, const isomend_mesh **in, size_t *n)
 {
     isomend_volume vol;
     isomend_volume_init(&vol, l.v, ISOMEND_U8, l.n[0], l.n[1], l.n[2]);
@@ -126,14 +128,23 @@ static void run(lmap l, int iterations)
     isomend_labels *r = NULL;
     CHECK(isomend_labels_extract(&vol, NULL, 0, &o, &r) == ISOMEND_OK);
     if (!r)
-        return;
-    const size_t n = isomend_labels_count(r);
+        return NULL;
+    *n = isomend_labels_count(r);
+    CHECK(*n >= 2 && *n <= 8);
+    for (size_t q = 0; q < *n && q < 8; q++)
+        in[q] = isomend_labels_mesh(r, q);
+    return r;
+}
+
+static void run(lmap l, int iterations)
+{
     const isomend_mesh *in[8];
+    size_t n = 0;
+    isomend_labels *r = extract_padded(l, in, &n);
+    if (!r)
+        return;
     isomend_mesh *out[8] = {0}, *again[8] = {0}, *alone[8] = {0};
     isomend_smooth_report rep[8];
-    CHECK(n >= 2 && n <= 8);
-    for (size_t q = 0; q < n; q++)
-        in[q] = isomend_labels_mesh(r, q);
     enum { CAP = 200000 };
     shared *sh = malloc(CAP * sizeof(shared));
     const size_t nsh = find_shared(in, n, sh, CAP);
@@ -195,21 +206,13 @@ next:
  * two labels share still in both (locked), fewer triangles in all. */
 static void run_decimate(lmap l, double ratio)
 {
-    isomend_volume vol;
-    isomend_volume_init(&vol, l.v, ISOMEND_U8, l.n[0], l.n[1], l.n[2]);
-    isomend_options o;
-    isomend_options_init(&o);
-    o.flags |= ISOMEND_FLAG_PAD;
-    isomend_labels *r = NULL;
-    CHECK(isomend_labels_extract(&vol, NULL, 0, &o, &r) == ISOMEND_OK);
+    const isomend_mesh *in[8];
+    size_t n = 0;
+    isomend_labels *r = extract_padded(l, in, &n);
     if (!r)
         return;
-    const size_t n = isomend_labels_count(r);
-    const isomend_mesh *in[8];
     isomend_mesh *out[8] = {0};
     isomend_decimate_report rep[8];
-    for (size_t q = 0; q < n && q < 8; q++)
-        in[q] = isomend_labels_mesh(r, q);
     enum { CAP = 200000 };
     shared *sh = malloc(CAP * sizeof(shared));
     const size_t nsh = find_shared(in, n, sh, CAP);
