@@ -50,17 +50,9 @@
 struct isomend_clean_stream {
     stream_components f; /* a record's pass: min_triangles reached */
     uint64_t min_tri;
-    isomend_status status;
     uint64_t triangles_in;
     isomend_clean_report rep;
 };
-
-static isomend_status fail(isomend_clean_stream *c, isomend_status st)
-{
-    if (c->status == ISOMEND_OK)
-        c->status = st;
-    return c->status;
-}
 
 /* A component that joins a passed one passes. */
 static int merge_passed(void *user, sc_rec *root, const sc_rec *joined)
@@ -89,24 +81,24 @@ static int on_vertices(void *user, uint64_t first, size_t count, const float *po
 {
     (void)keys;
     isomend_clean_stream *c = user;
-    if (c->status != ISOMEND_OK)
+    if (c->f.status != ISOMEND_OK)
         return 1;
     const isomend_status st = sc_vertices(&c->f, first, count, pos, nrm);
-    return st != ISOMEND_OK ? (fail(c, st), 1) : 0;
+    return st != ISOMEND_OK ? (sc_fail(&c->f, st), 1) : 0;
 }
 
 static int on_triangles(void *user, size_t count, const uint64_t *ids, const uint8_t *origins)
 {
     (void)origins;
     isomend_clean_stream *c = user;
-    if (c->status != ISOMEND_OK)
+    if (c->f.status != ISOMEND_OK)
         return 1;
     stream_components *f = &c->f;
     for (size_t t = 0; t < count; t++) {
         uint32_t s[3], root;
         const isomend_status st = sc_triangle(f, ids + 3 * t, s, &root, merge_passed, NULL);
         if (st != ISOMEND_OK)
-            return fail(c, st), 1;
+            return sc_fail(&c->f, st), 1;
         c->triangles_in++;
         int ok;
         if (f->recs[root].pass) {
@@ -120,10 +112,10 @@ static int on_triangles(void *user, size_t count, const uint64_t *ids, const uin
         }
         f->seq++;
         if (!ok)
-            return fail(c, ISOMEND_ERR_OUT_OF_MEMORY), 1;
+            return sc_fail(&c->f, ISOMEND_ERR_OUT_OF_MEMORY), 1;
     }
     if (!sc_flush(f))
-        return fail(c, ISOMEND_ERR_SINK), 1;
+        return sc_fail(&c->f, ISOMEND_ERR_SINK), 1;
     return 0;
 }
 
@@ -132,16 +124,16 @@ static int on_triangles(void *user, size_t count, const uint64_t *ids, const uin
 static isomend_status retire_to(isomend_clean_stream *c, uint64_t floor, int forward)
 {
     const isomend_status st = sc_retire(&c->f, floor, close_component, c, 1, forward);
-    return st != ISOMEND_OK ? fail(c, st) : ISOMEND_OK;
+    return st != ISOMEND_OK ? sc_fail(&c->f, st) : ISOMEND_OK;
 }
 
 static int on_retire(void *user, uint64_t floor)
 {
     isomend_clean_stream *c = user;
-    if (c->status != ISOMEND_OK)
+    if (c->f.status != ISOMEND_OK)
         return 1;
     if (floor < c->f.floor || floor > c->f.next_id)
-        return fail(c, ISOMEND_ERR_INVALID_ARGUMENT), 1;
+        return sc_fail(&c->f, ISOMEND_ERR_INVALID_ARGUMENT), 1;
     return retire_to(c, floor, 1) != ISOMEND_OK;
 }
 
@@ -196,10 +188,10 @@ isomend_status isomend_clean_stream_finish(isomend_clean_stream *c, isomend_clea
      * closed it already); no retire() is passed on for it, so that a step
      * after this one sees the stream's layers (its own finish retires the
      * rest) */
-    if (c->status == ISOMEND_OK && (c->f.floor < c->f.next_id || c->f.nlive))
+    if (c->f.status == ISOMEND_OK && (c->f.floor < c->f.next_id || c->f.nlive))
         (void)retire_to(c, c->f.next_id, 0);
-    if (c->status != ISOMEND_OK)
-        return c->status;
+    if (c->f.status != ISOMEND_OK)
+        return c->f.status;
     c->rep.vertices_removed = c->f.next_id - c->f.out_next;
     c->rep.triangles_removed = c->triangles_in - c->f.triangles_out;
     if (report)

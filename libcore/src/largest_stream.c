@@ -67,7 +67,6 @@ typedef struct lcomp {
 struct isomend_largest_stream {
     stream_components f;
     uint64_t min_tri, keep;
-    isomend_status status;
     int pass; /* 1 counting, 2 filtering, 3 finished */
 
     /* seeds */
@@ -86,13 +85,6 @@ struct isomend_largest_stream {
 
     isomend_clean_report rep;
 };
-
-static isomend_status fail(isomend_largest_stream *c, isomend_status st)
-{
-    if (c->status == ISOMEND_OK)
-        c->status = st;
-    return c->status;
-}
 
 /* Two pieces join: the smaller seed stays (pass 1 notes the larger's parent;
  * pass 2 refuses two verdicts for one component). */
@@ -137,28 +129,28 @@ static int on_vertices(void *user, uint64_t first, size_t count, const float *po
 {
     (void)keys;
     isomend_largest_stream *c = user;
-    if (c->status != ISOMEND_OK)
+    if (c->f.status != ISOMEND_OK)
         return 1;
     if (c->pass > 2)
-        return fail(c, ISOMEND_ERR_INVALID_ARGUMENT), 1;
+        return sc_fail(&c->f, ISOMEND_ERR_INVALID_ARGUMENT), 1;
     const isomend_status st = sc_vertices(&c->f, first, count, pos, nrm);
-    return st != ISOMEND_OK ? (fail(c, st), 1) : 0;
+    return st != ISOMEND_OK ? (sc_fail(&c->f, st), 1) : 0;
 }
 
 static int on_triangles(void *user, size_t count, const uint64_t *ids, const uint8_t *origins)
 {
     (void)origins;
     isomend_largest_stream *c = user;
-    if (c->status != ISOMEND_OK)
+    if (c->f.status != ISOMEND_OK)
         return 1;
     if (c->pass > 2)
-        return fail(c, ISOMEND_ERR_INVALID_ARGUMENT), 1;
+        return sc_fail(&c->f, ISOMEND_ERR_INVALID_ARGUMENT), 1;
     stream_components *f = &c->f;
     for (size_t t = 0; t < count; t++) {
         uint32_t s[3], root;
         const isomend_status st = sc_triangle(f, ids + 3 * t, s, &root, merge_seeds, c);
         if (st != ISOMEND_OK)
-            return fail(c, st), 1;
+            return sc_fail(&c->f, st), 1;
         int ok = 1;
         if (c->pass == 2) {
             if (f->recs[root].seed == NO_ID) {
@@ -170,10 +162,10 @@ static int on_triangles(void *user, size_t count, const uint64_t *ids, const uin
         }
         f->seq++;
         if (!ok)
-            return fail(c, ISOMEND_ERR_OUT_OF_MEMORY), 1;
+            return sc_fail(&c->f, ISOMEND_ERR_OUT_OF_MEMORY), 1;
     }
     if (c->pass == 2 && !sc_flush(f))
-        return fail(c, ISOMEND_ERR_SINK), 1;
+        return sc_fail(&c->f, ISOMEND_ERR_SINK), 1;
     return 0;
 }
 
@@ -187,7 +179,7 @@ static isomend_status seed_fresh(isomend_largest_stream *c)
         const sc_rec *R = &f->recs[r];
         if (R->used && R->parent == r && R->seed == NO_ID && R->triangles) {
             if (!sc_grow((void **)&c->fresh, &c->cap_fresh, nf + 1, sizeof *c->fresh))
-                return fail(c, ISOMEND_ERR_OUT_OF_MEMORY);
+                return sc_fail(&c->f, ISOMEND_ERR_OUT_OF_MEMORY);
             c->fresh[nf++] = (uint32_t)r;
         }
     }
@@ -205,18 +197,18 @@ static isomend_status seed_fresh(isomend_largest_stream *c)
         R->seed = c->nseeds++;
         if (c->pass == 1) {
             if (!sc_grow((void **)&c->parent, &c->cap_parent, (size_t)c->nseeds, sizeof *c->parent))
-                return fail(c, ISOMEND_ERR_OUT_OF_MEMORY);
+                return sc_fail(&c->f, ISOMEND_ERR_OUT_OF_MEMORY);
             c->parent[R->seed] = R->seed;
         } else {
             if (R->seed >= c->seeds1)
-                return fail(c, ISOMEND_ERR_INVALID_ARGUMENT);
+                return sc_fail(&c->f, ISOMEND_ERR_INVALID_ARGUMENT);
             R->pass = (c->bits[R->seed >> 3] >> (R->seed & 7)) & 1;
             if (!sc_collect_held(f, c->fresh[i], R->pass, &n))
-                return fail(c, ISOMEND_ERR_OUT_OF_MEMORY);
+                return sc_fail(&c->f, ISOMEND_ERR_OUT_OF_MEMORY);
         }
     }
     if (n && !sc_emit_sorted(f, n))
-        return fail(c, ISOMEND_ERR_OUT_OF_MEMORY);
+        return sc_fail(&c->f, ISOMEND_ERR_OUT_OF_MEMORY);
     return ISOMEND_OK;
 }
 
@@ -226,18 +218,18 @@ static isomend_status seed_fresh(isomend_largest_stream *c)
 static isomend_status retire_to(isomend_largest_stream *c, uint64_t floor, int forward)
 {
     if (seed_fresh(c) != ISOMEND_OK)
-        return c->status;
+        return c->f.status;
     const isomend_status st = sc_retire(&c->f, floor, close_component, c, c->pass == 2, forward);
-    return st != ISOMEND_OK ? fail(c, st) : ISOMEND_OK;
+    return st != ISOMEND_OK ? sc_fail(&c->f, st) : ISOMEND_OK;
 }
 
 static int on_retire(void *user, uint64_t floor)
 {
     isomend_largest_stream *c = user;
-    if (c->status != ISOMEND_OK)
+    if (c->f.status != ISOMEND_OK)
         return 1;
     if (c->pass > 2 || floor < c->f.floor || floor > c->f.next_id)
-        return fail(c, ISOMEND_ERR_INVALID_ARGUMENT), 1;
+        return sc_fail(&c->f, ISOMEND_ERR_INVALID_ARGUMENT), 1;
     return retire_to(c, floor, 1) != ISOMEND_OK;
 }
 
@@ -296,9 +288,9 @@ isomend_status isomend_largest_stream_sink(isomend_largest_stream *c, isomend_me
 /* Closes what is still open and forgets the frontier. */
 static void close_all(isomend_largest_stream *c)
 {
-    if (c->status == ISOMEND_OK && (c->f.floor < c->f.next_id || c->f.nlive))
+    if (c->f.status == ISOMEND_OK && (c->f.floor < c->f.next_id || c->f.nlive))
         (void)retire_to(c, c->f.next_id, 0);
-    else if (c->status == ISOMEND_OK)
+    else if (c->f.status == ISOMEND_OK)
         (void)seed_fresh(c);
 }
 
@@ -306,11 +298,11 @@ isomend_status isomend_largest_stream_replay(isomend_largest_stream *c)
 {
     if (!c)
         return ISOMEND_ERR_INVALID_ARGUMENT;
-    if (c->status == ISOMEND_OK && c->pass != 1)
-        fail(c, ISOMEND_ERR_INVALID_ARGUMENT);
+    if (c->f.status == ISOMEND_OK && c->pass != 1)
+        sc_fail(&c->f, ISOMEND_ERR_INVALID_ARGUMENT);
     close_all(c);
-    if (c->status != ISOMEND_OK)
-        return c->status;
+    if (c->f.status != ISOMEND_OK)
+        return c->f.status;
     /* the kept components, isomend_mesh_clean()'s order */
     qsort(c->comps, c->ncomps, sizeof *c->comps, by_size);
     size_t kept = c->ncomps;
@@ -319,7 +311,7 @@ isomend_status isomend_largest_stream_replay(isomend_largest_stream *c)
     c->rep.components_after = kept;
     c->bits = calloc((size_t)(c->nseeds / 8 + 1), 1);
     if (!c->bits)
-        return fail(c, ISOMEND_ERR_OUT_OF_MEMORY);
+        return sc_fail(&c->f, ISOMEND_ERR_OUT_OF_MEMORY);
     for (size_t i = 0; i < kept; i++) {
         c->bits[c->comps[i].seed >> 3] |= (uint8_t)(1u << (c->comps[i].seed & 7));
         c->kept_triangles += c->comps[i].triangles;
@@ -354,17 +346,17 @@ isomend_status isomend_largest_stream_finish(isomend_largest_stream *c,
         memset(report, 0, sizeof *report);
     if (!c)
         return ISOMEND_ERR_INVALID_ARGUMENT;
-    if (c->status == ISOMEND_OK && c->pass != 2)
-        fail(c, ISOMEND_ERR_INVALID_ARGUMENT);
+    if (c->f.status == ISOMEND_OK && c->pass != 2)
+        sc_fail(&c->f, ISOMEND_ERR_INVALID_ARGUMENT);
     close_all(c);
-    if (c->status == ISOMEND_OK && !sc_flush(&c->f))
-        return fail(c, ISOMEND_ERR_SINK);
+    if (c->f.status == ISOMEND_OK && !sc_flush(&c->f))
+        return sc_fail(&c->f, ISOMEND_ERR_SINK);
     /* the second stream must have been the first one again */
-    if (c->status == ISOMEND_OK &&
+    if (c->f.status == ISOMEND_OK &&
         (c->f.next_id != c->vertices1 || c->f.seq != c->triangles1 || c->nseeds != c->seeds1))
-        fail(c, ISOMEND_ERR_INVALID_ARGUMENT);
-    if (c->status != ISOMEND_OK)
-        return c->status;
+        sc_fail(&c->f, ISOMEND_ERR_INVALID_ARGUMENT);
+    if (c->f.status != ISOMEND_OK)
+        return c->f.status;
     c->pass = 3;
     c->rep.vertices_removed = c->vertices1 - c->f.out_next;
     c->rep.triangles_removed = c->triangles1 - c->f.triangles_out;

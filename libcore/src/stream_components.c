@@ -41,6 +41,13 @@ void sc_init(stream_components *f, const isomend_mesh_sink *out)
     f->free_slot = f->free_rec = f->free_held = NONE;
 }
 
+isomend_status sc_fail(stream_components *f, isomend_status st)
+{
+    if (f->status == ISOMEND_OK)
+        f->status = st;
+    return f->status;
+}
+
 void sc_restart(stream_components *f)
 {
     id_table_clear(&f->ids);

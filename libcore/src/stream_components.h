@@ -56,6 +56,7 @@ typedef struct sc_held {
 typedef struct stream_components {
     isomend_mesh_sink out;
     int normals; /* the stream delivers normals */
+    isomend_status status; /* the client's first failure, sticky (sc_fail) */
 
     uint64_t next_id, floor;
     uint64_t seq; /* the current triangle's place in the stream: the client
@@ -92,6 +93,8 @@ int sc_grow(void **p, size_t *cap, size_t n, size_t size);
 void sc_init(stream_components *f, const isomend_mesh_sink *out);
 /* The frontier from scratch (the stream played again), memory kept. */
 void sc_restart(stream_components *f);
+/* Records the first failure (st, once); returns the recorded one. */
+isomend_status sc_fail(stream_components *f, isomend_status st);
 void sc_free(stream_components *f);
 
 /* The stream's vertices [first, first + count), live. */
