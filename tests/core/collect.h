@@ -3,13 +3,15 @@
  * mesh a step delivers, gathered from the sink's calls, which the streaming
  * check is fed too (so the protocol is checked: ids in order, triangles on
  * delivered and not retired vertices, floors); its stop_at-th call fails (a
- * sink that stops).  And a volume pushed through a stream into a sink. */
+ * sink that stops).  And a volume pushed through a stream into a sink; a
+ * streamed clean-up's mesh compared with the in-memory one. */
 #ifndef ISOMEND_TEST_COLLECT_H
 #define ISOMEND_TEST_COLLECT_H
 
 #include "isomend.h"
 
 #include <math.h>
+#include <stdio.h>
 #include <stdint.h>
 #include <stdlib.h>
 #include <string.h>
@@ -152,6 +154,52 @@ static inline tri9 *corners(const float *pos, const uint32_t *tri, size_t nt)
             memcpy(t[i].f + 3 * k, pos + 3 * (size_t)tri[3 * i + (size_t)k], 12);
     qsort(t, nt, sizeof *t, by_tri9);
     return t;
+}
+
+/* Whether a streamed clean-up's (or --largest's) mesh c is the in-memory
+ * isomend_mesh_clean()'s `inmem`: its check (by isomend_check in `box`)
+ * equals the streaming check's `rs` and the in-memory mesh's, the reports
+ * are the same, and so are the counts and the triangles (by their corners).
+ * What differs is printed, naming `what`. */
+static inline int same_as_clean(const char *what, const collected *c, const double *box,
+                                const isomend_check_report *rs, const isomend_mesh *inmem,
+                                const isomend_clean_report *rep, const isomend_clean_report *irep)
+{
+    isomend_check_report ri, r1;
+    if (isomend_mesh_check(inmem, &ri) != ISOMEND_OK ||
+        isomend_check(c->pos, c->nv, c->tri, c->nt, box, &r1) != ISOMEND_OK) {
+        fprintf(stderr, "%s: a check failed\n", what);
+        return 0;
+    }
+    if (memcmp(&r1, rs, sizeof *rs) || memcmp(&r1, &ri, sizeof ri) || memcmp(rep, irep, sizeof *rep)) {
+        fprintf(stderr,
+                "%s: streamed %llu triangles, %llu components (report %llu of %llu, %llu "
+                "removed); in memory %llu, %llu (%llu of %llu, %llu removed)\n",
+                what, (unsigned long long)r1.triangles, (unsigned long long)r1.components,
+                (unsigned long long)rep->components_after, (unsigned long long)rep->components_before,
+                (unsigned long long)rep->triangles_removed, (unsigned long long)ri.triangles,
+                (unsigned long long)ri.components, (unsigned long long)irep->components_after,
+                (unsigned long long)irep->components_before,
+                (unsigned long long)irep->triangles_removed);
+        return 0;
+    }
+    if (c->nt != isomend_mesh_triangle_count(inmem) || c->nv != isomend_mesh_vertex_count(inmem)) {
+        fprintf(stderr, "%s: %zu vertices, %zu triangles streamed; %zu, %zu in memory\n", what,
+                (size_t)c->nv, (size_t)c->nt, isomend_mesh_vertex_count(inmem),
+                isomend_mesh_triangle_count(inmem));
+        return 0;
+    }
+    int same = 1;
+    if (c->nt) { /* the same triangles, by their corners */
+        tri9 *a = corners(c->pos, c->tri, c->nt);
+        tri9 *b = corners(isomend_mesh_positions(inmem), isomend_mesh_triangles(inmem), c->nt);
+        same = !memcmp(a, b, c->nt * sizeof *a);
+        free(a);
+        free(b);
+        if (!same)
+            fprintf(stderr, "%s: other triangles\n", what);
+    }
+    return same;
 }
 
 #endif

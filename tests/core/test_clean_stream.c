@@ -123,35 +123,7 @@ int main(void)
                     CHECK_EQ_INT(stream_cleaned(&vol, &o, mins[k], 0, &c1, &rep, &rs, &retires),
                                  ISOMEND_OK);
                     runs++;
-                    CHECK_EQ_INT(isomend_check(c1.pos, c1.nv, c1.tri, c1.nt, box, &r1), ISOMEND_OK);
-                    if (memcmp(&r1, &rs, sizeof rs) || memcmp(&r1, &ri, sizeof ri) ||
-                        memcmp(&rep, &irep, sizeof rep)) {
-                        fprintf(stderr,
-                                "%s: streamed %llu triangles, %llu components (report %llu of "
-                                "%llu, %llu removed); in memory %llu, %llu (%llu of %llu, %llu "
-                                "removed)\n",
-                                what, (unsigned long long)r1.triangles,
-                                (unsigned long long)r1.components,
-                                (unsigned long long)rep.components_after,
-                                (unsigned long long)rep.components_before,
-                                (unsigned long long)rep.triangles_removed,
-                                (unsigned long long)ri.triangles, (unsigned long long)ri.components,
-                                (unsigned long long)irep.components_after,
-                                (unsigned long long)irep.components_before,
-                                (unsigned long long)irep.triangles_removed);
-                        CHECK(0);
-                    }
-                    /* the same triangles, by their corners */
-                    CHECK_EQ_INT(c1.nt, isomend_mesh_triangle_count(inmem));
-                    CHECK_EQ_INT(c1.nv, isomend_mesh_vertex_count(inmem));
-                    if (c1.nt == isomend_mesh_triangle_count(inmem)) {
-                        tri9 *a = corners(c1.pos, c1.tri, c1.nt);
-                        tri9 *b = corners(isomend_mesh_positions(inmem),
-                                          isomend_mesh_triangles(inmem), c1.nt);
-                        CHECK(!memcmp(a, b, c1.nt * sizeof *a));
-                        free(a);
-                        free(b);
-                    }
+                    CHECK(same_as_clean(what, &c1, box, &rs, inmem, &rep, &irep));
                     /* one retire a layer, as the stream's */
                     CHECK_EQ_INT(retires, n[2] + 2 * padded - 1);
                     if (shape == NOISE && padded && mi == 0)
