@@ -37,15 +37,9 @@
 #include <stdlib.h>
 #include <string.h>
 
-/* The memory estimate: bytes a live vertex costs (its slot, table entries,
- * record) and a held triangle; vertices and triangles a slice sample (a
- * surface as busy as a 256^3 gyroid: one triangle every 4 samples); live
- * slices (a layer's vertices and the next). */
-#define BYTES_PER_VERTEX 96.0
+/* The memory estimate (sc_memory): a held triangle's bytes, held over the
+ * live slices (a component waits until it has min_triangles). */
 #define BYTES_PER_HELD 32.0
-#define TRIANGLES_PER_SAMPLE 0.25
-#define VERTICES_PER_SAMPLE 0.125
-#define LIVE_SLICES 3.0
 
 struct isomend_clean_stream {
     stream_components f; /* a record's pass: min_triangles reached */
@@ -141,16 +135,7 @@ static int on_retire(void *user, uint64_t floor)
 
 uint64_t isomend_clean_stream_memory(const isomend_volume *desc, const isomend_options *opts)
 {
-    if (!desc || isomend_stream_memory(desc, opts) == 0)
-        return 0;
-    isomend_options defaults;
-    isomend_options_init(&defaults);
-    const int pad = ((opts ? opts : &defaults)->flags & ISOMEND_FLAG_PAD) != 0;
-    const double plane = (double)(desc->dims[0] + 2 * pad) * (double)(desc->dims[1] + 2 * pad);
-    const double bytes = plane * (LIVE_SLICES * VERTICES_PER_SAMPLE * BYTES_PER_VERTEX +
-                                  LIVE_SLICES * TRIANGLES_PER_SAMPLE * BYTES_PER_HELD) +
-                         1048576.0;
-    return bytes < 1.8e19 ? (uint64_t)bytes : UINT64_MAX;
+    return sc_memory(desc, opts, 3.0, BYTES_PER_HELD, 1048576.0); /* + 1 MiB */
 }
 
 isomend_status isomend_clean_stream_begin(uint64_t min_triangles, const isomend_mesh_sink *out,

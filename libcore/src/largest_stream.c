@@ -52,11 +52,7 @@
 #include <string.h>
 
 #define NO_ID SC_NO_ID
-#define BYTES_PER_VERTEX 96.0
-#define BYTES_PER_HELD 40.0
-#define TRIANGLES_PER_SAMPLE 0.25
-#define VERTICES_PER_SAMPLE 0.125
-#define LIVE_SLICES 3.0
+#define BYTES_PER_HELD 40.0 /* a held triangle (pass 2: one layer), sc_memory */
 
 typedef struct lcomp {
     uint64_t triangles, first, seed;
@@ -245,16 +241,7 @@ static int by_size(const void *x, const void *y)
 
 uint64_t isomend_largest_stream_memory(const isomend_volume *desc, const isomend_options *opts)
 {
-    if (!desc || isomend_stream_memory(desc, opts) == 0)
-        return 0;
-    isomend_options defaults;
-    isomend_options_init(&defaults);
-    const int pad = ((opts ? opts : &defaults)->flags & ISOMEND_FLAG_PAD) != 0;
-    const double plane = (double)(desc->dims[0] + 2 * pad) * (double)(desc->dims[1] + 2 * pad);
-    const double bytes = plane * (LIVE_SLICES * VERTICES_PER_SAMPLE * BYTES_PER_VERTEX +
-                                  TRIANGLES_PER_SAMPLE * BYTES_PER_HELD) +
-                         4194304.0;
-    return bytes < 1.8e19 ? (uint64_t)bytes : UINT64_MAX;
+    return sc_memory(desc, opts, 1.0, BYTES_PER_HELD, 4194304.0);
 }
 
 isomend_status isomend_largest_stream_begin(uint64_t min_triangles, uint64_t keep_largest,

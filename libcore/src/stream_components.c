@@ -41,6 +41,30 @@ void sc_init(stream_components *f, const isomend_mesh_sink *out)
     f->free_slot = f->free_rec = f->free_held = NONE;
 }
 
+/* The memory estimate: bytes a live vertex costs (its slot, table entries,
+ * record); vertices and triangles a slice sample (a surface as busy as a
+ * 256^3 gyroid: one triangle every 4 samples); live slices (a layer's
+ * vertices and the next). */
+#define BYTES_PER_VERTEX 96.0
+#define TRIANGLES_PER_SAMPLE 0.25
+#define VERTICES_PER_SAMPLE 0.125
+#define LIVE_SLICES 3.0
+
+uint64_t sc_memory(const isomend_volume *desc, const isomend_options *opts, double held_slices,
+                   double bytes_per_held, double fixed)
+{
+    if (!desc || isomend_stream_memory(desc, opts) == 0)
+        return 0;
+    isomend_options defaults;
+    isomend_options_init(&defaults);
+    const int pad = ((opts ? opts : &defaults)->flags & ISOMEND_FLAG_PAD) != 0;
+    const double plane = (double)(desc->dims[0] + 2 * pad) * (double)(desc->dims[1] + 2 * pad);
+    const double bytes = plane * (LIVE_SLICES * VERTICES_PER_SAMPLE * BYTES_PER_VERTEX +
+                                  held_slices * TRIANGLES_PER_SAMPLE * bytes_per_held) +
+                         fixed;
+    return bytes < 1.8e19 ? (uint64_t)bytes : UINT64_MAX;
+}
+
 isomend_status sc_fail(stream_components *f, isomend_status st)
 {
     if (f->status == ISOMEND_OK)

@@ -93,6 +93,11 @@ int sc_grow(void **p, size_t *cap, size_t n, size_t size);
 void sc_init(stream_components *f, const isomend_mesh_sink *out);
 /* The frontier from scratch (the stream played again), memory kept. */
 void sc_restart(stream_components *f);
+/* A client's memory estimate for a stream of desc and opts (0 if the
+ * stream would be refused): the live vertices of a few slices, held_slices
+ * slices of held triangles at bytes_per_held each, and `fixed` bytes. */
+uint64_t sc_memory(const isomend_volume *desc, const isomend_options *opts, double held_slices,
+                   double bytes_per_held, double fixed);
 /* Records the first failure (st, once); returns the recorded one. */
 isomend_status sc_fail(stream_components *f, isomend_status st);
 void sc_free(stream_components *f);
