@@ -4,7 +4,7 @@
  */
 #include "isomend.h"
 
-#include "extract_internal.h"
+#include "mesh_internal.h"
 #include "methods.h"
 
 #include <stdlib.h>

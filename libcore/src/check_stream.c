@@ -70,7 +70,9 @@
 #include "isomend.h"
 
 #include "check_rules.h"
-#include "extract_internal.h" /* the grid of isomend_check_stream_begin_volume */
+#include "context.h"
+#include "slice_geometry.h"
+#include "extract.h"
 
 #include <float.h>
 #include <math.h>

@@ -9,7 +9,7 @@
  */
 #include "cpu_features.h"
 
-#include "extract_internal.h"
+#include "context.h"
 
 #include <stdatomic.h>
 

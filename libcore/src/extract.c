@@ -9,7 +9,7 @@
  * so the mesh is the same, vertex order included, for every thread count
  * and every path below.
  *
- * Two paths (extract_internal.h lists the files):
+ * Two paths (context.h lists the files):
  *   - the two passes (passes.c): count every slice and layer on all
  *     threads, take prefix sums, allocate the output arrays at their exact
  *     size, fill;
@@ -40,7 +40,12 @@
  */
 #define _GNU_SOURCE /* _SC_NPROCESSORS_ONLN */
 #include "cpu_features.h"
-#include "extract_internal.h"
+#include "context.h"
+#include "sign_cache.h"
+#include "slice_geometry.h"
+#include "extract.h"
+#include "passes.h"
+#include "one_pass.h"
 #include "methods.h"
 
 #include <stdlib.h>

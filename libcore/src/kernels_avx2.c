@@ -12,7 +12,7 @@
  * the other targets', operation for operation.
  */
 #include "cpu_features.h"
-#include "extract_internal.h"
+#include "context.h"
 #include "methods.h"
 #include "tables.h"
 

@@ -20,11 +20,14 @@
  * functions and one static table, kernels_table, which the including file
  * returns from its kernels_<target>() (cpu_features.h).
  */
-#include "extract_internal.h"
+#include "context.h"
+#include "march_general.h" /* method_cube, scan_diagonals: the general methods' hooks */
 #include "methods.h"
 #include "scan_inline.h"
+#include "sign_cache.h"    /* cache_load: the fill pass's signs */
 #include "tables.h"
 #include "vertex_inline.h"
+#include "vertices.h"      /* make_vertex: the general vertex path */
 
 /* --------------------------------------------------- per voxel type */
 

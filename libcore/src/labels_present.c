@@ -5,7 +5,9 @@
  * contiguous u8 and u16 volumes), a hash table of values for 32-bit ones fed
  * a run of equal samples at a time (label maps come in runs).
  */
-#include "labels_internal.h"
+#include "labels_present.h"
+#include "labels_volume.h"
+#include "labels_job.h"
 
 #include <stdlib.h>
 #include <string.h>

@@ -13,7 +13,10 @@
  * must be listed: a stream cannot know which values it will see (the
  * command line lists them in a first pass over the slices).
  */
-#include "labels_internal.h"
+#include "labels.h"
+#include "labels_present.h"
+#include "labels_sweep.h"
+#include "labels_volume.h"
 
 #include <stdlib.h>
 

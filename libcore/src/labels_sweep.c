@@ -7,7 +7,7 @@
  * same method and flags, byte for byte, vertex order included; this file
  * makes every label's surface in one pass over the samples:
  *
- *   - samples become codes (labels_internal.h), a ring of LABEL_RING code
+ *   - samples become codes (labels_job.h), a ring of LABEL_RING code
  *     slices: scanning slice m reads slices m - 1 .. m + 2 (the normals'
  *     central differences), marching layer k reads k .. k + 2 (the +z
  *     neighbour of DMC's mending);
@@ -40,7 +40,8 @@
  * the quadrilateral where two cubes disagree (docs/labels.md: why DMC and
  * not the saddle tie rule of the face methods).
  */
-#include "labels_internal.h"
+#include "labels_sweep.h"
+#include "labels_volume.h"
 
 #include "tables.h"
 
@@ -160,7 +161,7 @@ typedef struct near_slices {
 } near_slices;
 
 /* Label code L's indicator at marched sample (x, y, z): 1 or 0; NaN outside
- * the grid and for padding, as fetch() (extract_internal.h). */
+ * the grid and for padding, as fetch() (grid.h). */
 static inline double indicator(const label_job *job, const near_slices *ns, int64_t x, int64_t y,
                                int64_t z, uint32_t L)
 {

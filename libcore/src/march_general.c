@@ -8,7 +8,9 @@
  * vertices, before slice k + 1's; face-diagonal vertices with their slice, after its edges'
  * in row order.
  */
-#include "extract_internal.h"
+#include "context.h"
+#include "vertices.h"
+#include "march_general.h"
 #include "methods.h"
 
 #include "cube.h"

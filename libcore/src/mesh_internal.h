@@ -1,6 +1,6 @@
 /*
  * mesh_internal.h - the mesh object and what the steps on a mesh share
- * (private): the extraction makes meshes (extract_internal.h includes this),
+ * (private): the extraction makes meshes (grid.h includes this),
  * the checks and the post-processing (check_stream.c, decimate.c, smooth.c,
  * components.c, distance.c, mesh_build.c) work on them and need nothing of
  * the extraction's grid, context or kernels.

@@ -20,7 +20,8 @@
  * they need, numbered from given vertex and triangle counts.
  */
 #define _GNU_SOURCE /* clock_gettime, CLOCK_MONOTONIC */
-#include "extract_internal.h"
+#include "context.h"
+#include "one_pass.h"
 #include "tables.h"
 
 #include <pthread.h>

@@ -20,7 +20,9 @@
  * count_layers and fill_layers are the unit: the layers [k0, k1) of the
  * grid, given the slices k0 .. k1 (and k1 + 1 for the +z neighbours).
  */
-#include "extract_internal.h"
+#include "context.h"
+#include "sign_cache.h"
+#include "passes.h"
 
 #include <pthread.h>
 #include <stdlib.h>

@@ -11,7 +11,7 @@
 #ifndef ISOMEND_SCAN_INLINE_H
 #define ISOMEND_SCAN_INLINE_H
 
-#include "extract_internal.h"
+#include "grid.h"
 
 #if !defined(KERNELS_SSE2)
 #error "scan_inline.h: define KERNELS_SSE2 (kernels_template.h)"

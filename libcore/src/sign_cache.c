@@ -7,7 +7,8 @@
  * are uniform or one run (row_span.simple) are told by their span alone and
  * have no bits.
  */
-#include "extract_internal.h"
+#include "context.h"
+#include "sign_cache.h"
 
 #include <stdlib.h>
 

@@ -24,7 +24,8 @@
  * faces: sheared_check() undoes each vertex's slice shift (interpolated
  * between the slices around its z) and checks in that unsheared frame.
  */
-#include "extract_internal.h"
+#include "grid.h"
+#include "slice_geometry.h"
 
 #include <stdlib.h>
 

@@ -35,13 +35,15 @@
  * cube-private vertices first, as the two passes do, so that they can be
  * numbered after slice m's vertices, where isomend_extract() puts them.
  */
-#include "extract_internal.h"
+#include "context.h"
+#include "vertices.h"
+#include "extract.h"
 #include "isomend.h"
 #include "tables.h"
 #include "methods.h"
 #define KERNELS_SSE2 0 /* the span helpers of scan_inline.h, in portable C */
 #include "scan_inline.h"
-#include "stream_pool.h"
+#include "stream.h"
 
 #include <stdlib.h>
 
@@ -57,8 +59,7 @@ typedef struct staging {
     size_t mapped;
 } staging;
 
-struct isomend_stream {
-    stream_pool *pool; /* threads: slabs on workers (stream_pool.c); NULL: below */
+struct stream_one {
     ctx c;
     worker w;
     isomend_mesh_sink sink;
@@ -101,8 +102,6 @@ struct isomend_stream {
     uint64_t *ids; /* [3 * TRIANGLE_BATCH] */
 };
 
-/* Internal (tests): the first vertex id of a stream not yet pushed to. */
-void stream_set_first_id(isomend_stream *s, uint64_t first);
 
 static int staging_alloc(staging *st, size_t size)
 {
@@ -146,7 +145,7 @@ static void stream_sizes(const ctx *c, uint64_t size[4])
     size[3] = c->want_origins ? lt : 0;
 }
 
-static isomend_status stream_init(isomend_stream *s, const isomend_volume *desc,
+static isomend_status stream_init(stream_one *s, const isomend_volume *desc,
                                   const isomend_options *opts, const isomend_mesh_sink *sink)
 {
     isomend_options defaults;
@@ -201,43 +200,32 @@ static isomend_status stream_init(isomend_stream *s, const isomend_volume *desc,
 
 static isomend_status bound_setup(ctx *c, const isomend_volume *desc, const isomend_options *opts);
 
-isomend_status isomend_stream_begin(const isomend_volume *desc, const isomend_options *opts,
-                                    const isomend_mesh_sink *sink, isomend_stream **out)
+isomend_status stream_one_check(const isomend_volume *desc, const isomend_options *opts)
 {
-    if (!out)
-        return ISOMEND_ERR_INVALID_ARGUMENT;
-    *out = NULL;
-    isomend_options defaults;
-    isomend_options_init(&defaults);
-    const isomend_options *o = opts ? opts : &defaults;
-    if (!desc || !sink || !sink->vertices || !sink->triangles || !sink->retire)
-        return ISOMEND_ERR_INVALID_ARGUMENT;
     ctx c;
-    isomend_status status = bound_setup(&c, desc, o);
-    if (status != ISOMEND_OK)
-        return status;
-    isomend_stream *s = calloc(1, sizeof(*s));
+    return bound_setup(&c, desc, opts);
+}
+
+isomend_status stream_one_begin(const isomend_volume *desc, const isomend_options *opts,
+                                const isomend_mesh_sink *sink, stream_one **out)
+{
+    *out = NULL;
+    stream_one *s = calloc(1, sizeof(*s));
     if (!s)
         return ISOMEND_ERR_OUT_OF_MEMORY;
-    int64_t slab_layers;
-    const int threads = stream_pool_plan(desc, o, &slab_layers);
-    if (threads > 1)
-        status = stream_pool_begin(desc, o, sink, threads, slab_layers, &s->pool);
-    else
-        status = stream_init(s, desc, o, sink);
+    const isomend_status status = stream_init(s, desc, opts, sink);
     if (status != ISOMEND_OK) {
-        isomend_stream_destroy(s);
+        stream_one_destroy(s);
         return status;
     }
     *out = s;
     return ISOMEND_OK;
 }
 
-void isomend_stream_destroy(isomend_stream *s)
+void stream_one_destroy(stream_one *s)
 {
     if (!s)
         return;
-    stream_pool_destroy(s->pool);
     free(s->window);
     free(s->slice_origins);
     free(s->ids);
@@ -259,23 +247,21 @@ void isomend_stream_destroy(isomend_stream *s)
     free(s);
 }
 
-void stream_set_first_id(isomend_stream *s, uint64_t first)
+void stream_one_set_first_id(stream_one *s, uint64_t first)
 {
-    if (s && s->pool)
-        stream_pool_set_first_id(s->pool, first);
-    else if (s && s->pushed == s->push_first)
+    if (s->pushed == s->push_first)
         s->first_id = s->next_id = first;
 }
 
 /* A sink's answer as a status (and the stream's failure). */
-static isomend_status sink_status(isomend_stream *s, int rc)
+static isomend_status sink_status(stream_one *s, int rc)
 {
     return rc ? (s->failed = ISOMEND_ERR_SINK) : ISOMEND_OK;
 }
 
 /* Hands the n staged vertices (ids from s->next_id) to the sink, with their
  * keys if `keyed`. */
-static isomend_status deliver_vertices(isomend_stream *s, uint64_t n, int keyed)
+static isomend_status deliver_vertices(stream_one *s, uint64_t n, int keyed)
 {
     if (!n)
         return ISOMEND_OK;
@@ -312,7 +298,7 @@ static int diagonal_cut(const uint8_t *a, const uint8_t *b, const uint8_t *d, co
  * face's diagonal) by the general vertex path (the same as the vertex
  * loops', vertices.c), which reads slices m - 1 .. m + 1 only: a piece's
  * next slice, whose vertices are not computed. */
-static void plane_position(const isomend_stream *s, uint64_t key, int64_t m, float p[3])
+static void plane_position(const stream_one *s, uint64_t key, int64_t m, float p[3])
 {
     const ctx *c = &s->c;
     const grid *g = &c->g;
@@ -336,7 +322,7 @@ static void plane_position(const isomend_stream *s, uint64_t key, int64_t m, flo
  * the in-plane vertices (x, y edges, z-face diagonals), in id order,
  * delivered through sink.foreign, and s->fmap from ids to their indices.
  */
-static isomend_status slice_keys(isomend_stream *s, int64_t m, uint64_t first, uint64_t nv,
+static isomend_status slice_keys(stream_one *s, int64_t m, uint64_t first, uint64_t nv,
                                  int last)
 {
     const ctx *c = &s->c;
@@ -424,7 +410,7 @@ static isomend_status slice_keys(isomend_stream *s, int64_t m, uint64_t first, u
 #define DROPPED UINT64_MAX
 
 /* The NaN samples of the box's part of marched slice m (padding excluded). */
-static uint64_t box_nans(const isomend_stream *s, int64_t m)
+static uint64_t box_nans(const stream_one *s, int64_t m)
 {
     const grid *g = &s->c.g;
     if ((g->type != ISOMEND_F32 && g->type != ISOMEND_F64) || m < g->pad || m >= g->n[2] + g->pad)
@@ -446,7 +432,7 @@ static uint64_t box_nans(const isomend_stream *s, int64_t m)
  * and keeps the candidates of the frame; *floor is the local id of the
  * first owned vertex of slice m (all delivered for the next slice).
  */
-static isomend_status box_vertices(isomend_stream *s, int64_t m, uint64_t np, uint64_t nv,
+static isomend_status box_vertices(stream_one *s, int64_t m, uint64_t np, uint64_t nv,
                                    int last, uint64_t *floor)
 {
     ctx *c = &s->c;
@@ -502,7 +488,7 @@ static isomend_status box_vertices(isomend_stream *s, int64_t m, uint64_t np, ui
 /* A box's id of staged vertex `id` (of slice m - 1, layer m - 1 or slice m:
  * the two steps' rings): local, or foreign, a candidate becoming the next
  * foreign vertex (queued in bkeys, bpos from *queued on) at its first use. */
-static int box_id(isomend_stream *s, uint64_t id, int64_t m, uint64_t *out, size_t *queued)
+static int box_id(stream_one *s, uint64_t id, int64_t m, uint64_t *out, size_t *queued)
 {
     const int now = (int)(m % 2), p = id >= s->remap_first[now] ? now : 1 - now;
     const uint64_t r = id - s->remap_first[p];
@@ -525,7 +511,7 @@ static int box_id(isomend_stream *s, uint64_t id, int64_t m, uint64_t *out, size
  * for a slab, ids from `foreign` on (its last layer) are the next piece's;
  * for a box, ids go through box_id(), each batch's new foreign vertices
  * delivered before it. */
-static isomend_status deliver_triangles(isomend_stream *s, uint64_t n, uint64_t base,
+static isomend_status deliver_triangles(stream_one *s, uint64_t n, uint64_t base,
                                         uint64_t foreign, int64_t m)
 {
     const ctx *c = &s->c;
@@ -563,7 +549,7 @@ static isomend_status deliver_triangles(isomend_stream *s, uint64_t n, uint64_t 
  * first, from the signs alone, so that slice m is numbered after them), slice
  * m's vertices, then layer m - 1's triangles.
  */
-static isomend_status step(isomend_stream *s, int64_t m)
+static isomend_status step(stream_one *s, int64_t m)
 {
     ctx *c = &s->c;
     worker *w = &s->w;
@@ -613,7 +599,7 @@ static isomend_status step(isomend_stream *s, int64_t m)
 }
 
 /* Scans and marches what the samples of marched slices up to `avail` allow. */
-static isomend_status advance(isomend_stream *s, int64_t avail)
+static isomend_status advance(stream_one *s, int64_t avail)
 {
     const int64_t N2 = s->c.g.N[2];
     const int64_t end = s->own_end < N2 ? s->own_end + 1 : N2; /* and a piece's next slice */
@@ -632,12 +618,8 @@ static isomend_status advance(isomend_stream *s, int64_t avail)
     return ISOMEND_OK;
 }
 
-isomend_status isomend_stream_push(isomend_stream *s, const void *slice)
+isomend_status stream_one_push(stream_one *s, const void *slice)
 {
-    if (!s || !slice)
-        return ISOMEND_ERR_INVALID_ARGUMENT;
-    if (s->pool)
-        return stream_pool_push(s->pool, slice);
     if (s->failed != ISOMEND_OK)
         return s->failed;
     grid *g = &s->c.g;
@@ -657,12 +639,8 @@ isomend_status isomend_stream_push(isomend_stream *s, const void *slice)
     return advance(s, z + g->pad);
 }
 
-isomend_status isomend_stream_finish(isomend_stream *s, isomend_stats *stats)
+isomend_status stream_one_finish(stream_one *s, isomend_stats *stats)
 {
-    if (!s)
-        return ISOMEND_ERR_INVALID_ARGUMENT;
-    if (s->pool)
-        return stream_pool_finish(s->pool, stats);
     if (s->failed != ISOMEND_OK)
         return s->failed;
     const grid *g = &s->c.g;
@@ -740,14 +718,12 @@ isomend_status isomend_piece_halo(const isomend_volume *desc, const isomend_opti
     return piece_range(&c.g, piece, first, end);
 }
 
-isomend_status isomend_piece_begin(const isomend_volume *desc, const isomend_options *opts,
-                                   const isomend_piece *piece, const isomend_mesh_sink *sink,
-                                   isomend_stream **out)
+isomend_status stream_one_piece_begin(const isomend_volume *desc, const isomend_options *opts,
+                                     const isomend_piece *piece, const isomend_mesh_sink *sink,
+                                     stream_one **out)
 {
-    if (!out)
-        return ISOMEND_ERR_INVALID_ARGUMENT;
     *out = NULL;
-    isomend_stream *s = calloc(1, sizeof(*s));
+    stream_one *s = calloc(1, sizeof(*s));
     if (!s)
         return ISOMEND_ERR_OUT_OF_MEMORY;
     isomend_status status = stream_init(s, desc, opts, sink);
@@ -797,7 +773,7 @@ isomend_status isomend_piece_begin(const isomend_volume *desc, const isomend_opt
         }
     }
     if (status != ISOMEND_OK) {
-        isomend_stream_destroy(s);
+        stream_one_destroy(s);
         return status;
     }
     *out = s;
@@ -811,7 +787,7 @@ static uint64_t single_memory(const ctx *c, int piece)
     uint64_t size[4];
     stream_sizes(c, size);
     const uint64_t plane = (uint64_t)c->g.n[0] * (uint64_t)c->g.n[1] * isomend_type_size(c->g.type);
-    uint64_t total = sizeof(isomend_stream) + WINDOW * plane + worker_layout(&w, c, NULL) +
+    uint64_t total = sizeof(stream_one) + WINDOW * plane + worker_layout(&w, c, NULL) +
                      3 * sizeof(uint64_t) * TRIANGLE_BATCH;
     for (int q = 0; q < 4; q++)
         total += huge_round((size_t)size[q]);
@@ -826,16 +802,16 @@ static uint64_t single_memory(const ctx *c, int piece)
 /* ------------------------------------------------- a pool's slabs */
 
 isomend_status stream_slab_begin(const isomend_volume *desc, const isomend_options *opts,
-                                 const isomend_mesh_sink *sink, isomend_stream **out)
+                                 const isomend_mesh_sink *sink, stream_one **out)
 {
     const isomend_piece first = {0, 1, {0, 0}, {0, 0}};
-    const isomend_status status = isomend_piece_begin(desc, opts, &first, sink, out);
+    const isomend_status status = stream_one_piece_begin(desc, opts, &first, sink, out);
     if (status == ISOMEND_OK)
         (*out)->lean = 1;
     return status;
 }
 
-isomend_status stream_slab_run(isomend_stream *s, const char *planes, isomend_stats *stats)
+isomend_status stream_slab_run(stream_one *s, const char *planes, isomend_stats *stats)
 {
     grid *g = &s->c.g;
     g->data = planes; /* read in place: no window */
@@ -844,10 +820,10 @@ isomend_status stream_slab_run(isomend_stream *s, const char *planes, isomend_st
     const isomend_status status = advance(s, s->push_end - 1 + g->pad);
     if (status != ISOMEND_OK)
         return status;
-    return isomend_stream_finish(s, stats);
+    return stream_one_finish(s, stats);
 }
 
-isomend_status stream_slab_reset(isomend_stream *s, int64_t owned_first, int64_t owned_end)
+isomend_status stream_slab_reset(stream_one *s, int64_t owned_first, int64_t owned_end)
 {
     const isomend_piece piece = {owned_first, owned_end, {0, 0}, {0, 0}};
     grid *g = &s->c.g;
@@ -871,15 +847,12 @@ isomend_status stream_slab_reset(isomend_stream *s, int64_t owned_first, int64_t
     return ISOMEND_OK;
 }
 
-uint64_t isomend_stream_memory(const isomend_volume *desc, const isomend_options *opts)
+uint64_t stream_one_memory(const isomend_volume *desc, const isomend_options *opts, int piece,
+                           int64_t *pad)
 {
     ctx c;
     if (bound_setup(&c, desc, opts) != ISOMEND_OK)
         return 0;
-    isomend_options defaults;
-    isomend_options_init(&defaults);
-    const int threads = stream_pool_threads(opts ? opts : &defaults);
-    if (threads > 1) /* whether a pool runs depends on dims[2]; the bound does not */
-        return stream_pool_memory(desc, threads, c.g.pad, single_memory(&c, 1));
-    return single_memory(&c, 0);
+    *pad = c.g.pad;
+    return single_memory(&c, piece);
 }

@@ -28,6 +28,7 @@
  * (isomend_stream_memory() of a piece).
  */
 #define _GNU_SOURCE /* _SC_NPROCESSORS_ONLN */
+#include "stream.h"
 #include "stream_pool.h"
 
 #include <pthread.h>
@@ -257,7 +258,7 @@ static int slab_foreign(void *user, size_t first, size_t count, const uint64_t *
 /* The worker's piece stream, made at its first slab and reused after. */
 typedef struct worker_state {
     slab_user user; /* the sink's user: the slab the piece runs now */
-    isomend_stream *piece;
+    stream_one *piece;
 } worker_state;
 
 /* Extracts slab s: its piece, its planes pushed in order. */
@@ -329,7 +330,7 @@ static void *worker_main(void *arg)
         pthread_mutex_lock(&p->lock);
     }
     pthread_mutex_unlock(&p->lock);
-    isomend_stream_destroy(ws.piece);
+    stream_one_destroy(ws.piece);
     return NULL;
 }
 

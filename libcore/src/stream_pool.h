@@ -1,7 +1,7 @@
 /*
  * stream_pool.h - a stream on several threads (stream_pool.c): the slab
  * pipeline behind isomend_stream_begin() when opts->threads allows more
- * than one.  stream.c decides and forwards; nothing else includes this.
+ * than one.  stream_api.c decides and forwards; nothing else includes this.
  */
 #ifndef ISOMEND_STREAM_POOL_H
 #define ISOMEND_STREAM_POOL_H
@@ -27,16 +27,5 @@ void stream_pool_destroy(stream_pool *p);
 void stream_pool_set_first_id(stream_pool *p, uint64_t first);
 /* A bound of a pool's memory for any dims[2] (`piece`: one piece's). */
 uint64_t stream_pool_memory(const isomend_volume *desc, int threads, int pad, uint64_t piece);
-
-/* stream.c, for the pool: a piece stream that a worker reuses slab after
- * slab (stream_slab_reset: owned marched slices [first, end), counters
- * cleared, memory kept), with keys only where the pool needs them: its
- * first slice's vertices and the foreign table of its next slice. */
-isomend_status stream_slab_begin(const isomend_volume *desc, const isomend_options *opts,
-                                 const isomend_mesh_sink *sink, isomend_stream **out);
-isomend_status stream_slab_reset(isomend_stream *s, int64_t owned_first, int64_t owned_end);
-/* Runs the slab on its volume slices, `planes` (isomend_piece_halo()'s,
- * contiguous), read in place, and finishes it (statistics: isomend_stream_finish). */
-isomend_status stream_slab_run(isomend_stream *s, const char *planes, isomend_stats *stats);
 
 #endif

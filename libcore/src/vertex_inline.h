@@ -22,7 +22,7 @@
 #ifndef ISOMEND_VERTEX_INLINE_H
 #define ISOMEND_VERTEX_INLINE_H
 
-#include "extract_internal.h"
+#include "context.h"
 
 #define ALWAYS_INLINE inline __attribute__((always_inline))
 

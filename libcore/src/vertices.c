@@ -11,26 +11,9 @@
  * its middle, its gradients one-sided, and where no gradient is left the
  * normal is the edge's direction towards the outside end (isomend.h).
  */
-#include "extract_internal.h"
-
-/* World-space gradient component along axis a at marched sample p (value
- * f0): central, or one-sided next to the border, NaN and padding. */
-double gradient_component(const grid *g, const int64_t p[3], int a, double f0)
-{
-    int64_t q[3] = {p[0], p[1], p[2]}, r[3] = {p[0], p[1], p[2]};
-    q[a]++;
-    r[a]--;
-    double fp = fetch(g, q[0], q[1], q[2]);
-    double fm = fetch(g, r[0], r[1], r[2]);
-    int vp = !isnan(fp), vm = !isnan(fm);
-    if (vp && vm)
-        return (fp - fm) * g->inv2h[a];
-    if (vp)
-        return (fp - f0) / g->h[a];
-    if (vm)
-        return (f0 - fm) / g->h[a];
-    return 0.0;
-}
+#include "grid.h"
+#include "vertices.h"
+#include "slice_geometry.h"
 
 /*
  * fast_gradients for samples of one type (a constant where it is inlined):
@@ -41,20 +24,20 @@ static inline __attribute__((always_inline)) void gradients_as(const grid *g,
                                                                const char *p, int a, double f[2],
                                                                double gr[2][3])
 {
-#define LD(ptr) sample_as_double(type, ptr)
+#define SAMPLE(ptr) sample_as_double(type, ptr)
     const int64_t sx = g->st[0], sy = g->st[1], sz = g->st[2];
     const char *q = p + g->st[a];
-    const double f0 = LD(p), f1 = LD(q);
+    const double f0 = SAMPLE(p), f1 = SAMPLE(q);
     f[0] = f0;
     f[1] = f1;
     /* along the edge each endpoint is the other's neighbour */
-    gr[0][0] = a == 0 ? f1 - LD(p - sx) : LD(p + sx) - LD(p - sx);
-    gr[0][1] = a == 1 ? f1 - LD(p - sy) : LD(p + sy) - LD(p - sy);
-    gr[0][2] = a == 2 ? f1 - LD(p - sz) : LD(p + sz) - LD(p - sz);
-    gr[1][0] = a == 0 ? LD(q + sx) - f0 : LD(q + sx) - LD(q - sx);
-    gr[1][1] = a == 1 ? LD(q + sy) - f0 : LD(q + sy) - LD(q - sy);
-    gr[1][2] = a == 2 ? LD(q + sz) - f0 : LD(q + sz) - LD(q - sz);
-#undef LD
+    gr[0][0] = a == 0 ? f1 - SAMPLE(p - sx) : SAMPLE(p + sx) - SAMPLE(p - sx);
+    gr[0][1] = a == 1 ? f1 - SAMPLE(p - sy) : SAMPLE(p + sy) - SAMPLE(p - sy);
+    gr[0][2] = a == 2 ? f1 - SAMPLE(p - sz) : SAMPLE(p + sz) - SAMPLE(p - sz);
+    gr[1][0] = a == 0 ? SAMPLE(q + sx) - f0 : SAMPLE(q + sx) - SAMPLE(q - sx);
+    gr[1][1] = a == 1 ? SAMPLE(q + sy) - f0 : SAMPLE(q + sy) - SAMPLE(q - sy);
+    gr[1][2] = a == 2 ? SAMPLE(q + sz) - f0 : SAMPLE(q + sz) - SAMPLE(q - sz);
+#undef SAMPLE
     for (int c = 0; c < 3; c++) {
         gr[0][c] *= g->inv2h[c];
         gr[1][c] *= g->inv2h[c];

@@ -11,7 +11,7 @@
 #define ISOMEND_TEST_CPU_TARGET_H
 
 #include "cpu_features.h"
-#include "extract_internal.h"
+#include "context.h"
 
 #include <stdio.h>
 #include <string.h>

@@ -1,8 +1,12 @@
 /*
- * labels_internal.h - what the label-map extraction's two files share
- * (private): labels.c (the API, the labels' codes, the slabs on threads,
- * the meshes joined from the slabs' parts) and labels_sweep.c (one slab's
- * sweep: samples to codes, vertices, triangles).
+ * labels_job.h - the label-map extraction's types (private): a label's part
+ * of a slab, the job (the volume, the labels' codes, the tables), a slab,
+ * and a label sample read.  Types and inline functions only; the functions
+ * are declared by the files that define them: labels.h (labels.c: the API,
+ * the slabs on threads, the meshes joined from the slabs' parts, what the
+ * stream shares), labels_sweep.h (one slab's sweep: samples to codes,
+ * vertices, triangles), labels_present.h (the labels present),
+ * labels_volume.h (a label map's samples: sizes, checks, strides).
  *
  * Codes.  Each sample of the marched grid becomes a uint32 code: the index
  * 0 .. count - 1 of its value among the requested labels, `count` (OTHER)
@@ -11,8 +15,8 @@
  * configuration) compares codes only, so it is the same for every voxel
  * type and needs no look-up after the conversion.
  */
-#ifndef ISOMEND_LABELS_INTERNAL_H
-#define ISOMEND_LABELS_INTERNAL_H
+#ifndef ISOMEND_LABELS_JOB_H
+#define ISOMEND_LABELS_JOB_H
 
 #include "mesh_internal.h"
 
@@ -81,8 +85,6 @@ typedef struct label_slab {
     isomend_status status;
 } label_slab;
 
-/* labels_sweep.c: the normal table of the job (its h, inv2h, flip set). */
-void label_normal_table(label_job *job);
 /* The label sample of `type` at p (machine byte order); 0 for a type that
  * is not a label type. */
 static inline int64_t load_label(isomend_type type, const char *p)
@@ -105,54 +107,4 @@ static inline int64_t load_label(isomend_type type, const char *p)
 #undef LOAD_AS
 }
 
-/* labels_sweep.c: the job's tables, normal and cut (its inv2h and flip set). */
-void label_job_tables(label_job *job);
-/* labels_sweep.c: the code of a value (OTHER when not requested). */
-uint32_t label_code(const label_job *job, int64_t value);
-/* labels_sweep.c: marched slice m's codes into the ring from `slice` (the
- * volume's slice m - pad, strides st0, st1; unused for a padding slice),
- * its samples counted when the slab owns it. */
-void label_fill_codes(label_slab *s, int64_t m, const char *slice, int64_t st0, int64_t st1);
-/* labels_sweep.c: the vertices of slice m (its codes and those of m - 1 ..
- * m + 2 in the ring), `foreign`: numbered only (the next slab's); the
- * triangles of layer k (codes k .. k + 2, ids of slices k and k + 1).
- * 0 without memory. */
-int label_scan_slice(label_slab *s, int64_t m, int foreign);
-int label_march_layer(label_slab *s, int64_t k);
-/* labels_sweep.c: sweeps the slab (its scratch arrays allocated by the
- * caller); sets and returns s->status. */
-isomend_status label_slab_run(label_slab *s);
-
-/* labels.c: a label type's sample size (0: not a label type); the range of
- * an 8- or 16-bit type (its smallest value, the count; 0 for 32-bit); the
- * volume checked (data needed or not); its byte strides; int64_t order. */
-size_t label_type_size(isomend_type type);
-size_t label_small_range(isomend_type type, int64_t *min);
-isomend_status label_check_volume(const isomend_volume *vol, int pad, int need_data);
-void label_strides(const isomend_volume *vol, int64_t st[3]);
-int label_cmp_value(const void *a, const void *b);
-
-/* labels_present.c: the labels present, ascending, and their samples, as
- * malloc'ed arrays. */
-isomend_status label_list_present(const isomend_volume *vol, int64_t **values, uint64_t **voxels,
-                                  size_t *count);
-
-/* labels.c: what the in-memory extraction and the stream share. */
-typedef struct label_setup {
-    label_job *job;
-    isomend_labels *result; /* values, voxels, meshes (filled at the end)   */
-    uint32_t *table, *sorted_code;
-    int64_t *sorted;
-} label_setup;
-/* The checks, the result's labels (labels NULL: every label present but 0,
- * read from vol->data) and the job; vol->data may be NULL unless
- * `need_data` or labels NULL (a stream).  On failure nothing is left. */
-isomend_status label_setup_begin(const isomend_volume *vol, const int64_t *labels, size_t count,
-                                 const isomend_options *opts, int need_data, label_setup *su);
-void label_setup_free(label_setup *su); /* the job and tables, and the result unless taken */
-int label_slab_alloc(label_slab *s, label_job *job);
-void label_slab_free(label_slab *s, size_t count);
-/* The slabs' voxels summed and each label's mesh joined from their parts. */
-isomend_status label_join_all(label_job *job, label_slab *slab, int nslabs, isomend_labels *r);
-
-#endif /* ISOMEND_LABELS_INTERNAL_H */
+#endif /* ISOMEND_LABELS_JOB_H */

@@ -1,0 +1,45 @@
+/*
+ * stream.h - one stream on the calling thread (private; stream.c): the
+ * engine under the public isomend_stream_* and isomend_piece_* (stream_api.c
+ * chooses it or a pool of them, stream_pool.c, whose workers run it slab by
+ * slab).  The arguments are checked by the callers.
+ */
+#ifndef ISOMEND_STREAM_H
+#define ISOMEND_STREAM_H
+
+#include "isomend.h"
+
+typedef struct stream_one stream_one;
+
+/* ISOMEND_OK, or why a stream of desc with opts (NULL: the defaults) would
+ * be refused. */
+isomend_status stream_one_check(const isomend_volume *desc, const isomend_options *opts);
+/* A stream of the whole volume, and a piece of it (isomend_piece_begin). */
+isomend_status stream_one_begin(const isomend_volume *desc, const isomend_options *opts,
+                                const isomend_mesh_sink *sink, stream_one **out);
+isomend_status stream_one_piece_begin(const isomend_volume *desc, const isomend_options *opts,
+                                      const isomend_piece *piece, const isomend_mesh_sink *sink,
+                                      stream_one **out);
+/* isomend_stream_push, _finish and _destroy on one stream. */
+isomend_status stream_one_push(stream_one *s, const void *slice);
+isomend_status stream_one_finish(stream_one *s, isomend_stats *stats);
+void stream_one_destroy(stream_one *s);
+/* Tests: the first vertex id, before the first push. */
+void stream_one_set_first_id(stream_one *s, uint64_t first);
+/* A bound of one stream's memory (`piece`: a piece's, with its keys), 0
+ * when refused; *pad the grid's padding. */
+uint64_t stream_one_memory(const isomend_volume *desc, const isomend_options *opts, int piece,
+                           int64_t *pad);
+
+/* For the pool (stream_pool.c): a piece stream that a worker reuses slab after
+ * slab (stream_slab_reset: owned marched slices [first, end), counters
+ * cleared, memory kept), with keys only where the pool needs them: its
+ * first slice's vertices and the foreign table of its next slice. */
+isomend_status stream_slab_begin(const isomend_volume *desc, const isomend_options *opts,
+                                 const isomend_mesh_sink *sink, stream_one **out);
+isomend_status stream_slab_reset(stream_one *s, int64_t owned_first, int64_t owned_end);
+/* Runs the slab on its volume slices, `planes` (isomend_piece_halo()'s,
+ * contiguous), read in place, and finishes it (statistics: isomend_stream_finish). */
+isomend_status stream_slab_run(stream_one *s, const char *planes, isomend_stats *stats);
+
+#endif /* ISOMEND_STREAM_H */
