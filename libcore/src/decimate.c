@@ -52,6 +52,10 @@ enum { V_LOCKED = 1, V_DEAD = 2 };
  * flat regions, whose later collapses would all be refused as flips. */
 #define MIN_SHAPE 0.03
 
+/* The link condition's neighbours of a, held on the stack up to LINK_CAP
+ * (collapse_allowed; the marks beyond). */
+#define LINK_CAP 128
+
 /* A candidate collapse of a pass: the edge (a < b) and its cost. */
 typedef struct cand {
     float cost;
@@ -292,15 +296,15 @@ static void quadric_range(void *arg, size_t lo, size_t hi)
 
 /* ------------------------------------------------------------- distance */
 
-/* Squared distance from input vertex u to the live triangles around x1 and
- * x2 (NONE: none), with a and b moved to v (v NULL: nothing moves; the
- * triangles with both a and b die with their edge). */
-static double fan_distance2(const dec *d, uint32_t u, uint32_t x1, uint32_t x2, uint32_t a,
-                            uint32_t b, const double *v)
+/* Whether input vertex u lies within `limit` (squared distance) of a live
+ * triangle around x1 or x2 (NONE: none), with a and b moved to v (the
+ * triangles with both a and b die with their edge): the first such triangle
+ * answers, so that a point near its first triangles costs one distance. */
+static int fan_within(const dec *d, uint32_t u, uint32_t x1, uint32_t x2, uint32_t a, uint32_t b,
+                      const double *v, double limit)
 {
     const double p[3] = {d->orig[3 * (size_t)u], d->orig[3 * (size_t)u + 1],
                          d->orig[3 * (size_t)u + 2]};
-    double best = INFINITY;
     for (int s = 0; s < 2; s++) {
         const uint32_t x = s ? x2 : x1;
         if (x == NONE)
@@ -313,30 +317,67 @@ static double fan_distance2(const dec *d, uint32_t u, uint32_t x1, uint32_t x2, 
             int moved = 0;
             for (int k = 0; k < 3; k++) {
                 const uint32_t y = d->tv[3 * t + (uint32_t)k];
-                const int m = v && (y == a || y == b);
+                const int m = y == a || y == b;
                 moved += m;
                 q[k] = m ? v : d->p + 3 * (size_t)y;
             }
             if (moved > 1)
                 continue;
-            const double e = point_triangle_distance2(p, q[0], q[1], q[2]);
-            best = e < best ? e : best;
+            if (point_triangle_distance2(p, q[0], q[1], q[2]) <= limit)
+                return 1;
         }
     }
-    return best;
+    return 0;
 }
+
+/* The members of neighbour w, each within `limit` (squared) of w's fan
+ * after (a, b) collapses to v. */
+static int members_close(const dec *d, uint32_t w, uint32_t a, uint32_t b, const double v[3],
+                         double limit)
+{
+    for (uint32_t u = d->members[w]; u != NONE; u = d->member_next[u])
+        if (!fan_within(d, u, w, NONE, a, b, v, limit))
+            return 0;
+    return 1;
+}
+
+/* Neighbours held in a list on the stack, up to CLOSE_CAP (the marks beyond:
+ * only outside the regions, whose vertices have at most LINK_CAP / 2
+ * triangles, so that the regions' threads share no scratch). */
+#define CLOSE_CAP LINK_CAP
 
 /* Whether every input vertex stays within max_dist of the triangles around
  * the vertex it stands in for, after (a, b) collapses to v: the members of
  * a and b (to the new fan) and of every neighbour of a or b (whose fans
- * change too). */
+ * change too), each neighbour once. */
 static int collapse_close(dec *d, uint32_t a, uint32_t b, const double v[3])
 {
     const double limit = d->max_dist * d->max_dist;
     for (int s = 0; s < 2; s++)
         for (uint32_t u = d->members[s ? b : a]; u != NONE; u = d->member_next[u])
-            if (fan_distance2(d, u, a, b, a, b, v) > limit)
+            if (!fan_within(d, u, a, b, a, b, v, limit))
                 return 0;
+    uint32_t seen[CLOSE_CAP];
+    size_t nseen = 0;
+    if (d->fan_first[a + 1] - d->fan_first[a] + d->fan_first[b + 1] - d->fan_first[b] <= CLOSE_CAP &&
+        !(is_changed(d->changed, a) || is_changed(d->changed, b))) {
+        for (int s = 0; s < 2; s++) { /* at most CLOSE_CAP corners: no merged fans */
+            fan_iter it = fan_begin(d, s ? b : a);
+            uint32_t c;
+            while (fan_next(d, &it, &c)) {
+                const uint32_t w = corner_next(d, c);
+                int dup = w == a || w == b;
+                for (size_t i = 0; i < nseen && !dup; i++)
+                    dup = seen[i] == w;
+                if (dup)
+                    continue;
+                seen[nseen++] = w;
+                if (!members_close(d, w, a, b, v, limit))
+                    return 0;
+            }
+        }
+        return 1;
+    }
     if (++d->gen == 0) {
         memset(d->mark, 0, d->nv * sizeof(uint32_t));
         d->gen = 1;
@@ -351,9 +392,8 @@ static int collapse_close(dec *d, uint32_t a, uint32_t b, const double v[3])
             if (d->mark[w] == g)
                 continue;
             d->mark[w] = g;
-            for (uint32_t u = d->members[w]; u != NONE; u = d->member_next[u])
-                if (fan_distance2(d, u, w, NONE, a, b, v) > limit)
-                    return 0;
+            if (!members_close(d, w, a, b, v, limit))
+                return 0;
         }
     }
     return 1;
@@ -383,9 +423,6 @@ static void tri_normal(const dec *d, uint32_t t, uint32_t moved_a, uint32_t move
     }
 }
 
-/* The link condition's neighbours of a, held here up to LINK_CAP (the
- * marks beyond). */
-#define LINK_CAP 128
 
 enum { ALLOWED = 0, REFUSED_TOPOLOGY = 1, REFUSED_GEOMETRY = 2 };
 
@@ -787,10 +824,13 @@ static void run_candidates(dec *d, const cand *c, size_t n, size_t alive, uint64
  * after which it waits for the next pass), and whole words of the bitmap.
  * So the regions' candidates can be taken region by region, each region's
  * in its order, on any thread, with the same result; the candidates on the
- * regions' borders follow, in their order.  A pass goes this way only where
- * it cannot reach the target (each collapse takes two free vertices: at
- * most half the free vertices collapse) and without a maximum error (whose
- * check reads farther).
+ * regions' borders follow, in their order.  With a maximum error the check
+ * reads farther, the fans of a's and b's neighbours (collapse_close, which
+ * then keeps the neighbours in a list on the stack, not in the shared
+ * marks): the candidate is inside a region when those fans' vertices are in
+ * it too.  A pass goes this way only where it cannot reach the target (each
+ * collapse takes two free vertices: at most half the free vertices
+ * collapse).
  */
 #define REGION_SHIFT 16
 #define REGION_SIZE ((size_t)1 << REGION_SHIFT) /* a multiple of 64: whole bitmap words */
@@ -816,6 +856,21 @@ static size_t mark_borders(dec *d)
 /* The region (offset by `offset` vertices) that candidate (a, b) is inside,
  * or NONE.  offset 0: as the pass began (border); else as the fans are now
  * (a changed vertex is passed over anyway: NONE). */
+/* Whether every vertex of x's triangles (as the fans are now) is in region
+ * r (offset by `offset`). */
+static int fan_inside(const dec *d, uint32_t x, uint32_t offset, uint32_t r)
+{
+    fan_iter it = fan_begin(d, x);
+    uint32_t c;
+    while (fan_next(d, &it, &c)) {
+        const uint32_t *tv = d->tv + (c - c % 3);
+        for (int k = 0; k < 3; k++)
+            if ((uint32_t)(((size_t)tv[k] + offset) >> REGION_SHIFT) != r)
+                return 0;
+    }
+    return 1;
+}
+
 static uint32_t region_of(const dec *d, uint32_t a, uint32_t b, uint32_t offset)
 {
     if (d->fan_first[a + 1] - d->fan_first[a] > LINK_CAP / 2 ||
@@ -824,8 +879,18 @@ static uint32_t region_of(const dec *d, uint32_t a, uint32_t b, uint32_t offset)
     const uint32_t r = (uint32_t)(((size_t)a + offset) >> REGION_SHIFT);
     if (r != (uint32_t)(((size_t)b + offset) >> REGION_SHIFT))
         return NONE;
-    if (offset == 0)
-        return d->border[a] || d->border[b] ? NONE : r;
+    if (offset == 0) {
+        if (d->border[a] || d->border[b])
+            return NONE;
+        if (d->max_dist > 0) /* collapse_close reads the neighbours' fans too */
+            for (int s = 0; s < 2; s++)
+                for (uint32_t k = d->fan_first[s ? b : a]; k < d->fan_first[(s ? b : a) + 1]; k++) {
+                    const uint32_t w = corner_next(d, d->fan[k]); /* live: the pass begins */
+                    if (w == NONE || d->border[w])
+                        return NONE;
+                }
+        return r;
+    }
     if (is_changed(d->changed, a) || is_changed(d->changed, b))
         return NONE;
     for (int s = 0; s < 2; s++) {
@@ -836,6 +901,8 @@ static uint32_t region_of(const dec *d, uint32_t a, uint32_t b, uint32_t offset)
             for (int k = 0; k < 3; k++)
                 if ((uint32_t)(((size_t)tv[k] + offset) >> REGION_SHIFT) != r)
                     return NONE;
+            if (d->max_dist > 0 && !fan_inside(d, corner_next(d, c), offset, r))
+                return NONE;
         }
     }
     return r;
@@ -920,7 +987,7 @@ static size_t run_regions(dec *d, cand *c, cand *tmp, size_t n, uint32_t offset,
 static int run_pass(dec *d, cand *c, cand *tmp, size_t n, size_t nfree, uint64_t target, tally *t)
 {
     const size_t most = n < nfree / 2 ? n : nfree / 2; /* collapses a pass can make */
-    if (d->max_dist == 0 && (d->nv >> REGION_SHIFT) >= 1 && d->alive > target &&
+    if ((d->nv >> REGION_SHIFT) >= 1 && d->alive > target &&
         2 * most < d->alive - target) {
         n = run_regions(d, c, tmp, n, 0, t);
         if (n != SIZE_MAX)

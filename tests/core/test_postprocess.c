@@ -13,13 +13,18 @@
  *   - smoothing keeps the triangles, moves no locked vertex and keeps the
  *     enclosed volume within 0.5 %;
  *   - clean-up removes exactly the components under the size, or all but
- *     the largest, and the checker counts what the report says.
+ *     the largest, and the checker counts what the report says;
+ *   - a mesh large enough for the decimation's regions on threads (2^16
+ *     vertices a region): the same bytes on one core as on all, with and
+ *     without a maximum error, and closed.
  */
+#define _GNU_SOURCE /* sched_setaffinity */
 #include "isomend.h"
 #include "testutil.h"
 #include "volumes.h"
 
 #include <math.h>
+#include <sched.h>
 #include <stdint.h>
 #include <stdlib.h>
 #include <string.h>
@@ -198,8 +203,64 @@ static void clean_and_check(const isomend_mesh *in, const char *what)
     isomend_mesh_destroy(out);
 }
 
+/* The decimation's regions (several of 2^16 vertices) on threads, and with
+ * the process confined to one core (the post-processing's threads follow
+ * its cores): the same bytes, with a ratio and with a maximum error. */
+static void regions_same_on_one_core(void)
+{
+    int64_t n[3] = {96, 96, 96};
+    float *f = shape_volume(GYROID, n, 0.35, &rng_state);
+    isomend_volume vol;
+    isomend_volume_init(&vol, f, ISOMEND_F32, n[0], n[1], n[2]);
+    isomend_options o;
+    isomend_options_init(&o);
+    o.flags = ISOMEND_FLAG_PAD;
+    isomend_mesh *m = NULL;
+    CHECK_EQ_INT(isomend_extract(&vol, &o, &m, NULL), ISOMEND_OK);
+    free(f);
+    if (!m)
+        return;
+    CHECK(isomend_mesh_vertex_count(m) >= 3 << 16); /* three regions at least */
+    isomend_check_report rin;
+    CHECK_EQ_INT(isomend_mesh_check(m, &rin), ISOMEND_OK);
+    cpu_set_t all, one;
+    CHECK_EQ_INT(sched_getaffinity(0, sizeof all, &all), 0);
+    CPU_ZERO(&one);
+    for (int c = 0; c < CPU_SETSIZE; c++)
+        if (CPU_ISSET(c, &all)) {
+            CPU_SET(c, &one);
+            break;
+        }
+    for (int with_error = 0; with_error < 2; with_error++) {
+        isomend_decimate_options d;
+        isomend_decimate_options_init(&d);
+        if (with_error)
+            d.max_error = 0.1;
+        else
+            d.ratio = 0.1;
+        isomend_mesh *a = NULL, *b = NULL;
+        CHECK_EQ_INT(isomend_mesh_decimate(m, &d, &a, NULL), ISOMEND_OK);
+        CHECK_EQ_INT(sched_setaffinity(0, sizeof one, &one), 0);
+        CHECK_EQ_INT(isomend_mesh_decimate(m, &d, &b, NULL), ISOMEND_OK);
+        CHECK_EQ_INT(sched_setaffinity(0, sizeof all, &all), 0);
+        CHECK(a && b && same_bytes(a, b));
+        if (a && b && !same_bytes(a, b))
+            fprintf(stderr, "regions (%s): %zu triangles on all cores, %zu on one\n",
+                    with_error ? "max_error 0.1" : "ratio 0.1", isomend_mesh_triangle_count(a),
+                    isomend_mesh_triangle_count(b));
+        isomend_check_report r;
+        CHECK(a && isomend_mesh_check(a, &r) == ISOMEND_OK && closed_as(&r, &rin, 1));
+        CHECK(a && isomend_mesh_triangle_count(a) < isomend_mesh_triangle_count(m) / 2);
+        isomend_mesh_destroy(a);
+        isomend_mesh_destroy(b);
+        decimated++;
+    }
+    isomend_mesh_destroy(m);
+}
+
 int main(void)
 {
+    regions_same_on_one_core();
     static const isomend_method methods[] = {ISOMEND_METHOD_DMC, ISOMEND_METHOD_TETRA,
                                               ISOMEND_METHOD_MC33, ISOMEND_METHOD_ASYMPTOTIC};
     for (int shape = 0; shape < SHAPES; shape++)
