@@ -309,7 +309,6 @@ static const char *refused_option(uint64_t seen)
         {OPT_IN_MEMORY, "--in-memory"},
         {OPT_CHUNK_LAYERS, "--chunk-layers"},
         {OPT_PAGES, "--pages"},
-        {OPT_MAX_MEMORY, "--max-memory"},
         {OPT_SLICE_POSITIONS, "--slice-positions"},
     };
     for (size_t q = 0; q < sizeof refused / sizeof refused[0]; q++)
@@ -529,7 +528,13 @@ int cli_extract_labels(cli_args *a)
         free(want);
         return rc;
     }
-    const int stream = (a->seen & OPT_STREAM) != 0;
+    /* --stream, or a map that would take more than half the memory (--max-memory,
+     * else the memory available): read a slice at a time (the meshes, the
+     * same either way, stay in memory) */
+    const uint64_t limit = a->max_memory ? a->max_memory : cli_memory_available();
+    const uint64_t volume_bytes = src.slice_bytes * (uint64_t)src.desc.dims[2];
+    const int integers = src.desc.type != ISOMEND_F32 && src.desc.type != ISOMEND_F64;
+    const int stream = (a->seen & OPT_STREAM) != 0 || (integers && limit && volume_bytes > limit / 2);
     isomend_volume vol = src.desc;
     if (stream) {
         if (vol.type == ISOMEND_F32 || vol.type == ISOMEND_F64) {
@@ -714,10 +719,12 @@ int cli_extract_labels(cli_args *a)
         cli_json_string(jf, a->output);
         fprintf(jf, ", \"dims\": ");
         cli_json_dims(jf, vol.dims);
-        fprintf(jf, ", \"type\": \"%s\", \"method\": \"%s\", \"pad\": %s, \"names_from\": ",
+        fprintf(jf,
+                ", \"type\": \"%s\", \"method\": \"%s\", \"pad\": %s, \"streamed\": %s, "
+                "\"names_from\": ",
                 vol.type == ISOMEND_U32 ? "u32" : isomend_type_name(vol.type),
                 isomend_method_name(opts.method),
-                (opts.flags & ISOMEND_FLAG_PAD) ? "true" : "false");
+                (opts.flags & ISOMEND_FLAG_PAD) ? "true" : "false", stream ? "true" : "false");
         if (names_from)
             cli_json_string(jf, names_from);
         else

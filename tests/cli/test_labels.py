@@ -284,6 +284,14 @@ for name, vol in cases:
               f"{name}: streamed triangles differ")
         for e, es in zip(j["labels"], js["labels"]):
             check(same_file(e["file"], es["file"]), f"{name}: --stream differs ({e['value']})")
+        check(js["streamed"] and not j["streamed"], f"{name}: 'streamed' {js['streamed']}, {j['streamed']}")
+    # a map over half of --max-memory is read a slice at a time by itself: the same bytes
+    dm = os.path.join(W, name + "_maxmem") + "/"
+    jx = extract_json(src, dm, "--labels", "all", "--pad", "--max-memory", str(vol.nbytes // 2 - 1))
+    if jx:
+        check(jx["streamed"], f"{name}: a map over half of --max-memory was not streamed")
+        for e, em in zip(j["labels"], jx["labels"]):
+            check(same_file(e["file"], em["file"]), f"{name}: under --max-memory differs ({e['value']})")
     # the same bytes at 1 thread
     d1 = os.path.join(W, name + "_t1") + "/"
     j1 = extract_json(src, d1, "--labels", "all", "--pad", "--threads", "1")
