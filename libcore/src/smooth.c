@@ -685,10 +685,10 @@ isomend_status isomend_mesh_smooth(const isomend_mesh *mesh, int iterations, iso
     delta = calloc(nc1, sizeof(double));
     m->nv = nv;
     m->nt = mesh->nt;
+    /* (the output's normals and triangles go in working arrays that are
+     * done by then, already faulted in: xb, prev) */
     m->pos = malloc(12 * nv1 + 16); /* + 16: the filter's zero vertex */
-    m->tri = malloc(12 * (mesh->nt ? mesh->nt : 1));
-    m->nrm = mesh->nrm ? malloc(12 * nv1) : NULL;
-    if (!v0 || !v1 || !area || !edge || !delta || !m->pos || !m->tri || (mesh->nrm && !m->nrm))
+    if (!v0 || !v1 || !area || !edge || !delta || !m->pos)
         goto done;
     for (int d = 0; d < 4; d++)
         m->pos[3 * nv + (size_t)d] = 0;
@@ -734,6 +734,10 @@ isomend_status isomend_mesh_smooth(const isomend_mesh *mesh, int iterations, iso
         if (!sinc_filter(tm, nv, first, next, free_v, xa, xb, (uint8_t *)nrm, m->pos, iterations))
             goto done;
     }
+    if (mesh->nrm) { /* the filter is done with its scratch */
+        m->nrm = xb;
+        xb = NULL;
+    }
     /* back to the mesh's coordinates; locked vertices exactly where they were */
     out_job oj = {mesh, free_v, nrm, mid, m->pos, NULL, vv, iterations > 0};
     team_for(tm, nv, place_range, &oj);
@@ -776,8 +780,10 @@ isomend_status isomend_mesh_smooth(const isomend_mesh *mesh, int iterations, iso
         memcpy(m->nrm, mesh->nrm, 12 * nv);
     oj.out_nrm = iterations > 0 ? m->nrm : NULL;
     team_for(tm, nv, finish_range, &oj);
+    m->tri = (uint32_t *)prev; /* the fans are done with it: 3 nt too */
+    prev = NULL;
     copy_job tj = {mesh->tri, m->tri};
-    team_for(tm, mesh->nt, copy_range, &tj); /* (faulting the pages in on the team) */
+    team_for(tm, mesh->nt, copy_range, &tj);
     if (mesh_copy_frame(m, mesh) != ISOMEND_OK)
         goto done;
     if (report) {
