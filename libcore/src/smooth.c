@@ -87,8 +87,9 @@ static void sinc_coefficients(int n, double *c)
 /* Each vertex's neighbours in a row of fixed length, so that the filter's
  * inner loop has no branch to mispredict on the varying neighbour count:
  * on a mesh of fewer than NEAR_MIN vertices (its arrays in cache, the loop
- * bound by its instructions) WIDE indices, the rest of the row the zero
- * vertex nv (position 0: adding it changes no sum); on a larger one (bound
+ * bound by its instructions) WIDE indices (16-bit below 65 536 vertices:
+ * a smaller array to fault in), the rest of the row the zero vertex nv
+ * (position 0: adding it changes no sum); on a larger one (bound
  * by memory) NEAR 16-bit offsets from the vertex (vertices come in
  * extraction order, so neighbours lie within about a slice's vertices),
  * the rest of the row masked off: 20 bytes a vertex instead of 32, and
@@ -100,6 +101,7 @@ static void sinc_coefficients(int n, double *c)
  * 1 / count from a table; either way the neighbours are summed in their
  * order, a vertex's padding adding +0, so both rows give the same bytes. */
 #define WIDE 8
+#define SHORT_MAX ((size_t)UINT16_MAX) /* wide rows in 16 bits up to nv */
 #define NEAR 10
 #define NEAR_MIN ((size_t)1 << 17)
 #define DEG_MANY 255
@@ -108,6 +110,7 @@ typedef struct row_job {
     const uint32_t *first, *nb;
     const uint8_t *free_v;
     uint32_t *wide;
+    uint16_t *wide16;
     int16_t *near;
     uint8_t *deg;
     size_t nv;
@@ -126,6 +129,9 @@ static void row_range(void *arg, size_t lo, size_t hi)
                 fits &= d >= INT16_MIN && d <= INT16_MAX;
                 j->near[NEAR * v + k] = fits ? (int16_t)d : 0;
             }
+        else if (j->wide16)
+            for (uint32_t k = 0; k < WIDE; k++)
+                j->wide16[WIDE * v + k] = (uint16_t)(k < n ? j->nb[b + k] : j->nv);
         else
             for (uint32_t k = 0; k < WIDE; k++)
                 j->wide[WIDE * v + k] = k < n ? j->nb[b + k] : (uint32_t)j->nv;
@@ -140,8 +146,9 @@ static void row_range(void *arg, size_t lo, size_t hi)
  * before writing it), so the threads' split changes nothing. */
 typedef struct filter_job {
     const uint32_t *first, *nb;
-    const uint32_t *wide; /* the rows: WIDE a vertex, or */
-    const int16_t *near;  /* NEAR a vertex (the other NULL) */
+    const uint32_t *wide;   /* the rows: WIDE a vertex (in 32 or */
+    const uint16_t *wide16; /* 16 bits), or */
+    const int16_t *near;    /* NEAR a vertex (the others NULL) */
     const uint8_t *deg;
     const float *inv; /* 1 / d, d < DEG_MANY (DEG_MANY + 1 of them) */
     const float *x0, *g, *h;
@@ -195,32 +202,35 @@ static inline void step_out(const step_k *c, size_t v, __m128 x, __m128 gv, __m1
            _mm_sub_ps(_mm_add_ps(_mm_mul_ps(c->ck, x), _mm_mul_ps(c->gs, _mm_add_ps(gv, wg))), hv));
 }
 
-static void filter_wide(const filter_job *j, size_t lo, size_t hi)
-{
-    const uint32_t *restrict row = j->wide;
-    const uint8_t *restrict deg = j->deg;
-    const float *restrict x0 = j->x0, *g = j->g;
-    const uint32_t *restrict first = j->first, *restrict nb = j->nb;
-    const float *restrict inv = j->inv;
-    const step_k c = step_consts(j);
-    for (size_t v = lo; v < hi; v++) {
-        const __m128 x = _mm_loadu_ps(x0 + 3 * v), gv = _mm_loadu_ps(g + 3 * v);
-        __m128 wg = gv; /* a locked vertex: W's row is the identity */
-        const unsigned dv = deg[v];
-        if (dv && dv <= WIDE) {
-            const uint32_t *r = row + WIDE * v;
-            __m128 sum = _mm_loadu_ps(g + 3 * (size_t)r[0]);
-            for (int k = 1; k < WIDE; k++)
-                sum = _mm_add_ps(sum, _mm_loadu_ps(g + 3 * (size_t)r[k]));
-            wg = _mm_mul_ps(sum, _mm_set1_ps(inv[dv]));
-        } else if (dv) {
-            const uint32_t b = first[v], n = first[v + 1] - b;
-            wg = _mm_mul_ps(sum_all(g, nb, b, n, WIDE),
-                            _mm_set1_ps(n < DEG_MANY ? inv[n] : 1.0f / (float)n));
-        }
-        step_out(&c, v, x, gv, wg);
+#define FILTER_WIDE(name, T, field)                                                                \
+    static void name(const filter_job *j, size_t lo, size_t hi)                                    \
+    {                                                                                              \
+        const T *restrict row = j->field;                                                          \
+        const uint8_t *restrict deg = j->deg;                                                      \
+        const float *restrict x0 = j->x0, *g = j->g;                                               \
+        const uint32_t *restrict first = j->first, *restrict nb = j->nb;                           \
+        const float *restrict inv = j->inv;                                                        \
+        const step_k c = step_consts(j);                                                           \
+        for (size_t v = lo; v < hi; v++) {                                                         \
+            const __m128 x = _mm_loadu_ps(x0 + 3 * v), gv = _mm_loadu_ps(g + 3 * v);              \
+            __m128 wg = gv; /* a locked vertex: W's row is the identity */                         \
+            const unsigned dv = deg[v];                                                            \
+            if (dv && dv <= WIDE) {                                                                \
+                const T *r = row + WIDE * v;                                                       \
+                __m128 sum = _mm_loadu_ps(g + 3 * (size_t)r[0]);                                   \
+                for (int k = 1; k < WIDE; k++)                                                     \
+                    sum = _mm_add_ps(sum, _mm_loadu_ps(g + 3 * (size_t)r[k]));                     \
+                wg = _mm_mul_ps(sum, _mm_set1_ps(inv[dv]));                                        \
+            } else if (dv) {                                                                       \
+                const uint32_t b = first[v], n = first[v + 1] - b;                                 \
+                wg = _mm_mul_ps(sum_all(g, nb, b, n, WIDE),                                        \
+                                _mm_set1_ps(n < DEG_MANY ? inv[n] : 1.0f / (float)n));             \
+            }                                                                                      \
+            step_out(&c, v, x, gv, wg);                                                            \
+        }                                                                                          \
     }
-}
+FILTER_WIDE(filter_wide, uint32_t, wide)
+FILTER_WIDE(filter_wide16, uint16_t, wide16)
 
 static void filter_near(const filter_job *j, size_t lo, size_t hi)
 {
@@ -261,6 +271,8 @@ static void filter_range(void *arg, size_t lo, size_t hi)
 #if defined(__SSE2__)
     if (j->near)
         filter_near(j, lo, hi);
+    else if (j->wide16)
+        filter_wide16(j, lo, hi);
     else
         filter_wide(j, lo, hi);
 #else
@@ -280,6 +292,7 @@ static void filter_range(void *arg, size_t lo, size_t hi)
                 const size_t u = k >= n      ? v /* padding: + 0 */
                                  : dv > len  ? (size_t)nb[b + k]
                                  : j->near   ? (size_t)((ptrdiff_t)v + j->near[NEAR * v + k])
+                                 : j->wide16 ? (size_t)j->wide16[WIDE * v + k]
                                              : (size_t)j->wide[WIDE * v + k];
                 for (int d = 0; d < 3; d++) {
                     const float a = k < n ? g[3 * u + (size_t)d] : 0.0f;
@@ -313,8 +326,8 @@ int sinc_filter(team *tm, size_t n, const uint32_t *first, const uint32_t *nb,
 {
     const size_t nv = n;
     double *c = malloc(8 * ((size_t)iterations + 1));
-    const int near = nv >= NEAR_MIN;
-    void *row = malloc((near ? NEAR * sizeof(int16_t) : WIDE * sizeof(uint32_t)) * (nv ? nv : 1));
+    const int near = nv >= NEAR_MIN, wide16 = !near && nv <= SHORT_MAX;
+    void *row = malloc((near ? NEAR * sizeof(int16_t) : WIDE * (wide16 ? 2 : 4)) * (nv ? nv : 1));
     if (!c || !row) {
         free(c);
         free(row);
@@ -323,7 +336,8 @@ int sinc_filter(team *tm, size_t n, const uint32_t *first, const uint32_t *nb,
     for (int d = 0; d < 4; d++) /* the zero vertex */
         b[3 * nv + (size_t)d] = out[3 * nv + (size_t)d] = 0;
     sinc_coefficients(iterations, c);
-    row_job rj = {first, nb, free_v, near ? NULL : row, near ? row : NULL, deg, nv};
+    row_job rj = {first,       nb, free_v, near || wide16 ? NULL : row, wide16 ? row : NULL,
+                  near ? row : NULL, deg, nv};
     team_for(tm, nv, row_range, &rj);
     float inv[DEG_MANY + 1];
     inv[0] = inv[DEG_MANY] = 0;
@@ -335,8 +349,8 @@ int sinc_filter(team *tm, size_t n, const uint32_t *first, const uint32_t *nb,
      * output's so that the last step writes over it */
     const int N = iterations;
     float *buf[2] = {N % 2 ? out : b, N % 2 ? b : out};
-    filter_job job = {first, nb, near ? NULL : row, near ? row : NULL, deg, inv, x0, x0,
-                      NULL, NULL, 0, 0, 0};
+    filter_job job = {first, nb, near || wide16 ? NULL : row, wide16 ? row : NULL,
+                      near ? row : NULL, deg, inv, x0, x0, NULL, NULL, 0, 0, 0};
     if (N >= 2) {
         job.ck = (float)c[N - 1]; /* b_(N-1) = c_(N-1) x0 + c_N 2 M x0 */
         job.g = x0;
