@@ -100,10 +100,10 @@ static void sinc_coefficients(int n, double *c)
  * or one further than an offset reaches, summed from the compressed rows),
  * 1 / count from a table; either way the neighbours are summed in their
  * order, a vertex's padding adding +0, so both rows give the same bytes. */
-#define WIDE 8
+#define WIDE      8
 #define SHORT_MAX ((size_t)UINT16_MAX) /* wide rows in 16 bits up to nv */
-#define NEAR 10
-#define NEAR_MIN ((size_t)1 << 17)
+#define NEAR      10
+#define NEAR_MIN  ((size_t)1 << 17)
 #define DEG_MANY 255
 
 typedef struct row_job {
@@ -212,7 +212,7 @@ static inline void step_out(const step_k *c, size_t v, __m128 x, __m128 gv, __m1
         const float *restrict inv = j->inv;                                                        \
         const step_k c = step_consts(j);                                                           \
         for (size_t v = lo; v < hi; v++) {                                                         \
-            const __m128 x = _mm_loadu_ps(x0 + 3 * v), gv = _mm_loadu_ps(g + 3 * v);              \
+            const __m128 x = _mm_loadu_ps(x0 + 3 * v), gv = _mm_loadu_ps(g + 3 * v);               \
             __m128 wg = gv; /* a locked vertex: W's row is the identity */                         \
             const unsigned dv = deg[v];                                                            \
             if (dv && dv <= WIDE) {                                                                \
@@ -253,7 +253,8 @@ static void filter_near(const filter_job *j, size_t lo, size_t hi)
             const float *gb = g + 3 * v;
             __m128 sum = _mm_loadu_ps(gb + 3 * (ptrdiff_t)r[0]);
             for (int k = 1; k < NEAR; k++)
-                sum = _mm_add_ps(sum, _mm_and_ps(_mm_loadu_ps(gb + 3 * (ptrdiff_t)r[k]), mask[dv][k]));
+                sum = _mm_add_ps(sum,
+                                 _mm_and_ps(_mm_loadu_ps(gb + 3 * (ptrdiff_t)r[k]), mask[dv][k]));
             wg = _mm_mul_ps(sum, _mm_set1_ps(inv[dv]));
         } else if (dv) {
             const uint32_t b = first[v], n = first[v + 1] - b;
@@ -336,8 +337,10 @@ int sinc_filter(team *tm, size_t n, const uint32_t *first, const uint32_t *nb,
     for (int d = 0; d < 4; d++) /* the zero vertex */
         b[3 * nv + (size_t)d] = out[3 * nv + (size_t)d] = 0;
     sinc_coefficients(iterations, c);
-    row_job rj = {first,       nb, free_v, near || wide16 ? NULL : row, wide16 ? row : NULL,
-                  near ? row : NULL, deg, nv};
+    uint32_t *wide = near || wide16 ? NULL : row;
+    uint16_t *short_row = wide16 ? row : NULL;
+    int16_t *near_row = near ? row : NULL;
+    row_job rj = {first, nb, free_v, wide, short_row, near_row, deg, nv};
     team_for(tm, nv, row_range, &rj);
     float inv[DEG_MANY + 1];
     inv[0] = inv[DEG_MANY] = 0;
@@ -349,8 +352,7 @@ int sinc_filter(team *tm, size_t n, const uint32_t *first, const uint32_t *nb,
      * output's so that the last step writes over it */
     const int N = iterations;
     float *buf[2] = {N % 2 ? out : b, N % 2 ? b : out};
-    filter_job job = {first, nb, near || wide16 ? NULL : row, wide16 ? row : NULL,
-                      near ? row : NULL, deg, inv, x0, x0, NULL, NULL, 0, 0, 0};
+    filter_job job = {first, nb, wide, short_row, near_row, deg, inv, x0, x0, NULL, NULL, 0, 0, 0};
     if (N >= 2) {
         job.ck = (float)c[N - 1]; /* b_(N-1) = c_(N-1) x0 + c_N 2 M x0 */
         job.g = x0;
