@@ -32,8 +32,10 @@
  * of the components still to restore).  Volumes and normals come
  * from each vertex's fan, V = sum over vertices of p . N / 18 with N the
  * vertex's area-weighted normal sum (each triangle's a . (b x c) / 6 counted
- * once from each corner), so that they are gathered on threads and summed
- * in vertex order.  Locked vertices (mesh_free_vertices: the border of an
+ * once from each corner; the edges and cross products in float, four lanes
+ * at once, the volumes and areas in double), so that they are gathered on
+ * threads and summed in vertex order, in fixed blocks of vertices found and
+ * summed at once.  Locked vertices (mesh_free_vertices: the border of an
  * unpadded surface, non-manifold places) never move, and the triangles are
  * the input's, so the surface stays closed and oriented.
  */
@@ -82,19 +84,34 @@ static void sinc_coefficients(int n, double *c)
 
 /* ------------------------------------------------------------ the filter */
 
-/* Each vertex's first ROW neighbours in a row of ROW (the rest of a row
- * the zero vertex nv, whose position is 0: adding it changes no sum), so
- * that the filter's inner loop has no branch to mispredict on the varying
- * neighbour count; the neighbours past ROW from the compressed rows.  Its
- * neighbour count in a byte (0: locked, DEG_MANY: count from first) and
- * 1 / count from a table. */
-#define ROW 8
+/* Each vertex's neighbours in a row of fixed length, so that the filter's
+ * inner loop has no branch to mispredict on the varying neighbour count:
+ * on a mesh of fewer than NEAR_MIN vertices (its arrays in cache, the loop
+ * bound by its instructions) WIDE indices (16-bit below 65 536 vertices:
+ * a smaller array to fault in), the rest of the row the zero vertex nv
+ * (position 0: adding it changes no sum); on a larger one (bound
+ * by memory) NEAR 16-bit offsets from the vertex (vertices come in
+ * extraction order, so neighbours lie within about a slice's vertices),
+ * the rest of the row masked off: 20 bytes a vertex instead of 32, and
+ * rows long enough for nearly every vertex (the gyroid's filter: about
+ * 15 % less time on one thread; on the phantom's 32 000 vertices the
+ * masks cost 10 %, docs/postprocess.md).  The neighbour count in a byte
+ * (0: locked, up to the row's length: the row, DEG_MANY: more neighbours,
+ * or one further than an offset reaches, summed from the compressed rows),
+ * 1 / count from a table; either way the neighbours are summed in their
+ * order, a vertex's padding adding +0, so both rows give the same bytes. */
+#define WIDE      8
+#define SHORT_MAX ((size_t)UINT16_MAX) /* wide rows in 16 bits up to nv */
+#define NEAR      10
+#define NEAR_MIN  ((size_t)1 << 17)
 #define DEG_MANY 255
 
 typedef struct row_job {
     const uint32_t *first, *nb;
     const uint8_t *free_v;
-    uint32_t *row;
+    uint32_t *wide;
+    uint16_t *wide16;
+    int16_t *near;
     uint8_t *deg;
     size_t nv;
 } row_job;
@@ -102,11 +119,23 @@ typedef struct row_job {
 static void row_range(void *arg, size_t lo, size_t hi)
 {
     const row_job *j = arg;
+    uint8_t *deg = j->deg;
     for (size_t v = lo; v < hi; v++) {
         const uint32_t b = j->first[v], n = j->first[v + 1] - b;
-        for (uint32_t k = 0; k < ROW; k++)
-            j->row[ROW * v + k] = k < n ? j->nb[b + k] : (uint32_t)j->nv;
-        j->deg[v] = !j->free_v[v] || !n ? 0 : n < DEG_MANY ? (uint8_t)n : DEG_MANY;
+        int fits = n <= (j->near ? NEAR : WIDE);
+        if (j->near)
+            for (uint32_t k = 0; k < NEAR; k++) {
+                const int64_t d = k < n ? (int64_t)j->nb[b + k] - (int64_t)v : 0;
+                fits &= d >= INT16_MIN && d <= INT16_MAX;
+                j->near[NEAR * v + k] = fits ? (int16_t)d : 0;
+            }
+        else if (j->wide16)
+            for (uint32_t k = 0; k < WIDE; k++)
+                j->wide16[WIDE * v + k] = (uint16_t)(k < n ? j->nb[b + k] : j->nv);
+        else
+            for (uint32_t k = 0; k < WIDE; k++)
+                j->wide[WIDE * v + k] = k < n ? j->nb[b + k] : (uint32_t)j->nv;
+        deg[v] = !j->free_v[v] || !n ? 0 : fits ? (uint8_t)n : DEG_MANY;
     }
 }
 
@@ -116,7 +145,10 @@ static void row_range(void *arg, size_t lo, size_t hi)
  * the previous steps' arrays only (h may be out: a vertex reads its own
  * before writing it), so the threads' split changes nothing. */
 typedef struct filter_job {
-    const uint32_t *first, *nb, *row;
+    const uint32_t *first, *nb;
+    const uint32_t *wide;   /* the rows: WIDE a vertex (in 32 or */
+    const uint16_t *wide16; /* 16 bits), or */
+    const int16_t *near;    /* NEAR a vertex (the others NULL) */
     const uint8_t *deg;
     const float *inv; /* 1 / d, d < DEG_MANY (DEG_MANY + 1 of them) */
     const float *x0, *g, *h;
@@ -138,54 +170,137 @@ static inline void store3(float *p, __m128 v)
  * (loaded with the next vertex's x: the arrays have floats after the last
  * vertex, the zero vertex), lane by lane the same operations in the same
  * order as the plain C below, so the same bytes. */
+#if defined(__SSE2__)
+/* The sum of all n neighbours of compressed row b, in order (+ 0 for a row's
+ * padding). */
+static inline __m128 sum_all(const float *g, const uint32_t *nb, uint32_t b, uint32_t n, int row)
+{
+    __m128 sum = _mm_loadu_ps(g + 3 * (size_t)nb[b]);
+    for (uint32_t k = 1; k < n; k++)
+        sum = _mm_add_ps(sum, _mm_loadu_ps(g + 3 * (size_t)nb[b + k]));
+    return n < (uint32_t)row ? _mm_add_ps(sum, _mm_setzero_ps()) : sum;
+}
+
+/* A step's constants in registers (the stores to out could alias the
+ * job's floats). */
+typedef struct step_k {
+    __m128 ck, gs, hs;
+    const float *h;
+    float *out;
+} step_k;
+
+static inline step_k step_consts(const filter_job *j)
+{
+    return (step_k){_mm_set1_ps(j->ck), _mm_set1_ps(j->gs), _mm_set1_ps(j->hs), j->h, j->out};
+}
+
+/* out at vertex v from its x0, g, h and W g */
+static inline void step_out(const step_k *c, size_t v, __m128 x, __m128 gv, __m128 wg)
+{
+    const __m128 hv = c->h ? _mm_loadu_ps(c->h + 3 * v) : _mm_mul_ps(c->hs, x);
+    store3(c->out + 3 * v,
+           _mm_sub_ps(_mm_add_ps(_mm_mul_ps(c->ck, x), _mm_mul_ps(c->gs, _mm_add_ps(gv, wg))), hv));
+}
+
+#define FILTER_WIDE(name, T, field)                                                                \
+    static void name(const filter_job *j, size_t lo, size_t hi)                                    \
+    {                                                                                              \
+        const T *restrict row = j->field;                                                          \
+        const uint8_t *restrict deg = j->deg;                                                      \
+        const float *restrict x0 = j->x0, *g = j->g;                                               \
+        const uint32_t *restrict first = j->first, *restrict nb = j->nb;                           \
+        const float *restrict inv = j->inv;                                                        \
+        const step_k c = step_consts(j);                                                           \
+        for (size_t v = lo; v < hi; v++) {                                                         \
+            const __m128 x = _mm_loadu_ps(x0 + 3 * v), gv = _mm_loadu_ps(g + 3 * v);               \
+            __m128 wg = gv; /* a locked vertex: W's row is the identity */                         \
+            const unsigned dv = deg[v];                                                            \
+            if (dv && dv <= WIDE) {                                                                \
+                const T *r = row + WIDE * v;                                                       \
+                __m128 sum = _mm_loadu_ps(g + 3 * (size_t)r[0]);                                   \
+                for (int k = 1; k < WIDE; k++)                                                     \
+                    sum = _mm_add_ps(sum, _mm_loadu_ps(g + 3 * (size_t)r[k]));                     \
+                wg = _mm_mul_ps(sum, _mm_set1_ps(inv[dv]));                                        \
+            } else if (dv) {                                                                       \
+                const uint32_t b = first[v], n = first[v + 1] - b;                                 \
+                wg = _mm_mul_ps(sum_all(g, nb, b, n, WIDE),                                        \
+                                _mm_set1_ps(n < DEG_MANY ? inv[n] : 1.0f / (float)n));             \
+            }                                                                                      \
+            step_out(&c, v, x, gv, wg);                                                            \
+        }                                                                                          \
+    }
+FILTER_WIDE(filter_wide, uint32_t, wide)
+FILTER_WIDE(filter_wide16, uint16_t, wide16)
+
+static void filter_near(const filter_job *j, size_t lo, size_t hi)
+{
+    const int16_t *restrict row = j->near;
+    const uint8_t *restrict deg = j->deg;
+    const float *restrict x0 = j->x0, *g = j->g;
+    const uint32_t *restrict first = j->first, *restrict nb = j->nb;
+    const float *restrict inv = j->inv;
+    const step_k c = step_consts(j);
+    __m128 mask[NEAR + 1][NEAR]; /* mask[d][k]: whether neighbour k of d counts */
+    for (int d = 0; d <= NEAR; d++)
+        for (int k = 0; k < NEAR; k++)
+            mask[d][k] = _mm_castsi128_ps(_mm_set1_epi32(k < d ? -1 : 0));
+    for (size_t v = lo; v < hi; v++) {
+        const __m128 x = _mm_loadu_ps(x0 + 3 * v), gv = _mm_loadu_ps(g + 3 * v);
+        __m128 wg = gv;
+        const unsigned dv = deg[v];
+        if (dv && dv <= NEAR) {
+            const int16_t *r = row + NEAR * v;
+            const float *gb = g + 3 * v;
+            __m128 sum = _mm_loadu_ps(gb + 3 * (ptrdiff_t)r[0]);
+            for (int k = 1; k < NEAR; k++)
+                sum = _mm_add_ps(sum,
+                                 _mm_and_ps(_mm_loadu_ps(gb + 3 * (ptrdiff_t)r[k]), mask[dv][k]));
+            wg = _mm_mul_ps(sum, _mm_set1_ps(inv[dv]));
+        } else if (dv) {
+            const uint32_t b = first[v], n = first[v + 1] - b;
+            wg = _mm_mul_ps(sum_all(g, nb, b, n, NEAR),
+                            _mm_set1_ps(n < DEG_MANY ? inv[n] : 1.0f / (float)n));
+        }
+        step_out(&c, v, x, gv, wg);
+    }
+}
+#endif
+
 static void filter_range(void *arg, size_t lo, size_t hi)
 {
     const filter_job *j = arg;
-    const uint32_t *restrict first = j->first, *restrict nb = j->nb, *restrict row = j->row;
+#if defined(__SSE2__)
+    if (j->near)
+        filter_near(j, lo, hi);
+    else if (j->wide16)
+        filter_wide16(j, lo, hi);
+    else
+        filter_wide(j, lo, hi);
+#else
+    const uint32_t *restrict first = j->first, *restrict nb = j->nb;
     const uint8_t *restrict deg = j->deg;
     const float *restrict x0 = j->x0, *g = j->g, *h = j->h;
     float *out = j->out;
-#if defined(__SSE2__)
-    const __m128 ck = _mm_set1_ps(j->ck), gs = _mm_set1_ps(j->gs), hs = _mm_set1_ps(j->hs);
-    for (size_t v = lo; v < hi; v++) {
-        const __m128 x = _mm_loadu_ps(x0 + 3 * v), gv = _mm_loadu_ps(g + 3 * v);
-        __m128 wg = gv; /* a locked vertex: W's row is the identity */
-        if (deg[v]) {
-            const uint32_t *r = row + ROW * v;
-            __m128 sum = _mm_loadu_ps(g + 3 * (size_t)r[0]);
-            for (int k = 1; k < ROW; k++)
-                sum = _mm_add_ps(sum, _mm_loadu_ps(g + 3 * (size_t)r[k]));
-            float inv = j->inv[deg[v]];
-            if (deg[v] > ROW) {
-                for (uint32_t k = first[v] + ROW; k < first[v + 1]; k++)
-                    sum = _mm_add_ps(sum, _mm_loadu_ps(g + 3 * (size_t)nb[k]));
-                if (deg[v] == DEG_MANY)
-                    inv = 1.0f / (float)(first[v + 1] - first[v]);
-            }
-            wg = _mm_mul_ps(sum, _mm_set1_ps(inv));
-        }
-        const __m128 hv = h ? _mm_loadu_ps(h + 3 * v) : _mm_mul_ps(hs, x);
-        store3(out + 3 * v,
-               _mm_sub_ps(_mm_add_ps(_mm_mul_ps(ck, x), _mm_mul_ps(gs, _mm_add_ps(gv, wg))), hv));
-    }
-#else
     const float ck = j->ck, gs = j->gs, hs = j->hs;
+    const uint32_t len = j->near ? NEAR : WIDE;
     for (size_t v = lo; v < hi; v++) {
         float wg[3] = {g[3 * v], g[3 * v + 1], g[3 * v + 2]};
-        if (deg[v]) {
-            const uint32_t *r = row + ROW * v;
-            float sum[3] = {g[3 * (size_t)r[0]], g[3 * (size_t)r[0] + 1], g[3 * (size_t)r[0] + 2]};
-            for (int k = 1; k < ROW; k++)
-                for (int d = 0; d < 3; d++)
-                    sum[d] += g[3 * (size_t)r[k] + (size_t)d];
-            float inv = j->inv[deg[v]];
-            if (deg[v] > ROW) {
-                for (uint32_t k = first[v] + ROW; k < first[v + 1]; k++)
-                    for (int d = 0; d < 3; d++)
-                        sum[d] += g[3 * (size_t)nb[k] + (size_t)d];
-                if (deg[v] == DEG_MANY)
-                    inv = 1.0f / (float)(first[v + 1] - first[v]);
+        const unsigned dv = deg[v];
+        if (dv) {
+            const uint32_t b = first[v], n = dv <= len ? dv : first[v + 1] - b;
+            float sum[3];
+            for (uint32_t k = 0; k < (n > len ? n : len); k++) {
+                const size_t u = k >= n      ? v /* padding: + 0 */
+                                 : dv > len  ? (size_t)nb[b + k]
+                                 : j->near   ? (size_t)((ptrdiff_t)v + j->near[NEAR * v + k])
+                                 : j->wide16 ? (size_t)j->wide16[WIDE * v + k]
+                                             : (size_t)j->wide[WIDE * v + k];
+                for (int d = 0; d < 3; d++) {
+                    const float a = k < n ? g[3 * u + (size_t)d] : 0.0f;
+                    sum[d] = k ? sum[d] + a : a;
+                }
             }
+            const float inv = n < DEG_MANY ? j->inv[n] : 1.0f / (float)n;
             for (int d = 0; d < 3; d++)
                 wg[d] = sum[d] * inv;
         }
@@ -212,7 +327,8 @@ int sinc_filter(team *tm, size_t n, const uint32_t *first, const uint32_t *nb,
 {
     const size_t nv = n;
     double *c = malloc(8 * ((size_t)iterations + 1));
-    uint32_t *row = malloc(ROW * sizeof(uint32_t) * (nv ? nv : 1));
+    const int near = nv >= NEAR_MIN, wide16 = !near && nv <= SHORT_MAX;
+    void *row = malloc((near ? NEAR * sizeof(int16_t) : WIDE * (wide16 ? 2 : 4)) * (nv ? nv : 1));
     if (!c || !row) {
         free(c);
         free(row);
@@ -221,7 +337,10 @@ int sinc_filter(team *tm, size_t n, const uint32_t *first, const uint32_t *nb,
     for (int d = 0; d < 4; d++) /* the zero vertex */
         b[3 * nv + (size_t)d] = out[3 * nv + (size_t)d] = 0;
     sinc_coefficients(iterations, c);
-    row_job rj = {first, nb, free_v, row, deg, nv};
+    uint32_t *wide = near || wide16 ? NULL : row;
+    uint16_t *short_row = wide16 ? row : NULL;
+    int16_t *near_row = near ? row : NULL;
+    row_job rj = {first, nb, free_v, wide, short_row, near_row, deg, nv};
     team_for(tm, nv, row_range, &rj);
     float inv[DEG_MANY + 1];
     inv[0] = inv[DEG_MANY] = 0;
@@ -233,7 +352,7 @@ int sinc_filter(team *tm, size_t n, const uint32_t *first, const uint32_t *nb,
      * output's so that the last step writes over it */
     const int N = iterations;
     float *buf[2] = {N % 2 ? out : b, N % 2 ? b : out};
-    filter_job job = {first, nb, row, deg, inv, x0, x0, NULL, NULL, 0, 0, 0};
+    filter_job job = {first, nb, wide, short_row, near_row, deg, inv, x0, x0, NULL, NULL, 0, 0, 0};
     if (N >= 2) {
         job.ck = (float)c[N - 1]; /* b_(N-1) = c_(N-1) x0 + c_N 2 M x0 */
         job.g = x0;
@@ -266,9 +385,12 @@ int sinc_filter(team *tm, size_t n, const uint32_t *first, const uint32_t *nb,
 }
 
 /* Each vertex's area-weighted normal sum N (twice the area of its
- * triangles, right-hand winding; stored in float), its area |N| / 6 and its
- * part of the enclosed volume, p . N / 18, from its fan (the next and prev
- * vertex of each corner), of positions p. */
+ * triangles, right-hand winding; in float), its area |N| / 6 and its part
+ * of the enclosed volume, p . N / 18, from its fan (the next and prev
+ * vertex of each corner), of positions p.  In float the fans take a fifth
+ * less time than in double (docs/postprocess.md); what they measure moves
+ * by about 3e-10 of a volume, below the restoration's 1e-7, and a vertex's
+ * normal by up to 2e-5. */
 typedef struct fan_job {
     const uint32_t *first, *next, *prev;
     const uint32_t *list; /* the vertices (NULL: all), by index */
@@ -277,40 +399,73 @@ typedef struct fan_job {
     double *vol, *area;
 } fan_job;
 
+/* Vertex v's fan: its normal sum into nrm, its volume and area returned.
+ * The edges and cross products in float (SSE2: a vertex's x, y, z in one
+ * register; the plain C the same operations in the same order), the volume
+ * and area in double. */
+#if defined(__SSE2__)
+static inline __m128 load3(const float *p) /* x, y, z, 0 (no read past z) */
+{
+    return _mm_movelh_ps(_mm_loadl_pi(_mm_setzero_ps(), (const __m64 *)(const void *)p),
+                         _mm_load_ss(p + 2));
+}
+#endif
+
+static inline void fan_vertex(const fan_job *j, size_t v, double *vol, double *area)
+{
+    const uint32_t *restrict first = j->first, *restrict next = j->next, *restrict prev = j->prev;
+    const float *restrict p = j->p;
+    float n[4];
+#if defined(__SSE2__)
+    const __m128 a = load3(p + 3 * v);
+    __m128 sum = _mm_setzero_ps();
+    for (uint32_t k = first[v]; k < first[v + 1]; k++) {
+        const __m128 e = _mm_sub_ps(load3(p + 3 * (size_t)next[k]), a);
+        const __m128 f = _mm_sub_ps(load3(p + 3 * (size_t)prev[k]), a);
+        const __m128 e1 = _mm_shuffle_ps(e, e, _MM_SHUFFLE(3, 0, 2, 1)); /* y z x */
+        const __m128 f2 = _mm_shuffle_ps(f, f, _MM_SHUFFLE(3, 1, 0, 2)); /* z x y */
+        const __m128 e2 = _mm_shuffle_ps(e, e, _MM_SHUFFLE(3, 1, 0, 2));
+        const __m128 f1 = _mm_shuffle_ps(f, f, _MM_SHUFFLE(3, 0, 2, 1));
+        sum = _mm_add_ps(sum, _mm_sub_ps(_mm_mul_ps(e1, f2), _mm_mul_ps(e2, f1)));
+    }
+    _mm_storeu_ps(n, sum);
+#else
+    const float a0 = p[3 * v], a1 = p[3 * v + 1], a2 = p[3 * v + 2];
+    n[0] = n[1] = n[2] = 0;
+    for (uint32_t k = first[v]; k < first[v + 1]; k++) {
+        const float *b = p + 3 * (size_t)next[k], *d = p + 3 * (size_t)prev[k];
+        const float e0 = b[0] - a0, e1 = b[1] - a1, e2 = b[2] - a2;
+        const float f0 = d[0] - a0, f1 = d[1] - a1, f2 = d[2] - a2;
+        n[0] += e1 * f2 - e2 * f1;
+        n[1] += e2 * f0 - e0 * f2;
+        n[2] += e0 * f1 - e1 * f0;
+    }
+#endif
+    j->nrm[3 * v] = n[0];
+    j->nrm[3 * v + 1] = n[1];
+    j->nrm[3 * v + 2] = n[2];
+    const double n0 = n[0], n1 = n[1], n2 = n[2];
+    *vol = ((double)p[3 * v] * n0 + (double)p[3 * v + 1] * n1 + (double)p[3 * v + 2] * n2) / 18.0;
+    *area = sqrt(n0 * n0 + n1 * n1 + n2 * n2) / 6.0;
+}
+
 static void fan_range(void *arg, size_t lo, size_t hi)
 {
     const fan_job *j = arg;
-    const uint32_t *restrict first = j->first, *restrict next = j->next, *restrict prev = j->prev;
-    const float *restrict p = j->p;
-    float *restrict nrm = j->nrm;
-    double *restrict vol = j->vol, *restrict area = j->area;
     for (size_t i = lo; i < hi; i++) {
         const size_t v = j->list ? j->list[i] : i;
-        const double a0 = p[3 * v], a1 = p[3 * v + 1], a2 = p[3 * v + 2];
-        double n0 = 0, n1 = 0, n2 = 0;
-        for (uint32_t k = first[v]; k < first[v + 1]; k++) {
-            const float *b = p + 3 * (size_t)next[k], *d = p + 3 * (size_t)prev[k];
-            const double e0 = b[0] - a0, e1 = b[1] - a1, e2 = b[2] - a2;
-            const double f0 = d[0] - a0, f1 = d[1] - a1, f2 = d[2] - a2;
-            n0 += e1 * f2 - e2 * f1;
-            n1 += e2 * f0 - e0 * f2;
-            n2 += e0 * f1 - e1 * f0;
-        }
-        nrm[3 * v] = (float)n0;
-        nrm[3 * v + 1] = (float)n1;
-        nrm[3 * v + 2] = (float)n2;
-        vol[v] = (a0 * n0 + a1 * n1 + a2 * n2) / 18.0;
-        area[v] = sqrt(n0 * n0 + n1 * n1 + n2 * n2) / 6.0;
+        fan_vertex(j, v, &j->vol[v], &j->area[v]);
     }
 }
 
 /* Per-component sums over the vertices of a fan sweep: each component's
  * volume and the area of its free vertices (and, on the input, the area of
  * all its vertices and its corners: the step limit).  With few components
- * (up to SUM_DENSE) they are summed on the team in fixed blocks of
- * SUM_BLOCK vertices, a row of sums a block, then the blocks in order; with
- * more, on this thread in vertex order.  Either way the same bytes for any
- * number of threads. */
+ * (up to SUM_DENSE) each fixed block of SUM_BLOCK vertices has its fans
+ * found and summed at once on the team (no per-vertex arrays, no second
+ * pass), a row of sums a block, then the blocks in order; with more, the
+ * fans on the team and the sums on this thread in vertex order.  Either way
+ * the same bytes for any number of threads. */
 #define SUM_BLOCK 4096
 #define SUM_DENSE 256
 #define SUM_FIELDS 4 /* volume, free area, area, corners */
@@ -338,12 +493,13 @@ static void sum_blocks(void *arg, size_t b0, size_t b1)
         for (size_t i = b * SUM_BLOCK; i < end; i++) {
             const size_t v = f->list ? f->list[i] : i;
             const uint32_t k = j->label[v];
-            double *s = part + (size_t)k * SUM_FIELDS;
+            double *s = part + (size_t)k * SUM_FIELDS, vol, area;
+            fan_vertex(f, v, &vol, &area);
             seen[k] = 1;
-            s[0] += f->vol[v];
-            s[1] += j->free_v[v] ? f->area[v] : 0;
+            s[0] += vol;
+            s[1] += j->free_v[v] ? area : 0;
             if (j->fields > 2) {
-                s[2] += f->area[v];
+                s[2] += area;
                 s[3] += j->first[v + 1] - j->first[v];
             }
         }
@@ -359,12 +515,11 @@ static void fans(team *t, fan_job *j, const float *p, size_t n, const uint32_t *
                  uint8_t *seen, double *const out[SUM_FIELDS])
 {
     j->p = p;
-    team_for(t, n, fan_range, j);
     const int fields = first ? 4 : 2;
     if (part) {
         const size_t nblocks = (n + SUM_BLOCK - 1) / SUM_BLOCK;
         sum_job sj = {j, label, first, free_v, n, nc, fields, part, seen};
-        team_for_from(t, nblocks, 2, sum_blocks, &sj);
+        team_for_from(t, nblocks, 1, sum_blocks, &sj);
         for (size_t k = 0; k < nc; k++) {
             double sum[SUM_FIELDS] = {0, 0, 0, 0};
             int any = 0;
@@ -380,6 +535,7 @@ static void fans(team *t, fan_job *j, const float *p, size_t n, const uint32_t *
         }
         return;
     }
+    team_for(t, n, fan_range, j);
     for (size_t i = 0; i < n; i++) {
         const uint32_t k = label[j->list ? j->list[i] : i];
         for (int f = 0; f < fields; f++)
@@ -584,10 +740,10 @@ isomend_status isomend_mesh_smooth(const isomend_mesh *mesh, int iterations, iso
     delta = calloc(nc1, sizeof(double));
     m->nv = nv;
     m->nt = mesh->nt;
+    /* (the output's normals and triangles go in working arrays that are
+     * done by then, already faulted in: xb, prev) */
     m->pos = malloc(12 * nv1 + 16); /* + 16: the filter's zero vertex */
-    m->tri = malloc(12 * (mesh->nt ? mesh->nt : 1));
-    m->nrm = mesh->nrm ? malloc(12 * nv1) : NULL;
-    if (!v0 || !v1 || !area || !edge || !delta || !m->pos || !m->tri || (mesh->nrm && !m->nrm))
+    if (!v0 || !v1 || !area || !edge || !delta || !m->pos)
         goto done;
     for (int d = 0; d < 4; d++)
         m->pos[3 * nv + (size_t)d] = 0;
@@ -633,6 +789,10 @@ isomend_status isomend_mesh_smooth(const isomend_mesh *mesh, int iterations, iso
         if (!sinc_filter(tm, nv, first, next, free_v, xa, xb, (uint8_t *)nrm, m->pos, iterations))
             goto done;
     }
+    if (mesh->nrm) { /* the filter is done with its scratch */
+        m->nrm = xb;
+        xb = NULL;
+    }
     /* back to the mesh's coordinates; locked vertices exactly where they were */
     out_job oj = {mesh, free_v, nrm, mid, m->pos, NULL, vv, iterations > 0};
     team_for(tm, nv, place_range, &oj);
@@ -675,8 +835,10 @@ isomend_status isomend_mesh_smooth(const isomend_mesh *mesh, int iterations, iso
         memcpy(m->nrm, mesh->nrm, 12 * nv);
     oj.out_nrm = iterations > 0 ? m->nrm : NULL;
     team_for(tm, nv, finish_range, &oj);
+    m->tri = (uint32_t *)prev; /* the fans are done with it: 3 nt too */
+    prev = NULL;
     copy_job tj = {mesh->tri, m->tri};
-    team_for(tm, mesh->nt, copy_range, &tj); /* (faulting the pages in on the team) */
+    team_for(tm, mesh->nt, copy_range, &tj);
     if (mesh_copy_frame(m, mesh) != ISOMEND_OK)
         goto done;
     if (report) {
