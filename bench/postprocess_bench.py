@@ -4,7 +4,8 @@ on the same meshes, in one run (docs/postprocess.md).
 
 Meshes (each isomend's padded DMC surface, closed and oriented): the bundled
 MRI, a CT-like phantom (i16 HU: hollow bone balls, a bone torus, fragments in
-soft tissue, noise) and a busy gyroid (about 2.9 M triangles at 256^3).
+soft tissue, noise) at 160^3 (64 k triangles) and at 512^3 (a CT's size,
+about 0.65 M triangles), and a busy gyroid (about 2.9 M triangles at 256^3).
 
 Decimation to 10 % of the triangles with
   isomend        `isomend extract ... --decimate 0.1` (the decimation step's
@@ -253,16 +254,18 @@ def main():
     os.makedirs(work)
     problems = []
 
-    n_ct, n_gy = (48, 48) if a.smoke else (160, 256)
-    ct_phantom(os.path.join(work, "ct.raw"), n_ct)
+    # the CT phantom twice: small (64 k triangles) and at a CT's size (512^3:
+    # about 0.65 M triangles, the size of a 256 x 256 x 108 CT's bone surface)
+    n_cts, n_gy = ((48,), 48) if a.smoke else ((160, 512), 256)
+    for n_ct in n_cts:
+        ct_phantom(os.path.join(work, f"ct{n_ct}.raw"), n_ct)
     gyroid(os.path.join(work, "gyroid.raw"), n_gy)
-    meshes = [
-        ("MRI (anatomical.nrrd)", [os.path.join(os.path.abspath(a.samples), "anatomical.nrrd"), "--pad"]),
-        (f"CT phantom {n_ct}^3 i16", [os.path.join(work, "ct.raw"), "--raw", f"{n_ct},{n_ct},{n_ct}:i16",
-                                       "--iso", "300", "--pad"]),
-        (f"gyroid {n_gy}^3 f32", [os.path.join(work, "gyroid.raw"), "--raw", f"{n_gy},{n_gy},{n_gy}:f32",
-                                   "--iso", "0", "--pad"]),
-    ]
+    meshes = [("MRI (anatomical.nrrd)", [os.path.join(os.path.abspath(a.samples), "anatomical.nrrd"), "--pad"])]
+    meshes += [(f"CT phantom {n_ct}^3 i16", [os.path.join(work, f"ct{n_ct}.raw"), "--raw",
+                                              f"{n_ct},{n_ct},{n_ct}:i16", "--iso", "300", "--pad"])
+               for n_ct in n_cts]
+    meshes.append((f"gyroid {n_gy}^3 f32", [os.path.join(work, "gyroid.raw"), "--raw",
+                                             f"{n_gy},{n_gy},{n_gy}:f32", "--iso", "0", "--pad"]))
     tools = ["isomend", "isomend-stream"]
     if a.peers == "all":
         tools += ["vtk-quadric", "vtk-pro"]
@@ -388,6 +391,19 @@ def main():
     lines += ["", "| mesh | smoothing | time | volume change |", "|---|---|---|---|"]
     for label, tool, ms, dv in smooth_rows:
         lines.append(f"| {label} | {tool} | {fmt_ms(ms)} | {dv:+.3f} % |")
+    # the ratios the goals name: each peer's time over isomend's, in this run
+    if a.peers == "all":
+        lines += ["", "| mesh | vtk-quadric / isomend | meshlab / isomend | meshopt / isomend | "
+                  "vtkWindowedSinc / isomend --smooth |", "|---|---|---|---|---|"]
+        for label, _ in meshes:
+            t = {r[1]: r[2] for r in rows if r[0] == label and r[2] is not None}
+            sm = {r[1].split()[0]: r[2] for r in smooth_rows if r[0] == label}
+
+            def ratio(x, y):
+                return f"{x / y:.1f}x" if x and y else "-"
+            lines.append(f"| {label} | {ratio(t.get('vtk-quadric'), t.get('isomend'))} | "
+                         f"{ratio(t.get('meshlab'), t.get('isomend'))} | {ratio(t.get('meshopt'), t.get('isomend'))} | "
+                         f"{ratio(sm.get('vtkWindowedSinc'), sm.get('isomend'))} |")
     table = "\n".join(lines)
     print()
     print(table)
