@@ -842,8 +842,10 @@ ISOMEND_API isomend_status isomend_mesh_clean(const isomend_mesh *mesh, uint64_t
  * decimated together with the band held back from the previous one (a
  * window), with the vertices the window shares with the rest (below: final
  * triangles; above: the next chunk) locked; the triangles within a few rings
- * of the new top plane are held back for the next window, where that plane
- * is free, and the rest is final.  Every window is a decimation of a piece
+ * of the new top plane (with a ratio or a target and no max_error, on chunks
+ * of more than one layer, up to a layer's worth more of the surface below
+ * it, so that the next window can move the budget across the seam) are held
+ * back for the next window, where that plane is free, and the rest is final.  Every window is a decimation of a piece
  * of the surface whose cut is locked, so the pieces still fit: a closed,
  * oriented 2-manifold stays one, with its components and Euler
  * characteristic; held vertices keep their quadrics from window to window

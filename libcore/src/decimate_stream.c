@@ -20,7 +20,22 @@
  * free, reduces them.  A triangle target needs the stream's count (an
  * earlier pass over a spool of it: isomend_decimate_stream_expect()); the
  * running total is then target * (triangles so far) / count, so the last
- * window aims at the target itself.
+ * window aims at the target itself.  That gives each stretch of the surface
+ * its triangles' share of the target, where the decimation in memory gives
+ * it what its costs ask for: a stretch that needs more than its share (a
+ * padded cap's rim, a busier part of the surface) can only take it from
+ * the triangles still held.  With a band of 3 rings, the last window, a
+ * padded volume's top cap and a few rings, had to make up the whole top's
+ * shortfall at 2 %: collapses up to 16 x the largest error in memory (and
+ * the count missed).  So with a ratio or a target the band also holds, ring
+ * by ring, the triangles made within YOUNG_LAYERS layers of the top plane,
+ * up to a layer's worth of the chunk's triangles (at 2 % some 50 layers of
+ * the decimated surface): the next window decimates them again with its
+ * chunk, cheapest first, so the budget moves across the seam
+ * (docs/postprocess.md, "Streamed decimation").  Beyond the band's reach a
+ * stretch keeps its share: the error follows the surface's busyness there.
+ * Not with max_error (the band's carried points would be checked again in
+ * every window) nor on chunks of 1 layer (it would double the window).
  *
  * Maximum error.  decimate.c keeps every point a vertex stands for within
  * max_error of the triangles around it.  In a window, a chunk's vertex
@@ -54,12 +69,20 @@
 #include <string.h>
 
 /* The held band: triangles within this many rings (edges) of the top
- * plane's vertices. */
+ * plane's vertices; with a ratio or a target (no max_error, chunks of more
+ * than 1 layer), up to MORE_RINGS rings beyond
+ * of triangles made within YOUNG_LAYERS layers of the top plane, while
+ * those add at most a layer's worth of the chunk's triangles (the budget's
+ * band: see "Targets" above). */
 #define RINGS 3
+#define MORE_RINGS   (STREAM_WINDOW_MAX_RINGS - RINGS)
+#define YOUNG_LAYERS 64
 /* A chunk's vertices are measured once this many more layers are done (the
- * held band, re-decimated window after window, is final by then), and at
- * least 2 windows. */
-#define MEASURE_LAYERS 48
+ * held band, re-decimated window after window, is final by then: it holds
+ * nothing made more than YOUNG_LAYERS below the top plane beyond its 3
+ * rings), and at least 2 windows. */
+#define MEASURE_LAYERS         (YOUNG_LAYERS + 16)
+#define MEASURE_LAYERS_SHALLOW 48 /* the same for a band of 3 rings only */
 /* The memory estimate: bytes a stream triangle costs in a window (its ids,
  * the stream's positions, the window's mesh, decimate.c's tables and
  * candidates, the result) and stream triangles a marched sample. */
@@ -451,7 +474,10 @@ int64_t isomend_decimate_stream_layers(const isomend_volume *desc, const isomend
     double k = floor(4194304.0 / plane);
     k = k < 4 ? 4 : k > 64 ? 64 : k;
     if (max_bytes) {
-        const double fit = floor((double)max_bytes / (plane * TRIANGLES_PER_SAMPLE * BYTES_PER_TRIANGLE)) - 1;
+        /* the most layers K whose window fits: K + 2 layers, 2 for K = 1
+         * (isomend_decimate_stream_memory) */
+        const double b = (double)max_bytes / (plane * TRIANGLES_PER_SAMPLE * BYTES_PER_TRIANGLE);
+        const double fit = b >= 4 ? floor(b) - 2 : 1;
         k = fit < k ? fit : k;
         k = k < 1 ? 1 : k;
     }
@@ -466,8 +492,10 @@ uint64_t isomend_decimate_stream_memory(const isomend_volume *desc, const isomen
         return 0;
     if (chunk_layers == 0)
         chunk_layers = isomend_decimate_stream_layers(desc, opts, 0);
-    const double bytes =
-        ((double)chunk_layers + 1) * plane * TRIANGLES_PER_SAMPLE * BYTES_PER_TRIANGLE + 1048576.0;
+    /* the chunk, the band of 3 rings (about a layer) and with more than one
+     * layer the deeper band's layer (stream_window.c) */
+    const double layers = (double)chunk_layers + (chunk_layers > 1 ? 2 : 1);
+    const double bytes = layers * plane * TRIANGLES_PER_SAMPLE * BYTES_PER_TRIANGLE + 1048576.0;
     return bytes < 1.8e19 ? (uint64_t)bytes : UINT64_MAX;
 }
 
@@ -497,13 +525,19 @@ isomend_status isomend_decimate_stream_begin(const isomend_volume *desc,
     d->target = dopts->target_triangles;
     d->max_error = dopts->max_error;
     d->K = chunk_layers ? chunk_layers : isomend_decimate_stream_layers(desc, opts, 0);
-    d->lag = (int)((MEASURE_LAYERS + d->K - 1) / d->K);
+    /* the deeper band: for a ratio or a target, not on chunks of 1 layer, not
+     * with max_error (its carried points made a window's checks 3 to 7 x
+     * slower: docs/postprocess.md) */
+    const int deep = (d->ratio > 0 || d->target) && d->K > 1 && d->max_error == 0;
+    d->lag = (int)(((deep ? MEASURE_LAYERS : MEASURE_LAYERS_SHALLOW) + d->K - 1) / d->K);
     d->lag = d->lag < 2 ? 2 : d->lag;
     d->pend = calloc((size_t)d->lag + 1, sizeof *d->pend);
     d->soup = calloc((size_t)d->lag + 2, sizeof *d->soup);
     const stream_window_client client = {.user = d,
                                          .data_bytes = sizeof(carried),
                                          .band = RINGS,
+                                         .more = deep ? MORE_RINGS : 0,
+                                         .young = YOUNG_LAYERS,
                                          .made = made_slot,
                                          .process = decimate_window,
                                          .settle = take_result,

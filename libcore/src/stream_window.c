@@ -10,7 +10,11 @@
  * above, whose plane of vertices is the top slice of chunk c) is locked.
  * Then the triangles of the result within `band` rings of the top plane are
  * held back (the next H: there the plane's vertices get their triangles of
- * both sides into one window), and every other triangle is final.
+ * both sides into one window), with up to `more` rings beyond (of young
+ * triangles: hold_band) while those add at most a layer's worth of the
+ * chunk's triangles, none for chunks of 1 layer (the next window can still
+ * move them: a decimation's budget shifts across the seam), and every other
+ * triangle is final.
  *
  *     layers:   0 ............ K ............ 2K ........... 3K
  *     window 0: [ chunk 0      )H0
@@ -91,6 +95,7 @@ struct stream_window {
     int64_t layers;        /* layers completed (retire calls)     */
     uint64_t next_id;      /* stream vertices delivered           */
     uint64_t floor;        /* the last floor retired              */
+    uint64_t *floors;      /* young + 1: the floor after layer l at l % (young + 1) */
     vec raw;               /* floats: positions of ids raw_base.. */
     uint64_t raw_base;
     vec chunk;             /* uint64_t x 3: the chunk's triangles */
@@ -350,6 +355,53 @@ static int rings(const isomend_mesh *r, const uint32_t *out_slot, const slot *sl
     return 1;
 }
 
+/* Which triangles of r stay held (fin[t] = 0): those within band rings of
+ * the top plane (dist[]: rings from it, to reach), and beyond them, ring by
+ * ring up to reach, those whose vertices were all made within `young`
+ * layers of the top plane, as long as these add at most a layer's worth of
+ * the chunk's triangles (none for chunks of 1 layer).  age: scratch, r's
+ * vertices. */
+static void hold_band(const stream_window *w, const isomend_mesh *r, const uint32_t *out_slot,
+                      const uint32_t *dist, uint32_t reach, size_t nchunk, uint8_t *age,
+                      uint8_t *fin)
+{
+    const uint32_t band = w->c.band, D = w->c.young;
+    uint32_t ext = band;
+    if (reach > band) {
+        /* a vertex is young if made at or above the top plane of D layers ago */
+        for (size_t v = 0; v < r->nv; v++) {
+            const uint64_t id = w->slots[out_slot[v]].id;
+            uint32_t d = 0;
+            while (d < D && (int64_t)d < w->layers &&
+                   id < w->floors[(uint64_t)(w->layers - (int64_t)d) % (D + 1)])
+                d++;
+            age[v] = d < D;
+        }
+        uint64_t hist[STREAM_WINDOW_MAX_RINGS + 1] = {0};
+        for (size_t t = 0; t < r->nt; t++) {
+            const uint32_t *x = r->tri + 3 * t;
+            uint32_t d = reach;
+            for (int k = 0; k < 3; k++)
+                d = dist[x[k]] < d ? dist[x[k]] : d;
+            if (d >= band && d < reach && age[x[0]] && age[x[1]] && age[x[2]])
+                hist[d]++;
+        }
+        /* a layer's worth of the chunk's triangles; nothing where a chunk is
+         * one layer (what the tightest memory leaves: it would double it) */
+        const uint64_t most = w->K > 1 ? (uint64_t)nchunk / (uint64_t)w->K : 0;
+        uint64_t added = 0;
+        while (ext < reach && added + hist[ext] <= most)
+            added += hist[ext++];
+    }
+    for (size_t t = 0; t < r->nt; t++) {
+        const uint32_t *x = r->tri + 3 * t;
+        uint32_t d = UINT32_MAX;
+        for (int k = 0; k < 3; k++)
+            d = dist[x[k]] < d ? dist[x[k]] : d;
+        fin[t] = !(d < band || (d < ext && age[x[0]] && age[x[1]] && age[x[2]]));
+    }
+}
+
 /* The window: the held triangles and the chunk's, processed by the client;
  * the band at the top plane held back, the rest final.  last: no chunk
  * follows. */
@@ -361,7 +413,7 @@ static isomend_status run_window(stream_window *w, int last)
     isomend_mesh *m = calloc(1, sizeof *m), *r = NULL;
     uint32_t *wt = malloc((3 * nt + 1) * sizeof *wt), *lv = malloc((3 * nt + 1) * sizeof *lv);
     uint32_t *kept = NULL, *out_slot = NULL, *dist = NULL;
-    uint8_t *fin = NULL;
+    uint8_t *fin = NULL, *age = NULL;
     if (!m || !wt || !lv)
         goto oom;
     /* the window's triangles as slots: the held ones, then the chunk's */
@@ -408,17 +460,18 @@ static isomend_status run_window(stream_window *w, int last)
     out_slot = malloc((rv + 1) * sizeof *out_slot);
     dist = malloc((rv + 1) * sizeof *dist);
     fin = malloc(rt + 1);
-    if (!out_slot || !dist || !fin)
+    age = malloc(rv + 1);
+    if (!out_slot || !dist || !fin || !age)
         goto oom;
     for (size_t v = 0; v < rv; v++)
         out_slot[v] = lv[kept ? kept[v] : v];
-    if (rv && !rings(r, out_slot, w->slots, top_lo, top_hi, w->c.band, dist))
+    uint32_t reach = w->c.band + (last ? 0 : w->c.more);
+    if (reach > STREAM_WINDOW_MAX_RINGS)
+        reach = w->c.band > STREAM_WINDOW_MAX_RINGS ? w->c.band : STREAM_WINDOW_MAX_RINGS;
+    if (rv && !rings(r, out_slot, w->slots, top_lo, top_hi, reach, dist))
         goto oom;
-    for (size_t t = 0; t < rt; t++) {
-        fin[t] = 1;
-        for (int k = 0; k < 3; k++)
-            fin[t] &= dist[r->tri[3 * t + (size_t)k]] >= w->c.band;
-    }
+    if (rt)
+        hold_band(w, r, out_slot, dist, reach, nchunk, age, fin);
     if (r)
         w->c.settle(w->c.user, w, r, out_slot, fin);
     for (size_t t = 0; t < rt; t++) {
@@ -465,6 +518,7 @@ done:
     free(out_slot);
     free(dist);
     free(fin);
+    free(age);
     return st == ISOMEND_OK ? ISOMEND_OK : stream_window_fail(w, st);
 }
 
@@ -516,6 +570,8 @@ static int on_retire(void *user, uint64_t floor)
     if (floor < w->floor || floor > w->next_id)
         return stream_window_fail(w, ISOMEND_ERR_INVALID_ARGUMENT), 1;
     w->floor = floor;
+    if (w->floors)
+        w->floors[(uint64_t)(w->layers + 1) % (w->c.young + 1)] = floor;
     if (++w->layers % w->K == 0 && run_window(w, 0) != ISOMEND_OK)
         return 1;
     if (w->c.retire_each && w->out.retire(w->out.user, w->out_floor))
@@ -537,6 +593,10 @@ isomend_status stream_window_begin(const stream_window_client *client, const iso
     w->normals = normals;
     w->K = K;
     w->free_slot = NONE;
+    if (client->more && !(w->floors = calloc((size_t)client->young + 1, sizeof *w->floors))) {
+        free(w);
+        return ISOMEND_ERR_OUT_OF_MEMORY;
+    }
     w->raw.size = 12;
     w->chunk.size = 24;
     w->held.size = w->waiting.size = 12;
@@ -575,6 +635,7 @@ void stream_window_destroy(stream_window *w)
         return;
     free(w->raw.p);
     free(w->chunk.p);
+    free(w->floors);
     free(w->slots);
     free(w->data);
     id_table_free(&w->ids);

@@ -16,6 +16,9 @@
 
 typedef struct stream_window stream_window;
 
+/* The most rings a held band has (stream_window_client.band + .more). */
+#define STREAM_WINDOW_MAX_RINGS 64
+
 /* A window as its client gets it: the held triangles and the chunk's as one
  * mesh, each vertex at its slot's position, vertices in the order of first
  * use; vertices are slots (a stream vertex has one while a held, waiting or
@@ -36,6 +39,12 @@ typedef struct stream_window_client {
     void *user;
     size_t data_bytes; /* the client's bytes a slot, zeroed when a slot is made        */
     uint32_t band;     /* the held band: triangles within this many rings of the top plane */
+    uint32_t more;     /* and up to this many rings more (band + more at most
+                        * STREAM_WINDOW_MAX_RINGS), of the triangles whose vertices were all
+                        * made within `young` layers of the top plane, while those add at
+                        * most a layer's worth of the chunk's triangles (its triangles / K):
+                        * none for chunks of 1 layer; 0: none                               */
+    uint32_t young;
     int retire_each;   /* 1: one retire() for each of the stream's (the lowest id a waiting
                         * triangle uses), none at the end; 0: a retire() when that floor
                         * rises, and one for everything at the end                      */
