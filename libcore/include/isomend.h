@@ -845,11 +845,11 @@ ISOMEND_API isomend_status isomend_mesh_clean(const isomend_mesh *mesh, uint64_t
  * of the new top plane (with a ratio or a target and no max_error, on chunks
  * of more than one layer, up to a layer's worth more of the surface below
  * it, so that the next window can move the budget across the seam) are held
- * back for the next window, where that plane is free, and the rest is final.  Every window is a decimation of a piece
- * of the surface whose cut is locked, so the pieces still fit: a closed,
- * oriented 2-manifold stays one, with its components and Euler
- * characteristic; held vertices keep their quadrics from window to window
- * (docs/postprocess.md, "Streamed").
+ * back for the next window, where that plane is free, and the rest is final.
+ * Every window is a decimation of a piece of the surface whose cut is
+ * locked, so the pieces still fit: a closed, oriented 2-manifold stays one,
+ * with its components and Euler characteristic; held vertices keep their
+ * quadrics from window to window (docs/postprocess.md, "Streamed").
  *
  * The output: vertices numbered from 0 in the order they are first used,
  * each delivered once every triangle around it is final (its normal, unless
