@@ -319,19 +319,6 @@ void cli_json_series(FILE *fp, const cli_source *s);
  * Returns 1 if `name` is one. */
 int cli_builtin_volume(const char *name, float out[64]);
 
-/* The names isomend-mpi (io/mpi) uses for the same type and calls. */
-typedef cli_source cli_slices;
-static inline int cli_slices_open(const char *const *paths, int n, const cli_source_opts *o,
-                                  cli_source *s)
-{
-    return cli_source_open(paths, n, o, s);
-}
-static inline void cli_slices_close(cli_source *s) { cli_source_close(s); }
-static inline int cli_slices_fixed_level(cli_source *s, double *level)
-{
-    return cli_source_fixed_level(s, level);
-}
-
 /* ---- args.c ---- */
 
 /* Every option; a command allows a set of them. */

@@ -14,7 +14,7 @@
 
 #include <stdio.h>
 
-#include "volume_readers.h"
+#include "fileio_status.h"
 
 typedef struct isomend_atomic_file {
     FILE *fp;

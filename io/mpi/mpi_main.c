@@ -102,12 +102,12 @@ static int owner_of(int64_t nz_marched, int64_t k)
 }
 
 /* The suggested iso of the whole volume from every rank's own slices. */
-static int suggest_iso(cli_slices *s, int64_t k0, int64_t k1, cli_summary *sum)
+static int suggest_iso(cli_source *s, int64_t k0, int64_t k1, cli_summary *sum)
 {
     const int64_t nx = s->desc.dims[0], ny = s->desc.dims[1];
     const int64_t ts = (int64_t)isomend_type_size(s->desc.type);
     double level;
-    if (cli_slices_fixed_level(s, &level)) { /* a CT series: the bone level, as isomend's */
+    if (cli_source_fixed_level(s, &level)) { /* a CT series: the bone level, as isomend's */
         memset(sum, 0, sizeof *sum);
         sum->has_suggestion = 1;
         sum->suggested_iso = level;
@@ -216,7 +216,7 @@ static int exchange_plane(const slab_piece *p, int64_t nz_marched, uint64_t firs
 }
 
 /* The summary's first lines: the source, the method and level. */
-static void print_run(FILE *text, const cli_slices *sl, const cli_args *a, int iso_suggested,
+static void print_run(FILE *text, const cli_source *sl, const cli_args *a, int iso_suggested,
                       int pad, int normals)
 {
     const isomend_volume *v = &sl->desc;
@@ -238,7 +238,7 @@ static void print_run(FILE *text, const cli_slices *sl, const cli_args *a, int i
  * continuity check and one writer, as `isomend extract --stream` with the
  * same steps does (the same bytes), and reports.
  */
-static int run_decimated(const cli_args *a, cli_slices *sl, const isomend_options *opts,
+static int run_decimated(const cli_args *a, cli_source *sl, const isomend_options *opts,
                          isomend_mesh_format fmt, int64_t first, int64_t end, int iso_suggested,
                          cli_json_out *jo, double t_start, FILE *text)
 {
@@ -408,10 +408,10 @@ static int run(int argc, char **argv)
     cli_progress bar;
     cli_progress_init(&bar, 0);
     a.src.progress = &bar;
-    cli_slices sl;
+    cli_source sl;
     memset(&sl, 0, sizeof sl);
     /* every rank reads --slice-positions itself: the same table, the same desc */
-    rc = cli_slices_open(a.positional, a.npositional, &a.src, &sl);
+    rc = cli_source_open(a.positional, a.npositional, &a.src, &sl);
     if ((rc = agree(rc)) != 0) goto fail;
     if (rank == 0) cli_print_geometry_warning(sl.label, &sl.geometry);
 
@@ -452,7 +452,7 @@ static int run(int argc, char **argv)
         a.iso = sum.suggested_iso;
         iso_suggested = 1;
         double bone;
-        if (rank == 0 && !quiet && cli_slices_fixed_level(&sl, &bone))
+        if (rank == 0 && !quiet && cli_source_fixed_level(&sl, &bone))
             fprintf(stderr, "isomend-mpi: no --iso given: using %.9g HU, the bone level of the CT "
                             "series %s (see 'isomend info')\n", a.iso, sl.label);
         else if (rank == 0 && !quiet)
@@ -463,7 +463,7 @@ static int run(int argc, char **argv)
     if (a.seen & OPT_POST) {
         rc = run_decimated(&a, &sl, &opts, fmt, first, end, iso_suggested, &jo, t_start, text);
         if (rc) cli_json_abort(&jo);
-        cli_slices_close(&sl);
+        cli_source_close(&sl);
         return rc;
     }
 
@@ -612,7 +612,7 @@ static int run(int argc, char **argv)
     MPI_Bcast(&rc, 1, MPI_INT, 0, comm);
     free(foreign_ids);
     slab_piece_free(&piece);
-    cli_slices_close(&sl);
+    cli_source_close(&sl);
     return rc;
 
 fail_file:
@@ -623,7 +623,7 @@ fail_piece:
     slab_piece_free(&piece);
 fail:
     cli_json_abort(&jo);
-    cli_slices_close(&sl);
+    cli_source_close(&sl);
     return rc;
 }
 

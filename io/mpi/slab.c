@@ -32,7 +32,7 @@ void slab_piece_free(slab_piece *p)
     memset(p, 0, sizeof *p);
 }
 
-uint64_t slab_memory(const cli_slices *s, const isomend_options *opts, isomend_mesh_format format)
+uint64_t slab_memory(const cli_source *s, const isomend_options *opts, isomend_mesh_format format)
 {
     isomend_volume v = s->desc;
     v.data = NULL;
@@ -171,7 +171,7 @@ static int compare_pairs(const void *a, const void *b)
     return x < y ? -1 : x > y;
 }
 
-int slab_stream(cli_slices *src, const isomend_options *opts, int64_t first, int64_t end,
+int slab_stream(cli_source *src, const isomend_options *opts, int64_t first, int64_t end,
                 const isomend_mesh_sink *sink, const int *sink_failed, isomend_stats *stats)
 {
     memset(stats, 0, sizeof *stats);
@@ -215,7 +215,7 @@ int slab_stream(cli_slices *src, const isomend_options *opts, int64_t first, int
     return rc;
 }
 
-int slab_extract(cli_slices *src, const isomend_options *opts, const cli_world *world,
+int slab_extract(cli_source *src, const isomend_options *opts, const cli_world *world,
                  int64_t first, int64_t end, mpi_writer *w, slab_piece *p)
 {
     memset(p, 0, sizeof *p);

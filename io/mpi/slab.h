@@ -54,7 +54,7 @@ void slab_split(int64_t nz_marched, int ranks, int rank, int64_t *first, int64_t
  * slice's vertex bound long), with the STL positions and the patient-space
  * map's batch where they apply.  0 for volumes the core refuses.
  */
-uint64_t slab_memory(const cli_slices *s, const isomend_options *opts, isomend_mesh_format format);
+uint64_t slab_memory(const cli_source *s, const isomend_options *opts, isomend_mesh_format format);
 
 /*
  * Streams the marched slices [first, end) of the source (reading only them
@@ -62,13 +62,13 @@ uint64_t slab_memory(const cli_slices *s, const isomend_options *opts, isomend_m
  * when it is not NULL.  Exit code; the message goes through cli_error().
  * On failure the piece is empty.
  */
-int slab_extract(cli_slices *s, const isomend_options *opts, const cli_world *world,
+int slab_extract(cli_source *s, const isomend_options *opts, const cli_world *world,
                  int64_t first, int64_t end, mpi_writer *w, slab_piece *p);
 
 /* The same streaming of marched slices [first, end) into any piece sink
  * (mpi_decimate.c's recorder); *sink_failed: the sink printed why it
  * stopped.  Exit code; *stats the piece's. */
-int slab_stream(cli_slices *s, const isomend_options *opts, int64_t first, int64_t end,
+int slab_stream(cli_source *s, const isomend_options *opts, int64_t first, int64_t end,
                 const isomend_mesh_sink *sink, const int *sink_failed, isomend_stats *stats);
 
 void slab_piece_free(slab_piece *p);

@@ -8,6 +8,7 @@
  * accesses well defined.
  */
 #include "cpu_features.h"
+#include "kernels.h"
 
 #include "context.h"
 

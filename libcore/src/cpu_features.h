@@ -36,11 +36,6 @@ void cpu_features_set_test_mask(unsigned mask);
 /* The kernels for cpu_features(): AVX2, else SSE2, else portable C. */
 const struct extract_kernels *kernels_select(void);
 
-/* The tables of kernels_<target>.c; kernels_sse2() and kernels_avx2() return
- * NULL where their target was not built.  kernels_avx2()'s table may only be
- * used when cpu_features() has CPU_FEATURE_AVX2. */
-const struct extract_kernels *kernels_scalar(void);
-const struct extract_kernels *kernels_sse2(void);
-const struct extract_kernels *kernels_avx2(void);
+/* (The tables it chooses from: kernels.h.) */
 
 #endif /* ISOMEND_CPU_FEATURES_H */

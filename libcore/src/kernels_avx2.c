@@ -11,7 +11,7 @@
  * the file is compiled with -ffp-contract=off in any case: the arithmetic is
  * the other targets', operation for operation.
  */
-#include "cpu_features.h"
+#include "kernels.h"
 #include "context.h"
 #include "methods.h"
 #include "tables.h"

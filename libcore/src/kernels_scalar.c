@@ -7,7 +7,7 @@
  */
 #define KERNELS_SSE2 0
 #define KERNELS_AVX2 0
-#include "cpu_features.h"
+#include "kernels.h"
 #include "kernels_template.h"
 
 const extract_kernels *kernels_scalar(void)

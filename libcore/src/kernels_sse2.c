@@ -3,7 +3,7 @@
  * the baseline of x86-64.  Elsewhere (no __SSE2__) the file holds nothing
  * and kernels_sse2() returns NULL.
  */
-#include "cpu_features.h"
+#include "kernels.h"
 
 #if defined(__SSE2__)
 #define KERNELS_SSE2 1

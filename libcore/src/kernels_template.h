@@ -18,7 +18,7 @@
  * edges numbered, their vertices computed by vertex_loops_template.h),
  * march_template.h (the cubes' triangles).  Each is a template of static
  * functions and one static table, kernels_table, which the including file
- * returns from its kernels_<target>() (cpu_features.h).
+ * returns from its kernels_<target>() (kernels.h).
  */
 #include "context.h"
 #include "march_general.h" /* method_cube, scan_diagonals: the general methods' hooks */
