@@ -32,15 +32,11 @@ import tempfile
 import numpy as np
 import pydicom
 
+sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "common"))
+from clitest import check, summary  # noqa: E402
+
 CLI = sys.argv[1]
 SRC = "/usr/lib/python3/dist-packages/nibabel/nicom/tests/data/philips_mprage.dcm.gz"
-failures = []
-
-
-def check(cond, what):
-    if not cond:
-        failures.append(what)
-        print("FAIL:", what, flush=True)
 
 
 if not os.path.exists(SRC):
@@ -92,5 +88,4 @@ with tempfile.TemporaryDirectory() as tmp:
     check(r.returncode == 2 and "no suggested level" in r.stderr and not os.path.exists(out),
           "extract of the zeroed series: %d %s" % (r.returncode, r.stderr))
 
-print("%d failures" % len(failures))
-sys.exit(1 if failures else 0)
+sys.exit(summary())
