@@ -341,6 +341,16 @@ static int members_close(const dec *d, uint32_t w, uint32_t a, uint32_t b, const
     return 1;
 }
 
+/* A new generation of the marks (all unmarked): its value. */
+static uint32_t next_generation(dec *d)
+{
+    if (++d->gen == 0) {
+        memset(d->mark, 0, d->nv * sizeof(uint32_t));
+        d->gen = 1;
+    }
+    return d->gen;
+}
+
 /* Neighbours held in a list on the stack, up to CLOSE_CAP (the marks beyond:
  * only outside the regions, whose vertices have at most LINK_CAP / 2
  * triangles, so that the regions' threads share no scratch). */
@@ -349,7 +359,8 @@ static int members_close(const dec *d, uint32_t w, uint32_t a, uint32_t b, const
 /* Whether every input vertex stays within max_dist of the triangles around
  * the vertex it stands in for, after (a, b) collapses to v: the members of
  * a and b (to the new fan) and of every neighbour of a or b (whose fans
- * change too), each neighbour once. */
+ * change too), each neighbour once (found in `seen`, or with many corners
+ * or merged fans by the marks, generation g). */
 static int collapse_close(dec *d, uint32_t a, uint32_t b, const double v[3])
 {
     const double limit = d->max_dist * d->max_dist;
@@ -359,39 +370,28 @@ static int collapse_close(dec *d, uint32_t a, uint32_t b, const double v[3])
                 return 0;
     uint32_t seen[CLOSE_CAP];
     size_t nseen = 0;
-    if (d->fan_first[a + 1] - d->fan_first[a] + d->fan_first[b + 1] - d->fan_first[b] <= CLOSE_CAP &&
-        !(is_changed(d->changed, a) || is_changed(d->changed, b))) {
-        for (int s = 0; s < 2; s++) { /* at most CLOSE_CAP corners: no merged fans */
-            fan_iter it = fan_begin(d, s ? b : a);
-            uint32_t c;
-            while (fan_next(d, &it, &c)) {
-                const uint32_t w = corner_next(d, c);
-                int dup = w == a || w == b;
-                for (size_t i = 0; i < nseen && !dup; i++)
-                    dup = seen[i] == w;
-                if (dup)
-                    continue;
-                seen[nseen++] = w;
-                if (!members_close(d, w, a, b, v, limit))
-                    return 0;
-            }
-        }
-        return 1;
+    const int listed = /* at most CLOSE_CAP corners: no merged fans */
+        d->fan_first[a + 1] - d->fan_first[a] + d->fan_first[b + 1] - d->fan_first[b] <= CLOSE_CAP &&
+        !(is_changed(d->changed, a) || is_changed(d->changed, b));
+    uint32_t g = 0;
+    if (!listed) {
+        g = next_generation(d);
+        d->mark[a] = d->mark[b] = g;
     }
-    if (++d->gen == 0) {
-        memset(d->mark, 0, d->nv * sizeof(uint32_t));
-        d->gen = 1;
-    }
-    const uint32_t g = d->gen;
-    d->mark[a] = d->mark[b] = g;
     for (int s = 0; s < 2; s++) {
         fan_iter it = fan_begin(d, s ? b : a);
         uint32_t c;
         while (fan_next(d, &it, &c)) {
             const uint32_t w = corner_next(d, c);
-            if (d->mark[w] == g)
+            int again = listed ? w == a || w == b : d->mark[w] == g;
+            for (size_t i = 0; listed && i < nseen && !again; i++)
+                again = seen[i] == w;
+            if (again)
                 continue;
-            d->mark[w] = g;
+            if (listed)
+                seen[nseen++] = w;
+            else
+                d->mark[w] = g;
             if (!members_close(d, w, a, b, v, limit))
                 return 0;
         }
@@ -442,11 +442,7 @@ static int collapse_allowed(dec *d, uint32_t a, uint32_t b, const double v[3])
     while (fan_next(d, &it, &c)) {
         const uint32_t w = corner_next(d, c), u = corner_prev(d, c);
         if (!marked && naround + 2 > LINK_CAP) {
-            if (++d->gen == 0) {
-                memset(d->mark, 0, d->nv * sizeof(uint32_t));
-                d->gen = 1;
-            }
-            g = d->gen;
+            g = next_generation(d);
             for (size_t i = 0; i < naround; i++)
                 d->mark[around[i]] = g;
             marked = 1;
@@ -893,17 +889,14 @@ static uint32_t region_of(const dec *d, uint32_t a, uint32_t b, uint32_t offset)
     }
     if (is_changed(d->changed, a) || is_changed(d->changed, b))
         return NONE;
-    for (int s = 0; s < 2; s++) {
+    if (!fan_inside(d, a, offset, r) || !fan_inside(d, b, offset, r))
+        return NONE;
+    for (int s = 0; s < 2 && d->max_dist > 0; s++) { /* and the neighbours' fans */
         fan_iter it = fan_begin(d, s ? b : a);
         uint32_t c;
-        while (fan_next(d, &it, &c)) {
-            const uint32_t *tv = d->tv + (c - c % 3);
-            for (int k = 0; k < 3; k++)
-                if ((uint32_t)(((size_t)tv[k] + offset) >> REGION_SHIFT) != r)
-                    return NONE;
-            if (d->max_dist > 0 && !fan_inside(d, corner_next(d, c), offset, r))
+        while (fan_next(d, &it, &c))
+            if (!fan_inside(d, corner_next(d, c), offset, r))
                 return NONE;
-        }
     }
     return r;
 }
