@@ -394,6 +394,27 @@ static isomend_fileio_status keep_positions(isomend_mesh_writer *w, size_t count
     return ISOMEND_FILEIO_OK;
 }
 
+/* Records encoded into a block and written a block at a time: one fwrite()
+ * for a few thousand records instead of one each (the stream's writer
+ * spent more time in fwrite()'s locking and copying than in encoding). */
+typedef struct record_block {
+    size_t used;
+    unsigned char bytes[16384];
+} record_block;
+
+static int block_flush(record_block *b, FILE *fp)
+{
+    const size_t n = b->used;
+    b->used = 0;
+    return n == 0 || fwrite(b->bytes, 1, n, fp) == n;
+}
+
+/* Room for one more record, the block written first if need be. */
+static int block_room(record_block *b, FILE *fp)
+{
+    return b->used + ISOMEND_MESH_RECORD_MAX <= sizeof b->bytes || block_flush(b, fp);
+}
+
 isomend_fileio_status isomend_mesh_writer_vertices(isomend_mesh_writer *w, size_t count,
                                                    const float *positions, const float *normals)
 {
@@ -418,16 +439,18 @@ isomend_fileio_status isomend_mesh_writer_vertices(isomend_mesh_writer *w, size_
         FILE *fp = w->af.fp, *fn = NULL;
         if (w->format == ISOMEND_MESH_OBJ && nrm && !(fn = spool(w, &w->spool_normals, 1)))
             return w->status;
-        unsigned char rec[ISOMEND_MESH_RECORD_MAX];
+        record_block b, bn;
+        b.used = bn.used = 0;
         for (size_t v = 0; v < count; v++) {
             const float *n = nrm ? nrm + 3 * v : NULL;
-            size_t len = isomend_mesh_encode_vertex(w->format, positions + 3 * v, n, rec);
-            if (fwrite(rec, 1, len, fp) != len) return write_failed(w);
+            if (!block_room(&b, fp)) return write_failed(w);
+            b.used += isomend_mesh_encode_vertex(w->format, positions + 3 * v, n, b.bytes + b.used);
             if (fn) {
-                len = isomend_mesh_encode_normal(w->format, n, rec);
-                if (fwrite(rec, 1, len, fn) != len) return write_failed(w);
+                if (!block_room(&bn, fn)) return write_failed(w);
+                bn.used += isomend_mesh_encode_normal(w->format, n, bn.bytes + bn.used);
             }
         }
+        if (!block_flush(&b, fp) || (fn && !block_flush(&bn, fn))) return write_failed(w);
     }
     w->nv += count;
     return ISOMEND_FILEIO_OK;
@@ -466,7 +489,8 @@ static isomend_fileio_status put_triangles(isomend_mesh_writer *w, size_t count,
     if (!w->vertices_ended && w->format != ISOMEND_MESH_STL &&
         !(fp = spool(w, &w->spool_faces, 2)))
         return w->status;
-    unsigned char rec[ISOMEND_MESH_RECORD_MAX];
+    record_block b;
+    b.used = 0;
     for (size_t t = 0; t < count; t++) {
         uint64_t id[3];
         const float *corner[3] = {NULL, NULL, NULL};
@@ -483,9 +507,10 @@ static isomend_fileio_status put_triangles(isomend_mesh_writer *w, size_t count,
                             "triangle %llu uses vertex %llu, whose position is no longer kept",
                             (unsigned long long)(w->nt + t), (unsigned long long)id[c]);
         }
-        size_t len = isomend_mesh_encode_face(w->format, w->normals, id, corner, rec);
-        if (fwrite(rec, 1, len, fp) != len) return write_failed(w);
+        if (!block_room(&b, fp)) return write_failed(w);
+        b.used += isomend_mesh_encode_face(w->format, w->normals, id, corner, b.bytes + b.used);
     }
+    if (!block_flush(&b, fp)) return write_failed(w);
     w->nt += count;
     return ISOMEND_FILEIO_OK;
 }
