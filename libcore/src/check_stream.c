@@ -16,9 +16,9 @@
  * by the border test, is still in the window.
  *
  * Method: edges are matched as triangles arrive; nothing is sorted.  Every
- * live vertex v has a small table of its neighbours w, keyed by w - v (a
- * block of 8 entries, compared at once with SSE2; 16 and 32 scanned;
- * larger ones hashed).  At each corner x of a triangle the next and the
+ * live vertex v has a small table of its neighbours w, keyed by w - v (8
+ * entries in v's own slot, compared at once with SSE2; beyond 8, a block
+ * of 16 or 32 scanned, larger ones hashed).  At each corner x of a triangle the next and the
  * previous corner are looked up in x's table (added when new), then
  *   - the fan: the two entries are joined in the table's own union-find
  *     (check.c's count_fans() joins x's corners through shared neighbours:
@@ -51,12 +51,19 @@
  * a hole edge).  Path halving moves references from a parent to the
  * grandparent.
  *
- * Memory: the ring of live vertices (40 bytes each, indexed by id & mask:
- * position, hole node, table), their tables (16 bytes a neighbour, blocks
- * at most twice the size needed, kept on free lists by size for reuse),
+ * Memory: the ring of live vertices (168 bytes each, indexed by id & mask:
+ * position, hole node, a table of 8 neighbours), the tables of vertices with
+ * more (16 bytes a neighbour, blocks at most twice the size needed, kept on
+ * free lists by size for reuse),
  * the set nodes the live edges name and their parents: all linear in the
  * window, none in the mesh.  Nothing is allocated per triangle once the
- * window has been seen; arrays grow by doubling and are kept.
+ * window has been seen; arrays grow by doubling and are kept.  The first 8
+ * neighbours live in the slot, not in a block of their own, because the
+ * triangles and the retirements reach the slots in about id order, which
+ * the caches follow, while blocks taken from free lists are scattered (a
+ * block's pointer and the free list's next pointer were two cache misses a
+ * vertex): 1.2x standalone, and more beside the threads of a streaming
+ * extraction (docs/streaming.md).
  *
  * One object, fed by one thread at a time (any thread: the stream's, or a
  * worker the caller hands batches to); nothing in it is shared.
@@ -92,15 +99,6 @@
 #define CLASSES 28
 #define SCAN_MAX 32u
 
-typedef struct vslot { /* a live vertex, at ring[id & mask] */
-    float p[3];        /* in the frame of the check                        */
-    uint32_t hole;     /* its hole-loop node, or NONE                      */
-    int32_t *key;      /* its neighbours' keys, w - v (NULL before any)    */
-    struct nbr *e;     /* and entries, in the same block (see table_grow)  */
-    uint32_t n;        /* neighbours in the table                          */
-    uint32_t fans;     /* pieces of its fan so far; 0: no triangle uses it */
-} vslot;
-
 /* A neighbour w of vertex v (its key, w - v, is kept apart: lookups read
  * keys only). */
 typedef struct nbr {
@@ -109,6 +107,17 @@ typedef struct nbr {
     uint8_t uses;  /* triangles on the edge, up to 3                        */
     uint8_t fwd;   /* of those, running v -> w                              */
 } nbr;
+
+typedef struct vslot { /* a live vertex, at ring[id & mask] */
+    float p[3];        /* in the frame of the check                        */
+    uint32_t hole;     /* its hole-loop node, or NONE                      */
+    int32_t *key;      /* its neighbours' keys, w - v: k8, or a block      */
+    nbr *e;            /* and entries: e8, or in the same block            */
+    uint32_t n;        /* neighbours in the table                          */
+    uint32_t fans;     /* pieces of its fan so far; 0: no triangle uses it */
+    int32_t k8[8];     /* the table while 8 neighbours fit (most vertices: */
+    nbr e8[8];         /* read in id order with the ring, no block to find) */
+} vslot;
 
 /* A union-find of reference-counted nodes (see the overview). */
 typedef struct ufnode {
@@ -291,20 +300,20 @@ static uint32_t hash_slot(int32_t key, uint32_t cls)
 /* Gives v's table back to its class's free list. */
 static void table_free(isomend_check_stream *s, vslot *v)
 {
-    if (!v->key)
+    if (v->key == v->k8)
         return;
     void **head = &s->free_blocks[class_of(v->n)];
     memcpy(v->key, head, sizeof *head);
     *head = v->key;
-    v->key = NULL;
-    v->e = NULL;
+    v->key = v->k8;
+    v->e = v->e8;
 }
 
 /* Makes v's (full or missing) table twice as large, from a free block or a
  * new one; 0 when out of memory. */
 static int table_grow(isomend_check_stream *s, vslot *v)
 {
-    const uint32_t cls = v->key ? class_of(v->n) + 1 : 0;
+    const uint32_t cls = class_of(v->n) + 1; /* class 0 is the slot's own k8 */
     if (cls >= CLASSES)
         return 0;
     void *blk = s->free_blocks[cls];
@@ -319,17 +328,12 @@ static int table_grow(isomend_check_stream *s, vslot *v)
     const size_t cap = (size_t)8 << cls;
     int32_t *key = blk;
     nbr *e = (nbr *)(void *)(key + cap);
-    if (v->key) {
-        memcpy(key, v->key, sizeof(int32_t) * v->n);
-        memcpy(e, v->e, sizeof(nbr) * v->n);
-        table_free(s, v);
-    }
+    memcpy(key, v->key, sizeof(int32_t) * v->n);
+    memcpy(e, v->e, sizeof(nbr) * v->n);
+    table_free(s, v);
     v->key = key;
     v->e = e;
-    if (cls == 0) { /* match8() reads all 8 keys */
-        for (size_t i = v->n; i < cap; i++)
-            key[i] = NO_KEY;
-    } else if (cap > SCAN_MAX) {
+    if (cap > SCAN_MAX) {
         uint32_t *hash = hash_of(v, cls);
         memset(hash, 0, 2 * sizeof(uint32_t) * cap);
         for (uint32_t i = 0; i < v->n; i++) {
@@ -355,7 +359,7 @@ static uint32_t table_add(vslot *v, int32_t key)
     return at;
 }
 
-/* neighbour() beyond a block of 8 with room. */
+/* neighbour() beyond a table of 8 with room. */
 static uint32_t neighbour_slow(isomend_check_stream *s, vslot *v, int32_t key)
 {
     if (v->n > 8) {
@@ -371,7 +375,7 @@ static uint32_t neighbour_slow(isomend_check_stream *s, vslot *v, int32_t key)
                     return hash[h] - 1;
         }
     }
-    if ((!v->key || v->n == 8u << class_of(v->n)) && !table_grow(s, v))
+    if (v->n == 8u << class_of(v->n) && !table_grow(s, v))
         return NONE;
     const uint32_t at = table_add(v, key), cls = class_of(v->n);
     if (8u << cls > SCAN_MAX) {
@@ -402,7 +406,7 @@ static inline uint32_t match8(const int32_t *k, int32_t key)
 }
 
 /* The index of neighbour key (w - v) in v's table, added when new; NONE
- * when out of memory.  Most tables are a block of 8, compared at once
+ * when out of memory.  Most tables are the slot's 8 entries, compared at once
  * (NO_KEY past the end). */
 static inline uint32_t neighbour(isomend_check_stream *s, vslot *v, int32_t key)
 {
@@ -426,7 +430,7 @@ static uint32_t fan_find(nbr *e, uint32_t x)
 }
 
 /* Neighbours a and b of v are in one piece of its fan (a corner joins
- * them).  A block of 8 keeps every entry's `up` at its root (the join
+ * them).  A table of 8 keeps every entry's `up` at its root (the join
  * renames a piece: no search); larger tables halve paths. */
 static void fan_join(vslot *v, uint32_t a, uint32_t b)
 {
@@ -613,7 +617,7 @@ static isomend_status retire_vertex(isomend_check_stream *s, uint64_t id)
     vslot *v = &s->ring[id & s->mask];
     r->vertices += v->fans > 0;
     r->nonmanifold_vertices += v->fans > 1;
-    if (v->key) {
+    {
         const int32_t *key = v->key;
         const nbr *e = v->e;
         for (uint32_t i = 0; i < v->n; i++) {
@@ -667,8 +671,15 @@ static isomend_status ring_fit(isomend_check_stream *s, uint64_t end)
     vslot *ring = malloc(sizeof(vslot) * (size_t)cap);
     if (!ring)
         return ISOMEND_ERR_OUT_OF_MEMORY;
-    for (uint64_t id = s->floor; id < s->next; id++)
-        ring[id & (cap - 1)] = s->ring[id & s->mask];
+    for (uint64_t id = s->floor; id < s->next; id++) {
+        const vslot *from = &s->ring[id & s->mask];
+        vslot *to = &ring[id & (cap - 1)];
+        *to = *from;
+        if (from->key == from->k8) { /* its own table moved with it */
+            to->key = to->k8;
+            to->e = to->e8;
+        }
+    }
     account(s, s->ring ? sizeof(vslot) * (size_t)(s->mask + 1) : 0, sizeof(vslot) * (size_t)cap);
     free(s->ring);
     s->ring = ring;
@@ -706,8 +717,10 @@ isomend_status isomend_check_stream_vertices(isomend_check_stream *s, uint64_t f
         else
             memcpy(v->p, positions + 3 * i, sizeof v->p);
         v->hole = NONE;
-        v->key = NULL;
-        v->e = NULL;
+        v->key = v->k8;
+        v->e = v->e8;
+        for (int k = 0; k < 8; k++) /* match8() reads all 8 keys */
+            v->k8[k] = NO_KEY;
         v->n = v->fans = 0;
     }
     s->next = end;
