@@ -32,7 +32,7 @@
  *            a scratch file on the output's disk, and STL keeps the
  *            positions of at most twice isomend_stream_vertex_bound()
  *   check    the streaming check's window (CLI_CHECK_BYTES_PER_SAMPLE a
- *            slice sample) and its queue (CLI_CHECK_QUEUE_MIB)
+ *            slice sample) and its queue (8 layers' calls, 1 to 8 MiB)
  *   steps    the streamed clean-up's live vertices and held components
  *            (isomend_clean_stream_memory), or with --largest its two
  *            passes' (isomend_largest_stream_memory: the live vertices, one
@@ -74,11 +74,26 @@
 
 #define MIB (1024.0 * 1024.0)
 /* The streaming check's window (check_stream.c: the live vertices of about
- * two slices with their neighbour tables and records, ~100 bytes each, on the
- * in-memory rule's surface of a vertex every 8 samples), per slice sample,
- * and the queue of calls waiting for it (about 300 000 triangles, 15 ms). */
-#define CLI_CHECK_BYTES_PER_SAMPLE 25.0
-#define CLI_CHECK_QUEUE_MIB 8.0
+ * two slices, 168 bytes each with their first 8 neighbours, in a ring rounded
+ * up to a power of two), per slice sample, on the in-memory rule's surface of
+ * a vertex every 8 samples (measured: 77.5 bytes a sample on a 384^3 gyroid
+ * with a vertex every 8.3 samples), and the queue of calls waiting for it:
+ * 8 layers of that surface (a triangle every 4 samples, 24 bytes, and a
+ * vertex every 8, 12 bytes: 60 bytes a slice sample), from 1 to 8 MiB
+ * (about 300 000 triangles, 15 ms of the check). */
+#define CLI_CHECK_BYTES_PER_SAMPLE 80.0
+#define CLI_CHECK_QUEUE_BYTES_PER_SAMPLE 60.0
+#define CLI_CHECK_QUEUE_MIB_MIN 1.0
+#define CLI_CHECK_QUEUE_MIB_MAX 8.0
+
+/* The check's queue for slices of `plane` samples. */
+static double check_queue_bytes(double plane)
+{
+    const double q = CLI_CHECK_QUEUE_BYTES_PER_SAMPLE * plane;
+    return q < CLI_CHECK_QUEUE_MIB_MIN * MIB   ? CLI_CHECK_QUEUE_MIB_MIN * MIB
+           : q > CLI_CHECK_QUEUE_MIB_MAX * MIB ? CLI_CHECK_QUEUE_MIB_MAX * MIB
+                                               : q;
+}
 
 /* ------------------------------------------------------------------ the memory rule */
 
@@ -89,15 +104,68 @@
 static double streaming_need(const isomend_volume *v, const isomend_options *opts,
                              isomend_mesh_format format, int check)
 {
-    const double queue = check ? CLI_CHECK_QUEUE_MIB * MIB : 0.0;
     const double ts = (double)isomend_type_size(v->type);
     const double core = (double)isomend_stream_memory(v, opts);
     if (core == 0.0) return 1.8e19; /* dims the core refuses: in memory, to say why */
     const double bound = (double)isomend_stream_vertex_bound(v, opts);
     const double plane = (double)v->dims[0] * (double)v->dims[1];
+    const double queue = check ? check_queue_bytes(plane) : 0.0;
     double need = core + 2.0 * plane * ts + CLI_WRITER_BUFFERS * MIB + queue +
                   (check ? CLI_CHECK_BYTES_PER_SAMPLE * plane : 0.0);
     if (format == ISOMEND_MESH_STL) need += 2.0 * 12.0 * bound;
+    return need;
+}
+
+/* The streamed steps' memory beside a stream that holds `streaming`: the
+ * clean-up's live vertices and held components, then the smoothing's and the
+ * decimation's chunks of the layers that fit what is left (the two share the
+ * chunk height; each holds a chunk, the smoothing its band too).  Sets the
+ * steps' fields of p. */
+static double plan_steps(cli_memory_plan *p, const isomend_volume *v, const isomend_options *opts,
+                         const cli_post *post, double streaming)
+{
+    const int decimate = post && (post->ratio > 0 || post->target || post->max_error > 0);
+    const int smooth = post && post->smooth > 0;
+    const int clean = post && post->min_component > 0;
+    const int largest = post && post->largest > 0;
+    const int64_t chunk_layers = post ? post->chunk_layers : 0;
+    double need = 0.0;
+    p->largest_need = p->clean_need = p->decimate_need = p->smooth_need = 0;
+    p->decimate_layers = 0;
+    if (!(clean || largest || smooth || decimate) || isomend_stream_memory(v, opts) == 0)
+        return 0.0;
+    if (largest) { /* it does the clean-up too */
+        p->largest_need = isomend_largest_stream_memory(v, opts) + (uint64_t)(CLI_SPOOL_BUFFERS * MIB);
+        need += (double)p->largest_need;
+    } else if (clean) {
+        p->clean_need = isomend_clean_stream_memory(v, opts);
+        need += (double)p->clean_need;
+    }
+    if (post->target && !largest) { /* its spool; pass 1's own clean-up */
+        p->largest_need = (uint64_t)(CLI_SPOOL_BUFFERS * MIB) + p->clean_need;
+        need += (double)p->largest_need;
+    }
+    if (smooth || decimate) {
+        const double left = p->limit ? (double)p->limit - streaming - need : 0.0;
+        /* the smoothing's band counts as that many more layers of a chunk */
+        const double band = smooth ? 2.0 * post->smooth + 2.0 : 0.0;
+        const double share = (smooth && decimate ? 2.0 : 1.0);
+        double fit = left / share;
+        if (p->limit && band > 0) {
+            const double per_layer = (double)isomend_smooth_stream_memory(v, opts, 0, 2) -
+                                     (double)isomend_smooth_stream_memory(v, opts, 0, 1);
+            fit -= band * per_layer;
+        }
+        p->decimate_layers = chunk_layers ? chunk_layers
+                             : isomend_decimate_stream_layers(v, opts, !p->limit ? 0
+                                                              : fit > 1.0 ? (uint64_t)fit
+                                                                          : 1);
+        if (decimate)
+            p->decimate_need = isomend_decimate_stream_memory(v, opts, p->decimate_layers);
+        if (smooth)
+            p->smooth_need = isomend_smooth_stream_memory(v, opts, post->smooth, p->decimate_layers);
+        need += (double)p->decimate_need + (double)p->smooth_need;
+    }
     return need;
 }
 
@@ -105,10 +173,6 @@ void cli_memory_plan_make(const isomend_volume *desc, const isomend_options *opt
                           isomend_mesh_format format, uint64_t max_memory, int whole_mesh,
                           const cli_post *post, cli_memory_plan *p)
 {
-    const int decimate = post && (post->ratio > 0 || post->target || post->max_error > 0);
-    const int smooth = post && post->smooth > 0;
-    const int clean = post && post->min_component > 0;
-    const int64_t chunk_layers = post ? post->chunk_layers : 0;
     memset(p, 0, sizeof *p);
     const int pad = (opts->flags & ISOMEND_FLAG_PAD) != 0;
     const int normals = !(opts->flags & ISOMEND_FLAG_NO_NORMALS);
@@ -125,7 +189,7 @@ void cli_memory_plan_make(const isomend_volume *desc, const isomend_options *opt
     double in_memory = volume + mesh + working;
     p->limit_given = max_memory != 0;
     p->limit = max_memory ? max_memory : cli_memory_available();
-    p->check_queue = (uint64_t)(CLI_CHECK_QUEUE_MIB * MIB);
+    p->check_queue = (uint64_t)check_queue_bytes(n[0] * n[1]);
     p->check_need = p->check_queue + (uint64_t)(CLI_CHECK_BYTES_PER_SAMPLE * n[0] * n[1]);
     isomend_volume v = *desc;
     v.data = NULL;
@@ -135,62 +199,24 @@ void cli_memory_plan_make(const isomend_volume *desc, const isomend_options *opt
         const long cores = sysconf(_SC_NPROCESSORS_ONLN);
         p->threads = cores < 1 ? 1 : cores > 64 ? 64 : (int)cores;
     }
-    /* under a tight limit: first one thread, then no check (said so) */
-    p->check = 1;
-    double streaming = streaming_need(&v, opts, format, 1);
+    /* under a tight limit: first one thread, then no check (said so); the
+     * streamed steps count in that choice, so a step's minimal chunk is not
+     * left without room by a second thread */
     isomend_options one = *opts;
     one.threads = 1;
-    for (int step = 0; p->limit && streaming > (double)p->limit && step < 2; step++) {
-        const int check = step == 0;
-        if (step == 0 && p->threads == 1)
+    double streaming = 0.0;
+    for (int step = 0; step < 3; step++) {
+        if (step == 1 && p->threads == 1)
             continue;
-        const double need = streaming_need(&v, &one, format, check);
-        if (need <= (double)p->limit || step == 1) {
-            streaming = need;
+        const int check = step < 2;
+        const isomend_options *o = step == 0 ? opts : &one;
+        const double base = streaming_need(&v, o, format, check);
+        streaming = base + plan_steps(p, &v, opts, post, base);
+        p->check = check;
+        if (step > 0)
             p->threads = 1;
-            p->check = check;
-        }
-    }
-    /* the streamed steps: the clean-up's live vertices and held components,
-     * then the smoothing's and the decimation's chunks of the layers that
-     * fit what is left (the two share the chunk height; each holds a chunk,
-     * the smoothing its band too) */
-    const int largest = post && post->largest > 0;
-    if ((clean || largest || smooth || decimate) && isomend_stream_memory(&v, opts) != 0) {
-        if (largest) { /* it does the clean-up too */
-            p->largest_need = isomend_largest_stream_memory(&v, opts) +
-                              (uint64_t)(CLI_SPOOL_BUFFERS * MIB);
-            streaming += (double)p->largest_need;
-        } else if (clean) {
-            p->clean_need = isomend_clean_stream_memory(&v, opts);
-            streaming += (double)p->clean_need;
-        }
-        if (post->target && !largest) { /* its spool; pass 1's own clean-up */
-            p->largest_need = (uint64_t)(CLI_SPOOL_BUFFERS * MIB) + p->clean_need;
-            streaming += (double)p->largest_need;
-        }
-        if (smooth || decimate) {
-            const double left = p->limit ? (double)p->limit - streaming : 0.0;
-            /* the smoothing's band counts as that many more layers of a chunk */
-            const double band = smooth ? 2.0 * post->smooth + 2.0 : 0.0;
-            const double share = (smooth && decimate ? 2.0 : 1.0);
-            double fit = left / share;
-            if (p->limit && band > 0) {
-                const double per_layer = (double)isomend_smooth_stream_memory(&v, opts, 0, 2) -
-                                         (double)isomend_smooth_stream_memory(&v, opts, 0, 1);
-                fit -= band * per_layer;
-            }
-            p->decimate_layers = chunk_layers ? chunk_layers
-                                 : isomend_decimate_stream_layers(&v, opts, !p->limit ? 0
-                                                                  : fit > 1.0 ? (uint64_t)fit
-                                                                              : 1);
-            if (decimate)
-                p->decimate_need = isomend_decimate_stream_memory(&v, opts, p->decimate_layers);
-            if (smooth)
-                p->smooth_need =
-                    isomend_smooth_stream_memory(&v, opts, post->smooth, p->decimate_layers);
-            streaming += (double)p->decimate_need + (double)p->smooth_need;
-        }
+        if (!p->limit || streaming <= (double)p->limit)
+            break;
     }
     const double cap = 1.8e19;
     p->volume = volume < cap ? (uint64_t)volume : UINT64_MAX;

@@ -474,9 +474,10 @@ int64_t isomend_decimate_stream_layers(const isomend_volume *desc, const isomend
     double k = floor(4194304.0 / plane);
     k = k < 4 ? 4 : k > 64 ? 64 : k;
     if (max_bytes) {
-        /* the most layers K whose window fits: K + 2 layers, 2 for K = 1
-         * (isomend_decimate_stream_memory) */
-        const double b = (double)max_bytes / (plane * TRIANGLES_PER_SAMPLE * BYTES_PER_TRIANGLE);
+        /* the most layers K whose window fits: K + 2 layers, 2 for K = 1,
+         * and 1 MiB (isomend_decimate_stream_memory) */
+        const double room = (double)max_bytes - 1048576.0;
+        const double b = room / (plane * TRIANGLES_PER_SAMPLE * BYTES_PER_TRIANGLE);
         const double fit = b >= 4 ? floor(b) - 2 : 1;
         k = fit < k ? fit : k;
         k = k < 1 ? 1 : k;
