@@ -4,19 +4,20 @@
  *
  *   push (caller)            workers (threads)               sink (caller)
  *   slice z copied into the  slab s: a piece [a, b) run on   slab s's calls replayed
- *   input of each slab whose its input, read in place; its   in order, its ids global
- *   halo holds it (1 or 2);  mesh and calls kept; the ids    (only the last layer's
- *   a slab complete: queued  made global once s has a base   foreign ids mended here)
+ *   input of each slab whose its input, read in place; its   in order, its ids made
+ *   halo holds it (1 or 2);  mesh and calls kept, triangles  global a batch at a time
+ *   a slab complete: queued  as 32-bit local ids             (local + base, or foreign)
  *
  * A slab is a piece of the grid (isomend.h, "Pieces"): it numbers its
  * vertices from 0, in isomend_extract()'s order, and refers to the next
- * slab's vertices of its last slice b as ISOMEND_FOREIGN | f, f numbering
+ * slab's vertices of its last slice b as STREAM_SLAB_FOREIGN | f, f numbering
  * the in-plane vertices of slice b in id order.  The next slab numbers the
  * same vertices first, in the same order (the same scan of the same slice),
  * so f is the f-th in-plane vertex of the next slab's first call (kept as
  * `lead`; the keys are compared, a mismatch is an error, not a mesh).
- * base(s + 1) = base(s) + slab s's vertices: the worker that completes the
- * slabs below a slab gives it its base and adds it to the slab's local ids.
+ * base(s + 1) = base(s) + slab s's vertices: the replay adds it to the
+ * slab's local ids (kept in 32 bits, the piece's own: half the bytes of
+ * 64-bit ids to copy and keep, and no pass over them on the workers).
  * Slab s is delivered once it and slab s + 1 are done: its calls (vertices,
  * triangles, retire, as the piece made them) replayed, the next slab's first
  * vertices delivered just before the triangles that use them.  The sink
@@ -42,6 +43,7 @@
 #define SLAB_SAMPLES ((int64_t)1 << 21)
 #define SLAB_MIN 3
 #define SLAB_MAX 64
+#define TRIANGLE_BATCH 8192 /* triangles made global per sink call (the batch stays in cache) */
 
 typedef enum { EV_VERTICES, EV_TRIANGLES, EV_RETIRE, EV_FOREIGN } event_kind;
 
@@ -61,15 +63,13 @@ typedef struct slab {
     uint64_t nv, vcap, ncap, nt, tcap, ocap, nev, evcap, nf, fcap, nlead, leadcap, lidcap;
     isomend_status sink_status; /* why the slab's sink refused, if it did */
     float *pos, *nrm;
-    uint64_t *tri; /* the piece's ids (local, ISOMEND_FOREIGN | f), made global in place */
+    uint32_t *tri; /* the piece's ids (local, STREAM_SLAB_FOREIGN | f), global when replayed */
     uint8_t *org;
     event *ev;
     uint64_t *fkeys;               /* the foreign vertices' keys */
     uint64_t *lead_keys;           /* slice a's in-plane vertices, in id order */
     uint32_t *lead_ids;            /* ... their local ids */
     int lead_delivered;            /* the first vertices call went out with the slab below */
-    uint64_t base;                 /* its first vertex's global id, once the slabs below are done */
-    int global;                    /* its local ids made global (by a worker) */
     int saw_vertices;
 } slab;
 
@@ -90,9 +90,8 @@ struct stream_pool {
     int64_t qhead, qcount;
     int stop;
     int64_t pushed, next_open, next_deliver; /* volume slices pushed; the next slab to open, to hand over */
-    int64_t based;     /* slabs [0, based) have their base (lock) */
-    uint64_t base_next; /* the base of slab `based` */
     uint64_t first_id, next_id, triangles;
+    uint64_t *ids; /* [3 * TRIANGLE_BATCH]: a replayed batch's global ids */
     isomend_stats stats;
     isomend_status failed;
 };
@@ -221,19 +220,27 @@ static int slab_vertices(void *user, uint64_t first, size_t count, const float *
     return 0;
 }
 
-static int slab_triangles(void *user, size_t count, const uint64_t *ids, const uint8_t *org)
+/* The piece's triangles come here, in 32 bits (stream_slab_begin), not to
+ * slab_triangles: half the bytes to copy and to keep. */
+static int slab_triangles32(void *user, size_t count, const uint32_t *ids, const uint8_t *org)
 {
     slab *s = ((slab_user *)user)->s;
-    if (!grow((void **)&s->tri, &s->tcap, s->nt + count, 3 * sizeof(uint64_t)) ||
+    if (!grow((void **)&s->tri, &s->tcap, s->nt + count, 3 * sizeof(uint32_t)) ||
         (org && !grow((void **)&s->org, &s->ocap, s->nt + count, 1)))
         return 1;
     if (org)
         memcpy(s->org + s->nt, org, count);
-    memcpy(s->tri + 3 * s->nt, ids, 3 * sizeof(uint64_t) * count);
+    memcpy(s->tri + 3 * s->nt, ids, 3 * sizeof(uint32_t) * count);
     if (add_event(s, EV_TRIANGLES, s->nt, count))
         return 1;
     s->nt += count;
     return 0;
+}
+
+static int slab_triangles(void *user, size_t count, const uint64_t *ids, const uint8_t *org)
+{
+    (void)user, (void)count, (void)ids, (void)org;
+    return 1; /* not reached: a slab's triangles go to slab_triangles32 */
 }
 
 static int slab_retire(void *user, uint64_t floor)
@@ -270,7 +277,7 @@ static void run_slab(stream_pool *p, slab *s, worker_state *ws)
     if (!ws->piece) {
         const isomend_mesh_sink sink = {&ws->user, slab_vertices, slab_triangles, slab_retire,
                                         slab_foreign};
-        st = stream_slab_begin(&p->desc, &p->opts, &sink, &ws->piece);
+        st = stream_slab_begin(&p->desc, &p->opts, &sink, slab_triangles32, &ws->piece);
     }
     if (st == ISOMEND_OK)
         st = stream_slab_reset(ws->piece, s->a, s->b);
@@ -281,31 +288,6 @@ static void run_slab(stream_pool *p, slab *s, worker_state *ws)
     pthread_mutex_lock(&p->lock);
     s->status = st;
     s->state = SLAB_DONE;
-    /* the slabs whose base is known now: from the first without one, while done */
-    const int64_t first = p->based;
-    while (p->based < p->nslabs) {
-        slab *x = &p->slabs[p->based % p->inflight];
-        if (x->index != p->based || x->state != SLAB_DONE)
-            break;
-        x->base = p->base_next;
-        p->base_next += x->nv;
-        p->based++;
-    }
-    const int64_t end = p->based;
-    pthread_mutex_unlock(&p->lock);
-    /* their ids made global here, off the caller's thread (foreign ones wait for the
-     * next slab's lead: deliver()) */
-    for (int64_t k = first; k < end; k++) {
-        slab *x = &p->slabs[k % p->inflight];
-        const uint64_t base = x->base;
-        uint64_t *t = x->tri;
-        for (uint64_t q = 0; q < 3 * x->nt; q++)
-            if (!(t[q] & ISOMEND_FOREIGN))
-                t[q] += base;
-    }
-    pthread_mutex_lock(&p->lock);
-    for (int64_t k = first; k < end; k++)
-        p->slabs[k % p->inflight].global = 1;
     pthread_cond_broadcast(&p->done);
     pthread_mutex_unlock(&p->lock);
 }
@@ -362,8 +344,6 @@ static isomend_status deliver(stream_pool *p, slab *s, slab *next)
     if (s->status != ISOMEND_OK)
         return fail(p, s->status);
     const uint64_t base = p->next_id, next_base = base + s->nv;
-    if (!s->global || s->base != base)
-        return fail(p, ISOMEND_ERR_INVALID_ARGUMENT); /* not reached */
     if (s->nf) { /* the foreign vertices are the next slab's lead, key for key */
         if (!next || next->status != ISOMEND_OK || s->nf > next->nlead)
             return fail(p, next && next->status != ISOMEND_OK ? next->status
@@ -391,19 +371,26 @@ static isomend_status deliver(stream_pool *p, slab *s, slab *next)
                 if (st != ISOMEND_OK)
                     break;
             }
-            if (e->count) {
-                uint64_t *t = s->tri + 3 * e->at;
-                for (uint64_t k = 0; k < 3 * e->count && after_foreign; k++) {
-                    const uint64_t id = t[k], f = id & ~ISOMEND_FOREIGN;
-                    if (!(id & ISOMEND_FOREIGN))
-                        continue; /* made global by the workers */
-                    if (f >= s->nf)
+            /* the ids made global a batch at a time: local + base, foreign
+             * (only after the foreign table) the next slab's lead */
+            for (uint64_t done = 0; done < e->count && st == ISOMEND_OK;) {
+                const uint64_t b = e->count - done < TRIANGLE_BATCH ? e->count - done
+                                                                    : TRIANGLE_BATCH;
+                const uint32_t *t = s->tri + 3 * (e->at + done);
+                uint64_t *ids = p->ids;
+                for (uint64_t k = 0; k < 3 * b; k++) {
+                    const uint32_t id = t[k], f = id & ~STREAM_SLAB_FOREIGN;
+                    if (!(id & STREAM_SLAB_FOREIGN))
+                        ids[k] = base + id;
+                    else if (after_foreign && f < s->nf)
+                        ids[k] = next_base + next->lead_ids[f];
+                    else
                         return fail(p, ISOMEND_ERR_INVALID_ARGUMENT); /* not reached */
-                    t[k] = next_base + next->lead_ids[f];
                 }
-                if (p->sink.triangles(p->sink.user, (size_t)e->count, t,
-                                      s->org ? s->org + e->at : NULL))
+                if (p->sink.triangles(p->sink.user, (size_t)b, ids,
+                                      s->org ? s->org + e->at + done : NULL))
                     st = fail(p, ISOMEND_ERR_SINK);
+                done += b;
             }
             break;
         case EV_RETIRE:
@@ -441,14 +428,13 @@ static isomend_status deliver_ready(stream_pool *p, int64_t until)
         for (;;) {
             x = done_slab(p, s);
             next = s + 1 < p->nslabs ? done_slab(p, s + 1) : NULL;
-            const int ready = x && (x->status != ISOMEND_OK ||
-                                    (x->global && (s + 1 == p->nslabs || next)));
+            const int ready = x && (x->status != ISOMEND_OK || s + 1 == p->nslabs || next);
             if (ready || s > until)
                 break;
             pthread_cond_wait(&p->done, &p->lock);
         }
         pthread_mutex_unlock(&p->lock);
-        if (!x || (x->status == ISOMEND_OK && (!x->global || (s + 1 < p->nslabs && !next))))
+        if (!x || (x->status == ISOMEND_OK && s + 1 < p->nslabs && !next))
             break; /* not ready, and not waited for */
         const isomend_status st = deliver(p, x, next);
         if (st != ISOMEND_OK)
@@ -499,7 +485,8 @@ isomend_status stream_pool_begin(const isomend_volume *desc, const isomend_optio
     p->slabs = calloc((size_t)p->inflight, sizeof(slab));
     p->queue = calloc((size_t)p->inflight, sizeof(int64_t));
     p->workers = calloc((size_t)threads, sizeof(pthread_t));
-    if (!p->slabs || !p->queue || !p->workers ||
+    p->ids = malloc(3 * sizeof(uint64_t) * TRIANGLE_BATCH);
+    if (!p->slabs || !p->queue || !p->workers || !p->ids ||
         (desc->slice_origins && !p->slice_origins))
         st = ISOMEND_ERR_OUT_OF_MEMORY;
     for (int k = 0; k < p->inflight && st == ISOMEND_OK; k++) {
@@ -530,7 +517,7 @@ isomend_status stream_pool_begin(const isomend_volume *desc, const isomend_optio
 void stream_pool_set_first_id(stream_pool *p, uint64_t first)
 {
     if (p && p->pushed == 0)
-        p->first_id = p->next_id = p->base_next = first;
+        p->first_id = p->next_id = first;
 }
 
 /* Opens slab s in its slot (which must be free: the caller delivered). */
@@ -545,7 +532,7 @@ static void open_slab(stream_pool *p, int64_t s)
     x->status = x->sink_status = ISOMEND_OK;
     memset(&x->stats, 0, sizeof x->stats);
     x->nv = x->nt = x->nev = x->nf = x->nlead = 0;
-    x->lead_delivered = x->saw_vertices = x->global = 0;
+    x->lead_delivered = x->saw_vertices = 0;
     int64_t lo = x->a - 1 - p->pad, hi = x->b + 2 - p->pad;
     x->z_first = lo < 0 ? 0 : lo;
     x->z_end = hi > p->desc.dims[2] ? p->desc.dims[2] : hi;
@@ -645,6 +632,7 @@ void stream_pool_destroy(stream_pool *p)
     free(p->slabs);
     free(p->queue);
     free(p->workers);
+    free(p->ids);
     free(p->slice_origins);
     free(p);
 }
