@@ -26,9 +26,11 @@
  *
  * Memory: at most `inflight` slabs at a time (threads + 2), each holding
  * its slices (H + 3 planes) and its mesh, and one piece per worker
- * (isomend_stream_memory() of a piece).
+ * (isomend_stream_memory() of a piece).  A slot keeps its arrays for the
+ * slabs after, in blocks offered for huge pages (grow_mesh).
  */
 #define _GNU_SOURCE /* _SC_NPROCESSORS_ONLN */
+#include "mesh_internal.h"
 #include "stream.h"
 #include "stream_pool.h"
 
@@ -143,7 +145,11 @@ uint64_t stream_pool_memory(const isomend_volume *desc, int threads, int pad, ui
     /* a slab's mesh, as busy as the in-memory rule's surface: a vertex (24
      * bytes) every 8 samples, a triangle (13 bytes) every 4, 7 bytes a sample */
     const uint64_t mesh = samples * H * 7;
-    return sizeof(stream_pool) + (uint64_t)threads * piece + inflight * ((H + 3) * plane + mesh);
+    /* and the huge page each of a slot's five arrays (input, positions,
+     * normals, triangles, origins) may end in (grow_mesh) */
+    const uint64_t ends = 5 * (uint64_t)HUGE_PAGE;
+    return sizeof(stream_pool) + (uint64_t)threads * piece +
+           inflight * ((H + 3) * plane + mesh + ends);
 }
 
 /* ----------------------------------------------------------- growth */
@@ -160,6 +166,35 @@ static int grow(void **p, uint64_t *cap, uint64_t need, size_t elem)
         return 0;
     *p = q;
     *cap = c;
+    return 1;
+}
+
+/* grow() for a slab's mesh arrays (`used` elements kept): from 2 MiB on in
+ * blocks offered for transparent huge pages (output_alloc), copied when they
+ * grow.  The slots' arrays are written on fresh memory, and a fault per 4 KiB
+ * page (a trap to the host on a virtual machine) cost the pool more than its
+ * copies; a slot keeps its arrays, so the copies stop once it has grown. */
+static int grow_mesh(void **p, uint64_t *cap, uint64_t used, uint64_t need, size_t elem,
+                     int small_pages)
+{
+    if (need <= *cap)
+        return 1;
+    uint64_t c = *cap ? *cap : 1024;
+    while (c < need)
+        c *= 2;
+    if (c > SIZE_MAX / elem)
+        return 0;
+    const size_t bytes = (size_t)c * elem;
+    if (bytes < HUGE_PAGE || small_pages)
+        return grow(p, cap, need, elem);
+    void *q = output_alloc(huge_round(bytes), 0);
+    if (!q)
+        return 0;
+    if (used)
+        memcpy(q, *p, (size_t)used * elem);
+    free(*p);
+    *p = q;
+    *cap = huge_round(bytes) / elem;
     return 1;
 }
 
@@ -193,8 +228,10 @@ static int slab_vertices(void *user, uint64_t first, size_t count, const float *
         s->sink_status = ISOMEND_ERR_TOO_LARGE;
         return 1;
     }
-    if (!grow((void **)&s->pos, &s->vcap, s->nv + count, 3 * sizeof(float)) ||
-        (nrm && !grow((void **)&s->nrm, &s->ncap, s->nv + count, 3 * sizeof(float))))
+    const int small = (p->opts.flags & ISOMEND_FLAG_SMALL_PAGES) != 0;
+    if (!grow_mesh((void **)&s->pos, &s->vcap, s->nv, s->nv + count, 3 * sizeof(float), small) ||
+        (nrm &&
+         !grow_mesh((void **)&s->nrm, &s->ncap, s->nv, s->nv + count, 3 * sizeof(float), small)))
         return 1;
     if (nrm)
         memcpy(s->nrm + 3 * s->nv, nrm, 3 * sizeof(float) * count);
@@ -225,8 +262,9 @@ static int slab_vertices(void *user, uint64_t first, size_t count, const float *
 static int slab_triangles32(void *user, size_t count, const uint32_t *ids, const uint8_t *org)
 {
     slab *s = ((slab_user *)user)->s;
-    if (!grow((void **)&s->tri, &s->tcap, s->nt + count, 3 * sizeof(uint32_t)) ||
-        (org && !grow((void **)&s->org, &s->ocap, s->nt + count, 1)))
+    const int small = (((slab_user *)user)->p->opts.flags & ISOMEND_FLAG_SMALL_PAGES) != 0;
+    if (!grow_mesh((void **)&s->tri, &s->tcap, s->nt, s->nt + count, 3 * sizeof(uint32_t), small) ||
+        (org && !grow_mesh((void **)&s->org, &s->ocap, s->nt, s->nt + count, 1, small)))
         return 1;
     if (org)
         memcpy(s->org + s->nt, org, count);
@@ -491,7 +529,8 @@ isomend_status stream_pool_begin(const isomend_volume *desc, const isomend_optio
         st = ISOMEND_ERR_OUT_OF_MEMORY;
     for (int k = 0; k < p->inflight && st == ISOMEND_OK; k++) {
         p->slabs[k].index = -1;
-        if (!(p->slabs[k].input = malloc(p->plane_bytes * (size_t)(p->H + 3))))
+        if (!(p->slabs[k].input = output_alloc(p->plane_bytes * (size_t)(p->H + 3),
+                                               (opts->flags & ISOMEND_FLAG_SMALL_PAGES) != 0)))
             st = ISOMEND_ERR_OUT_OF_MEMORY;
     }
     if (st == ISOMEND_OK) {
