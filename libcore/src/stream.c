@@ -350,14 +350,22 @@ static isomend_status slice_keys(stream_one *s, int64_t m, uint64_t first, uint6
                                                       ? N0 - 2
                                                       : c->cube_hi[0]);
             const uint8_t *b = other[kind];
+            /* 16 signs a compare (as the scan numbers them, number_crossings): a
+             * pool's slabs key two slices each, a sample at a time cost as much
+             * as scanning them */
             for (int q = 0; q < n; q++)
-                for (int64_t i = sp[2 * q]; i <= sp[2 * q + 1]; i++) {
-                    if (a[i] == b[i])
-                        continue;
-                    const uint64_t r = (uint32_t)(map[kind * plane + j * N0 + i] - low);
-                    if (r >= nv)
-                        return s->failed = ISOMEND_ERR_INVALID_ARGUMENT; /* not reached */
-                    keys[r] = edge_key(g, i, j, m, kind);
+                for (int64_t i = sp[2 * q]; i <= sp[2 * q + 1]; i += 16) {
+                    uint32_t diff = diff16(a + i, b + i);
+                    if (sp[2 * q + 1] - i < 15)
+                        diff = first_bits(diff, sp[2 * q + 1] - i + 1);
+                    while (diff) {
+                        const int64_t x = i + __builtin_ctz(diff);
+                        diff &= diff - 1;
+                        const uint64_t r = (uint32_t)(map[kind * plane + j * N0 + x] - low);
+                        if (r >= nv)
+                            return s->failed = ISOMEND_ERR_INVALID_ARGUMENT; /* not reached */
+                        keys[r] = edge_key(g, x, j, m, kind);
+                    }
                 }
         }
     }
