@@ -126,7 +126,10 @@ int stream_pool_plan(const isomend_volume *desc, const isomend_options *opts, in
     const int pad = opts && (opts->flags & ISOMEND_FLAG_PAD) ? 1 : 0;
     const int64_t N2 = desc->dims[2] + 2 * pad;
     int64_t h = slab_height((desc->dims[0] + 2 * pad) * (desc->dims[1] + 2 * pad));
-    const int64_t spread = N2 / (4 * (int64_t)threads); /* four slabs a thread, if it can */
+    /* sixteen slabs a thread, if it can: the slots (threads + 2 slabs) are
+     * written on fresh memory, costly on a virtual machine; with four slabs
+     * a thread half the slabs paid for it */
+    const int64_t spread = N2 / (16 * (int64_t)threads);
     if (h > spread)
         h = spread < SLAB_MIN ? SLAB_MIN : spread;
     *slab_layers = h;
