@@ -5,8 +5,10 @@
  *   push (caller)            workers (threads)               sink (caller)
  *   slice z copied into the  slab s: a piece [a, b) run on   slab s's calls replayed
  *   input of each slab whose its input, read in place; its   in order, its ids made
- *   halo holds it (1 or 2);  mesh and calls kept, triangles  global a batch at a time
- *   a slab complete: queued  as 32-bit local ids             (local + base, or foreign)
+ *   halo holds it (1 or 2:   mesh and calls kept, triangles  global a batch at a time
+ *   a slab opened late takes as 32-bit local ids             (local + base, or foreign)
+ *   them from the one below);
+ *   a slab complete: queued
  *
  * A slab is a piece of the grid (isomend.h, "Pieces"): it numbers its
  * vertices from 0, in isomend_extract()'s order, and refers to the next
@@ -569,22 +571,29 @@ void stream_pool_set_first_id(stream_pool *p, uint64_t first)
         p->first_id = p->next_id = first;
 }
 
+/* Slab s's owned marched slices [a, b) and the volume slices it reads [first, end). */
+static void slab_range(const stream_pool *p, int64_t s, int64_t *a, int64_t *b, int64_t *first,
+                       int64_t *end)
+{
+    const int64_t N2 = p->desc.dims[2] + 2 * p->pad;
+    *a = s * p->H;
+    *b = *a + p->H < N2 - 1 ? *a + p->H : N2;
+    const int64_t lo = *a - 1 - p->pad, hi = *b + 2 - p->pad;
+    *first = lo < 0 ? 0 : lo;
+    *end = hi > p->desc.dims[2] ? p->desc.dims[2] : hi;
+}
+
 /* Opens slab s in its slot (which must be free: the caller delivered). */
 static void open_slab(stream_pool *p, int64_t s)
 {
     slab *x = &p->slabs[s % p->inflight];
-    const int64_t N2 = p->desc.dims[2] + 2 * p->pad;
     x->state = SLAB_FILLING;
     x->index = s;
-    x->a = s * p->H;
-    x->b = x->a + p->H < N2 - 1 ? x->a + p->H : N2;
+    slab_range(p, s, &x->a, &x->b, &x->z_first, &x->z_end);
     x->status = x->sink_status = ISOMEND_OK;
     memset(&x->stats, 0, sizeof x->stats);
     x->nv = x->nt = x->nev = x->nf = x->nlead = 0;
     x->lead_delivered = x->saw_vertices = 0;
-    int64_t lo = x->a - 1 - p->pad, hi = x->b + 2 - p->pad;
-    x->z_first = lo < 0 ? 0 : lo;
-    x->z_end = hi > p->desc.dims[2] ? p->desc.dims[2] : hi;
 }
 
 isomend_status stream_pool_push(stream_pool *p, const void *slice)
@@ -594,22 +603,40 @@ isomend_status stream_pool_push(stream_pool *p, const void *slice)
     const int64_t z = p->pushed;
     if (z >= p->desc.dims[2])
         return fail(p, ISOMEND_ERR_SLICE_COUNT);
-    /* the slabs whose halo holds z: at most one opens here (halos start H apart) */
+    /* the slabs whose halo holds z */
     int64_t s0 = (z + p->pad - 2) / p->H - 1;
     if (s0 < 0)
         s0 = 0;
-    if (p->next_open < p->nslabs) {
+    while (p->next_open < p->nslabs) {
         const int64_t s = p->next_open, lo = s * p->H - 1 - p->pad;
-        if (z >= (lo < 0 ? 0 : lo)) {
-            /* its slot's previous slab must have gone to the sink */
+        if (z < (lo < 0 ? 0 : lo))
+            break;
+        /* Its slot's previous slab must have gone to the sink, which waits for
+         * the slab after that one.  While slab s - 1 still holds z, slab s
+         * waits for its slot instead of the caller: s - 1 is completed and
+         * queued first (waiting here, the workers idled for a replay and the
+         * last slices of s - 1 at each slab), and s takes the slices it
+         * shares with s - 1 from s - 1's input when it opens (s - 1 stays in
+         * its slot until s is done). */
+        const slab *prev = s > 0 ? &p->slabs[(s - 1) % p->inflight] : NULL;
+        int64_t a, b, first, end;
+        slab_range(p, s, &a, &b, &first, &end);
+        const int must = !prev || z >= prev->z_end || z == end - 1;
+        if (p->slabs[s % p->inflight].index != -1) {
+            if (!must)
+                break;
             const isomend_status st = deliver_ready(p, s - p->inflight);
             if (st != ISOMEND_OK)
                 return st;
             if (p->slabs[s % p->inflight].index != -1)
                 return fail(p, ISOMEND_ERR_INVALID_ARGUMENT); /* not reached */
-            open_slab(p, s);
-            p->next_open++;
         }
+        open_slab(p, s);
+        p->next_open++;
+        slab *x = &p->slabs[s % p->inflight];
+        for (int64_t k = x->z_first; k < z; k++) /* the slices pushed while it waited */
+            memcpy(x->input + (size_t)(k - x->z_first) * p->plane_bytes,
+                   prev->input + (size_t)(k - prev->z_first) * p->plane_bytes, p->plane_bytes);
     }
     int64_t attach[4];
     int na = 0;
