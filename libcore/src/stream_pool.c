@@ -150,11 +150,12 @@ uint64_t stream_pool_memory(const isomend_volume *desc, int threads, int pad, ui
     /* a slab's mesh, as busy as the in-memory rule's surface: a vertex (24
      * bytes) every 8 samples, a triangle (13 bytes) every 4, 7 bytes a sample */
     const uint64_t mesh = samples * H * 7;
-    /* and the huge page each of a slot's five arrays (input, positions,
-     * normals, triangles, origins) may end in (grow_mesh) */
-    const uint64_t ends = 5 * (uint64_t)HUGE_PAGE;
-    return sizeof(stream_pool) + (uint64_t)threads * piece +
-           inflight * ((H + 3) * plane + mesh + ends);
+    /* and the partly used huge page a slot's arrays of 2 MiB and more end in
+     * (output_alloc, grow_mesh): less than one for each array, and less than the
+     * array (the input; positions, normals, triangles and origins) */
+    const uint64_t input = (H + 3) * plane, huge = HUGE_PAGE;
+    const uint64_t ends = (input < huge ? input : huge) + (mesh < 4 * huge ? mesh : 4 * huge);
+    return sizeof(stream_pool) + (uint64_t)threads * piece + inflight * (input + mesh + ends);
 }
 
 /* ----------------------------------------------------------- growth */
