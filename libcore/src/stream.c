@@ -76,6 +76,7 @@ struct stream_one {
     int64_t own_first, own_end, push_first, push_end;
     int piece;
     int lean;        /* a pool's slab: keys of its first and next slice only */
+    stream_slab_triangles tri32; /* a pool's slab: where its 32-bit triangles go */
     uint64_t *keys;  /* a piece's keys of the vertices staged */
     uint32_t *fmap;  /* slice own_end's ids to foreign indices, UINT32_MAX none */
     float *fpos;     /* the foreign vertices' positions */
@@ -349,14 +350,22 @@ static isomend_status slice_keys(stream_one *s, int64_t m, uint64_t first, uint6
                                                       ? N0 - 2
                                                       : c->cube_hi[0]);
             const uint8_t *b = other[kind];
+            /* 16 signs a compare (as the scan numbers them, number_crossings): a
+             * pool's slabs key two slices each, a sample at a time cost as much
+             * as scanning them */
             for (int q = 0; q < n; q++)
-                for (int64_t i = sp[2 * q]; i <= sp[2 * q + 1]; i++) {
-                    if (a[i] == b[i])
-                        continue;
-                    const uint64_t r = (uint32_t)(map[kind * plane + j * N0 + i] - low);
-                    if (r >= nv)
-                        return s->failed = ISOMEND_ERR_INVALID_ARGUMENT; /* not reached */
-                    keys[r] = edge_key(g, i, j, m, kind);
+                for (int64_t i = sp[2 * q]; i <= sp[2 * q + 1]; i += 16) {
+                    uint32_t diff = diff16(a + i, b + i);
+                    if (sp[2 * q + 1] - i < 15)
+                        diff = first_bits(diff, sp[2 * q + 1] - i + 1);
+                    while (diff) {
+                        const int64_t x = i + __builtin_ctz(diff);
+                        diff &= diff - 1;
+                        const uint64_t r = (uint32_t)(map[kind * plane + j * N0 + x] - low);
+                        if (r >= nv)
+                            return s->failed = ISOMEND_ERR_INVALID_ARGUMENT; /* not reached */
+                        keys[r] = edge_key(g, x, j, m, kind);
+                    }
                 }
         }
     }
@@ -508,15 +517,28 @@ static int box_id(stream_one *s, uint64_t id, int64_t m, uint64_t *out, size_t *
 
 /* Layer m - 1's n staged triangles, their ids made 64-bit from `base` (the
  * first id of slice m - 1: every id of the layer is in [base, base + 2^32));
- * for a slab, ids from `foreign` on (its last layer) are the next piece's;
+ * for a piece, ids from `foreign` on (its last layer) are the next piece's;
  * for a box, ids go through box_id(), each batch's new foreign vertices
- * delivered before it. */
+ * delivered before it.  A pool's slab takes the staged ids as they are
+ * (tri32: the pool keeps them in 32 bits and makes them global itself). */
 static isomend_status deliver_triangles(stream_one *s, uint64_t n, uint64_t base,
                                         uint64_t foreign, int64_t m)
 {
     const ctx *c = &s->c;
     const uint32_t low = (uint32_t)base;
-    for (uint64_t done = 0; done < n;) {
+    if (s->tri32 && n) {
+        /* a slab numbers from 0 below 2^31: the staged ids are its local ids;
+         * its last layer's ids from `foreign` on become the next slab's */
+        uint32_t *t = c->tri;
+        if (foreign != UINT64_MAX)
+            for (uint64_t q = 0; q < 3 * n; q++)
+                if (t[q] >= (uint32_t)foreign)
+                    t[q] = STREAM_SLAB_FOREIGN | s->fmap[t[q] - (uint32_t)foreign];
+        const int rc = s->tri32(s->sink.user, (size_t)n, t, c->org);
+        if (rc)
+            return sink_status(s, rc);
+    }
+    for (uint64_t done = 0; done < n && !s->tri32;) {
         const uint64_t b = n - done < TRIANGLE_BATCH ? n - done : TRIANGLE_BATCH;
         const uint32_t *t = c->tri + 3 * done;
         const uint64_t nf = s->nforeign;
@@ -802,12 +824,15 @@ static uint64_t single_memory(const ctx *c, int piece)
 /* ------------------------------------------------- a pool's slabs */
 
 isomend_status stream_slab_begin(const isomend_volume *desc, const isomend_options *opts,
-                                 const isomend_mesh_sink *sink, stream_one **out)
+                                 const isomend_mesh_sink *sink, stream_slab_triangles triangles,
+                                 stream_one **out)
 {
     const isomend_piece first = {0, 1, {0, 0}, {0, 0}};
     const isomend_status status = stream_one_piece_begin(desc, opts, &first, sink, out);
-    if (status == ISOMEND_OK)
+    if (status == ISOMEND_OK) {
         (*out)->lean = 1;
+        (*out)->tri32 = triangles;
+    }
     return status;
 }
 

@@ -35,8 +35,16 @@ uint64_t stream_one_memory(const isomend_volume *desc, const isomend_options *op
  * slab (stream_slab_reset: owned marched slices [first, end), counters
  * cleared, memory kept), with keys only where the pool needs them: its
  * first slice's vertices and the foreign table of its next slice. */
+/* Its triangles go to `triangles` with 32-bit ids, not to the sink's: local
+ * ids (the slab's vertices number from 0, below STREAM_SLAB_FOREIGN) as the
+ * kernels wrote them, no 64-bit copy made, and STREAM_SLAB_FOREIGN | f for
+ * the next slab's vertices (the foreign table's f). */
+#define STREAM_SLAB_FOREIGN 0x80000000u
+typedef int (*stream_slab_triangles)(void *user, size_t count, const uint32_t *ids,
+                                     const uint8_t *org);
 isomend_status stream_slab_begin(const isomend_volume *desc, const isomend_options *opts,
-                                 const isomend_mesh_sink *sink, stream_one **out);
+                                 const isomend_mesh_sink *sink, stream_slab_triangles triangles,
+                                 stream_one **out);
 isomend_status stream_slab_reset(stream_one *s, int64_t owned_first, int64_t owned_end);
 /* Runs the slab on its volume slices, `planes` (isomend_piece_halo()'s,
  * contiguous), read in place, and finishes it (statistics: isomend_stream_finish). */

@@ -4,19 +4,22 @@
  *
  *   push (caller)            workers (threads)               sink (caller)
  *   slice z copied into the  slab s: a piece [a, b) run on   slab s's calls replayed
- *   input of each slab whose its input, read in place; its   in order, its ids global
- *   halo holds it (1 or 2);  mesh and calls kept; the ids    (only the last layer's
- *   a slab complete: queued  made global once s has a base   foreign ids mended here)
+ *   input of each slab whose its input, read in place; its   in order, its ids made
+ *   halo holds it (1 or 2:   mesh and calls kept, triangles  global a batch at a time
+ *   a slab opened late takes as 32-bit local ids             (local + base, or foreign)
+ *   them from the one below);
+ *   a slab complete: queued
  *
  * A slab is a piece of the grid (isomend.h, "Pieces"): it numbers its
  * vertices from 0, in isomend_extract()'s order, and refers to the next
- * slab's vertices of its last slice b as ISOMEND_FOREIGN | f, f numbering
+ * slab's vertices of its last slice b as STREAM_SLAB_FOREIGN | f, f numbering
  * the in-plane vertices of slice b in id order.  The next slab numbers the
  * same vertices first, in the same order (the same scan of the same slice),
  * so f is the f-th in-plane vertex of the next slab's first call (kept as
  * `lead`; the keys are compared, a mismatch is an error, not a mesh).
- * base(s + 1) = base(s) + slab s's vertices: the worker that completes the
- * slabs below a slab gives it its base and adds it to the slab's local ids.
+ * base(s + 1) = base(s) + slab s's vertices: the replay adds it to the
+ * slab's local ids (kept in 32 bits, the piece's own: half the bytes of
+ * 64-bit ids to copy and keep, and no pass over them on the workers).
  * Slab s is delivered once it and slab s + 1 are done: its calls (vertices,
  * triangles, retire, as the piece made them) replayed, the next slab's first
  * vertices delivered just before the triangles that use them.  The sink
@@ -25,9 +28,11 @@
  *
  * Memory: at most `inflight` slabs at a time (threads + 2), each holding
  * its slices (H + 3 planes) and its mesh, and one piece per worker
- * (isomend_stream_memory() of a piece).
+ * (isomend_stream_memory() of a piece).  A slot keeps its arrays for the
+ * slabs after, in blocks offered for huge pages (grow_mesh).
  */
 #define _GNU_SOURCE /* _SC_NPROCESSORS_ONLN */
+#include "mesh_internal.h"
 #include "stream.h"
 #include "stream_pool.h"
 
@@ -42,6 +47,7 @@
 #define SLAB_SAMPLES ((int64_t)1 << 21)
 #define SLAB_MIN 3
 #define SLAB_MAX 64
+#define TRIANGLE_BATCH 8192 /* triangles made global per sink call (the batch stays in cache) */
 
 typedef enum { EV_VERTICES, EV_TRIANGLES, EV_RETIRE, EV_FOREIGN } event_kind;
 
@@ -61,15 +67,13 @@ typedef struct slab {
     uint64_t nv, vcap, ncap, nt, tcap, ocap, nev, evcap, nf, fcap, nlead, leadcap, lidcap;
     isomend_status sink_status; /* why the slab's sink refused, if it did */
     float *pos, *nrm;
-    uint64_t *tri; /* the piece's ids (local, ISOMEND_FOREIGN | f), made global in place */
+    uint32_t *tri; /* the piece's ids (local, STREAM_SLAB_FOREIGN | f), global when replayed */
     uint8_t *org;
     event *ev;
     uint64_t *fkeys;               /* the foreign vertices' keys */
     uint64_t *lead_keys;           /* slice a's in-plane vertices, in id order */
     uint32_t *lead_ids;            /* ... their local ids */
     int lead_delivered;            /* the first vertices call went out with the slab below */
-    uint64_t base;                 /* its first vertex's global id, once the slabs below are done */
-    int global;                    /* its local ids made global (by a worker) */
     int saw_vertices;
 } slab;
 
@@ -90,9 +94,8 @@ struct stream_pool {
     int64_t qhead, qcount;
     int stop;
     int64_t pushed, next_open, next_deliver; /* volume slices pushed; the next slab to open, to hand over */
-    int64_t based;     /* slabs [0, based) have their base (lock) */
-    uint64_t base_next; /* the base of slab `based` */
     uint64_t first_id, next_id, triangles;
+    uint64_t *ids; /* [3 * TRIANGLE_BATCH]: a replayed batch's global ids */
     isomend_stats stats;
     isomend_status failed;
 };
@@ -125,7 +128,10 @@ int stream_pool_plan(const isomend_volume *desc, const isomend_options *opts, in
     const int pad = opts && (opts->flags & ISOMEND_FLAG_PAD) ? 1 : 0;
     const int64_t N2 = desc->dims[2] + 2 * pad;
     int64_t h = slab_height((desc->dims[0] + 2 * pad) * (desc->dims[1] + 2 * pad));
-    const int64_t spread = N2 / (4 * (int64_t)threads); /* four slabs a thread, if it can */
+    /* sixteen slabs a thread, if it can: the slots (threads + 2 slabs) are
+     * written on fresh memory, costly on a virtual machine; with four slabs
+     * a thread half the slabs paid for it */
+    const int64_t spread = N2 / (16 * (int64_t)threads);
     if (h > spread)
         h = spread < SLAB_MIN ? SLAB_MIN : spread;
     *slab_layers = h;
@@ -144,7 +150,12 @@ uint64_t stream_pool_memory(const isomend_volume *desc, int threads, int pad, ui
     /* a slab's mesh, as busy as the in-memory rule's surface: a vertex (24
      * bytes) every 8 samples, a triangle (13 bytes) every 4, 7 bytes a sample */
     const uint64_t mesh = samples * H * 7;
-    return sizeof(stream_pool) + (uint64_t)threads * piece + inflight * ((H + 3) * plane + mesh);
+    /* and the partly used huge page a slot's arrays of 2 MiB and more end in
+     * (output_alloc, grow_mesh): less than one for each array, and less than the
+     * array (the input; positions, normals, triangles and origins) */
+    const uint64_t input = (H + 3) * plane, huge = HUGE_PAGE;
+    const uint64_t ends = (input < huge ? input : huge) + (mesh < 4 * huge ? mesh : 4 * huge);
+    return sizeof(stream_pool) + (uint64_t)threads * piece + inflight * (input + mesh + ends);
 }
 
 /* ----------------------------------------------------------- growth */
@@ -161,6 +172,35 @@ static int grow(void **p, uint64_t *cap, uint64_t need, size_t elem)
         return 0;
     *p = q;
     *cap = c;
+    return 1;
+}
+
+/* grow() for a slab's mesh arrays (`used` elements kept): from 2 MiB on in
+ * blocks offered for transparent huge pages (output_alloc), copied when they
+ * grow.  The slots' arrays are written on fresh memory, and a fault per 4 KiB
+ * page (a trap to the host on a virtual machine) cost the pool more than its
+ * copies; a slot keeps its arrays, so the copies stop once it has grown. */
+static int grow_mesh(void **p, uint64_t *cap, uint64_t used, uint64_t need, size_t elem,
+                     int small_pages)
+{
+    if (need <= *cap)
+        return 1;
+    uint64_t c = *cap ? *cap : 1024;
+    while (c < need)
+        c *= 2;
+    if (c > SIZE_MAX / elem)
+        return 0;
+    const size_t bytes = (size_t)c * elem;
+    if (bytes < HUGE_PAGE || small_pages)
+        return grow(p, cap, need, elem);
+    void *q = output_alloc(huge_round(bytes), 0);
+    if (!q)
+        return 0;
+    if (used)
+        memcpy(q, *p, (size_t)used * elem);
+    free(*p);
+    *p = q;
+    *cap = huge_round(bytes) / elem;
     return 1;
 }
 
@@ -194,8 +234,10 @@ static int slab_vertices(void *user, uint64_t first, size_t count, const float *
         s->sink_status = ISOMEND_ERR_TOO_LARGE;
         return 1;
     }
-    if (!grow((void **)&s->pos, &s->vcap, s->nv + count, 3 * sizeof(float)) ||
-        (nrm && !grow((void **)&s->nrm, &s->ncap, s->nv + count, 3 * sizeof(float))))
+    const int small = (p->opts.flags & ISOMEND_FLAG_SMALL_PAGES) != 0;
+    if (!grow_mesh((void **)&s->pos, &s->vcap, s->nv, s->nv + count, 3 * sizeof(float), small) ||
+        (nrm &&
+         !grow_mesh((void **)&s->nrm, &s->ncap, s->nv, s->nv + count, 3 * sizeof(float), small)))
         return 1;
     if (nrm)
         memcpy(s->nrm + 3 * s->nv, nrm, 3 * sizeof(float) * count);
@@ -221,19 +263,28 @@ static int slab_vertices(void *user, uint64_t first, size_t count, const float *
     return 0;
 }
 
-static int slab_triangles(void *user, size_t count, const uint64_t *ids, const uint8_t *org)
+/* The piece's triangles come here, in 32 bits (stream_slab_begin), not to
+ * slab_triangles: half the bytes to copy and to keep. */
+static int slab_triangles32(void *user, size_t count, const uint32_t *ids, const uint8_t *org)
 {
     slab *s = ((slab_user *)user)->s;
-    if (!grow((void **)&s->tri, &s->tcap, s->nt + count, 3 * sizeof(uint64_t)) ||
-        (org && !grow((void **)&s->org, &s->ocap, s->nt + count, 1)))
+    const int small = (((slab_user *)user)->p->opts.flags & ISOMEND_FLAG_SMALL_PAGES) != 0;
+    if (!grow_mesh((void **)&s->tri, &s->tcap, s->nt, s->nt + count, 3 * sizeof(uint32_t), small) ||
+        (org && !grow_mesh((void **)&s->org, &s->ocap, s->nt, s->nt + count, 1, small)))
         return 1;
     if (org)
         memcpy(s->org + s->nt, org, count);
-    memcpy(s->tri + 3 * s->nt, ids, 3 * sizeof(uint64_t) * count);
+    memcpy(s->tri + 3 * s->nt, ids, 3 * sizeof(uint32_t) * count);
     if (add_event(s, EV_TRIANGLES, s->nt, count))
         return 1;
     s->nt += count;
     return 0;
+}
+
+static int slab_triangles(void *user, size_t count, const uint64_t *ids, const uint8_t *org)
+{
+    (void)user, (void)count, (void)ids, (void)org;
+    return 1; /* not reached: a slab's triangles go to slab_triangles32 */
 }
 
 static int slab_retire(void *user, uint64_t floor)
@@ -270,7 +321,7 @@ static void run_slab(stream_pool *p, slab *s, worker_state *ws)
     if (!ws->piece) {
         const isomend_mesh_sink sink = {&ws->user, slab_vertices, slab_triangles, slab_retire,
                                         slab_foreign};
-        st = stream_slab_begin(&p->desc, &p->opts, &sink, &ws->piece);
+        st = stream_slab_begin(&p->desc, &p->opts, &sink, slab_triangles32, &ws->piece);
     }
     if (st == ISOMEND_OK)
         st = stream_slab_reset(ws->piece, s->a, s->b);
@@ -281,31 +332,6 @@ static void run_slab(stream_pool *p, slab *s, worker_state *ws)
     pthread_mutex_lock(&p->lock);
     s->status = st;
     s->state = SLAB_DONE;
-    /* the slabs whose base is known now: from the first without one, while done */
-    const int64_t first = p->based;
-    while (p->based < p->nslabs) {
-        slab *x = &p->slabs[p->based % p->inflight];
-        if (x->index != p->based || x->state != SLAB_DONE)
-            break;
-        x->base = p->base_next;
-        p->base_next += x->nv;
-        p->based++;
-    }
-    const int64_t end = p->based;
-    pthread_mutex_unlock(&p->lock);
-    /* their ids made global here, off the caller's thread (foreign ones wait for the
-     * next slab's lead: deliver()) */
-    for (int64_t k = first; k < end; k++) {
-        slab *x = &p->slabs[k % p->inflight];
-        const uint64_t base = x->base;
-        uint64_t *t = x->tri;
-        for (uint64_t q = 0; q < 3 * x->nt; q++)
-            if (!(t[q] & ISOMEND_FOREIGN))
-                t[q] += base;
-    }
-    pthread_mutex_lock(&p->lock);
-    for (int64_t k = first; k < end; k++)
-        p->slabs[k % p->inflight].global = 1;
     pthread_cond_broadcast(&p->done);
     pthread_mutex_unlock(&p->lock);
 }
@@ -362,8 +388,6 @@ static isomend_status deliver(stream_pool *p, slab *s, slab *next)
     if (s->status != ISOMEND_OK)
         return fail(p, s->status);
     const uint64_t base = p->next_id, next_base = base + s->nv;
-    if (!s->global || s->base != base)
-        return fail(p, ISOMEND_ERR_INVALID_ARGUMENT); /* not reached */
     if (s->nf) { /* the foreign vertices are the next slab's lead, key for key */
         if (!next || next->status != ISOMEND_OK || s->nf > next->nlead)
             return fail(p, next && next->status != ISOMEND_OK ? next->status
@@ -391,19 +415,33 @@ static isomend_status deliver(stream_pool *p, slab *s, slab *next)
                 if (st != ISOMEND_OK)
                     break;
             }
-            if (e->count) {
-                uint64_t *t = s->tri + 3 * e->at;
-                for (uint64_t k = 0; k < 3 * e->count && after_foreign; k++) {
-                    const uint64_t id = t[k], f = id & ~ISOMEND_FOREIGN;
-                    if (!(id & ISOMEND_FOREIGN))
-                        continue; /* made global by the workers */
-                    if (f >= s->nf)
-                        return fail(p, ISOMEND_ERR_INVALID_ARGUMENT); /* not reached */
-                    t[k] = next_base + next->lead_ids[f];
+            /* the ids made global a batch at a time: local + base, foreign
+             * (only after the foreign table) the next slab's lead */
+            for (uint64_t done = 0; done < e->count && st == ISOMEND_OK;) {
+                const uint64_t b = e->count - done < TRIANGLE_BATCH ? e->count - done
+                                                                    : TRIANGLE_BATCH;
+                const uint32_t *t = s->tri + 3 * (e->at + done);
+                uint64_t *ids = p->ids;
+                uint32_t seen = 0; /* no foreign ids yet: a loop the compiler vectorises */
+                for (uint64_t k = 0; k < 3 * b && !after_foreign; k++) {
+                    ids[k] = base + t[k];
+                    seen |= t[k];
                 }
-                if (p->sink.triangles(p->sink.user, (size_t)e->count, t,
-                                      s->org ? s->org + e->at : NULL))
+                if (seen & STREAM_SLAB_FOREIGN)
+                    return fail(p, ISOMEND_ERR_INVALID_ARGUMENT); /* not reached */
+                for (uint64_t k = 0; k < 3 * b && after_foreign; k++) {
+                    const uint32_t id = t[k], f = id & ~STREAM_SLAB_FOREIGN;
+                    if (!(id & STREAM_SLAB_FOREIGN))
+                        ids[k] = base + id;
+                    else if (f < s->nf)
+                        ids[k] = next_base + next->lead_ids[f];
+                    else
+                        return fail(p, ISOMEND_ERR_INVALID_ARGUMENT); /* not reached */
+                }
+                if (p->sink.triangles(p->sink.user, (size_t)b, ids,
+                                      s->org ? s->org + e->at + done : NULL))
                     st = fail(p, ISOMEND_ERR_SINK);
+                done += b;
             }
             break;
         case EV_RETIRE:
@@ -441,14 +479,13 @@ static isomend_status deliver_ready(stream_pool *p, int64_t until)
         for (;;) {
             x = done_slab(p, s);
             next = s + 1 < p->nslabs ? done_slab(p, s + 1) : NULL;
-            const int ready = x && (x->status != ISOMEND_OK ||
-                                    (x->global && (s + 1 == p->nslabs || next)));
+            const int ready = x && (x->status != ISOMEND_OK || s + 1 == p->nslabs || next);
             if (ready || s > until)
                 break;
             pthread_cond_wait(&p->done, &p->lock);
         }
         pthread_mutex_unlock(&p->lock);
-        if (!x || (x->status == ISOMEND_OK && (!x->global || (s + 1 < p->nslabs && !next))))
+        if (!x || (x->status == ISOMEND_OK && s + 1 < p->nslabs && !next))
             break; /* not ready, and not waited for */
         const isomend_status st = deliver(p, x, next);
         if (st != ISOMEND_OK)
@@ -499,12 +536,14 @@ isomend_status stream_pool_begin(const isomend_volume *desc, const isomend_optio
     p->slabs = calloc((size_t)p->inflight, sizeof(slab));
     p->queue = calloc((size_t)p->inflight, sizeof(int64_t));
     p->workers = calloc((size_t)threads, sizeof(pthread_t));
-    if (!p->slabs || !p->queue || !p->workers ||
+    p->ids = malloc(3 * sizeof(uint64_t) * TRIANGLE_BATCH);
+    if (!p->slabs || !p->queue || !p->workers || !p->ids ||
         (desc->slice_origins && !p->slice_origins))
         st = ISOMEND_ERR_OUT_OF_MEMORY;
     for (int k = 0; k < p->inflight && st == ISOMEND_OK; k++) {
         p->slabs[k].index = -1;
-        if (!(p->slabs[k].input = malloc(p->plane_bytes * (size_t)(p->H + 3))))
+        if (!(p->slabs[k].input = output_alloc(p->plane_bytes * (size_t)(p->H + 3),
+                                               (opts->flags & ISOMEND_FLAG_SMALL_PAGES) != 0)))
             st = ISOMEND_ERR_OUT_OF_MEMORY;
     }
     if (st == ISOMEND_OK) {
@@ -530,25 +569,32 @@ isomend_status stream_pool_begin(const isomend_volume *desc, const isomend_optio
 void stream_pool_set_first_id(stream_pool *p, uint64_t first)
 {
     if (p && p->pushed == 0)
-        p->first_id = p->next_id = p->base_next = first;
+        p->first_id = p->next_id = first;
+}
+
+/* Slab s's owned marched slices [a, b) and the volume slices it reads [first, end). */
+static void slab_range(const stream_pool *p, int64_t s, int64_t *a, int64_t *b, int64_t *first,
+                       int64_t *end)
+{
+    const int64_t N2 = p->desc.dims[2] + 2 * p->pad;
+    *a = s * p->H;
+    *b = *a + p->H < N2 - 1 ? *a + p->H : N2;
+    const int64_t lo = *a - 1 - p->pad, hi = *b + 2 - p->pad;
+    *first = lo < 0 ? 0 : lo;
+    *end = hi > p->desc.dims[2] ? p->desc.dims[2] : hi;
 }
 
 /* Opens slab s in its slot (which must be free: the caller delivered). */
 static void open_slab(stream_pool *p, int64_t s)
 {
     slab *x = &p->slabs[s % p->inflight];
-    const int64_t N2 = p->desc.dims[2] + 2 * p->pad;
     x->state = SLAB_FILLING;
     x->index = s;
-    x->a = s * p->H;
-    x->b = x->a + p->H < N2 - 1 ? x->a + p->H : N2;
+    slab_range(p, s, &x->a, &x->b, &x->z_first, &x->z_end);
     x->status = x->sink_status = ISOMEND_OK;
     memset(&x->stats, 0, sizeof x->stats);
     x->nv = x->nt = x->nev = x->nf = x->nlead = 0;
-    x->lead_delivered = x->saw_vertices = x->global = 0;
-    int64_t lo = x->a - 1 - p->pad, hi = x->b + 2 - p->pad;
-    x->z_first = lo < 0 ? 0 : lo;
-    x->z_end = hi > p->desc.dims[2] ? p->desc.dims[2] : hi;
+    x->lead_delivered = x->saw_vertices = 0;
 }
 
 isomend_status stream_pool_push(stream_pool *p, const void *slice)
@@ -558,22 +604,40 @@ isomend_status stream_pool_push(stream_pool *p, const void *slice)
     const int64_t z = p->pushed;
     if (z >= p->desc.dims[2])
         return fail(p, ISOMEND_ERR_SLICE_COUNT);
-    /* the slabs whose halo holds z: at most one opens here (halos start H apart) */
+    /* the slabs whose halo holds z */
     int64_t s0 = (z + p->pad - 2) / p->H - 1;
     if (s0 < 0)
         s0 = 0;
-    if (p->next_open < p->nslabs) {
+    while (p->next_open < p->nslabs) {
         const int64_t s = p->next_open, lo = s * p->H - 1 - p->pad;
-        if (z >= (lo < 0 ? 0 : lo)) {
-            /* its slot's previous slab must have gone to the sink */
+        if (z < (lo < 0 ? 0 : lo))
+            break;
+        /* Its slot's previous slab must have gone to the sink, which waits for
+         * the slab after that one.  While slab s - 1 still holds z, slab s
+         * waits for its slot instead of the caller: s - 1 is completed and
+         * queued first (waiting here, the workers idled for a replay and the
+         * last slices of s - 1 at each slab), and s takes the slices it
+         * shares with s - 1 from s - 1's input when it opens (s - 1 stays in
+         * its slot until s is done). */
+        const slab *prev = s > 0 ? &p->slabs[(s - 1) % p->inflight] : NULL;
+        int64_t a, b, first, end;
+        slab_range(p, s, &a, &b, &first, &end);
+        const int must = !prev || z >= prev->z_end || z == end - 1;
+        if (p->slabs[s % p->inflight].index != -1) {
+            if (!must)
+                break;
             const isomend_status st = deliver_ready(p, s - p->inflight);
             if (st != ISOMEND_OK)
                 return st;
             if (p->slabs[s % p->inflight].index != -1)
                 return fail(p, ISOMEND_ERR_INVALID_ARGUMENT); /* not reached */
-            open_slab(p, s);
-            p->next_open++;
         }
+        open_slab(p, s);
+        p->next_open++;
+        slab *x = &p->slabs[s % p->inflight];
+        for (int64_t k = x->z_first; k < z; k++) /* the slices pushed while it waited */
+            memcpy(x->input + (size_t)(k - x->z_first) * p->plane_bytes,
+                   prev->input + (size_t)(k - prev->z_first) * p->plane_bytes, p->plane_bytes);
     }
     int64_t attach[4];
     int na = 0;
@@ -645,6 +709,7 @@ void stream_pool_destroy(stream_pool *p)
     free(p->slabs);
     free(p->queue);
     free(p->workers);
+    free(p->ids);
     free(p->slice_origins);
     free(p);
 }
