@@ -31,14 +31,11 @@ static inline int degenerate_triangle(uint64_t i, uint64_t j, uint64_t k, const 
 {
     if (i == j || j == k || i == k)
         return 1;
-    double u[3], v[3];
-    for (int d = 0; d < 3; d++) {
-        u[d] = (double)b[d] - a[d];
-        v[d] = (double)c[d] - a[d];
-    }
-    double x = u[1] * v[2] - u[2] * v[1], y = u[2] * v[0] - u[0] * v[2],
-           z = u[0] * v[1] - u[1] * v[0];
-    return x == 0.0 && y == 0.0 && z == 0.0;
+    /* (scalars, not arrays: GCC kept the arrays on the stack) */
+    const double u0 = (double)b[0] - a[0], u1 = (double)b[1] - a[1], u2 = (double)b[2] - a[2];
+    const double v0 = (double)c[0] - a[0], v1 = (double)c[1] - a[1], v2 = (double)c[2] - a[2];
+    const double x = u1 * v2 - u2 * v1, y = u2 * v0 - u0 * v2, z = u0 * v1 - u1 * v0;
+    return (x == 0.0) & (y == 0.0) & (z == 0.0);
 }
 
 #endif /* ISOMEND_CHECK_RULES_H */
