@@ -195,9 +195,15 @@ void cli_memory_plan_make(const isomend_volume *desc, const isomend_options *opt
     v.data = NULL;
     if (opts->threads > 0) {
         p->threads = opts->threads;
-    } else { /* all cores, as the core counts them */
+    } else {
+        /* all cores, as the core counts them, but the check's: its thread is
+         * the run's longest, and a pool on every core takes its time (the busy
+         * 512^3 TIFF stack on 2 cores: 2.99 s with one extraction thread beside
+         * the check, 3.35 s with a pool of two; the pool costs 1.3-1.5x the CPU
+         * of one stream, docs/streaming.md).  A run the check skips gets one
+         * thread below, as every run under a tight limit. */
         const long cores = sysconf(_SC_NPROCESSORS_ONLN);
-        p->threads = cores < 1 ? 1 : cores > 64 ? 64 : (int)cores;
+        p->threads = cores < 3 ? 1 : cores > 65 ? 64 : (int)cores - 1;
     }
     /* under a tight limit: first one thread, then no check (said so); the
      * streamed steps count in that choice, so a step's minimal chunk is not

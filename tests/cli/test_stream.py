@@ -189,6 +189,20 @@ def test_same_bytes(exe, work, samples):
                 db = open(os.path.join(work, b), "rb").read()
                 if da != db:
                     fail(label, f"streamed mesh differs ({len(da)} vs {len(db)} bytes)")
+                if fmt == "ply" and not opts:  # a pool of 3 (the default takes cores - 1)
+                    c = "pool.ply"
+                    rc3, _, err3 = run(exe, ["extract", *base, "-o", c, "--json", "pool.json",
+                                             "--threads", "3"], work)
+                    jc = json.load(open(os.path.join(work, "pool.json"))) if rc3 == 0 else {}
+                    if rc3 or not jc["streamed"] or jc["stream_threads"] != 3 or jc["check"] != ja["check"]:
+                        fail(label, f"--threads 3: exit {rc3} {err3.strip()}, streamed "
+                                    f"{jc.get('streamed')}, threads {jc.get('stream_threads')}, "
+                                    f"check {jc.get('check')}")
+                    elif open(os.path.join(work, c), "rb").read() != da:
+                        fail(label, "--threads 3: the streamed mesh differs")
+                    for f in (c, "pool.json"):
+                        if os.path.exists(os.path.join(work, f)):
+                            os.unlink(os.path.join(work, f))
                 elif ja["triangles"] == 0 and name != "builtin_f1":
                     fail(label, "empty mesh: the comparison proves little")
                 pairs += 1
