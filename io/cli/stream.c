@@ -5,7 +5,7 @@
  *
  * The paths (README "Volumes larger than memory, and clusters";
  * docs/streaming.md).  By default `isomend extract` streams the mesh: the
- * slices go through the core's stream (on all cores, isomend_stream_*) and
+ * slices go through the core's stream (on every core but the check's, isomend_stream_*) and
  * the mesh to the writer and the continuity check (check_sink.c) as it is
  * made.  The whole mesh is held only where a step needs it (post-processing,
  * --in-memory, --pages); that path holds
