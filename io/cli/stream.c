@@ -208,14 +208,15 @@ void cli_memory_plan_make(const isomend_volume *desc, const isomend_options *opt
     /* under a tight limit: first one thread, then no check (said so); the
      * streamed steps count in that choice, so a step's minimal chunk is not
      * left without room by a second thread */
-    isomend_options one = *opts;
+    isomend_options all = *opts, one = *opts;
+    all.threads = p->threads;
     one.threads = 1;
     double streaming = 0.0;
     for (int step = 0; step < 3; step++) {
         if (step == 1 && p->threads == 1)
             continue;
         const int check = step < 2;
-        const isomend_options *o = step == 0 ? opts : &one;
+        const isomend_options *o = step == 0 ? &all : &one;
         const double base = streaming_need(&v, o, format, check);
         streaming = base + plan_steps(p, &v, opts, post, base);
         p->check = check;
