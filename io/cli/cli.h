@@ -505,6 +505,7 @@ typedef struct cli_outputs {
     cli_world world;
     int has_world;
     cli_checker *checker;
+    uint64_t check_peak; /* the check's tables and queue at their largest (finish) */
     isomend_clean_stream *clean;
     isomend_largest_stream *largest;
     FILE *spool;            /* --largest, --target-triangles: pass 1's calls, */

@@ -398,6 +398,7 @@ static int cmd_extract(int argc, char **argv)
     memset(&post, 0, sizeof post);
     int checked = 0;
     uint64_t check_skipped = 0; /* the check's need, when it did not fit the limit */
+    uint64_t check_peak = 0;    /* a streamed check's tables and queue at their largest */
     cli_timings tm = {0, 0, 0};
     if (plan.stream) {
         /* the mesh through [the clean-up], [the smoothing], [the decimation], [the check],
@@ -415,6 +416,7 @@ static int cmd_extract(int argc, char **argv)
         double t0 = cli_now_ms();
         rc = cli_stream_extract(&src, &stream_opts, out.sink, &stats);
         rc = cli_outputs_finish(&out, rc, src.label, &post, &check, &checked);
+        check_peak = out.check_peak;
         if (!plan.check) check_skipped = plan.check_need; /* did not fit beside the stream */
         cli_progress_clear(&bar);
         /* the extraction's time includes the writes made meanwhile */
@@ -551,6 +553,12 @@ static int cmd_extract(int argc, char **argv)
         else
             fprintf(jf, "null");
         fprintf(jf, ", \"check_skipped\": %s", checked ? "null" : "\"memory\"");
+        /* a streamed check's memory against what the plan counted for it */
+        if (check_peak)
+            fprintf(jf, ", \"check_memory\": {\"peak\": %" PRIu64 ", \"planned\": %" PRIu64 "}",
+                    check_peak, plan.check_need);
+        else
+            fprintf(jf, ", \"check_memory\": null");
         cli_json_post(jf, &post);
         fprintf(jf, ", \"timings_ms\": {\"read\": %.3f, \"extract\": %.3f, \"write\": %.3f}}\n",
                 tm.read_ms, tm.extract_ms, tm.write_ms);

@@ -32,7 +32,7 @@
  *            a scratch file on the output's disk, and STL keeps the
  *            positions of at most twice isomend_stream_vertex_bound()
  *   check    the streaming check's window (CLI_CHECK_BYTES_PER_SAMPLE a
- *            slice sample) and its queue (8 layers' calls, 1 to 8 MiB)
+ *            slice sample) and its queue (8 layers' calls, 1 to 4 MiB)
  *   steps    the streamed clean-up's live vertices and held components
  *            (isomend_clean_stream_memory), or with --largest its two
  *            passes' (isomend_largest_stream_memory: the live vertices, one
@@ -74,17 +74,20 @@
 
 #define MIB (1024.0 * 1024.0)
 /* The streaming check's window (check_stream.c: the live vertices of about
- * two slices, 168 bytes each with their first 8 neighbours, in a ring rounded
- * up to a power of two), per slice sample, on the in-memory rule's surface of
- * a vertex every 8 samples (measured: 77.5 bytes a sample on a 384^3 gyroid
- * with a vertex every 8.3 samples), and the queue of calls waiting for it:
+ * two slices, 168 bytes each with their first 8 neighbours, in chunks of 4096
+ * slots), per slice sample, on the in-memory rule's surface of a vertex every
+ * 8 samples (measured: 59 bytes a sample on a 384^3 gyroid with a vertex
+ * every 8.3 samples, 57 on a 512 x 512 surface with one every 7; the JSON's
+ * check_memory, tested by cli_stream_memory; 80 leaves room for busier
+ * surfaces), and the queue of calls waiting for it:
  * 8 layers of that surface (a triangle every 4 samples, 24 bytes, and a
- * vertex every 8, 12 bytes: 60 bytes a slice sample), from 1 to 8 MiB
- * (about 300 000 triangles, 15 ms of the check). */
+ * vertex every 8, 12 bytes: 60 bytes a slice sample), from 1 to 4 MiB
+ * (about 150 000 triangles, 8 ms of the check: two layers of a busy 512 x 512
+ * surface). */
 #define CLI_CHECK_BYTES_PER_SAMPLE 80.0
 #define CLI_CHECK_QUEUE_BYTES_PER_SAMPLE 60.0
 #define CLI_CHECK_QUEUE_MIB_MIN 1.0
-#define CLI_CHECK_QUEUE_MIB_MAX 8.0
+#define CLI_CHECK_QUEUE_MIB_MAX 4.0
 
 /* The check's queue for slices of `plane` samples. */
 static double check_queue_bytes(double plane)
@@ -862,6 +865,7 @@ int cli_outputs_finish(cli_outputs *o, int rc, const char *label, struct cli_pos
     if (!rc && o->checker) {
         rc = cli_checker_finish(o->checker, check) ? CLI_EXIT_FAIL : CLI_EXIT_OK;
         *checked = !rc;
+        o->check_peak = cli_checker_peak_bytes(o->checker);
     }
     outputs_free(o);
     return rc;

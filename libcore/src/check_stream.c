@@ -51,8 +51,9 @@
  * a hole edge).  Path halving moves references from a parent to the
  * grandparent.
  *
- * Memory: the ring of live vertices (168 bytes each, indexed by id & mask:
- * position, hole node, a table of 8 neighbours), the tables of vertices with
+ * Memory: the ring of live vertices (168 bytes each, in chunks of 4096 made
+ * and freed as ids come and retire: position, hole node, a table of 8
+ * neighbours), the tables of vertices with
  * more (16 bytes a neighbour, blocks at most twice the size needed, kept on
  * free lists by size for reuse),
  * the set nodes the live edges name and their parents: all linear in the
@@ -108,7 +109,7 @@ typedef struct nbr {
     uint8_t fwd;   /* of those, running v -> w                              */
 } nbr;
 
-typedef struct vslot { /* a live vertex, at ring[id & mask] */
+typedef struct vslot { /* a live vertex, at slot(s, id) */
     float p[3];        /* in the frame of the check                        */
     uint32_t hole;     /* its hole-loop node, or NONE                      */
     int32_t *key;      /* its neighbours' keys, w - v: k8, or a block      */
@@ -139,8 +140,9 @@ struct isomend_check_stream {
     double *so; /* sheared frame: marched slice origins (3 a slice), or NULL  */
     int64_t n2;
     uint64_t next, floor; /* delivered [.., next); retired below floor        */
-    vslot *ring;
-    uint64_t mask; /* ring capacity - 1 (a power of two)                     */
+    vslot **chunks;  /* the ring of live vertices in chunks of CHUNK slots:   */
+    uint64_t cmask;  /* id's chunk at (id >> CHUNK_BITS) & cmask, NULL when  */
+    vslot *spare;    /* none of its ids is live; one retired chunk kept      */
     void *free_blocks[CLASSES]; /* tables' blocks, by class, for reuse: the
                                  * next free one in their first bytes      */
     ufpool tri, hole; /* components (of edges), hole loops (of vertices)    */
@@ -149,6 +151,20 @@ struct isomend_check_stream {
 };
 
 /* ------------------------------------------------------------ memory */
+
+/* The ring of live vertices is cut in chunks of 4096 slots (688 KiB), made
+ * as ids arrive and given back as they retire: its memory follows the live
+ * window, where one array of a power-of-two capacity held up to twice it
+ * (a 512 x 512 busy surface: 75 000 live vertices in 131 072 slots).  The
+ * chunks' table is the power of two; slots never move, so a table in its
+ * slot (k8) needs no fixing when the ring grows. */
+#define CHUNK_BITS 12
+#define CHUNK ((uint64_t)1 << CHUNK_BITS)
+
+static inline vslot *slot(const isomend_check_stream *s, uint64_t id)
+{
+    return s->chunks[(id >> CHUNK_BITS) & s->cmask] + (id & (CHUNK - 1));
+}
 
 static void account(isomend_check_stream *s, size_t old_bytes, size_t new_bytes)
 {
@@ -569,14 +585,17 @@ void isomend_check_stream_destroy(isomend_check_stream *s)
     free(s->so);
     if (s->started)
         for (uint64_t id = s->floor; id < s->next; id++)
-            table_free(s, &s->ring[id & s->mask]);
+            table_free(s, slot(s, id));
     for (int c = 0; c < CLASSES; c++)
         while (s->free_blocks[c]) {
             void *blk = s->free_blocks[c];
             memcpy(&s->free_blocks[c], blk, sizeof blk);
             free(blk);
         }
-    free(s->ring);
+    for (uint64_t c = 0; s->chunks && c <= s->cmask; c++)
+        free(s->chunks[c]);
+    free(s->chunks);
+    free(s->spare);
     free(s->tri.n);
     free(s->hole.n);
     free(s);
@@ -599,7 +618,7 @@ static isomend_status fail(isomend_check_stream *s, isomend_status status)
 /* The hole-loop node of live vertex id, made on first use. */
 static isomend_status hole_node(isomend_check_stream *s, uint64_t id, uint32_t *out)
 {
-    vslot *v = &s->ring[id & s->mask];
+    vslot *v = slot(s, id);
     if (v->hole == NONE) {
         isomend_status st = uf_new(s, &s->hole, 1, &v->hole);
         if (st != ISOMEND_OK)
@@ -614,7 +633,7 @@ static isomend_status hole_node(isomend_check_stream *s, uint64_t id, uint32_t *
 static isomend_status retire_vertex(isomend_check_stream *s, uint64_t id)
 {
     isomend_check_report *r = &s->r;
-    vslot *v = &s->ring[id & s->mask];
+    vslot *v = slot(s, id);
     r->vertices += v->fans > 0;
     r->nonmanifold_vertices += v->fans > 1;
     {
@@ -626,7 +645,7 @@ static isomend_status retire_vertex(isomend_check_stream *s, uint64_t id)
             r->edges++;
             if (e[i].uses == 1) {
                 const uint64_t w = id + (uint32_t)key[i];
-                if (on_box_face(v->p, s->ring[w & s->mask].p, s->box, s->extent)) {
+                if (on_box_face(v->p, slot(s, w)->p, s->box, s->extent)) {
                     r->border_edges++;
                 } else {
                     r->hole_edges++;
@@ -657,34 +676,64 @@ static isomend_status retire_vertex(isomend_check_stream *s, uint64_t id)
 
 /* ------------------------------------------------------------ feeding */
 
-/* Makes the ring hold ids [s->floor, end). */
+/* Makes the ring hold ids [s->floor, end): the chunks' table wide enough
+ * (grown to the next power of two, the chunks re-placed), a chunk for every
+ * chunk of ids from s->next's to end's. */
 static isomend_status ring_fit(isomend_check_stream *s, uint64_t end)
 {
-    const uint64_t need = end - s->floor;
-    if (s->ring && need <= s->mask + 1)
+    if (end == s->next)
         return ISOMEND_OK;
-    uint64_t cap = s->ring ? 2 * (s->mask + 1) : 1024;
-    while (cap < need)
-        cap *= 2;
-    if (cap > SIZE_MAX / sizeof(vslot))
-        return ISOMEND_ERR_TOO_LARGE;
-    vslot *ring = malloc(sizeof(vslot) * (size_t)cap);
-    if (!ring)
-        return ISOMEND_ERR_OUT_OF_MEMORY;
-    for (uint64_t id = s->floor; id < s->next; id++) {
-        const vslot *from = &s->ring[id & s->mask];
-        vslot *to = &ring[id & (cap - 1)];
-        *to = *from;
-        if (from->key == from->k8) { /* its own table moved with it */
-            to->key = to->k8;
-            to->e = to->e8;
-        }
+    const uint64_t lo = s->floor >> CHUNK_BITS, hi = (end - 1) >> CHUNK_BITS;
+    if (!s->chunks || hi - lo > s->cmask) {
+        uint64_t n = s->chunks ? 2 * (s->cmask + 1) : 8;
+        while (n <= hi - lo)
+            n *= 2;
+        vslot **t = calloc((size_t)n, sizeof *t);
+        if (!t)
+            return ISOMEND_ERR_OUT_OF_MEMORY;
+        if (s->chunks && s->next > s->floor)
+            for (uint64_t c = lo; c <= (s->next - 1) >> CHUNK_BITS; c++)
+                t[c & (n - 1)] = s->chunks[c & s->cmask];
+        account(s, s->chunks ? sizeof *t * (size_t)(s->cmask + 1) : 0, sizeof *t * (size_t)n);
+        free(s->chunks);
+        s->chunks = t;
+        s->cmask = n - 1;
     }
-    account(s, s->ring ? sizeof(vslot) * (size_t)(s->mask + 1) : 0, sizeof(vslot) * (size_t)cap);
-    free(s->ring);
-    s->ring = ring;
-    s->mask = cap - 1;
+    /* the chunks of ids [next, end) that hold no live id yet */
+    const uint64_t first = s->next > s->floor ? ((s->next - 1) >> CHUNK_BITS) + 1 : s->next >> CHUNK_BITS;
+    for (uint64_t c = first; c <= hi; c++) {
+        vslot *chunk = s->spare;
+        s->spare = NULL;
+        if (!chunk) {
+            if (!(chunk = malloc(sizeof(vslot) * (size_t)CHUNK)))
+                return ISOMEND_ERR_OUT_OF_MEMORY;
+            account(s, 0, sizeof(vslot) * (size_t)CHUNK);
+        }
+        s->chunks[c & s->cmask] = chunk;
+    }
     return ISOMEND_OK;
+}
+
+/* The chunks whose ids all retired below `floor` (from the old floor) given
+ * back: one kept as the spare, the others freed. */
+static void ring_release(isomend_check_stream *s, uint64_t old_floor, uint64_t floor)
+{
+    if (!s->chunks)
+        return;
+    const uint64_t hi = floor >> CHUNK_BITS; /* chunk of floor: still live (or next) */
+    const uint64_t end = s->next > floor ? hi : (s->next + CHUNK - 1) >> CHUNK_BITS;
+    for (uint64_t c = old_floor >> CHUNK_BITS; c < end; c++) {
+        vslot **at = &s->chunks[c & s->cmask];
+        if (!*at)
+            continue;
+        if (!s->spare) {
+            s->spare = *at;
+        } else {
+            free(*at);
+            account(s, sizeof(vslot) * (size_t)CHUNK, 0);
+        }
+        *at = NULL;
+    }
 }
 
 isomend_status isomend_check_stream_vertices(isomend_check_stream *s, uint64_t first_id,
@@ -711,7 +760,7 @@ isomend_status isomend_check_stream_vertices(isomend_check_stream *s, uint64_t f
     if (st != ISOMEND_OK)
         return fail(s, st);
     for (size_t i = 0; i < count; i++) {
-        vslot *v = &s->ring[(first_id + i) & s->mask];
+        vslot *v = slot(s, first_id + i);
         if (s->so)
             unshear_point(s->so, s->n2, positions + 3 * i, v->p);
         else
@@ -746,14 +795,12 @@ isomend_status isomend_check_stream_triangles(isomend_check_stream *s, size_t co
     for (size_t i = 0; i < 3 * count; i++)
         if (ids[i] < lo || ids[i] >= hi) /* retired, not delivered, or foreign */
             return fail(s, ISOMEND_ERR_INVALID_ARGUMENT);
-    vslot *const ring = s->ring;
-    const uint64_t mask = s->mask;
     for (size_t t = 0; t < count; t++) {
         const uint64_t *id = ids + 3 * t;
         vslot *v[3];
         uint32_t nx[3], pv[3]; /* corner k's entries for the next, previous corner */
         for (int k = 0; k < 3; k++)
-            v[k] = &ring[id[k] & mask];
+            v[k] = slot(s, id[k]);
         for (int k = 0; k < 3; k++) {
             const uint64_t x = id[k], y = id[k == 2 ? 0 : k + 1], z = id[k == 0 ? 2 : k - 1];
             if (!corner(s, v[k], offset(y, x), offset(z, x), &nx[k], &pv[k]))
@@ -794,11 +841,13 @@ isomend_status isomend_check_stream_triangles(isomend_check_stream *s, size_t co
 /* Every vertex below floor, not yet retired, is tested and forgotten. */
 static isomend_status retire_to(isomend_check_stream *s, uint64_t floor)
 {
+    const uint64_t old_floor = s->floor;
     for (; s->floor < floor; s->floor++) {
         isomend_status st = retire_vertex(s, s->floor);
         if (st != ISOMEND_OK)
             return st;
     }
+    ring_release(s, old_floor, floor);
     return ISOMEND_OK;
 }
 

@@ -14,7 +14,9 @@ built), is extracted three ways:
   and their heaps; OpenImageIO's are about 130 MiB, raw reading's a few);
   peaks are wait4's ru_maxrss, through tests/common/peak_rss.c;
   and within the streaming bound it reports (`memory_streaming`) plus that
-  overhead;
+  overhead; the continuity check's own tables and queue at their largest
+  (JSON `check_memory.peak`) within what the plan counted for them
+  (`check_memory.planned`);
 - streamed again on the first 64 slices: the peak does not depend on the
   number of slices (within 4 MiB).
 
@@ -132,6 +134,16 @@ def check_kind(exe, work, kind, src, size):
             fail(label, "streamed peak beyond --max-memory plus the fixed overhead")
         if peak > js["memory_streaming"] + overhead:
             fail(label, "streamed peak beyond the reported streaming bound plus the overhead")
+        cm = js.get("check_memory")  # the check's tables and queue: within what the plan counted
+        if js["check"] is None:  # (STL's kept positions leave it no room under this limit)
+            if cm is not None or js["check_skipped"] != "memory":
+                fail(label, f"unchecked, yet check_memory {cm}, check_skipped {js['check_skipped']}")
+            else:
+                label += "; check skipped (memory)"
+        elif not cm or cm["peak"] > cm["planned"]:
+            fail(label, f"the streamed check's memory {cm} beyond what the plan counted for it")
+        else:
+            label += f"; check {cm['peak'] / MIB:.1f} of {cm['planned'] / MIB:.1f} MiB planned"
         if not same_file(os.path.join(work, whole), os.path.join(work, part)):
             fail(label, "the streamed mesh differs from the in-memory one")
         # peak independent of the number of slices
