@@ -18,8 +18,8 @@
  * Method: edges are matched as triangles arrive; nothing is sorted.  Every
  * live vertex v has a small table of its neighbours w, keyed by w - v (8
  * entries in v's own slot, compared at once with SSE2; beyond 8, a block
- * of 16 or 32 scanned, larger ones hashed).  At each corner x of a triangle the next and the
- * previous corner are looked up in x's table (added when new), then
+ * of 16 or 32 scanned, larger ones hashed).  At each corner x of a
+ * triangle the next and the previous corner are looked up in x's table (added when new), then
  *   - the fan: the two entries are joined in the table's own union-find
  *     (check.c's count_fans() joins x's corners through shared neighbours:
  *     the same pieces; a block of 8 keeps every entry at its root).  x's
@@ -53,10 +53,9 @@
  *
  * Memory: the ring of live vertices (168 bytes each, in chunks of 4096 made
  * and freed as ids come and retire: position, hole node, a table of 8
- * neighbours), the tables of vertices with
- * more (16 bytes a neighbour, blocks at most twice the size needed, kept on
- * free lists by size for reuse),
- * the set nodes the live edges name and their parents: all linear in the
+ * neighbours), the tables of vertices with more (16 bytes a neighbour,
+ * blocks at most twice the size needed, kept on free lists by size for
+ * reuse), the set nodes the live edges name and their parents: all linear in the
  * window, none in the mesh.  Nothing is allocated per triangle once the
  * window has been seen; arrays grow by doubling and are kept.  The first 8
  * neighbours live in the slot, not in a block of their own, because the
@@ -636,36 +635,34 @@ static isomend_status retire_vertex(isomend_check_stream *s, uint64_t id)
     vslot *v = slot(s, id);
     r->vertices += v->fans > 0;
     r->nonmanifold_vertices += v->fans > 1;
-    {
-        const int32_t *key = v->key;
-        const nbr *e = v->e;
-        for (uint32_t i = 0; i < v->n; i++) {
-            if (key[i] < 0) /* filed under the lower neighbour */
-                continue;
-            r->edges++;
-            if (e[i].uses == 1) {
-                const uint64_t w = id + (uint32_t)key[i];
-                if (on_box_face(v->p, slot(s, w)->p, s->box, s->extent)) {
-                    r->border_edges++;
-                } else {
-                    r->hole_edges++;
-                    uint32_t a, b;
-                    isomend_status st = hole_node(s, id, &a);
-                    if (st == ISOMEND_OK)
-                        st = hole_node(s, w, &b);
-                    if (st != ISOMEND_OK)
-                        return st;
-                    uf_link(&s->hole, uf_find(&s->hole, a), uf_find(&s->hole, b));
-                }
-            } else if (e[i].uses == 2) {
-                r->misoriented_edges += e[i].fwd != 1;
+    const int32_t *key = v->key;
+    const nbr *e = v->e;
+    for (uint32_t i = 0; i < v->n; i++) {
+        if (key[i] < 0) /* filed under the lower neighbour */
+            continue;
+        r->edges++;
+        if (e[i].uses == 1) {
+            const uint64_t w = id + (uint32_t)key[i];
+            if (on_box_face(v->p, slot(s, w)->p, s->box, s->extent)) {
+                r->border_edges++;
             } else {
-                r->nonmanifold_edges++;
+                r->hole_edges++;
+                uint32_t a, b;
+                isomend_status st = hole_node(s, id, &a);
+                if (st == ISOMEND_OK)
+                    st = hole_node(s, w, &b);
+                if (st != ISOMEND_OK)
+                    return st;
+                uf_link(&s->hole, uf_find(&s->hole, a), uf_find(&s->hole, b));
             }
-            uf_release(&s->tri, e[i].set);
+        } else if (e[i].uses == 2) {
+            r->misoriented_edges += e[i].fwd != 1;
+        } else {
+            r->nonmanifold_edges++;
         }
-        table_free(s, v);
+        uf_release(&s->tri, e[i].set);
     }
+    table_free(s, v);
     v->n = v->fans = 0;
     if (v->hole != NONE) {
         uf_release(&s->hole, v->hole);
