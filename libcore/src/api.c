@@ -161,12 +161,3 @@ isomend_status isomend_mesh_copy(const isomend_mesh *mesh, float *positions, flo
         memcpy(origins, mesh->org, mesh->nt);
     return ISOMEND_OK;
 }
-
-isomend_status isomend_mesh_check(const isomend_mesh *mesh, isomend_check_report *report)
-{
-    if (!mesh)
-        return ISOMEND_ERR_INVALID_ARGUMENT;
-    if (mesh->slices.so)
-        return sheared_check(mesh, report);
-    return isomend_check(mesh->pos, mesh->nv, mesh->tri, mesh->nt, mesh->box, report);
-}

@@ -13,9 +13,16 @@
  * is sorted by the other vertex, and equal neighbours form one undirected
  * edge.  Union-find joins triangles across edges (components) and the
  * endpoints of hole edges (hole loops).  Memory is linear in the mesh.
+ *
+ * isomend_check() takes this way (check_sorted) only for a mesh whose order
+ * is not a sweep; an extracted mesh goes to the streaming checker in its
+ * order (check_order.c), which gives the same report faster.
  */
-#include "isomend.h"
+#include "check.h"
+#include "check_order.h"
 #include "check_rules.h"
+#include "mesh_internal.h"
+#include "slice_geometry.h"
 
 #include <float.h>
 #include <math.h>
@@ -102,6 +109,15 @@ uint64_t isomend_check_memory(size_t vertex_count, size_t triangle_count)
     return 4 * sizeof(size_t) * (nv + 1) + (3 * sizeof(half) + 3 * 4 + 4) * nt + 5 * nv;
 }
 
+/* Tests only (check.h): isomend_check() always sorts, the reference the
+ * streaming checker is compared with. */
+static int test_sorted;
+
+void check_set_test_sorted(int on)
+{
+    test_sorted = on;
+}
+
 isomend_status isomend_check(const float *positions, size_t vertex_count,
                              const uint32_t *triangles, size_t triangle_count, const double *box,
                              isomend_check_report *report)
@@ -115,7 +131,20 @@ isomend_status isomend_check(const float *positions, size_t vertex_count,
             return ISOMEND_ERR_INVALID_ARGUMENT;
     if (triangle_count == 0)
         return ISOMEND_OK;
+    if (!test_sorted) {
+        const isomend_status status =
+            check_in_order(positions, vertex_count, triangles, triangle_count, box, report);
+        if (status != ISOMEND_ERR_UNSUPPORTED)
+            return status;
+    }
+    return check_sorted(positions, vertex_count, triangles, triangle_count, box, report);
+}
 
+isomend_status check_sorted(const float *positions, size_t vertex_count,
+                            const uint32_t *triangles, size_t triangle_count, const double *box,
+                            isomend_check_report *report)
+{
+    memset(report, 0, sizeof(*report));
     const size_t nv = vertex_count, nt = triangle_count;
     size_t *row = calloc(nv + 1, sizeof(size_t));     /* halves by lower vertex */
     size_t *vrow = calloc(nv + 1, sizeof(size_t));    /* triangles by vertex    */
@@ -289,4 +318,44 @@ done:
     if (status != ISOMEND_OK)
         memset(report, 0, sizeof(*report));
     return status;
+}
+
+/* The check of a mesh on a sheared grid (slice_geometry.c), in its unsheared
+ * frame: each vertex moved by its slice shift, the box of the grid's own
+ * faces. */
+static isomend_status sheared_check(const isomend_mesh *mesh, isomend_check_report *report)
+{
+    const slice_table *t = &mesh->slices;
+    const int64_t N2 = mesh->N[2];
+    double *o = malloc(3 * sizeof(double) * (size_t)N2);
+    float *p = malloc(3 * sizeof(float) * (mesh->nv ? mesh->nv : 1));
+    if (!o || !p) {
+        free(o);
+        free(p);
+        return ISOMEND_ERR_OUT_OF_MEMORY;
+    }
+    for (int64_t m = 0; m < N2; m++)
+        slice_origin(t, m, o + 3 * m);
+    for (size_t v = 0; v < mesh->nv; v++)
+        unshear_point(o, N2, mesh->pos + 3 * v, p + 3 * v);
+    double box[6];
+    for (int a = 0; a < 2; a++) {
+        box[a] = -(double)t->pad * mesh->h[a];
+        box[3 + a] = box[a] + (double)(mesh->N[a] - 1) * mesh->h[a];
+    }
+    box[2] = o[2];
+    box[5] = o[3 * (N2 - 1) + 2];
+    free(o);
+    const isomend_status status = isomend_check(p, mesh->nv, mesh->tri, mesh->nt, box, report);
+    free(p);
+    return status;
+}
+
+isomend_status isomend_mesh_check(const isomend_mesh *mesh, isomend_check_report *report)
+{
+    if (!mesh)
+        return ISOMEND_ERR_INVALID_ARGUMENT;
+    if (mesh->slices.so)
+        return sheared_check(mesh, report);
+    return isomend_check(mesh->pos, mesh->nv, mesh->tri, mesh->nt, mesh->box, report);
 }

@@ -71,7 +71,7 @@
  * Sheared and uneven slices (isomend_volume.slice_origins):
  * isomend_check_stream_begin_volume() keeps the marched slices' origins
  * (24 bytes a slice) and moves every vertex into the unsheared frame as
- * sheared_check() (slice_geometry.c) does, with the same arithmetic, so the
+ * sheared_check() (check.c) does, with the same arithmetic, so the
  * report is isomend_mesh_check()'s.
  */
 #include "isomend.h"

@@ -46,10 +46,9 @@ struct isomend_mesh {
     int64_t N[3];
 };
 
-/* slice_geometry.c: the check of a mesh on a sheared grid, in its unsheared
- * frame; a point moved into that frame (o: the n marched slices' origins). */
+/* slice_geometry.c: a point moved into the unsheared frame of a sheared
+ * grid (o: the n marched slices' origins), where check.c checks. */
 void unshear_point(const double *o, int64_t n, const float in[3], float out[3]);
-isomend_status sheared_check(const isomend_mesh *mesh, isomend_check_report *report);
 
 /* mesh_build.c: a post-processed mesh's frame (box, slice table) copied from
  * the mesh it comes from; vertex normals from the triangles. */

@@ -21,8 +21,9 @@
  *         gz = (f(m+1) - f(m-1) - gx dx - gy dy) / dz
  *     (one-sided at the border, next to NaN and padding, as elsewhere).
  * The continuity check of such a mesh finds the border in the grid's own
- * faces: sheared_check() undoes each vertex's slice shift (interpolated
- * between the slices around its z) and checks in that unsheared frame.
+ * faces: unshear_point() undoes a vertex's slice shift (interpolated
+ * between the slices around its z), and check.c checks in that unsheared
+ * frame.
  */
 #include "grid.h"
 #include "slice_geometry.h"
@@ -179,32 +180,4 @@ void unshear_point(const double *o, int64_t n, const float in[3], float out[3])
         out[a] = (float)((double)in[a] - shift);
     }
     out[2] = in[2];
-}
-
-isomend_status sheared_check(const isomend_mesh *mesh, isomend_check_report *report)
-{
-    const slice_table *t = &mesh->slices;
-    const int64_t N2 = mesh->N[2];
-    double *o = malloc(3 * sizeof(double) * (size_t)N2);
-    float *p = malloc(3 * sizeof(float) * (mesh->nv ? mesh->nv : 1));
-    if (!o || !p) {
-        free(o);
-        free(p);
-        return ISOMEND_ERR_OUT_OF_MEMORY;
-    }
-    for (int64_t m = 0; m < N2; m++)
-        slice_origin(t, m, o + 3 * m);
-    for (size_t v = 0; v < mesh->nv; v++)
-        unshear_point(o, N2, mesh->pos + 3 * v, p + 3 * v);
-    double box[6];
-    for (int a = 0; a < 2; a++) {
-        box[a] = -(double)t->pad * mesh->h[a];
-        box[3 + a] = box[a] + (double)(mesh->N[a] - 1) * mesh->h[a];
-    }
-    box[2] = o[2];
-    box[5] = o[3 * (N2 - 1) + 2];
-    free(o);
-    const isomend_status status = isomend_check(p, mesh->nv, mesh->tri, mesh->nt, box, report);
-    free(p);
-    return status;
 }

@@ -9,7 +9,7 @@
 /* The table's checks; marched slice m's origin (padding one gap beyond the
  * ends); the vertex between marched samples p0 and p1 and its normal from
  * the true positions; the grid's world box; the mesh's copy of the table
- * and its check (sheared_check, in mesh_internal.h). */
+ * (unshear_point, the check's frame, is in mesh_internal.h). */
 isomend_status slice_origins_validate(const isomend_volume *vol);
 void slice_origin(const slice_table *t, int64_t m, double o[3]);
 void sheared_vertex(const grid *g, int flip, const int64_t p0[3], const int64_t p1[3], float *pos,

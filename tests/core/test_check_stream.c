@@ -24,6 +24,8 @@
  */
 #define _POSIX_C_SOURCE 200809L /* clock_gettime */
 #include "isomend.h"
+#include "check.h"
+#include "check_order.h"
 #include "testutil.h"
 
 #include <math.h>
@@ -704,12 +706,106 @@ static void bench(int64_t size)
     free(data);
 }
 
+/* ------------------------------------------------------------ the route */
+
+/* isomend_check() takes the streaming checker in the mesh's order
+ * (check_in_order) when the order is a sweep: the same report as the
+ * sorted check, on extracted meshes (taken) and on the same meshes shuffled
+ * (triangles permuted, each one's corners rotated, vertices renumbered:
+ * taken below 65 536 vertices with the whole mesh live, refused above a
+ * quarter of a larger mesh's vertices). */
+static void test_route(void)
+{
+    int taken = 0, shuffled = 0, refused = 0;
+    for (int size = 0; size < 3; size++) {
+        const int64_t side = size == 0 ? 24 : size == 1 ? 56 : 120;
+        const int64_t n[3] = {side, side + 3, side - 2};
+        float *data = make_field(GYROID, n);
+        isomend_volume vol;
+        isomend_volume_init(&vol, data, ISOMEND_F32, n[0], n[1], n[2]);
+        isomend_options o;
+        isomend_options_init(&o);
+        o.iso = 0.5;
+        o.flags = ISOMEND_FLAG_NO_NORMALS | ISOMEND_FLAG_PAD;
+        isomend_mesh *mesh = NULL;
+        CHECK_EQ_INT(isomend_extract(&vol, &o, &mesh, NULL), ISOMEND_OK);
+        const float *pos = isomend_mesh_positions(mesh);
+        const uint32_t *tri = isomend_mesh_triangles(mesh);
+        const size_t nv = isomend_mesh_vertex_count(mesh), nt = isomend_mesh_triangle_count(mesh);
+        isomend_check_report sorted, in_order, routed;
+        CHECK_EQ_INT(check_sorted(pos, nv, tri, nt, NULL, &sorted), ISOMEND_OK);
+        CHECK_EQ_INT(check_in_order(pos, nv, tri, nt, NULL, &in_order), ISOMEND_OK);
+        CHECK_EQ_INT(isomend_check(pos, nv, tri, nt, NULL, &routed), ISOMEND_OK);
+        CHECK(same_report(&in_order, &sorted, "in order"));
+        CHECK(same_report(&routed, &sorted, "routed"));
+        CHECK(sorted.triangles == nt && sorted.hole_edges == 0 && sorted.components > 0);
+        taken++;
+
+        /* shuffled */
+        uint32_t *perm = malloc(sizeof(uint32_t) * nv), *order = malloc(sizeof(uint32_t) * nt);
+        uint32_t *st = malloc(sizeof(uint32_t) * 3 * nt);
+        float *sp = malloc(sizeof(float) * 3 * nv);
+        if (!perm || !order || !st || !sp)
+            abort();
+        for (size_t i = 0; i < nv; i++)
+            perm[i] = (uint32_t)i;
+        for (size_t i = 0; i < nt; i++)
+            order[i] = (uint32_t)i;
+        for (size_t i = nv; i > 1; i--) {
+            const size_t j = rng() % i;
+            const uint32_t x = perm[i - 1];
+            perm[i - 1] = perm[j];
+            perm[j] = x;
+        }
+        for (size_t i = nt; i > 1; i--) {
+            const size_t j = ((size_t)rng() << 16 ^ rng()) % i;
+            const uint32_t x = order[i - 1];
+            order[i - 1] = order[j];
+            order[j] = x;
+        }
+        for (size_t v = 0; v < nv; v++)
+            memcpy(sp + 3 * (size_t)perm[v], pos + 3 * v, sizeof(float) * 3);
+        for (size_t t = 0; t < nt; t++) {
+            const uint32_t *a = tri + 3 * (size_t)order[t];
+            const int r = (int)(rng() % 3);
+            for (int k = 0; k < 3; k++)
+                st[3 * t + (size_t)k] = perm[a[(k + r) % 3]];
+        }
+        isomend_check_report s_sorted, s_in_order, s_routed;
+        CHECK_EQ_INT(check_sorted(sp, nv, st, nt, NULL, &s_sorted), ISOMEND_OK);
+        CHECK_EQ_INT(isomend_check(sp, nv, st, nt, NULL, &s_routed), ISOMEND_OK);
+        CHECK(same_report(&s_sorted, &sorted, "shuffled, sorted"));
+        CHECK(same_report(&s_routed, &sorted, "shuffled, routed"));
+        const isomend_status st_order = check_in_order(sp, nv, st, nt, NULL, &s_in_order);
+        if (nv <= 65536) {
+            CHECK_EQ_INT(st_order, ISOMEND_OK);
+            if (st_order == ISOMEND_OK)
+                CHECK(same_report(&s_in_order, &sorted, "shuffled, in order"));
+            shuffled++;
+        } else {
+            CHECK_EQ_INT(st_order, ISOMEND_ERR_UNSUPPORTED);
+            refused++;
+        }
+        free(perm);
+        free(order);
+        free(st);
+        free(sp);
+        isomend_mesh_destroy(mesh);
+        free(data);
+    }
+    printf("route: %d extracted meshes checked in their order, %d shuffled ones too, %d "
+           "shuffled ones sorted\n", taken, shuffled, refused);
+    CHECK(taken == 3 && shuffled >= 1 && refused >= 1);
+}
+
 int main(int argc, char **argv)
 {
     if (argc > 1 && strcmp(argv[1], "--bench") == 0) {
         bench(argc > 2 ? atoll(argv[2]) : 256);
         TEST_EXIT();
     }
+    test_route();
+    check_set_test_sorted(1); /* the reference below: the sorted check */
     test_bad_input();
     test_hand_made();
     test_soups();
