@@ -181,12 +181,34 @@ typedef struct ply_element {
     int nprops;
 } ply_element;
 
+/* The binary body is read through a buffer of its own: one fread() a value
+ * cost more than the rest of reading a large mesh (a 340 MB PLY: 1.4 of 2.4
+ * s of `isomend check`). */
+#define PLY_BUFFER 65536
+
 typedef struct ply_reader {
     FILE *fp;
     int ascii, big;
     const char *path;
     uint64_t token_line; /* ascii: for messages */
+    size_t at, len;      /* binary: the unread bytes buf[at, len) */
+    unsigned char buf[PLY_BUFFER];
 } ply_reader;
+
+/* n <= 8 bytes of the binary body into b; -1 at the end of the file. */
+static int ply_read_bytes(ply_reader *r, unsigned char *b, size_t n)
+{
+    if (r->len - r->at < n) {
+        memmove(r->buf, r->buf + r->at, r->len - r->at);
+        r->len -= r->at;
+        r->at = 0;
+        r->len += fread(r->buf + r->len, 1, sizeof r->buf - r->len, r->fp);
+        if (r->len < n) return -1;
+    }
+    memcpy(b, r->buf + r->at, n);
+    r->at += n;
+    return 0;
+}
 
 /* Reads one value; returns 0 on success. */
 static int ply_read_value(ply_reader *r, ply_type t, double *out)
@@ -211,7 +233,7 @@ static int ply_read_value(ply_reader *r, ply_type t, double *out)
     }
     unsigned char b[8];
     size_t n = ply_size(t);
-    if (fread(b, 1, n, r->fp) != n) return -1;
+    if (ply_read_bytes(r, b, n)) return -1;
     if (r->big != machine_is_big_endian())
         for (size_t a = 0, z = n - 1; a < z; a++, z--) {
             unsigned char tmp = b[a];
@@ -238,7 +260,7 @@ static isomend_fileio_status read_ply(FILE *fp, const char *path, isomend_read_m
     char line[1024];
     ply_element elems[PLY_MAX_ELEMENTS];
     int nelem = 0, lineno = 0, have_format = 0;
-    ply_reader r = {fp, 0, 0, path, 0};
+    ply_reader r = {.fp = fp, .path = path};
     if (!fgets(line, sizeof line, fp) || strncmp(line, "ply", 3) != 0 ||
         (line[3] != '\n' && line[3] != '\r')) {
         SET_MSG(msg, msg_size, "%s: not a PLY file (the first line is not 'ply')", path);
