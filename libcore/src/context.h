@@ -82,6 +82,17 @@ enum {
 struct extract_kernels;
 struct split;
 
+/* The schedule isomend_extract() takes: chosen by the grid and the mesh
+ * (AUTO), or, for tests only (extract_set_test_schedule), the one pass at
+ * every size (ONE_PASS), its two threads always split apart (APART), and
+ * the first thread then doing every move (APART_SOLO). */
+typedef enum extract_schedule {
+    SCHEDULE_AUTO,
+    SCHEDULE_ONE_PASS,
+    SCHEDULE_APART,
+    SCHEDULE_APART_SOLO
+} extract_schedule;
+
 /* One extraction: the grid, the options, the counts and the output arrays. */
 typedef struct ctx {
     grid g;
@@ -130,6 +141,7 @@ typedef struct ctx {
      * (one_pass.c), or 0. */
     uint64_t apart_vertex_base, apart_triangle_base;
     isomend_mesh *recycled; /* isomend_extract_recycle's old mesh, until used */
+    extract_schedule schedule;
 } ctx;
 
 /* A thread of an extraction and its working arrays. */

@@ -14,7 +14,7 @@
  *     threads, take prefix sums, allocate the output arrays at their exact
  *     size, fill;
  *   - the one pass (one_pass.c), for one or two threads and the table
- *     methods (MC, Durst, DMC) on grids of ISOMEND_ONE_PASS_SAMPLES samples
+ *     methods (MC, Durst, DMC) on grids of ONE_PASS_SAMPLES samples
  *     or more: count and fill in one sweep into address-space reservations,
  *     each slice classified once and its vertices computed while its
  *     samples are in the caches; two threads split the sweep.
@@ -54,11 +54,16 @@
 /* The smallest grid (samples) for the one-pass path.  Below it the two
  * passes are as fast or faster: the volume stays in the caches between them,
  * and their small arrays come from the heap, where the one-pass reservations
- * cost a huge page each (docs/core-internals.md).  Tests build the library
- * with 1. */
-#ifndef ISOMEND_ONE_PASS_SAMPLES
-#define ISOMEND_ONE_PASS_SAMPLES (1 << 21)
-#endif
+ * cost a huge page each (docs/core-internals.md).  Tests take the one pass
+ * at every size (extract_set_test_schedule). */
+#define ONE_PASS_SAMPLES (1 << 21)
+
+static extract_schedule test_schedule; /* tests only */
+
+void extract_set_test_schedule(extract_schedule schedule)
+{
+    test_schedule = schedule;
+}
 
 /* Sets the exact per-type threshold: inside iff sample >= iso. */
 static void grid_threshold(grid *g)
@@ -175,6 +180,7 @@ isomend_status ctx_setup(ctx *c, const isomend_volume *vol, const isomend_option
     c->small_pages = (o->flags & ISOMEND_FLAG_SMALL_PAGES) != 0;
     c->progress = o->progress;
     c->progress_user = o->progress_user;
+    c->schedule = test_schedule;
     return ISOMEND_OK;
 }
 
@@ -307,7 +313,8 @@ static isomend_status extract(const isomend_volume *vol, const isomend_options *
     uint64_t nv = 0, nt = 0;
     status = ISOMEND_ERR_UNSUPPORTED;
     if (nthreads <= 2 && !c->general &&
-        (uint64_t)N0 * (uint64_t)N1 * (uint64_t)N2 >= ISOMEND_ONE_PASS_SAMPLES)
+        ((uint64_t)N0 * (uint64_t)N1 * (uint64_t)N2 >= ONE_PASS_SAMPLES ||
+         c->schedule != SCHEDULE_AUTO))
         status = run_one_pass(c, ws, nthreads, &mesh, &nv, &nt);
     if (status == ISOMEND_ERR_UNSUPPORTED) /* not taken, or refused its reservations */
         status = run_two_passes(c, ws, nthreads, &mesh, &nv, &nt);

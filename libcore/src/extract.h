@@ -15,4 +15,9 @@ int worker_init(worker *w, ctx *c);
 void gather_stats(const ctx *c, const worker *ws, int nw, uint64_t nv, uint64_t nt,
                   isomend_stats *stats);
 
+/* Tests only (not exported; tests link the static library): the schedule
+ * the next extractions take, SCHEDULE_AUTO to choose again.  One library
+ * reaches every path of the one pass on the tests' small grids. */
+void extract_set_test_schedule(extract_schedule schedule);
+
 #endif /* ISOMEND_EXTRACT_H */

@@ -1,6 +1,6 @@
 /*
  * one_pass.c - the one pass, for one or two threads and the table methods
- * (MC, Durst, DMC) on grids of ISOMEND_ONE_PASS_SAMPLES samples or more
+ * (MC, Durst, DMC) on grids of ONE_PASS_SAMPLES samples or more
  * (extract.c decides).
  *
  * Slice by slice, a worker numbers and computes the vertices of slice k + 1
@@ -42,12 +42,9 @@ static double now_seconds(void)
  * when both threads run.  When the second ends much later, its CPU was taken
  * from it (a virtual CPU running at a fraction of the other's speed; see
  * docs/core-internals.md), and the first thread, on the CPU that runs, does
- * all the moves.  Negative: the first thread always does the moves (a test
- * build's).
+ * all the moves (always, with the tests' SCHEDULE_APART_SOLO).
  */
-#ifndef ISOMEND_SPLIT_LATE
-#define ISOMEND_SPLIT_LATE 0.5e-3
-#endif
+#define SPLIT_LATE 0.5e-3
 
 /*
  * The one pass on two threads.  The calling thread sweeps from the first
@@ -159,9 +156,7 @@ static isomend_status sweep(ctx *c, worker *w, int64_t from, uint64_t *nv, uint6
 
 /* Vertices a sample below which two threads split apart, for samples of one
  * byte; times the sample's size (see split_apart). */
-#ifndef ISOMEND_APART_DENSITY
-#define ISOMEND_APART_DENSITY 0.02
-#endif
+#define APART_DENSITY 0.02
 
 /*
  * Whether the second of two threads splits the sweep apart rather than
@@ -180,8 +175,8 @@ static int split_apart(worker *w, const split *sp)
     uint64_t sampled = 0;
     for (uint64_t q = 0; q < 4; q++)
         sampled += c->kernels->scan_slice(w, (int64_t)((2 * q + 1) * N2 / 8), PASS_COUNT, 0, 0);
-    const double density = ISOMEND_APART_DENSITY * (double)isomend_type_size(g->type);
-    return (double)sampled <= density * 4.0 * (double)(N0 * N1);
+    const double density = APART_DENSITY * (double)isomend_type_size(g->type);
+    return c->schedule >= SCHEDULE_APART || (double)sampled <= density * 4.0 * (double)(N0 * N1);
 }
 
 /*
@@ -400,10 +395,9 @@ static void *second_sweep(void *arg)
     /* Apart: this thread moves the triangles (and origins) down once the
      * first thread's counts are known, while the first moves the vertices;
      * unless the first has waited long for this one, whose CPU is then
-     * likely the slower (ISOMEND_SPLIT_LATE). */
-    sp->solo_join = sp->apart && (ISOMEND_SPLIT_LATE < 0 ||
-                                  (sp->first_done &&
-                                   now_seconds() - sp->first_end > ISOMEND_SPLIT_LATE));
+     * likely the slower (SPLIT_LATE). */
+    sp->solo_join = sp->apart && (c->schedule == SCHEDULE_APART_SOLO ||
+                                  (sp->first_done && now_seconds() - sp->first_end > SPLIT_LATE));
     sp->finished = 1;
     pthread_cond_broadcast(&sp->cv);
     if (!sp->apart || sp->solo_join) {

@@ -1,9 +1,9 @@
-# Runs two programs and requires their standard output to be identical
-# (core_one_pass_identical and the split variants: tests/core/test_digest.c
-# built against the shipped library and against a variant).
-#   cmake -DA=PROGRAM_A -DB=PROGRAM_B -P compare_outputs.cmake
+# Runs two programs (each with its arguments, a list) and requires their
+# standard output to be identical (core_one_pass_identical and the split
+# schedules: tests/core/test_digest.c as it is and with a schedule).
+#   cmake -DA=PROGRAM_A [-DA_ARGS=...] -DB=PROGRAM_B [-DB_ARGS=...] -P compare_outputs.cmake
 foreach(p A B)
-  execute_process(COMMAND ${${p}} OUTPUT_VARIABLE out_${p} RESULT_VARIABLE rc_${p})
+  execute_process(COMMAND ${${p}} ${${p}_ARGS} OUTPUT_VARIABLE out_${p} RESULT_VARIABLE rc_${p})
   if(NOT rc_${p} EQUAL 0)
     message(FATAL_ERROR "${${p}} exited with ${rc_${p}}:\n${out_${p}}")
   endif()

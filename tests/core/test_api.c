@@ -5,6 +5,7 @@
  * normals together; isomend_extract_recycle gives isomend_extract's mesh.
  */
 #include "isomend.h"
+#include "schedule.h"
 #include "testutil.h"
 
 #include <math.h>
@@ -301,8 +302,8 @@ static void test_recycle(void)
 
 /*
  * Two threads give one thread's mesh on grids that take the one pass (2^21
- * samples and more): a dense field (the split that counts; in the variant
- * built with ISOMEND_APART_DENSITY=1e9 the apart split, whose moves then
+ * samples and more): a dense field (the split that counts; with
+ * --schedule=apart the apart split, whose moves then
  * span several huge pages and release them as they go) and a sphere (sparse:
  * the apart split in every build).
  */
@@ -347,8 +348,10 @@ static void test_split(void)
     free(ball);
 }
 
-int main(void)
+int main(int argc, char **argv)
 {
+    if (schedule_from_args(argc, argv))
+        return 1;
     test_errors();
     test_names();
     test_progress_and_geometry();

@@ -10,11 +10,15 @@
  *                                  portable C), which must be identical
  *                                  (core_simd_identical)
  *
- * Built against the library as shipped (two threads, so the two passes) and
- * against builds that take the one-pass path at every size
- * (DIGEST_THREADS=1 and 2, tests/core/CMakeLists.txt): those must print the
- * shipped library's lines, i.e. the one pass the two passes' mesh and
- * statistics (core_one_pass_identical and the split variants).
+ *   test_digest --threads=N --schedule=S
+ *                                  the lines at N threads (default 2) with
+ *                                  the schedule S (tests/core/schedule.h)
+ *
+ * Run as it is (two threads, so the two passes on these small grids) and
+ * with the one pass taken at every size (--schedule=onepass, apart,
+ * apartsolo; --threads=1 and 2, tests/core/CMakeLists.txt): those must print
+ * the same lines, i.e. the one pass the two passes' mesh and statistics
+ * (core_one_pass_identical and the split variants).
  *
  * The cases: every sample type; a dense field (many crossings per row: the
  * wide-span path) and a sphere (a few per row: the lists); odd sizes with the
@@ -23,6 +27,7 @@
  */
 #include "isomend.h"
 #include "cpu_target.h"
+#include "schedule.h"
 
 #include <math.h>
 #include <stdint.h>
@@ -30,9 +35,7 @@
 #include <stdlib.h>
 #include <string.h>
 
-#ifndef DIGEST_THREADS
-#define DIGEST_THREADS 2
-#endif
+static int digest_threads = 2; /* --threads=N */
 
 enum { NX = 53, NY = 38, NZ = 41 };
 
@@ -129,7 +132,7 @@ static int run(const char *name, const isomend_volume *vol, double iso, isomend_
     o.iso = iso;
     o.method = method;
     o.flags = flags;
-    o.threads = DIGEST_THREADS;
+    o.threads = digest_threads;
     isomend_mesh *m = NULL;
     isomend_stats st;
     const isomend_status s = isomend_extract(vol, &o, &m, &st);
@@ -246,13 +249,20 @@ int main(int argc, char **argv)
     int failed;
     if (argc == 2 && strcmp(argv[1], "--compare-targets") == 0) {
         failed = compare_targets();
-    } else if (argc == 1) {
+    } else {
+        for (int i = 1; i < argc; i++)
+            if (strncmp(argv[i], "--threads=", 10) == 0)
+                digest_threads = atoi(argv[i] + 10);
+            else if (strncmp(argv[i], "--schedule=", 11) != 0) {
+                fprintf(stderr, "usage: %s [--compare-targets | [--threads=N] [--schedule=S]]\n",
+                        argv[0]);
+                return 2;
+            }
+        if (schedule_from_args(argc, argv))
+            return 2;
         failed = run_all();
         if (out_text)
             fputs(out_text, stdout);
-    } else {
-        fprintf(stderr, "usage: %s [--compare-targets]\n", argv[0]);
-        return 2;
     }
     free(out_text);
     return failed;

@@ -13,6 +13,7 @@
  */
 #include "isomend.h"
 #include "cpu_target.h"
+#include "schedule.h"
 #include "testutil.h"
 
 #include "../../libcore/src/tables.h"
@@ -39,7 +40,7 @@ static unsigned cube_config(const float *v, const int64_t dims[3], int axis, int
 
 int main(int argc, char **argv)
 {
-    if (cpu_target_from_args(argc, argv))
+    if (cpu_target_from_args(argc, argv) || schedule_from_args(argc, argv))
         return 1;
     long holes_for_fixed_face = 0, fixed_face_cases = 0;
     for (int axis = 0; axis < 3; axis++) {

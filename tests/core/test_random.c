@@ -12,6 +12,7 @@
  */
 #include "isomend.h"
 #include "cpu_target.h"
+#include "schedule.h"
 #include "meshcmp.h"
 #include "testutil.h"
 
@@ -347,7 +348,7 @@ static void test_strides(void)
 
 int main(int argc, char **argv)
 {
-    if (cpu_target_from_args(argc, argv))
+    if (cpu_target_from_args(argc, argv) || schedule_from_args(argc, argv))
         return 1;
     test_noise_shapes();
     test_ties_and_types();
