@@ -132,6 +132,7 @@ typedef struct dist_job {
     const cell_grid *g;
     const float *pts;
     const float *corners; /* 9 a triangle: its corners' positions */
+    const float *boxes;   /* 6 a filed triangle, in g->tris's order: its bounding box */
     size_t np;
     double *block_max, *block_sum;
 } dist_job;
@@ -183,20 +184,18 @@ static void dist_blocks(void *arg, size_t lo_block, size_t hi_block)
                             if (x >= 0 && x < g.n[0] && dyz + dx * dx <= best) {
                                 const size_t cell = (size_t)((z * g.n[1] + y) * g.n[0] + x);
                                 for (uint32_t k = g.first[cell]; k < g.first[cell + 1]; k++) {
-                                    const float *f = j->corners + 9 * (size_t)g.tris[k];
                                     /* no nearer than its bounding box (less the slack) */
+                                    const float *bx = j->boxes + 6 * (size_t)k;
                                     double gap2 = 0;
                                     for (int a = 0; a < 3; a++) {
-                                        const double lo = f[a] < f[3 + a] ? (f[a] < f[6 + a] ? f[a] : f[6 + a])
-                                                                          : (f[3 + a] < f[6 + a] ? f[3 + a] : f[6 + a]);
-                                        const double hi = f[a] > f[3 + a] ? (f[a] > f[6 + a] ? f[a] : f[6 + a])
-                                                                          : (f[3 + a] > f[6 + a] ? f[3 + a] : f[6 + a]);
+                                        const double lo = bx[a], hi = bx[3 + a];
                                         const double gap = p[a] < lo ? lo - p[a] : p[a] > hi ? p[a] - hi : 0;
                                         if (gap > slack)
                                             gap2 += (gap - slack) * (gap - slack);
                                     }
                                     if (gap2 > best)
                                         continue;
+                                    const float *f = j->corners + 9 * (size_t)g.tris[k];
                                     double q[3][3];
                                     for (int m = 0; m < 3; m++)
                                         for (int a = 0; a < 3; a++)
@@ -343,7 +342,26 @@ int mesh_distances(const float *pts, size_t np, const float *pos, const uint32_t
     for (size_t t = 0; t < nt; t++)
         for (int k = 0; k < 3; k++)
             memcpy(corners + 9 * t + 3 * k, pos + 3 * (size_t)tri[3 * t + (size_t)k], 3 * sizeof(float));
-    dist_job job = {&g, pts, corners, np, bmax, bmax + nblocks};
+    /* each filing's bounding box, where the search reads it: a cell's
+     * triangles' boxes side by side */
+    float *boxes = malloc(6 * (total ? total : 1) * sizeof(float));
+    if (!boxes) {
+        free(corners);
+        free(bmax);
+        free(g.first);
+        free(g.tris);
+        return 0;
+    }
+    for (uint64_t k = 0; k < total; k++) {
+        const float *f = corners + 9 * (size_t)g.tris[k];
+        float *bx = boxes + 6 * k;
+        for (int a = 0; a < 3; a++) {
+            const float x = f[a], y = f[3 + a], z = f[6 + a];
+            bx[a] = x < y ? (x < z ? x : z) : (y < z ? y : z);
+            bx[3 + a] = x > y ? (x > z ? x : z) : (y > z ? y : z);
+        }
+    }
+    dist_job job = {&g, pts, corners, boxes, np, bmax, bmax + nblocks};
     parallel_for_from(nblocks, 2, dist_blocks, &job); /* threads from 2 blocks (8192 points) on */
     double worst = 0, sum = 0;
     for (size_t b = 0; b < nblocks; b++) {
@@ -352,6 +370,7 @@ int mesh_distances(const float *pts, size_t np, const float *pos, const uint32_t
     }
     free(bmax);
     free(corners);
+    free(boxes);
     free(g.first);
     free(g.tris);
     *max_out = worst;
