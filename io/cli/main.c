@@ -453,8 +453,7 @@ static int cmd_extract(int argc, char **argv)
             rc = cli_postprocess(&mesh, &a.post, &post, src.label);
             if (rc) goto fail_mesh;
         }
-        const uint64_t check_need = isomend_check_memory(isomend_mesh_vertex_count(mesh),
-                                                         isomend_mesh_triangle_count(mesh));
+        const uint64_t check_need = isomend_mesh_check_memory(mesh);
         checked = !plan.limit || cli_resident_memory() + check_need <= plan.limit;
         if (!checked) check_skipped = check_need;
         st = checked ? isomend_mesh_check(mesh, &check) : ISOMEND_OK;

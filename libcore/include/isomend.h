@@ -615,6 +615,15 @@ ISOMEND_API isomend_status isomend_check(const float *positions, size_t vertex_c
  */
 ISOMEND_API uint64_t isomend_check_memory(size_t vertex_count, size_t triangle_count);
 
+/*
+ * The bytes isomend_mesh_check() allocates for this mesh at most.  A mesh in
+ * the order of a sweep (isomend_extract()'s, the stream's, the files isomend
+ * writes) is checked holding a window of a few slices' vertices, much less
+ * than isomend_check_memory(); one pass over the triangles tells which.
+ * 0 for NULL.
+ */
+ISOMEND_API uint64_t isomend_mesh_check_memory(const isomend_mesh *mesh);
+
 /* Runs isomend_check on an extracted mesh with its grid box. */
 ISOMEND_API isomend_status isomend_mesh_check(const isomend_mesh *mesh,
                                               isomend_check_report *report);

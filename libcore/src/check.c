@@ -320,6 +320,18 @@ done:
     return status;
 }
 
+uint64_t isomend_mesh_check_memory(const isomend_mesh *mesh)
+{
+    if (!mesh)
+        return 0;
+    uint64_t bytes = check_in_order_memory(mesh->tri, mesh->nv, mesh->nt);
+    if (bytes == 0)
+        bytes = isomend_check_memory(mesh->nv, mesh->nt);
+    if (mesh->slices.so) /* sheared_check's moved positions and slice origins */
+        bytes += 12 * (uint64_t)mesh->nv + 24 * (uint64_t)mesh->N[2];
+    return bytes;
+}
+
 /* The check of a mesh on a sheared grid (slice_geometry.c), in its unsheared
  * frame: each vertex moved by its slice shift, the box of the grid's own
  * faces. */

@@ -25,6 +25,12 @@
  * the stack), and the retire that follows each batch. */
 #define BATCH 2048
 #define NEVER UINT32_MAX
+/* What the streaming checker holds a live vertex (check_stream.c: a ring
+ * slot of 168 bytes in chunks of 4096, its edges' set nodes, the tables of
+ * the few vertices with more than 8 neighbours), with room, and what it
+ * holds whatever the window (measured: core_check_stream). */
+#define CHECK_BYTES_PER_LIVE_VERTEX 256
+#define CHECK_FIXED_BYTES (2u << 20)
 
 /* The sweep over the triangles in batches: for each, the vertices to
  * deliver ([*delivered, *hi)) and, after it, the floor below which every
@@ -55,6 +61,42 @@ static void sweep_retire(sweep *s, size_t end)
         s->floor++;
 }
 
+/* last[v]: v's last triangle (NEVER for none); the most vertices live at
+ * once when the triangles are fed in order. */
+static size_t order_window(const uint32_t *triangles, size_t nv, size_t nt, uint32_t *last)
+{
+    memset(last, 0xff, sizeof(uint32_t) * nv); /* NEVER */
+    for (size_t q = 0; q < 3 * nt; q++)
+        last[triangles[q]] = (uint32_t)(q / 3);
+    sweep s = {triangles, last, nt, 0, 0, 0};
+    size_t window = 0;
+    while (s.t < nt) {
+        const size_t end = sweep_batch(&s);
+        window = s.hi - s.floor > window ? s.hi - s.floor : window;
+        sweep_retire(&s, end);
+    }
+    return window;
+}
+
+static int window_allowed(size_t window, size_t nv)
+{
+    return window <= (nv / 4 > 65536 ? nv / 4 : 65536);
+}
+
+uint64_t check_in_order_memory(const uint32_t *triangles, size_t vertex_count,
+                               size_t triangle_count)
+{
+    uint32_t *last = malloc(sizeof(uint32_t) * (vertex_count ? vertex_count : 1));
+    if (!last)
+        return 0;
+    const size_t window = order_window(triangles, vertex_count, triangle_count, last);
+    free(last);
+    if (!window_allowed(window, vertex_count))
+        return 0;
+    return 4 * (uint64_t)vertex_count + (uint64_t)window * CHECK_BYTES_PER_LIVE_VERTEX +
+           CHECK_FIXED_BYTES;
+}
+
 isomend_status check_in_order(const float *positions, size_t vertex_count,
                               const uint32_t *triangles, size_t triangle_count, const double *box,
                               isomend_check_report *report)
@@ -63,20 +105,7 @@ isomend_status check_in_order(const float *positions, size_t vertex_count,
     uint32_t *last = malloc(sizeof(uint32_t) * (nv ? nv : 1));
     if (!last)
         return ISOMEND_ERR_OUT_OF_MEMORY;
-    memset(last, 0xff, sizeof(uint32_t) * nv); /* NEVER */
-    for (size_t q = 0; q < 3 * nt; q++)
-        last[triangles[q]] = (uint32_t)(q / 3);
-
-    /* the window: the most vertices live at once */
-    sweep s = {triangles, last, nt, 0, 0, 0};
-    size_t window = 0;
-    while (s.t < nt) {
-        const size_t end = sweep_batch(&s);
-        window = s.hi - s.floor > window ? s.hi - s.floor : window;
-        sweep_retire(&s, end);
-    }
-    const size_t allowed = nv / 4 > 65536 ? nv / 4 : 65536;
-    if (window > allowed) {
+    if (!window_allowed(order_window(triangles, nv, nt, last), nv)) {
         free(last);
         return ISOMEND_ERR_UNSUPPORTED;
     }
@@ -101,7 +130,7 @@ isomend_status check_in_order(const float *positions, size_t vertex_count,
     isomend_check_stream *c = NULL;
     isomend_status st = isomend_check_stream_begin(bb, &c);
     uint64_t ids[3 * BATCH];
-    s = (sweep){triangles, last, nt, 0, 0, 0};
+    sweep s = {triangles, last, nt, 0, 0, 0};
     size_t delivered = 0;
     while (st == ISOMEND_OK && s.t < nt) {
         const size_t t0 = s.t, end = sweep_batch(&s);

@@ -16,4 +16,10 @@ isomend_status check_in_order(const float *positions, size_t vertex_count,
                               const uint32_t *triangles, size_t triangle_count, const double *box,
                               isomend_check_report *report);
 
+/* The bytes check_in_order() allocates for these triangles at most (its
+ * last-triangle table and the streaming checker's window, measured by one
+ * pass over them), or 0 when it would refuse their order. */
+uint64_t check_in_order_memory(const uint32_t *triangles, size_t vertex_count,
+                               size_t triangle_count);
+
 #endif /* ISOMEND_CHECK_ORDER_H */

@@ -102,6 +102,7 @@ static void test_errors(void)
     float pos[9] = {0};
     CHECK_EQ_INT(isomend_check(pos, 3, tri, 1, NULL, &r), ISOMEND_ERR_INVALID_ARGUMENT);
     CHECK_EQ_INT(isomend_mesh_check(NULL, &r), ISOMEND_ERR_INVALID_ARGUMENT);
+    CHECK(isomend_mesh_check_memory(NULL) == 0);
     isomend_mesh_destroy(NULL);
 }
 

@@ -737,6 +737,23 @@ static void test_route(void)
         CHECK_EQ_INT(check_in_order(pos, nv, tri, nt, NULL, &in_order), ISOMEND_OK);
         CHECK_EQ_INT(isomend_check(pos, nv, tri, nt, NULL, &routed), ISOMEND_OK);
         CHECK(same_report(&in_order, &sorted, "in order"));
+        { /* the memory it says it needs bounds what a stream fed in batches holds */
+            double box[6];
+            isomend_mesh_grid_box(mesh, box);
+            isomend_check_stream *c = NULL;
+            isomend_check_report fed;
+            CHECK_EQ_INT(isomend_check_stream_begin(box, &c), ISOMEND_OK);
+            CHECK_EQ_INT(feed_mesh(c, pos, nv, tri, nt, 0, 2048, &fed), ISOMEND_OK);
+            const uint64_t peak = isomend_check_stream_peak_bytes(c) + 4 * (uint64_t)nv;
+            const uint64_t said = isomend_mesh_check_memory(mesh);
+            printf("route: %zu vertices, check memory %llu bytes said, %llu held fed in batches, "
+                   "%llu sorted\n", nv, (unsigned long long)said, (unsigned long long)peak,
+                   (unsigned long long)isomend_check_memory(nv, nt));
+            CHECK(said >= peak);
+            if (nv > 100000) /* beyond the checker's fixed chunks: a fraction of sorting's */
+                CHECK(said < isomend_check_memory(nv, nt) / 2);
+            isomend_check_stream_destroy(c);
+        }
         CHECK(same_report(&routed, &sorted, "routed"));
         CHECK(sorted.triangles == nt && sorted.hole_edges == 0 && sorted.components > 0);
         taken++;
