@@ -21,8 +21,8 @@
 #include <stdlib.h>
 #include <string.h>
 
-/* Triangles fed to the checker at a time (their ids widened to 64 bits on
- * the stack), and the retire that follows each batch. */
+/* Triangles fed to the checker at a time (their ids widened to 64 bits),
+ * each batch followed by a retire. */
 #define BATCH 2048
 #define NEVER UINT32_MAX
 /* What the streaming checker holds a live vertex (check_stream.c: a ring
@@ -128,8 +128,8 @@ isomend_status check_in_order(const float *positions, size_t vertex_count,
     }
 
     isomend_check_stream *c = NULL;
-    isomend_status st = isomend_check_stream_begin(bb, &c);
-    uint64_t ids[3 * BATCH];
+    uint64_t *ids = malloc(sizeof(uint64_t) * 3 * BATCH); /* not on a host thread's stack */
+    isomend_status st = ids ? isomend_check_stream_begin(bb, &c) : ISOMEND_ERR_OUT_OF_MEMORY;
     sweep s = {triangles, last, nt, 0, 0, 0};
     size_t delivered = 0;
     while (st == ISOMEND_OK && s.t < nt) {
@@ -150,6 +150,7 @@ isomend_status check_in_order(const float *positions, size_t vertex_count,
     if (st == ISOMEND_OK)
         st = isomend_check_stream_finish(c, report);
     isomend_check_stream_destroy(c);
+    free(ids);
     free(last);
     return st;
 }

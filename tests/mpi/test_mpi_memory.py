@@ -1,9 +1,10 @@
 #!/usr/bin/env python3
 """`mpirun -n N isomend-mpi extract --max-memory SIZE`: every rank within SIZE, same bytes.
 
-A 512 x 512 x 256 u16 raw volume with a busy, smooth surface (19 M
-triangles; in memory `isomend extract` peaks at 1.6-1.9 GiB, measured
-here: at least 6 x SIZE) is extracted by `isomend extract --max-memory SIZE` (streamed: the
+A 512 x 512 x 384 u16 raw volume with a busy, smooth surface (29 M
+triangles; in memory `isomend extract` peaks at about 0.9 GiB, measured
+here: at least 4 x SIZE; it was 1.6-1.9 GiB at 256 slices while the
+in-memory check sorted every edge) is extracted by `isomend extract --max-memory SIZE` (streamed: the
 in-memory run's bytes, tests/cli/test_stream_memory.py) and by isomend-mpi
 on N = 1, 2 and 3 ranks (mpirun --oversubscribe) with the same limit:
 
@@ -34,7 +35,7 @@ import clitest  # noqa: E402
 from clitest import fail  # noqa: E402
 
 MIB = 1024 * 1024
-NX, NY, NZ = 512, 512, 256
+NX, NY, NZ = 512, 512, 384
 ISO = "1000"
 SIZE = "192M"
 ENV = clitest.mpi_env()
@@ -148,8 +149,8 @@ def check_in_memory(r, limit):
              f"({peak / limit:.1f}x --max-memory {SIZE})")
     if rc or js["streamed"]:
         fail("in memory", err.strip() or "streamed")
-    elif peak < 6 * limit:
-        fail(label, "not 6x the limit: the test proves nothing")
+    elif peak < 4 * limit:
+        fail(label, "not 4x the limit: the test proves nothing")
     else:
         print(f"ok   {label}")
 
