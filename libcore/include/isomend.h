@@ -921,6 +921,13 @@ ISOMEND_API isomend_status isomend_decimate_stream_expect(isomend_decimate_strea
 ISOMEND_API isomend_status isomend_decimate_stream_finish(isomend_decimate_stream *ds,
                                                           isomend_decimate_report *report);
 
+/* The most bytes the decimation has held at once so far, counted as it
+ * allocates (its window, held band, chunk, id table, quadrics, points,
+ * measurement and each window's decimation; not malloc's own overhead): what
+ * isomend_decimate_stream_memory() estimates.  Any time before destroy; 0
+ * for NULL. */
+ISOMEND_API uint64_t isomend_decimate_stream_peak_bytes(const isomend_decimate_stream *ds);
+
 /* Accepts NULL. */
 ISOMEND_API void isomend_decimate_stream_destroy(isomend_decimate_stream *ds);
 
@@ -1087,6 +1094,12 @@ ISOMEND_API isomend_status isomend_smooth_stream_sink(isomend_smooth_stream *ss,
  * report (may be NULL).  ISOMEND_ERR_SINK when `out` stopped it. */
 ISOMEND_API isomend_status isomend_smooth_stream_finish(isomend_smooth_stream *ss,
                                                         isomend_smooth_report *report);
+
+/* The most bytes the smoothing has held at once so far, counted as it
+ * allocates (its window, held band, chunk, id table and each window's
+ * smoothing; not malloc's own overhead): what isomend_smooth_stream_memory()
+ * estimates.  Any time before destroy; 0 for NULL. */
+ISOMEND_API uint64_t isomend_smooth_stream_peak_bytes(const isomend_smooth_stream *ss);
 
 /* Accepts NULL. */
 ISOMEND_API void isomend_smooth_stream_destroy(isomend_smooth_stream *ss);

@@ -126,6 +126,9 @@ struct isomend_decimate_stream {
     float *wpts;
     uint32_t *wfirst, *pts_out, *pts_out_first;
     uint64_t own_first; /* first id of the chunk's own vertices           */
+    /* their bytes, counted in the window's tally (mem_tally.h): q_out; the
+     * arena; the window's points in and out */
+    uint64_t q_bytes, pts_bytes, wpts_bytes;
 
     /* measuring */
     int lag;          /* windows before a chunk is measured  */
@@ -171,7 +174,9 @@ static isomend_status measure(isomend_decimate_stream *d, const measured *m)
     for (size_t i = 0; i < 3 * nt; i++)
         tri[i] = (uint32_t)i;
     double mx = 0, mean = 0;
-    const int ok = mesh_distances(m->p, m->n, pos, tri, nt, &mx, &mean);
+    uint64_t dist_bytes = 0;
+    const int ok = mesh_distances(m->p, m->n, pos, tri, nt, &mx, &mean, &dist_bytes);
+    mem_tally_spike(stream_window_tally(d->w), 48 * (uint64_t)nt + dist_bytes);
     free(pos);
     free(tri);
     if (!ok)
@@ -186,6 +191,7 @@ static isomend_status measure(isomend_decimate_stream *d, const measured *m)
 static isomend_status measure_oldest(isomend_decimate_stream *d)
 {
     isomend_status st = measure(d, &d->pend[0]);
+    mem_tally_sub(stream_window_tally(d->w), 12 * (uint64_t)d->pend[0].n + 1);
     free(d->pend[0].p);
     memmove(d->pend, d->pend + 1, (size_t)(d->npend - 1) * sizeof d->pend[0]);
     d->npend--;
@@ -214,6 +220,8 @@ static int window_points(isomend_decimate_stream *d, stream_window *sw, const st
     d->wpts = malloc((total + 1) * 12);
     if (!d->wfirst || !d->wpts)
         return 0;
+    d->wpts_bytes = ((uint64_t)nv + 1) * sizeof *d->wfirst + ((uint64_t)total + 1) * 12;
+    mem_tally_add(stream_window_tally(sw), d->wpts_bytes);
     uint32_t at = 0;
     for (size_t v = 0; v < nv; v++) {
         const carried *c = stream_window_data(sw, w->slot[v]);
@@ -259,6 +267,16 @@ static int keep_points(isomend_decimate_stream *d, stream_window *sw, const isom
     tris = malloc(((size_t)first[rv] + 1) * sizeof *tris);
     if (!tris)
         goto oom;
+    {
+        /* the new arena beside the old, with this scratch */
+        mem_tally *t = stream_window_tally(sw);
+        const uint64_t arena_bytes = ((uint64_t)d->pts_out_first[rv] + 1) * 12;
+        mem_tally_add(t, arena_bytes);
+        mem_tally_spike(t, rv + 1 + (rv + 2) * sizeof *first +
+                               ((uint64_t)first[rv] + 1) * sizeof *tris);
+        mem_tally_sub(t, d->pts_bytes);
+        d->pts_bytes = arena_bytes;
+    }
     for (size_t t = 0; t < rt; t++)
         for (int k = 0; fin[t] && k < 3; k++) {
             const uint32_t v = r->tri[3 * t + (size_t)k];
@@ -314,6 +332,9 @@ oom:
 
 static void window_points_free(isomend_decimate_stream *d)
 {
+    if (d->w)
+        mem_tally_sub(stream_window_tally(d->w), d->wpts_bytes);
+    d->wpts_bytes = 0;
     free(d->wpts);
     free(d->wfirst);
     free(d->pts_out);
@@ -333,6 +354,9 @@ static isomend_status decimate_window(void *user, stream_window *sw, const strea
     memmove(d->soup + 1, d->soup, (size_t)(d->lag + 1) * sizeof d->soup[0]);
     d->soup[0] = old;
     d->soup[0].n = 0;
+    mem_tally *tally = stream_window_tally(sw);
+    mem_tally_sub(tally, d->q_bytes);
+    d->q_bytes = 0;
     free(d->q_out);
     d->q_out = NULL;
     window_points_free(d);
@@ -366,17 +390,26 @@ static isomend_status decimate_window(void *user, stream_window *sw, const strea
     double *q_in = malloc((10 * nv + 1) * sizeof *q_in);
     if (!q_in)
         return ISOMEND_ERR_OUT_OF_MEMORY;
+    mem_tally_add(tally, (10 * (uint64_t)nv + 1) * sizeof *q_in);
     for (size_t v = 0; v < nv; v++)
         memcpy(q_in + 10 * v, ((const carried *)stream_window_data(sw, w->slot[v]))->q,
                10 * sizeof(double));
-    decimate_carry carry = {q_in, w->nheld, NULL, NULL, NULL, NULL, NULL, NULL};
+    decimate_carry carry = {q_in, w->nheld, NULL, NULL, NULL, NULL, NULL, NULL, 0};
     isomend_status st = ISOMEND_OK;
     if (d->max_error > 0 && !window_points(d, sw, w, &carry))
         st = ISOMEND_ERR_OUT_OF_MEMORY;
     if (nt && st == ISOMEND_OK) {
         isomend_decimate_report wr;
         st = mesh_decimate_to(w->m, (uint64_t)target, d->max_error, 0, r, kept, &carry, &wr);
+        /* its tables and outputs; the window counts the mesh and kept */
+        mem_tally_spike(tally, carry.peak_bytes);
         if (st == ISOMEND_OK) {
+            const uint64_t nvo = (*r)->nv;
+            d->q_bytes = 80 * (nvo + 1);
+            const uint64_t pb =
+                carry.pts_out ? 4 * ((uint64_t)carry.pts_first[nv] + 1 + nvo + 1) : 0;
+            mem_tally_add(tally, d->q_bytes + pb);
+            d->wpts_bytes += pb;
             d->rep.collapses += wr.collapses;
             d->rep.refused_topology += wr.refused_topology;
             d->rep.refused_geometry += wr.refused_geometry;
@@ -385,6 +418,7 @@ static isomend_status decimate_window(void *user, stream_window *sw, const strea
         }
     }
     free(q_in);
+    mem_tally_sub(tally, (10 * (uint64_t)nv + 1) * sizeof *q_in);
     d->q_out = carry.q_out;
     d->pts_out = carry.pts_out;
     d->pts_out_first = carry.pts_out_first;
@@ -424,6 +458,7 @@ static int count_final(void *user, stream_window *sw, const uint32_t *t)
         float *p = realloc(s->p, cap * 36);
         if (!p)
             return 0;
+        mem_tally_grow(stream_window_tally(sw), 36 * (uint64_t)s->cap, 36 * (uint64_t)cap);
         s->p = p;
         s->cap = cap;
     }
@@ -444,6 +479,7 @@ static isomend_status measure_chunk(void *user, stream_window *sw)
     pm->p = malloc(pm->n * 12 + 1);
     if (!pm->p)
         return ISOMEND_ERR_OUT_OF_MEMORY;
+    mem_tally_add(stream_window_tally(sw), 12 * (uint64_t)pm->n + 1);
     if (pm->n)
         memcpy(pm->p, stream_window_raw(sw, d->own_first), pm->n * 12);
     d->own_first = next_id;
@@ -550,6 +586,8 @@ isomend_status isomend_decimate_stream_begin(const isomend_volume *desc,
         isomend_decimate_stream_destroy(d);
         return ISOMEND_ERR_OUT_OF_MEMORY;
     }
+    mem_tally_add(stream_window_tally(d->w), sizeof *d + ((uint64_t)d->lag + 1) * sizeof *d->pend +
+                                                 ((uint64_t)d->lag + 2) * sizeof *d->soup);
     *ds = d;
     return ISOMEND_OK;
 }
@@ -605,14 +643,19 @@ isomend_status isomend_decimate_stream_finish(isomend_decimate_stream *d,
     return ISOMEND_OK;
 }
 
+uint64_t isomend_decimate_stream_peak_bytes(const isomend_decimate_stream *d)
+{
+    return d ? stream_window_peak_bytes(d->w) : 0;
+}
+
 void isomend_decimate_stream_destroy(isomend_decimate_stream *d)
 {
     if (!d)
         return;
-    stream_window_destroy(d->w);
     free(d->q_out);
     free(d->pts);
     window_points_free(d);
+    stream_window_destroy(d->w);
     for (int j = 0; d->pend && j < d->lag + 1; j++)
         free(d->pend[j].p);
     for (int j = 0; d->soup && j < d->lag + 2; j++)

@@ -240,9 +240,11 @@ static void dist_blocks(void *arg, size_t lo_block, size_t hi_block)
 }
 
 int mesh_distances(const float *pts, size_t np, const float *pos, const uint32_t *tri, size_t nt,
-                   double *max_out, double *mean_out)
+                   double *max_out, double *mean_out, uint64_t *bytes)
 {
     *max_out = *mean_out = 0;
+    if (bytes)
+        *bytes = 0;
     if (!np || !nt)
         return 1;
     cell_grid g;
@@ -343,6 +345,9 @@ int mesh_distances(const float *pts, size_t np, const float *pos, const uint32_t
     for (size_t t = 0; t < nt; t++)
         for (int k = 0; k < 3; k++)
             memcpy(corners + 9 * t + 3 * k, pos + 3 * (size_t)tri[3 * t + (size_t)k], 3 * sizeof(float));
+    if (bytes) /* its grid, the blocks' results and the corners, at once */
+        *bytes = ((uint64_t)ncell + 1 + (total ? total : 1)) * sizeof(uint32_t) +
+                 2 * (uint64_t)nblocks * sizeof(double) + 9 * (uint64_t)nt * sizeof(float);
     dist_job job = {&g, pts, corners, np, bmax, bmax + nblocks};
     parallel_for_from(nblocks, 2, dist_blocks, &job); /* threads from 2 blocks (8192 points) on */
     double worst = 0, sum = 0;

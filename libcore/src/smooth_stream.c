@@ -92,7 +92,12 @@ static isomend_status smooth_window(void *user, stream_window *sw, const stream_
                                     stream_window_raw(sw, id[2]));
     }
     *kept = NULL;
-    return w->m->nt ? isomend_mesh_smooth(w->m, d->iterations, r, NULL) : ISOMEND_OK;
+    if (!w->m->nt)
+        return ISOMEND_OK;
+    uint64_t bytes = 0;
+    const isomend_status st = mesh_smooth(w->m, d->iterations, r, NULL, &bytes);
+    mem_tally_spike(stream_window_tally(sw), bytes); /* the window counts the result */
+    return st;
 }
 
 /* The final triangles' vertices take their smoothed positions (a fixed one
@@ -214,6 +219,11 @@ isomend_status isomend_smooth_stream_finish(isomend_smooth_stream *d,
     if (report)
         *report = d->rep;
     return ISOMEND_OK;
+}
+
+uint64_t isomend_smooth_stream_peak_bytes(const isomend_smooth_stream *d)
+{
+    return d ? stream_window_peak_bytes(d->w) : 0;
 }
 
 void isomend_smooth_stream_destroy(isomend_smooth_stream *d)
