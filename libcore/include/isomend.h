@@ -685,6 +685,15 @@ ISOMEND_API void isomend_check_stream_destroy(isomend_check_stream *s);
  * are kept), 0 for NULL. */
 ISOMEND_API uint64_t isomend_check_stream_peak_bytes(const isomend_check_stream *s);
 
+/* What the check of a stream of desc with opts (isomend_check_stream_begin_volume())
+ * holds at most, on a surface as busy as a 256^3 gyroid (a vertex every 8
+ * marched samples): 80 bytes a marched slice sample for the live window, two
+ * chunks of its ring (1.3 MiB) and, with slice origins, 24 bytes a slice
+ * (docs/streaming.md).  Not the queue a caller keeps in front of it.  0 for
+ * invalid arguments. */
+ISOMEND_API uint64_t isomend_check_stream_memory(const isomend_volume *desc,
+                                                 const isomend_options *opts);
+
 /*
  * Fills *sink with callbacks that feed the check (vertices, triangles,
  * retire; foreign NULL: not for pieces), for isomend_stream_begin() or for
