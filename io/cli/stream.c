@@ -153,12 +153,17 @@ static double plan_steps(cli_memory_plan *p, const isomend_volume *v, const isom
                                      (double)isomend_smooth_stream_memory(v, opts, 0, 1);
             fit -= band * per_layer;
         }
+        isomend_decimate_options d; /* what the decimation keeps sets what it measures against */
+        isomend_decimate_options_init(&d);
+        d.ratio = post->ratio;
+        d.target_triangles = post->target;
+        d.max_error = post->max_error;
         p->decimate_layers = chunk_layers ? chunk_layers
-                             : isomend_decimate_stream_layers(v, opts, !p->limit ? 0
+                             : isomend_decimate_stream_layers(v, opts, &d, !p->limit ? 0
                                                               : fit > 1.0 ? (uint64_t)fit
                                                                           : 1);
         if (decimate)
-            p->decimate_need = isomend_decimate_stream_memory(v, opts, p->decimate_layers);
+            p->decimate_need = isomend_decimate_stream_memory(v, opts, &d, p->decimate_layers);
         if (smooth)
             p->smooth_need = isomend_smooth_stream_memory(v, opts, post->smooth, p->decimate_layers);
         need += (double)p->decimate_need + (double)p->smooth_need;

@@ -83,11 +83,31 @@
  * rings), and at least 2 windows. */
 #define MEASURE_LAYERS         (YOUNG_LAYERS + 16)
 #define MEASURE_LAYERS_SHALLOW 48 /* the same for a band of 3 rings only */
-/* The memory estimate: bytes a stream triangle costs in a window (its ids,
- * the stream's positions, the window's mesh, decimate.c's tables and
- * candidates, the result) and stream triangles a marched sample. */
-#define BYTES_PER_TRIANGLE 256.0
+/* The memory estimate (isomend_decimate_stream_memory(), calibrated against
+ * isomend_decimate_stream_peak_bytes(): docs/postprocess.md, "Streamed
+ * decimation's memory"), on a surface of TRIANGLES_PER_SAMPLE stream
+ * triangles a marched sample (a 256^3 gyroid), whose padded caps have
+ * CAP_TRIANGLES_PER_SAMPLE (half the slice inside):
+ *   - a window's triangle, BYTES_PER_TRIANGLE: its ids in the chunk, the
+ *     stream's positions, its vertices' slots and id table (grown by
+ *     doubling and kept), the window's mesh, decimate.c's tables and
+ *     candidates, the result (measured: 340 to 441 bytes for K = 1 to 64 on
+ *     gyroids and smoothed noise); the window is the chunk, the band and the
+ *     deeper band's layer (K + 2 layers), or at a padded end the cap and 2
+ *     layers;
+ *   - the measurement: the stream's positions of the chunks waiting for it
+ *     (MEASURE_BYTES_PER_TRIANGLE: 12 bytes a vertex, one every 2 triangles)
+ *     and the final triangles of the windows it measures against
+ *     (MEASURE_BYTES_PER_FINAL: 36 bytes each, doubled, and at a measurement
+ *     their copy and distance.c's grid), a share of the stream's triangles:
+ *     the ratio, or KEPT_UNKNOWN where a max_error or a target decides;
+ *   - 1 MiB. */
+#define BYTES_PER_TRIANGLE 512.0
 #define TRIANGLES_PER_SAMPLE 0.25
+#define CAP_TRIANGLES_PER_SAMPLE 1.0
+#define MEASURE_BYTES_PER_TRIANGLE 6.0
+#define MEASURE_BYTES_PER_FINAL 240.0
+#define KEPT_UNKNOWN 0.25
 
 /* A slot's own bytes: a held vertex's quadric, its triangles' planes so far;
  * with max_error the stream vertices it stands for (points of the arena), or
@@ -501,8 +521,43 @@ static int plane_of(const isomend_volume *desc, const isomend_options *opts, dou
     return 1;
 }
 
+/* The share of the stream's triangles the windows keep, for the estimate:
+ * the ratio, unless a max_error or a target may keep more. */
+static double kept_share(const isomend_decimate_options *dopts)
+{
+    if (!dopts)
+        return 1.0;
+    const double r = dopts->ratio > 0 && dopts->ratio <= 1 ? dopts->ratio : 0.0;
+    if (dopts->max_error > 0 || dopts->target_triangles || r == 0)
+        return r > KEPT_UNKNOWN ? r : KEPT_UNKNOWN;
+    return r;
+}
+
+/* The estimate for K layers a chunk (the memory estimate's terms above). */
+static double estimate(double plane, int pad, const isomend_decimate_options *dopts, int64_t K)
+{
+    const double T = plane * TRIANGLES_PER_SAMPLE, k = (double)K;
+    double window = (k + 2.0) * T;
+    if (pad && CAP_TRIANGLES_PER_SAMPLE * plane + 2.0 * T > window)
+        window = CAP_TRIANGLES_PER_SAMPLE * plane + 2.0 * T;
+    /* the deeper band (isomend_decimate_stream_begin) measures later */
+    const int deep = K > 1 && (!dopts || ((dopts->ratio > 0 || dopts->target_triangles) &&
+                                          dopts->max_error == 0));
+    double lag = ceil((double)(deep ? MEASURE_LAYERS : MEASURE_LAYERS_SHALLOW) / k);
+    lag = lag < 2 ? 2 : lag;
+    const double measure = T * k *
+                           (MEASURE_BYTES_PER_TRIANGLE * lag +
+                            kept_share(dopts) * MEASURE_BYTES_PER_FINAL * (lag + 2.0));
+    return window * BYTES_PER_TRIANGLE + measure + 1048576.0;
+}
+
+static int pad_of(const isomend_options *opts)
+{
+    return opts && (opts->flags & ISOMEND_FLAG_PAD) != 0;
+}
+
 int64_t isomend_decimate_stream_layers(const isomend_volume *desc, const isomend_options *opts,
-                                       uint64_t max_bytes)
+                                       const isomend_decimate_options *dopts, uint64_t max_bytes)
 {
     double plane;
     if (!plane_of(desc, opts, &plane))
@@ -510,29 +565,24 @@ int64_t isomend_decimate_stream_layers(const isomend_volume *desc, const isomend
     double k = floor(4194304.0 / plane);
     k = k < 4 ? 4 : k > 64 ? 64 : k;
     if (max_bytes) {
-        /* the most layers K whose window fits: K + 2 layers, 2 for K = 1,
-         * and 1 MiB (isomend_decimate_stream_memory) */
-        const double room = (double)max_bytes - 1048576.0;
-        const double b = room / (plane * TRIANGLES_PER_SAMPLE * BYTES_PER_TRIANGLE);
-        const double fit = b >= 4 ? floor(b) - 2 : 1;
-        k = fit < k ? fit : k;
-        k = k < 1 ? 1 : k;
+        /* the most layers whose estimate fits (it grows with K): 1 at least */
+        int64_t fit = 1;
+        while ((double)fit < k && estimate(plane, pad_of(opts), dopts, fit + 1) <= (double)max_bytes)
+            fit++;
+        k = (double)fit;
     }
     return (int64_t)k;
 }
 
 uint64_t isomend_decimate_stream_memory(const isomend_volume *desc, const isomend_options *opts,
-                                        int64_t chunk_layers)
+                                        const isomend_decimate_options *dopts, int64_t chunk_layers)
 {
     double plane;
     if (!plane_of(desc, opts, &plane) || chunk_layers < 0)
         return 0;
     if (chunk_layers == 0)
-        chunk_layers = isomend_decimate_stream_layers(desc, opts, 0);
-    /* the chunk, the band of 3 rings (about a layer) and with more than one
-     * layer the deeper band's layer (stream_window.c) */
-    const double layers = (double)chunk_layers + (chunk_layers > 1 ? 2 : 1);
-    const double bytes = layers * plane * TRIANGLES_PER_SAMPLE * BYTES_PER_TRIANGLE + 1048576.0;
+        chunk_layers = isomend_decimate_stream_layers(desc, opts, dopts, 0);
+    const double bytes = estimate(plane, pad_of(opts), dopts, chunk_layers);
     return bytes < 1.8e19 ? (uint64_t)bytes : UINT64_MAX;
 }
 
@@ -561,7 +611,7 @@ isomend_status isomend_decimate_stream_begin(const isomend_volume *desc,
     d->ratio = dopts->ratio;
     d->target = dopts->target_triangles;
     d->max_error = dopts->max_error;
-    d->K = chunk_layers ? chunk_layers : isomend_decimate_stream_layers(desc, opts, 0);
+    d->K = chunk_layers ? chunk_layers : isomend_decimate_stream_layers(desc, opts, dopts, 0);
     /* the deeper band: for a ratio or a target, not on chunks of 1 layer, not
      * with max_error (its carried points made a window's checks 3 to 7 x
      * slower: docs/postprocess.md) */
