@@ -833,6 +833,7 @@ int cli_outputs_finish(cli_outputs *o, int rc, const char *label, struct cli_pos
     if (o->smooth) {
         const double t0 = cli_now_ms();
         const isomend_status st = isomend_smooth_stream_finish(o->smooth, &post->smooth);
+        o->smooth_peak = isomend_smooth_stream_peak_bytes(o->smooth);
         if (!rc && st != ISOMEND_OK) {
             if (st != ISOMEND_ERR_SINK)
                 cli_error("%s: smoothing failed: %s", label, isomend_status_string(st));
@@ -846,6 +847,7 @@ int cli_outputs_finish(cli_outputs *o, int rc, const char *label, struct cli_pos
     if (o->decimate) {
         const double d0 = cli_now_ms();
         const isomend_status st = isomend_decimate_stream_finish(o->decimate, &post->decimate);
+        o->decimate_peak = isomend_decimate_stream_peak_bytes(o->decimate);
         if (!rc && st != ISOMEND_OK) {
             if (st != ISOMEND_ERR_SINK) /* else the sink said why */
                 cli_error("%s: decimation failed: %s", label, isomend_status_string(st));
