@@ -158,10 +158,12 @@ static double plan_steps(cli_memory_plan *p, const isomend_volume *v, const isom
         d.ratio = post->ratio;
         d.target_triangles = post->target;
         d.max_error = post->max_error;
-        p->decimate_layers = chunk_layers ? chunk_layers
-                             : isomend_decimate_stream_layers(v, opts, &d, !p->limit ? 0
-                                                              : fit > 1.0 ? (uint64_t)fit
-                                                                          : 1);
+        p->decimate_layers = chunk_layers
+                                 ? chunk_layers
+                                 : isomend_decimate_stream_layers(v, opts, &d,
+                                                                  !p->limit   ? 0
+                                                                  : fit > 1.0 ? (uint64_t)fit
+                                                                              : 1);
         if (decimate)
             p->decimate_need = isomend_decimate_stream_memory(v, opts, &d, p->decimate_layers);
         if (smooth)

@@ -1195,13 +1195,13 @@ isomend_status mesh_decimate_to(const isomend_mesh *mesh, uint64_t target, doubl
         d.member_next = malloc((npts ? npts : 1) * sizeof(uint32_t));
         d.member_last = malloc(nv * sizeof(uint32_t));
     }
-    mem_tally_add(&d.mem, (3 + 10) * sizeof(double) * nv + nc * sizeof(uint32_t) +
-                              (d.nt ? d.nt : 1) + nv * sizeof(uint32_t) +
-                              (nv + 1) * sizeof(uint32_t) + nc * sizeof(uint32_t) +
-                              2 * nc * sizeof(cand) + nv + 2 * d.nwords * sizeof(uint64_t) +
-                              (d.nt ? d.nt : 1) * sizeof(uint32_t) + nv + nc * sizeof(float) +
-                              nv * sizeof(uint32_t) +
-                              (max_error > 0 ? (2 * nv + (npts ? npts : 1)) * sizeof(uint32_t) : 0));
+    mem_tally_add(&d.mem,
+                  (3 + 10) * sizeof(double) * nv + nc * sizeof(uint32_t) + (d.nt ? d.nt : 1) +
+                      nv * sizeof(uint32_t) + (nv + 1) * sizeof(uint32_t) + nc * sizeof(uint32_t) +
+                      2 * nc * sizeof(cand) + nv + 2 * d.nwords * sizeof(uint64_t) +
+                      (d.nt ? d.nt : 1) * sizeof(uint32_t) + nv + nc * sizeof(float) +
+                      nv * sizeof(uint32_t) +
+                      (max_error > 0 ? (2 * nv + (npts ? npts : 1)) * sizeof(uint32_t) : 0));
     d.orig = carried_pts ? carry->pts : mesh->pos;
     d.max_dist = max_error;
     isomend_status status = ISOMEND_ERR_OUT_OF_MEMORY;
@@ -1297,8 +1297,9 @@ isomend_status mesh_decimate_to(const isomend_mesh *mesh, uint64_t target, doubl
     }
     if (status == ISOMEND_OK && carry) { /* the carried quadrics and points */
         const uint64_t nvo = (*out)->nv;
-        const uint64_t cb = 80 * (nvo + 1) +
-                            (carried_pts ? 4 * ((uint64_t)carry->pts_first[d.nv] + 1 + nvo + 1) : 0);
+        const uint64_t cb =
+            80 * (nvo + 1) +
+            (carried_pts ? 4 * ((uint64_t)carry->pts_first[d.nv] + 1 + nvo + 1) : 0);
         mem_tally_spike(&d.mem, cb + d.nv + 1);
         mem_tally_add(&d.mem, cb);
     }
@@ -1318,7 +1319,7 @@ isomend_status mesh_decimate_to(const isomend_mesh *mesh, uint64_t target, doubl
         rep.vertices_after = (*out)->nv;
         /* how far the input's vertices lie from the result */
         if (measure && !mesh_distances(mesh->pos, mesh->nv, (*out)->pos, (*out)->tri, (*out)->nt,
-                            &rep.max_error, &rep.mean_error, NULL)) {
+                                       &rep.max_error, &rep.mean_error, NULL)) {
             isomend_mesh_destroy(*out);
             *out = NULL;
             if (kept) {

@@ -102,12 +102,12 @@
  *     their copy and distance.c's grid), a share of the stream's triangles:
  *     the ratio, or KEPT_UNKNOWN where a max_error or a target decides;
  *   - 1 MiB. */
-#define BYTES_PER_TRIANGLE 512.0
+#define BYTES_PER_TRIANGLE         512.0
 #define TRIANGLES_PER_SAMPLE 0.25
-#define CAP_TRIANGLES_PER_SAMPLE 1.0
+#define CAP_TRIANGLES_PER_SAMPLE   1.0
 #define MEASURE_BYTES_PER_TRIANGLE 6.0
-#define MEASURE_BYTES_PER_FINAL 240.0
-#define KEPT_UNKNOWN 0.25
+#define MEASURE_BYTES_PER_FINAL    240.0
+#define KEPT_UNKNOWN               0.25
 
 /* A slot's own bytes: a held vertex's quadric, its triangles' planes so far;
  * with max_error the stream vertices it stands for (points of the arena), or
@@ -541,8 +541,9 @@ static double estimate(double plane, int pad, const isomend_decimate_options *do
     if (pad && CAP_TRIANGLES_PER_SAMPLE * plane + 2.0 * T > window)
         window = CAP_TRIANGLES_PER_SAMPLE * plane + 2.0 * T;
     /* the deeper band (isomend_decimate_stream_begin) measures later */
-    const int deep = K > 1 && (!dopts || ((dopts->ratio > 0 || dopts->target_triangles) &&
-                                          dopts->max_error == 0));
+    const int deep =
+        K > 1 &&
+        (!dopts || ((dopts->ratio > 0 || dopts->target_triangles) && dopts->max_error == 0));
     double lag = ceil((double)(deep ? MEASURE_LAYERS : MEASURE_LAYERS_SHALLOW) / k);
     lag = lag < 2 ? 2 : lag;
     const double measure = T * k *
@@ -567,7 +568,8 @@ int64_t isomend_decimate_stream_layers(const isomend_volume *desc, const isomend
     if (max_bytes) {
         /* the most layers whose estimate fits (it grows with K): 1 at least */
         int64_t fit = 1;
-        while ((double)fit < k && estimate(plane, pad_of(opts), dopts, fit + 1) <= (double)max_bytes)
+        while ((double)fit < k &&
+               estimate(plane, pad_of(opts), dopts, fit + 1) <= (double)max_bytes)
             fit++;
         k = (double)fit;
     }

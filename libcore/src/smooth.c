@@ -852,15 +852,17 @@ isomend_status mesh_smooth(const isomend_mesh *mesh, int iterations, isomend_mes
     if (bytes) { /* everything above is held at once (the filter's rows with it) */
         const uint64_t n1 = nv1, c3 = 3 * (uint64_t)(mesh->nt ? mesh->nt : 1);
         const int near = nv >= NEAR_MIN, wide16 = !near && nv <= SHORT_MAX;
-        *bytes = n1 * (1 + 4 + 12 + 16) + 3 * (12 * n1 + 16) + sizeof *m + 4 * (n1 + 1) + 8 * c3 +
-                 5 * 8 * (uint64_t)nc1 +
-                 (nc <= SUM_DENSE ? ((nv + SUM_BLOCK - 1) / SUM_BLOCK) * (uint64_t)nc *
-                                            (SUM_FIELDS * sizeof(double) + 1) + 2
-                                  : 0) +
-                 (iterations > 0 ? 8 * ((uint64_t)iterations + 1) +
-                                       (near ? NEAR * sizeof(int16_t) : WIDE * (wide16 ? 2 : 4)) * n1
-                                 : 0) +
-                 (m->slice_store ? 24 * (uint64_t)m->slices.n : 0);
+        *bytes =
+            n1 * (1 + 4 + 12 + 16) + 3 * (12 * n1 + 16) + sizeof *m + 4 * (n1 + 1) + 8 * c3 +
+            5 * 8 * (uint64_t)nc1 +
+            (nc <= SUM_DENSE ? ((nv + SUM_BLOCK - 1) / SUM_BLOCK) * (uint64_t)nc *
+                                       (SUM_FIELDS * sizeof(double) + 1) +
+                                   2
+                             : 0) +
+            (iterations > 0 ? 8 * ((uint64_t)iterations + 1) +
+                                  (near ? NEAR * sizeof(int16_t) : WIDE * (wide16 ? 2 : 4)) * n1
+                            : 0) +
+            (m->slice_store ? 24 * (uint64_t)m->slices.n : 0);
     }
     if (report) {
         double worst = 0;

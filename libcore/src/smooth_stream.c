@@ -51,7 +51,7 @@
  * isomend_smooth_stream_peak_bytes(): 240 to 300, docs/postprocess.md), stream
  * triangles a marched sample, and a padded end's cap's (half the slice
  * inside), which the first and last windows hold besides the band. */
-#define BYTES_PER_TRIANGLE 360.0
+#define BYTES_PER_TRIANGLE       360.0
 #define TRIANGLES_PER_SAMPLE 0.25
 #define CAP_TRIANGLES_PER_SAMPLE 1.0
 
@@ -193,7 +193,8 @@ isomend_status isomend_smooth_stream_begin(const isomend_volume *desc, const iso
                                          .final = count_final,
                                          .delivered = count_moved};
     const int normals = !((opts ? opts : &defaults)->flags & ISOMEND_FLAG_NO_NORMALS);
-    const int64_t K = chunk_layers ? chunk_layers : isomend_decimate_stream_layers(desc, opts, NULL, 0);
+    const int64_t K =
+        chunk_layers ? chunk_layers : isomend_decimate_stream_layers(desc, opts, NULL, 0);
     if (stream_window_begin(&client, out, normals, K, &d->w) != ISOMEND_OK) {
         free(d);
         return ISOMEND_ERR_OUT_OF_MEMORY;

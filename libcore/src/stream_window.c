@@ -179,8 +179,7 @@ uint64_t stream_window_mesh_bytes(const isomend_mesh *m)
     if (!m)
         return 0;
     return sizeof *m + 12 * (uint64_t)m->nv * (m->nrm ? 2 : 1) + 12 * (uint64_t)m->nt +
-           (m->org ? (uint64_t)m->nt : 0) +
-           (m->slice_store ? 24 * (uint64_t)m->slices.n : 0);
+           (m->org ? (uint64_t)m->nt : 0) + (m->slice_store ? 24 * (uint64_t)m->slices.n : 0);
 }
 
 /* The slot of stream vertex id, made at position p if it has none. */
@@ -505,7 +504,8 @@ static isomend_status run_window(stream_window *w, int last)
     age = malloc(rv + 1);
     if (!out_slot || !dist || !fin || !age)
         goto oom;
-    mem_tally_add(&w->mem, 2 * ((uint64_t)rv + 1) * sizeof *dist + (uint64_t)rt + 1 + (uint64_t)rv + 1);
+    mem_tally_add(&w->mem,
+                  2 * ((uint64_t)rv + 1) * sizeof *dist + (uint64_t)rt + 1 + (uint64_t)rv + 1);
     scratch += 2 * ((uint64_t)rv + 1) * sizeof *dist + (uint64_t)rt + 1 + (uint64_t)rv + 1;
     for (size_t v = 0; v < rv; v++)
         out_slot[v] = lv[kept ? kept[v] : v];
