@@ -506,6 +506,8 @@ typedef struct cli_outputs {
     int has_world;
     cli_checker *checker;
     uint64_t check_peak; /* the check's tables and queue at their largest (finish) */
+    uint64_t decimate_peak; /* the streamed decimation's bytes at their largest (finish) */
+    uint64_t smooth_peak;   /* the streamed smoothing's (finish)                         */
     isomend_clean_stream *clean;
     isomend_largest_stream *largest;
     FILE *spool;            /* --largest, --target-triangles: pass 1's calls, */

@@ -399,6 +399,8 @@ static int cmd_extract(int argc, char **argv)
     int checked = 0;
     uint64_t check_skipped = 0; /* the check's need, when it did not fit the limit */
     uint64_t check_peak = 0;    /* a streamed check's tables and queue at their largest */
+    uint64_t decimate_peak = 0; /* a streamed decimation's bytes at their largest */
+    uint64_t smooth_peak = 0;   /* a streamed smoothing's */
     cli_timings tm = {0, 0, 0};
     if (plan.stream) {
         /* the mesh through [the clean-up], [the smoothing], [the decimation], [the check],
@@ -417,6 +419,8 @@ static int cmd_extract(int argc, char **argv)
         rc = cli_stream_extract(&src, &stream_opts, out.sink, &stats);
         rc = cli_outputs_finish(&out, rc, src.label, &post, &check, &checked);
         check_peak = out.check_peak;
+        decimate_peak = out.decimate_peak;
+        smooth_peak = out.smooth_peak;
         if (!plan.check) check_skipped = plan.check_need; /* did not fit beside the stream */
         cli_progress_clear(&bar);
         /* the extraction's time includes the writes made meanwhile */
@@ -558,6 +562,17 @@ static int cmd_extract(int argc, char **argv)
                     check_peak, plan.check_need);
         else
             fprintf(jf, ", \"check_memory\": null");
+        /* a streamed decimation's memory against what the plan counted for it */
+        if (decimate_peak)
+            fprintf(jf, ", \"decimate_memory\": {\"peak\": %" PRIu64 ", \"planned\": %" PRIu64 "}",
+                    decimate_peak, plan.decimate_need);
+        else
+            fprintf(jf, ", \"decimate_memory\": null");
+        if (smooth_peak)
+            fprintf(jf, ", \"smooth_memory\": {\"peak\": %" PRIu64 ", \"planned\": %" PRIu64 "}",
+                    smooth_peak, plan.smooth_need);
+        else
+            fprintf(jf, ", \"smooth_memory\": null");
         cli_json_post(jf, &post);
         fprintf(jf, ", \"timings_ms\": {\"read\": %.3f, \"extract\": %.3f, \"write\": %.3f}}\n",
                 tm.read_ms, tm.extract_ms, tm.write_ms);

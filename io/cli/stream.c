@@ -31,8 +31,8 @@
  *   writer   CLI_WRITER_BUFFERS MiB of stdio buffers; PLY/OBJ faces wait in
  *            a scratch file on the output's disk, and STL keeps the
  *            positions of at most twice isomend_stream_vertex_bound()
- *   check    the streaming check's window (CLI_CHECK_BYTES_PER_SAMPLE a
- *            slice sample) and its queue (8 layers' calls, 1 to 4 MiB)
+ *   check    the streaming check's window (isomend_check_stream_memory: 80
+ *            bytes a slice sample) and its queue (8 layers' calls, 1 to 4 MiB)
  *   steps    the streamed clean-up's live vertices and held components
  *            (isomend_clean_stream_memory), or with --largest its two
  *            passes' (isomend_largest_stream_memory: the live vertices, one
@@ -73,18 +73,12 @@
 #include "mesh_writer.h"
 
 #define MIB (1024.0 * 1024.0)
-/* The streaming check's window (check_stream.c: the live vertices of about
- * two slices, 168 bytes each with their first 8 neighbours, in chunks of 4096
- * slots), per slice sample, on the in-memory rule's surface of a vertex every
- * 8 samples (measured: 59 bytes a sample on a 384^3 gyroid with a vertex
- * every 8.3 samples, 57 on a 512 x 512 surface with one every 7; the JSON's
- * check_memory, tested by cli_stream_memory; 80 leaves room for busier
- * surfaces), and the queue of calls waiting for it:
- * 8 layers of that surface (a triangle every 4 samples, 24 bytes, and a
+/* The streaming check's window is the core's (isomend_check_stream_memory());
+ * the queue of calls waiting for it is the CLI's (check_sink.c): 8 layers of
+ * the in-memory rule's surface (a triangle every 4 samples, 24 bytes, and a
  * vertex every 8, 12 bytes: 60 bytes a slice sample), from 1 to 4 MiB
  * (about 150 000 triangles, 8 ms of the check: two layers of a busy 512 x 512
  * surface). */
-#define CLI_CHECK_BYTES_PER_SAMPLE 80.0
 #define CLI_CHECK_QUEUE_BYTES_PER_SAMPLE 60.0
 #define CLI_CHECK_QUEUE_MIB_MIN 1.0
 #define CLI_CHECK_QUEUE_MIB_MAX 4.0
@@ -114,7 +108,7 @@ static double streaming_need(const isomend_volume *v, const isomend_options *opt
     const double plane = (double)v->dims[0] * (double)v->dims[1];
     const double queue = check ? check_queue_bytes(plane) : 0.0;
     double need = core + 2.0 * plane * ts + CLI_WRITER_BUFFERS * MIB + queue +
-                  (check ? CLI_CHECK_BYTES_PER_SAMPLE * plane : 0.0);
+                  (check ? (double)isomend_check_stream_memory(v, opts) : 0.0);
     if (format == ISOMEND_MESH_STL) need += 2.0 * 12.0 * bound;
     return need;
 }
@@ -159,12 +153,19 @@ static double plan_steps(cli_memory_plan *p, const isomend_volume *v, const isom
                                      (double)isomend_smooth_stream_memory(v, opts, 0, 1);
             fit -= band * per_layer;
         }
-        p->decimate_layers = chunk_layers ? chunk_layers
-                             : isomend_decimate_stream_layers(v, opts, !p->limit ? 0
-                                                              : fit > 1.0 ? (uint64_t)fit
-                                                                          : 1);
+        isomend_decimate_options d; /* what the decimation keeps sets what it measures against */
+        isomend_decimate_options_init(&d);
+        d.ratio = post->ratio;
+        d.target_triangles = post->target;
+        d.max_error = post->max_error;
+        p->decimate_layers = chunk_layers
+                                 ? chunk_layers
+                                 : isomend_decimate_stream_layers(v, opts, &d,
+                                                                  !p->limit   ? 0
+                                                                  : fit > 1.0 ? (uint64_t)fit
+                                                                              : 1);
         if (decimate)
-            p->decimate_need = isomend_decimate_stream_memory(v, opts, p->decimate_layers);
+            p->decimate_need = isomend_decimate_stream_memory(v, opts, &d, p->decimate_layers);
         if (smooth)
             p->smooth_need = isomend_smooth_stream_memory(v, opts, post->smooth, p->decimate_layers);
         need += (double)p->decimate_need + (double)p->smooth_need;
@@ -193,9 +194,9 @@ void cli_memory_plan_make(const isomend_volume *desc, const isomend_options *opt
     p->limit_given = max_memory != 0;
     p->limit = max_memory ? max_memory : cli_memory_available();
     p->check_queue = (uint64_t)check_queue_bytes(n[0] * n[1]);
-    p->check_need = p->check_queue + (uint64_t)(CLI_CHECK_BYTES_PER_SAMPLE * n[0] * n[1]);
     isomend_volume v = *desc;
     v.data = NULL;
+    p->check_need = p->check_queue + isomend_check_stream_memory(&v, opts);
     if (opts->threads > 0) {
         p->threads = opts->threads;
     } else {
@@ -834,6 +835,7 @@ int cli_outputs_finish(cli_outputs *o, int rc, const char *label, struct cli_pos
     if (o->smooth) {
         const double t0 = cli_now_ms();
         const isomend_status st = isomend_smooth_stream_finish(o->smooth, &post->smooth);
+        o->smooth_peak = isomend_smooth_stream_peak_bytes(o->smooth);
         if (!rc && st != ISOMEND_OK) {
             if (st != ISOMEND_ERR_SINK)
                 cli_error("%s: smoothing failed: %s", label, isomend_status_string(st));
@@ -847,6 +849,7 @@ int cli_outputs_finish(cli_outputs *o, int rc, const char *label, struct cli_pos
     if (o->decimate) {
         const double d0 = cli_now_ms();
         const isomend_status st = isomend_decimate_stream_finish(o->decimate, &post->decimate);
+        o->decimate_peak = isomend_decimate_stream_peak_bytes(o->decimate);
         if (!rc && st != ISOMEND_OK) {
             if (st != ISOMEND_ERR_SINK) /* else the sink said why */
                 cli_error("%s: decimation failed: %s", label, isomend_status_string(st));

@@ -694,6 +694,15 @@ ISOMEND_API void isomend_check_stream_destroy(isomend_check_stream *s);
  * are kept), 0 for NULL. */
 ISOMEND_API uint64_t isomend_check_stream_peak_bytes(const isomend_check_stream *s);
 
+/* What the check of a stream of desc with opts (isomend_check_stream_begin_volume())
+ * holds at most, on a surface as busy as a 256^3 gyroid (a vertex every 8
+ * marched samples): 80 bytes a marched slice sample for the live window, two
+ * chunks of its ring (1.3 MiB) and, with slice origins, 24 bytes a slice
+ * (docs/streaming.md).  Not the queue a caller keeps in front of it.  0 for
+ * invalid arguments. */
+ISOMEND_API uint64_t isomend_check_stream_memory(const isomend_volume *desc,
+                                                 const isomend_options *opts);
+
 /*
  * Fills *sink with callbacks that feed the check (vertices, triangles,
  * retire; foreign NULL: not for pieces), for isomend_stream_begin() or for
@@ -879,17 +888,30 @@ ISOMEND_API isomend_status isomend_mesh_clean(const isomend_mesh *mesh, uint64_t
 typedef struct isomend_decimate_stream isomend_decimate_stream;
 
 /* The default chunk height for a volume (about 2^22 marched samples a
- * chunk, 4 to 64 layers), or the most layers whose chunk fits max_bytes
- * (0: no limit) if that is less; 0 for invalid arguments. */
+ * chunk, 4 to 64 layers), or if that is less the most layers whose
+ * isomend_decimate_stream_memory() fits max_bytes (0: no limit), at least
+ * 1; 0 for invalid arguments.  dopts as for the memory. */
 ISOMEND_API int64_t isomend_decimate_stream_layers(const isomend_volume *desc,
                                                    const isomend_options *opts,
+                                                   const isomend_decimate_options *dopts,
                                                    uint64_t max_bytes);
 
-/* An estimate of the memory the decimation holds with chunks of
- * chunk_layers layers (a surface as busy as a 256^3 gyroid: one triangle
- * every 4 marched samples), 0 for invalid arguments. */
+/*
+ * An estimate of the most the decimation holds with chunks of chunk_layers
+ * layers (0: the default), isomend_decimate_stream_peak_bytes() at its
+ * largest, on a surface as busy as a 256^3 gyroid (one triangle every 4
+ * marched samples; a padded end's cap one every sample): a window of the
+ * chunk and its bands (about 512 bytes a triangle: slots, id table, the
+ * window's mesh, the decimation's tables) and what the distances are
+ * measured against (a share of the triangles of about 80 layers: the
+ * ratio's, or a quarter where max_error or target_triangles decide, all of
+ * them for dopts NULL), and 1 MiB.  A busier surface holds more in
+ * proportion to its triangles (docs/postprocess.md).  0 for invalid
+ * arguments.
+ */
 ISOMEND_API uint64_t isomend_decimate_stream_memory(const isomend_volume *desc,
                                                     const isomend_options *opts,
+                                                    const isomend_decimate_options *dopts,
                                                     int64_t chunk_layers);
 
 /* Begins a streamed decimation of what a stream of desc with opts delivers
@@ -929,6 +951,13 @@ ISOMEND_API isomend_status isomend_decimate_stream_expect(isomend_decimate_strea
  * ISOMEND_ERR_SINK when `out` stopped it. */
 ISOMEND_API isomend_status isomend_decimate_stream_finish(isomend_decimate_stream *ds,
                                                           isomend_decimate_report *report);
+
+/* The most bytes the decimation has held at once so far, counted as it
+ * allocates (its window, held band, chunk, id table, quadrics, points,
+ * measurement and each window's decimation; not malloc's own overhead): what
+ * isomend_decimate_stream_memory() estimates.  Any time before destroy; 0
+ * for NULL. */
+ISOMEND_API uint64_t isomend_decimate_stream_peak_bytes(const isomend_decimate_stream *ds);
 
 /* Accepts NULL. */
 ISOMEND_API void isomend_decimate_stream_destroy(isomend_decimate_stream *ds);
@@ -1073,8 +1102,10 @@ ISOMEND_API void isomend_largest_stream_destroy(isomend_largest_stream *ls);
  */
 typedef struct isomend_smooth_stream isomend_smooth_stream;
 
-/* An estimate of what it holds (a chunk and a band of N + 2 layers of a
- * surface as busy as a 256^3 gyroid), 0 for invalid arguments. */
+/* An estimate of what it holds, isomend_smooth_stream_peak_bytes() at its
+ * largest: a chunk and a band of N + 2 layers (at a padded end the cap and
+ * the band) of a surface as busy as a 256^3 gyroid, about 360 bytes a
+ * triangle (docs/postprocess.md); 0 for invalid arguments. */
 ISOMEND_API uint64_t isomend_smooth_stream_memory(const isomend_volume *desc,
                                                   const isomend_options *opts, int iterations,
                                                   int64_t chunk_layers);
@@ -1096,6 +1127,12 @@ ISOMEND_API isomend_status isomend_smooth_stream_sink(isomend_smooth_stream *ss,
  * report (may be NULL).  ISOMEND_ERR_SINK when `out` stopped it. */
 ISOMEND_API isomend_status isomend_smooth_stream_finish(isomend_smooth_stream *ss,
                                                         isomend_smooth_report *report);
+
+/* The most bytes the smoothing has held at once so far, counted as it
+ * allocates (its window, held band, chunk, id table and each window's
+ * smoothing; not malloc's own overhead): what isomend_smooth_stream_memory()
+ * estimates.  Any time before destroy; 0 for NULL. */
+ISOMEND_API uint64_t isomend_smooth_stream_peak_bytes(const isomend_smooth_stream *ss);
 
 /* Accepts NULL. */
 ISOMEND_API void isomend_smooth_stream_destroy(isomend_smooth_stream *ss);

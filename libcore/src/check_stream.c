@@ -605,6 +605,35 @@ uint64_t isomend_check_stream_peak_bytes(const isomend_check_stream *s)
     return s ? s->peak : 0;
 }
 
+/* The live window on the in-memory rule's surface of a vertex every 8
+ * marched samples (docs/streaming.md): measured 59 bytes a slice sample on a
+ * 384^3 gyroid with a vertex every 8.3 samples, 57 on a busy 512 x 512
+ * surface with one every 7 (check_memory in the CLI's JSON, required within
+ * this by cli_stream_memory); 80 leaves room for busier surfaces. */
+#define CHECK_BYTES_PER_SAMPLE 80.0
+
+uint64_t isomend_check_stream_memory(const isomend_volume *desc, const isomend_options *opts)
+{
+    if (!desc)
+        return 0;
+    isomend_options defaults;
+    isomend_options_init(&defaults);
+    isomend_volume v = *desc;
+    memset(v.strides, 0, sizeof v.strides);
+    ctx c;
+    memset(&c, 0, sizeof c);
+    if (ctx_setup(&c, &v, opts ? opts : &defaults) != ISOMEND_OK)
+        return 0;
+    const grid *g = &c.g;
+    /* the window; the ring's last chunk and the spare kept beside it; the
+     * slices' origins (begin_volume) and the object */
+    const double bytes = CHECK_BYTES_PER_SAMPLE * (double)g->N[0] * (double)g->N[1] +
+                         2.0 * (double)(sizeof(vslot) * CHUNK) +
+                         (g->slices.so ? 24.0 * (double)g->N[2] : 0.0) +
+                         (double)sizeof(isomend_check_stream);
+    return bytes < 1.8e19 ? (uint64_t)bytes : UINT64_MAX;
+}
+
 static isomend_status fail(isomend_check_stream *s, isomend_status status)
 {
     if (s->status == ISOMEND_OK)

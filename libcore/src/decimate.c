@@ -35,6 +35,7 @@
  * collapsed into another in the pass lends it its corners (merged), and
  * the corners of triangles that died in the pass are skipped.
  */
+#include "mem_tally.h"
 #include "mesh_internal.h"
 
 #include <float.h>
@@ -89,6 +90,7 @@ typedef struct dec {
     uint32_t *members;    /* the points a vertex stands for: a list         */
     uint32_t *member_next; /* through these (a point each), from members[v] */
     uint32_t *member_last; /* the list's last                              */
+    mem_tally mem;         /* its bytes (decimate_carry.peak_bytes)         */
 } dec;
 
 /* ------------------------------------------------------------- quadrics */
@@ -693,6 +695,7 @@ static size_t gather(dec *d, cand *c, int *ok)
     *ok = first != NULL;
     if (!first)
         return 0;
+    mem_tally_spike(&d->mem, (nblocks + 1) * sizeof(size_t));
     gather_job job = {d, c, first};
     parallel_for_from(nblocks, 2, gather_count, &job);
     for (size_t blk = 0; blk < nblocks; blk++)
@@ -942,6 +945,8 @@ static size_t run_regions(dec *d, cand *c, cand *tmp, size_t n, uint32_t offset,
         free(key);
         return SIZE_MAX;
     }
+    mem_tally_spike(&d->mem, (nregions + 1) * sizeof(size_t) + nregions * sizeof(tally) +
+                                 (n ? n : 1) * sizeof(uint32_t));
     for (size_t i = 0; i < n; i++) {
         key[i] = region_of(d, c[i].a, c[i].b, offset);
         if (key[i] != NONE)
@@ -1190,6 +1195,13 @@ isomend_status mesh_decimate_to(const isomend_mesh *mesh, uint64_t target, doubl
         d.member_next = malloc((npts ? npts : 1) * sizeof(uint32_t));
         d.member_last = malloc(nv * sizeof(uint32_t));
     }
+    mem_tally_add(&d.mem,
+                  (3 + 10) * sizeof(double) * nv + nc * sizeof(uint32_t) + (d.nt ? d.nt : 1) +
+                      nv * sizeof(uint32_t) + (nv + 1) * sizeof(uint32_t) + nc * sizeof(uint32_t) +
+                      2 * nc * sizeof(cand) + nv + 2 * d.nwords * sizeof(uint64_t) +
+                      (d.nt ? d.nt : 1) * sizeof(uint32_t) + nv + nc * sizeof(float) +
+                      nv * sizeof(uint32_t) +
+                      (max_error > 0 ? (2 * nv + (npts ? npts : 1)) * sizeof(uint32_t) : 0));
     d.orig = carried_pts ? carry->pts : mesh->pos;
     d.max_dist = max_error;
     isomend_status status = ISOMEND_ERR_OUT_OF_MEMORY;
@@ -1217,6 +1229,7 @@ isomend_status mesh_decimate_to(const isomend_mesh *mesh, uint64_t target, doubl
         d.live[t] = (uint32_t)t;
     d.nlive = d.nt;
     begin_pass(&d); /* the first pass's fans */
+    mem_tally_spike(&d.mem, (d.nv + 1) * sizeof(uint32_t) + 2 * nc * 4); /* its fans */
     if (!mesh_free_vertices(mesh, NULL, d.vf, NULL, NULL, NULL))
         goto done;
     for (size_t v = 0; v < d.nv; v++) {
@@ -1251,8 +1264,10 @@ isomend_status mesh_decimate_to(const isomend_mesh *mesh, uint64_t target, doubl
             goto done;
         const size_t need = (d.alive - target + 1) / 2;
         float limit;
-        const size_t n = sort_candidates(d.cand, d.cand_tmp, n_all,
-                                         unlimited || 2 * need + refused >= n_all ? n_all : 2 * need + refused, &limit);
+        const size_t rank = unlimited || 2 * need + refused >= n_all ? n_all : 2 * need + refused;
+        if (rank < n_all) /* its histogram */
+            mem_tally_spike(&d.mem, 65536 * sizeof(uint32_t));
+        const size_t n = sort_candidates(d.cand, d.cand_tmp, n_all, rank, &limit);
         const size_t nfree = mark_borders(&d);
         tally t = {0, 0, 0, 0, 0, 0};
         if (!run_pass(&d, d.cand, d.cand_tmp, n, nfree, target, &t))
@@ -1273,6 +1288,23 @@ isomend_status mesh_decimate_to(const isomend_mesh *mesh, uint64_t target, doubl
     }
     rep.reached = d.alive <= target;
     status = build_output(&d, mesh, out, kept);
+    if (status == ISOMEND_OK) { /* the output, and the renumbering it was made with */
+        const uint64_t ob = 12 * (uint64_t)((*out)->nv ? (*out)->nv : 1) * ((*out)->nrm ? 2 : 1) +
+                            12 * (uint64_t)((*out)->nt ? (*out)->nt : 1) + sizeof **out +
+                            (kept ? 4 * (uint64_t)((*out)->nv ? (*out)->nv : 1) : 0);
+        mem_tally_spike(&d.mem, ob + nv * sizeof(uint32_t));
+        mem_tally_add(&d.mem, ob + ((*out)->slice_store ? 24 * (uint64_t)(*out)->slices.n : 0));
+    }
+    if (status == ISOMEND_OK && carry) { /* the carried quadrics and points */
+        const uint64_t nvo = (*out)->nv;
+        const uint64_t cb =
+            80 * (nvo + 1) +
+            (carried_pts ? 4 * ((uint64_t)carry->pts_first[d.nv] + 1 + nvo + 1) : 0);
+        mem_tally_spike(&d.mem, cb + d.nv + 1);
+        mem_tally_add(&d.mem, cb);
+    }
+    if (carry)
+        carry->peak_bytes = d.mem.peak;
     if (status == ISOMEND_OK && carry && !carry_out(&d, carry, carried_pts, (*out)->nv)) {
         isomend_mesh_destroy(*out);
         *out = NULL;
@@ -1287,7 +1319,7 @@ isomend_status mesh_decimate_to(const isomend_mesh *mesh, uint64_t target, doubl
         rep.vertices_after = (*out)->nv;
         /* how far the input's vertices lie from the result */
         if (measure && !mesh_distances(mesh->pos, mesh->nv, (*out)->pos, (*out)->tri, (*out)->nt,
-                            &rep.max_error, &rep.mean_error)) {
+                                       &rep.max_error, &rep.mean_error, NULL)) {
             isomend_mesh_destroy(*out);
             *out = NULL;
             if (kept) {

@@ -55,7 +55,7 @@ isomend_status isomend_meshes_decimate(const isomend_mesh *const *meshes, size_t
             target = (uint64_t)ceil(o->ratio * (double)m->nt);
         if (o->target_triangles > target)
             target = o->target_triangles;
-        decimate_carry carry = {NULL, 0, NULL, NULL, NULL, NULL, NULL, locked};
+        decimate_carry carry = {NULL, 0, NULL, NULL, NULL, NULL, NULL, locked, 0};
         status = mesh_decimate_to(m, target, o->max_error, 1, &out[i], NULL, &carry,
                                   reports ? &reports[i] : NULL);
         free(carry.q_out); /* (the quadrics carried out: not wanted here) */

@@ -83,11 +83,31 @@
  * rings), and at least 2 windows. */
 #define MEASURE_LAYERS         (YOUNG_LAYERS + 16)
 #define MEASURE_LAYERS_SHALLOW 48 /* the same for a band of 3 rings only */
-/* The memory estimate: bytes a stream triangle costs in a window (its ids,
- * the stream's positions, the window's mesh, decimate.c's tables and
- * candidates, the result) and stream triangles a marched sample. */
-#define BYTES_PER_TRIANGLE 256.0
+/* The memory estimate (isomend_decimate_stream_memory(), calibrated against
+ * isomend_decimate_stream_peak_bytes(): docs/postprocess.md, "Streamed
+ * decimation's memory"), on a surface of TRIANGLES_PER_SAMPLE stream
+ * triangles a marched sample (a 256^3 gyroid), whose padded caps have
+ * CAP_TRIANGLES_PER_SAMPLE (half the slice inside):
+ *   - a window's triangle, BYTES_PER_TRIANGLE: its ids in the chunk, the
+ *     stream's positions, its vertices' slots and id table (grown by
+ *     doubling and kept), the window's mesh, decimate.c's tables and
+ *     candidates, the result (measured: 340 to 441 bytes for K = 1 to 64 on
+ *     gyroids and smoothed noise); the window is the chunk, the band and the
+ *     deeper band's layer (K + 2 layers), or at a padded end the cap and 2
+ *     layers;
+ *   - the measurement: the stream's positions of the chunks waiting for it
+ *     (MEASURE_BYTES_PER_TRIANGLE: 12 bytes a vertex, one every 2 triangles)
+ *     and the final triangles of the windows it measures against
+ *     (MEASURE_BYTES_PER_FINAL: 36 bytes each, doubled, and at a measurement
+ *     their copy and distance.c's grid), a share of the stream's triangles:
+ *     the ratio, or KEPT_UNKNOWN where a max_error or a target decides;
+ *   - 1 MiB. */
+#define BYTES_PER_TRIANGLE         512.0
 #define TRIANGLES_PER_SAMPLE 0.25
+#define CAP_TRIANGLES_PER_SAMPLE   1.0
+#define MEASURE_BYTES_PER_TRIANGLE 6.0
+#define MEASURE_BYTES_PER_FINAL    240.0
+#define KEPT_UNKNOWN               0.25
 
 /* A slot's own bytes: a held vertex's quadric, its triangles' planes so far;
  * with max_error the stream vertices it stands for (points of the arena), or
@@ -126,6 +146,9 @@ struct isomend_decimate_stream {
     float *wpts;
     uint32_t *wfirst, *pts_out, *pts_out_first;
     uint64_t own_first; /* first id of the chunk's own vertices           */
+    /* their bytes, counted in the window's tally (mem_tally.h): q_out; the
+     * arena; the window's points in and out */
+    uint64_t q_bytes, pts_bytes, wpts_bytes;
 
     /* measuring */
     int lag;          /* windows before a chunk is measured  */
@@ -171,7 +194,9 @@ static isomend_status measure(isomend_decimate_stream *d, const measured *m)
     for (size_t i = 0; i < 3 * nt; i++)
         tri[i] = (uint32_t)i;
     double mx = 0, mean = 0;
-    const int ok = mesh_distances(m->p, m->n, pos, tri, nt, &mx, &mean);
+    uint64_t dist_bytes = 0;
+    const int ok = mesh_distances(m->p, m->n, pos, tri, nt, &mx, &mean, &dist_bytes);
+    mem_tally_spike(stream_window_tally(d->w), 48 * (uint64_t)nt + dist_bytes);
     free(pos);
     free(tri);
     if (!ok)
@@ -186,6 +211,7 @@ static isomend_status measure(isomend_decimate_stream *d, const measured *m)
 static isomend_status measure_oldest(isomend_decimate_stream *d)
 {
     isomend_status st = measure(d, &d->pend[0]);
+    mem_tally_sub(stream_window_tally(d->w), 12 * (uint64_t)d->pend[0].n + 1);
     free(d->pend[0].p);
     memmove(d->pend, d->pend + 1, (size_t)(d->npend - 1) * sizeof d->pend[0]);
     d->npend--;
@@ -214,6 +240,8 @@ static int window_points(isomend_decimate_stream *d, stream_window *sw, const st
     d->wpts = malloc((total + 1) * 12);
     if (!d->wfirst || !d->wpts)
         return 0;
+    d->wpts_bytes = ((uint64_t)nv + 1) * sizeof *d->wfirst + ((uint64_t)total + 1) * 12;
+    mem_tally_add(stream_window_tally(sw), d->wpts_bytes);
     uint32_t at = 0;
     for (size_t v = 0; v < nv; v++) {
         const carried *c = stream_window_data(sw, w->slot[v]);
@@ -259,6 +287,16 @@ static int keep_points(isomend_decimate_stream *d, stream_window *sw, const isom
     tris = malloc(((size_t)first[rv] + 1) * sizeof *tris);
     if (!tris)
         goto oom;
+    {
+        /* the new arena beside the old, with this scratch */
+        mem_tally *t = stream_window_tally(sw);
+        const uint64_t arena_bytes = ((uint64_t)d->pts_out_first[rv] + 1) * 12;
+        mem_tally_add(t, arena_bytes);
+        mem_tally_spike(t, rv + 1 + (rv + 2) * sizeof *first +
+                               ((uint64_t)first[rv] + 1) * sizeof *tris);
+        mem_tally_sub(t, d->pts_bytes);
+        d->pts_bytes = arena_bytes;
+    }
     for (size_t t = 0; t < rt; t++)
         for (int k = 0; fin[t] && k < 3; k++) {
             const uint32_t v = r->tri[3 * t + (size_t)k];
@@ -314,6 +352,9 @@ oom:
 
 static void window_points_free(isomend_decimate_stream *d)
 {
+    if (d->w)
+        mem_tally_sub(stream_window_tally(d->w), d->wpts_bytes);
+    d->wpts_bytes = 0;
     free(d->wpts);
     free(d->wfirst);
     free(d->pts_out);
@@ -333,6 +374,9 @@ static isomend_status decimate_window(void *user, stream_window *sw, const strea
     memmove(d->soup + 1, d->soup, (size_t)(d->lag + 1) * sizeof d->soup[0]);
     d->soup[0] = old;
     d->soup[0].n = 0;
+    mem_tally *tally = stream_window_tally(sw);
+    mem_tally_sub(tally, d->q_bytes);
+    d->q_bytes = 0;
     free(d->q_out);
     d->q_out = NULL;
     window_points_free(d);
@@ -366,17 +410,26 @@ static isomend_status decimate_window(void *user, stream_window *sw, const strea
     double *q_in = malloc((10 * nv + 1) * sizeof *q_in);
     if (!q_in)
         return ISOMEND_ERR_OUT_OF_MEMORY;
+    mem_tally_add(tally, (10 * (uint64_t)nv + 1) * sizeof *q_in);
     for (size_t v = 0; v < nv; v++)
         memcpy(q_in + 10 * v, ((const carried *)stream_window_data(sw, w->slot[v]))->q,
                10 * sizeof(double));
-    decimate_carry carry = {q_in, w->nheld, NULL, NULL, NULL, NULL, NULL, NULL};
+    decimate_carry carry = {q_in, w->nheld, NULL, NULL, NULL, NULL, NULL, NULL, 0};
     isomend_status st = ISOMEND_OK;
     if (d->max_error > 0 && !window_points(d, sw, w, &carry))
         st = ISOMEND_ERR_OUT_OF_MEMORY;
     if (nt && st == ISOMEND_OK) {
         isomend_decimate_report wr;
         st = mesh_decimate_to(w->m, (uint64_t)target, d->max_error, 0, r, kept, &carry, &wr);
+        /* its tables and outputs; the window counts the mesh and kept */
+        mem_tally_spike(tally, carry.peak_bytes);
         if (st == ISOMEND_OK) {
+            const uint64_t nvo = (*r)->nv;
+            d->q_bytes = 80 * (nvo + 1);
+            const uint64_t pb =
+                carry.pts_out ? 4 * ((uint64_t)carry.pts_first[nv] + 1 + nvo + 1) : 0;
+            mem_tally_add(tally, d->q_bytes + pb);
+            d->wpts_bytes += pb;
             d->rep.collapses += wr.collapses;
             d->rep.refused_topology += wr.refused_topology;
             d->rep.refused_geometry += wr.refused_geometry;
@@ -385,6 +438,7 @@ static isomend_status decimate_window(void *user, stream_window *sw, const strea
         }
     }
     free(q_in);
+    mem_tally_sub(tally, (10 * (uint64_t)nv + 1) * sizeof *q_in);
     d->q_out = carry.q_out;
     d->pts_out = carry.pts_out;
     d->pts_out_first = carry.pts_out_first;
@@ -424,6 +478,7 @@ static int count_final(void *user, stream_window *sw, const uint32_t *t)
         float *p = realloc(s->p, cap * 36);
         if (!p)
             return 0;
+        mem_tally_grow(stream_window_tally(sw), 36 * (uint64_t)s->cap, 36 * (uint64_t)cap);
         s->p = p;
         s->cap = cap;
     }
@@ -444,6 +499,7 @@ static isomend_status measure_chunk(void *user, stream_window *sw)
     pm->p = malloc(pm->n * 12 + 1);
     if (!pm->p)
         return ISOMEND_ERR_OUT_OF_MEMORY;
+    mem_tally_add(stream_window_tally(sw), 12 * (uint64_t)pm->n + 1);
     if (pm->n)
         memcpy(pm->p, stream_window_raw(sw, d->own_first), pm->n * 12);
     d->own_first = next_id;
@@ -465,8 +521,44 @@ static int plane_of(const isomend_volume *desc, const isomend_options *opts, dou
     return 1;
 }
 
+/* The share of the stream's triangles the windows keep, for the estimate:
+ * the ratio, unless a max_error or a target may keep more. */
+static double kept_share(const isomend_decimate_options *dopts)
+{
+    if (!dopts)
+        return 1.0;
+    const double r = dopts->ratio > 0 && dopts->ratio <= 1 ? dopts->ratio : 0.0;
+    if (dopts->max_error > 0 || dopts->target_triangles || r == 0)
+        return r > KEPT_UNKNOWN ? r : KEPT_UNKNOWN;
+    return r;
+}
+
+/* The estimate for K layers a chunk (the memory estimate's terms above). */
+static double estimate(double plane, int pad, const isomend_decimate_options *dopts, int64_t K)
+{
+    const double T = plane * TRIANGLES_PER_SAMPLE, k = (double)K;
+    double window = (k + 2.0) * T;
+    if (pad && CAP_TRIANGLES_PER_SAMPLE * plane + 2.0 * T > window)
+        window = CAP_TRIANGLES_PER_SAMPLE * plane + 2.0 * T;
+    /* the deeper band (isomend_decimate_stream_begin) measures later */
+    const int deep =
+        K > 1 &&
+        (!dopts || ((dopts->ratio > 0 || dopts->target_triangles) && dopts->max_error == 0));
+    double lag = ceil((double)(deep ? MEASURE_LAYERS : MEASURE_LAYERS_SHALLOW) / k);
+    lag = lag < 2 ? 2 : lag;
+    const double measure = T * k *
+                           (MEASURE_BYTES_PER_TRIANGLE * lag +
+                            kept_share(dopts) * MEASURE_BYTES_PER_FINAL * (lag + 2.0));
+    return window * BYTES_PER_TRIANGLE + measure + 1048576.0;
+}
+
+static int pad_of(const isomend_options *opts)
+{
+    return opts && (opts->flags & ISOMEND_FLAG_PAD) != 0;
+}
+
 int64_t isomend_decimate_stream_layers(const isomend_volume *desc, const isomend_options *opts,
-                                       uint64_t max_bytes)
+                                       const isomend_decimate_options *dopts, uint64_t max_bytes)
 {
     double plane;
     if (!plane_of(desc, opts, &plane))
@@ -474,29 +566,25 @@ int64_t isomend_decimate_stream_layers(const isomend_volume *desc, const isomend
     double k = floor(4194304.0 / plane);
     k = k < 4 ? 4 : k > 64 ? 64 : k;
     if (max_bytes) {
-        /* the most layers K whose window fits: K + 2 layers, 2 for K = 1,
-         * and 1 MiB (isomend_decimate_stream_memory) */
-        const double room = (double)max_bytes - 1048576.0;
-        const double b = room / (plane * TRIANGLES_PER_SAMPLE * BYTES_PER_TRIANGLE);
-        const double fit = b >= 4 ? floor(b) - 2 : 1;
-        k = fit < k ? fit : k;
-        k = k < 1 ? 1 : k;
+        /* the most layers whose estimate fits (it grows with K): 1 at least */
+        int64_t fit = 1;
+        while ((double)fit < k &&
+               estimate(plane, pad_of(opts), dopts, fit + 1) <= (double)max_bytes)
+            fit++;
+        k = (double)fit;
     }
     return (int64_t)k;
 }
 
 uint64_t isomend_decimate_stream_memory(const isomend_volume *desc, const isomend_options *opts,
-                                        int64_t chunk_layers)
+                                        const isomend_decimate_options *dopts, int64_t chunk_layers)
 {
     double plane;
     if (!plane_of(desc, opts, &plane) || chunk_layers < 0)
         return 0;
     if (chunk_layers == 0)
-        chunk_layers = isomend_decimate_stream_layers(desc, opts, 0);
-    /* the chunk, the band of 3 rings (about a layer) and with more than one
-     * layer the deeper band's layer (stream_window.c) */
-    const double layers = (double)chunk_layers + (chunk_layers > 1 ? 2 : 1);
-    const double bytes = layers * plane * TRIANGLES_PER_SAMPLE * BYTES_PER_TRIANGLE + 1048576.0;
+        chunk_layers = isomend_decimate_stream_layers(desc, opts, dopts, 0);
+    const double bytes = estimate(plane, pad_of(opts), dopts, chunk_layers);
     return bytes < 1.8e19 ? (uint64_t)bytes : UINT64_MAX;
 }
 
@@ -525,7 +613,7 @@ isomend_status isomend_decimate_stream_begin(const isomend_volume *desc,
     d->ratio = dopts->ratio;
     d->target = dopts->target_triangles;
     d->max_error = dopts->max_error;
-    d->K = chunk_layers ? chunk_layers : isomend_decimate_stream_layers(desc, opts, 0);
+    d->K = chunk_layers ? chunk_layers : isomend_decimate_stream_layers(desc, opts, dopts, 0);
     /* the deeper band: for a ratio or a target, not on chunks of 1 layer, not
      * with max_error (its carried points made a window's checks 3 to 7 x
      * slower: docs/postprocess.md) */
@@ -550,6 +638,8 @@ isomend_status isomend_decimate_stream_begin(const isomend_volume *desc,
         isomend_decimate_stream_destroy(d);
         return ISOMEND_ERR_OUT_OF_MEMORY;
     }
+    mem_tally_add(stream_window_tally(d->w), sizeof *d + ((uint64_t)d->lag + 1) * sizeof *d->pend +
+                                                 ((uint64_t)d->lag + 2) * sizeof *d->soup);
     *ds = d;
     return ISOMEND_OK;
 }
@@ -605,14 +695,19 @@ isomend_status isomend_decimate_stream_finish(isomend_decimate_stream *d,
     return ISOMEND_OK;
 }
 
+uint64_t isomend_decimate_stream_peak_bytes(const isomend_decimate_stream *d)
+{
+    return d ? stream_window_peak_bytes(d->w) : 0;
+}
+
 void isomend_decimate_stream_destroy(isomend_decimate_stream *d)
 {
     if (!d)
         return;
-    stream_window_destroy(d->w);
     free(d->q_out);
     free(d->pts);
     window_points_free(d);
+    stream_window_destroy(d->w);
     for (int j = 0; d->pend && j < d->lag + 1; j++)
         free(d->pend[j].p);
     for (int j = 0; d->soup && j < d->lag + 2; j++)

@@ -239,9 +239,11 @@ static void dist_blocks(void *arg, size_t lo_block, size_t hi_block)
 }
 
 int mesh_distances(const float *pts, size_t np, const float *pos, const uint32_t *tri, size_t nt,
-                   double *max_out, double *mean_out)
+                   double *max_out, double *mean_out, uint64_t *bytes)
 {
     *max_out = *mean_out = 0;
+    if (bytes)
+        *bytes = 0;
     if (!np || !nt)
         return 1;
     cell_grid g;
@@ -361,6 +363,10 @@ int mesh_distances(const float *pts, size_t np, const float *pos, const uint32_t
             bx[3 + a] = x > y ? (x > z ? x : z) : (y > z ? y : z);
         }
     }
+    if (bytes) /* its grid, the blocks' results, the corners and the boxes, at once */
+        *bytes = ((uint64_t)ncell + 1 + (total ? total : 1)) * sizeof(uint32_t) +
+                 2 * (uint64_t)nblocks * sizeof(double) + 9 * (uint64_t)nt * sizeof(float) +
+                 6 * (uint64_t)(total ? total : 1) * sizeof(float);
     dist_job job = {&g, pts, corners, boxes, np, bmax, bmax + nblocks};
     parallel_for_from(nblocks, 2, dist_blocks, &job); /* threads from 2 blocks (8192 points) on */
     double worst = 0, sum = 0;

@@ -56,6 +56,10 @@ isomend_status mesh_copy_frame(isomend_mesh *dst, const isomend_mesh *src);
 void mesh_area_normals(isomend_mesh *m, const float *keep);
 int mesh_free_vertices(const isomend_mesh *m, team *tm, uint8_t *free_flag, uint32_t **first,
                        uint32_t **next, uint32_t **prev);
+/* smooth.c: isomend_mesh_smooth(), and in *bytes (if not NULL) the most it
+ * held at once beyond the input, its output included. */
+isomend_status mesh_smooth(const isomend_mesh *mesh, int iterations, isomend_mesh **out,
+                           isomend_smooth_report *report, uint64_t *bytes);
 /* smooth.c: the windowed sinc filter of `iterations` (>= 1) steps on n
  * vertices whose neighbours are nb[first[v] .. first[v + 1]) (free_v[v] 0:
  * the vertex stays), from the centred positions x0 into out, on team tm
@@ -107,6 +111,8 @@ typedef struct decimate_carry {
     uint32_t *pts_out;         /* out (with pts): the points of the output vertices, */
     uint32_t *pts_out_first;   /* by vertex (nv_out + 1 of these); malloc'ed        */
     const uint8_t *locked;     /* nv: non-zero for a vertex that stays (NULL: none) */
+    uint64_t peak_bytes;       /* out: the most bytes it held at once beyond the input,
+                                * its outputs included (*out, kept, q_out, pts_out)  */
 } decimate_carry;
 /* carry (may be NULL): quadrics carried in and out, for a decimation in
  * pieces whose earlier triangles' planes are already in their vertices'
@@ -118,11 +124,12 @@ isomend_status mesh_decimate_to(const isomend_mesh *mesh, uint64_t target, doubl
                                 decimate_carry *carry, isomend_decimate_report *report);
 
 /* distance.c: the squared distance from p to triangle (a, b, c); the largest
- * and mean distance from np points to a triangle mesh (0 without memory). */
+ * and mean distance from np points to a triangle mesh (0 without memory;
+ * *bytes, if not NULL: the most it allocated at once). */
 double point_triangle_distance2(const double p[3], const double a[3], const double b[3],
                                 const double c[3]);
 int mesh_distances(const float *pts, size_t np, const float *pos, const uint32_t *tri, size_t nt,
-                   double *max_out, double *mean_out);
+                   double *max_out, double *mean_out, uint64_t *bytes);
 
 /* components.c: each vertex's component (triangles joined through shared
  * vertices), numbered in vertex order; returns their count (isolated

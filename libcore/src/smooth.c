@@ -693,6 +693,14 @@ static void *comp_main(void *arg)
 isomend_status isomend_mesh_smooth(const isomend_mesh *mesh, int iterations, isomend_mesh **out,
                                    isomend_smooth_report *report)
 {
+    return mesh_smooth(mesh, iterations, out, report, NULL);
+}
+
+isomend_status mesh_smooth(const isomend_mesh *mesh, int iterations, isomend_mesh **out,
+                           isomend_smooth_report *report, uint64_t *bytes)
+{
+    if (bytes)
+        *bytes = 0;
     if (!out)
         return ISOMEND_ERR_INVALID_ARGUMENT;
     *out = NULL;
@@ -841,6 +849,21 @@ isomend_status isomend_mesh_smooth(const isomend_mesh *mesh, int iterations, iso
     team_for(tm, mesh->nt, copy_range, &tj);
     if (mesh_copy_frame(m, mesh) != ISOMEND_OK)
         goto done;
+    if (bytes) { /* everything above is held at once (the filter's rows with it) */
+        const uint64_t n1 = nv1, c3 = 3 * (uint64_t)(mesh->nt ? mesh->nt : 1);
+        const int near = nv >= NEAR_MIN, wide16 = !near && nv <= SHORT_MAX;
+        *bytes =
+            n1 * (1 + 4 + 12 + 16) + 3 * (12 * n1 + 16) + sizeof *m + 4 * (n1 + 1) + 8 * c3 +
+            5 * 8 * (uint64_t)nc1 +
+            (nc <= SUM_DENSE ? ((nv + SUM_BLOCK - 1) / SUM_BLOCK) * (uint64_t)nc *
+                                       (SUM_FIELDS * sizeof(double) + 1) +
+                                   2
+                             : 0) +
+            (iterations > 0 ? 8 * ((uint64_t)iterations + 1) +
+                                  (near ? NEAR * sizeof(int16_t) : WIDE * (wide16 ? 2 : 4)) * n1
+                            : 0) +
+            (m->slice_store ? 24 * (uint64_t)m->slices.n : 0);
+    }
     if (report) {
         double worst = 0;
         for (size_t v = 0; v < nv; v++)

@@ -45,11 +45,15 @@
 #include <stdlib.h>
 #include <string.h>
 
-/* The memory estimate: bytes a stream triangle costs in a window (its ids,
- * the stream's positions, the window's mesh, smooth.c's tables, the result)
- * and stream triangles a marched sample. */
-#define BYTES_PER_TRIANGLE 200.0
+/* The memory estimate: bytes a window's triangle costs (its ids, the
+ * stream's positions, its vertices' slots and id table, the window's mesh,
+ * smooth.c's tables, the result; measured against
+ * isomend_smooth_stream_peak_bytes(): 240 to 300, docs/postprocess.md), stream
+ * triangles a marched sample, and a padded end's cap's (half the slice
+ * inside), which the first and last windows hold besides the band. */
+#define BYTES_PER_TRIANGLE       360.0
 #define TRIANGLES_PER_SAMPLE 0.25
+#define CAP_TRIANGLES_PER_SAMPLE 1.0
 
 /* A slot's own bytes. */
 typedef struct original {
@@ -92,7 +96,12 @@ static isomend_status smooth_window(void *user, stream_window *sw, const stream_
                                     stream_window_raw(sw, id[2]));
     }
     *kept = NULL;
-    return w->m->nt ? isomend_mesh_smooth(w->m, d->iterations, r, NULL) : ISOMEND_OK;
+    if (!w->m->nt)
+        return ISOMEND_OK;
+    uint64_t bytes = 0;
+    const isomend_status st = mesh_smooth(w->m, d->iterations, r, NULL, &bytes);
+    mem_tally_spike(stream_window_tally(sw), bytes); /* the window counts the result */
+    return st;
 }
 
 /* The final triangles' vertices take their smoothed positions (a fixed one
@@ -145,10 +154,14 @@ uint64_t isomend_smooth_stream_memory(const isomend_volume *desc, const isomend_
     const int pad = ((opts ? opts : &defaults)->flags & ISOMEND_FLAG_PAD) != 0;
     const double plane = (double)(desc->dims[0] + 2 * pad) * (double)(desc->dims[1] + 2 * pad);
     if (chunk_layers == 0)
-        chunk_layers = isomend_decimate_stream_layers(desc, opts, 0);
-    /* a chunk and the band (a ring is at most a layer deep, about) */
-    const double layers = (double)chunk_layers + (double)iterations + 2.0;
-    const double bytes = layers * plane * TRIANGLES_PER_SAMPLE * BYTES_PER_TRIANGLE + 1048576.0;
+        chunk_layers = isomend_decimate_stream_layers(desc, opts, NULL, 0);
+    /* a chunk and the band (a ring is at most a layer deep, about), or at a
+     * padded end the cap and the band */
+    const double T = plane * TRIANGLES_PER_SAMPLE, band = (double)iterations + 2.0;
+    double window = ((double)chunk_layers + band) * T;
+    if (pad && CAP_TRIANGLES_PER_SAMPLE * plane + band * T > window)
+        window = CAP_TRIANGLES_PER_SAMPLE * plane + band * T;
+    const double bytes = window * BYTES_PER_TRIANGLE + 1048576.0;
     return bytes < 1.8e19 ? (uint64_t)bytes : UINT64_MAX;
 }
 
@@ -180,11 +193,13 @@ isomend_status isomend_smooth_stream_begin(const isomend_volume *desc, const iso
                                          .final = count_final,
                                          .delivered = count_moved};
     const int normals = !((opts ? opts : &defaults)->flags & ISOMEND_FLAG_NO_NORMALS);
-    const int64_t K = chunk_layers ? chunk_layers : isomend_decimate_stream_layers(desc, opts, 0);
+    const int64_t K =
+        chunk_layers ? chunk_layers : isomend_decimate_stream_layers(desc, opts, NULL, 0);
     if (stream_window_begin(&client, out, normals, K, &d->w) != ISOMEND_OK) {
         free(d);
         return ISOMEND_ERR_OUT_OF_MEMORY;
     }
+    mem_tally_add(stream_window_tally(d->w), sizeof *d);
     *ss = d;
     return ISOMEND_OK;
 }
@@ -214,6 +229,11 @@ isomend_status isomend_smooth_stream_finish(isomend_smooth_stream *d,
     if (report)
         *report = d->rep;
     return ISOMEND_OK;
+}
+
+uint64_t isomend_smooth_stream_peak_bytes(const isomend_smooth_stream *d)
+{
+    return d ? stream_window_peak_bytes(d->w) : 0;
 }
 
 void isomend_smooth_stream_destroy(isomend_smooth_stream *d)

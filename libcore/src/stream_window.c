@@ -35,6 +35,7 @@
  */
 #include "stream_window.h"
 #include "id_table.h"
+#include "mem_tally.h"
 #include "mesh_internal.h"
 
 #include <math.h>
@@ -54,10 +55,11 @@ typedef struct slot {
     double n[3];      /* the final triangles' area-weighted normal sum     */
 } slot;
 
-/* A growable array of elements of `size` bytes. */
+/* A growable array of elements of `size` bytes, counted in *tally. */
 typedef struct vec {
     void *p;
     size_t n, cap, size;
+    mem_tally *tally;
 } vec;
 
 static int vec_reserve(vec *v, size_t n)
@@ -70,6 +72,7 @@ static int vec_reserve(vec *v, size_t n)
     void *p = realloc(v->p, cap * v->size);
     if (!p)
         return 0;
+    mem_tally_grow(v->tally, v->p ? (uint64_t)v->cap * v->size : 0, (uint64_t)cap * v->size);
     v->p = p;
     v->cap = cap;
     return 1;
@@ -118,6 +121,8 @@ struct stream_window {
     /* delivery scratch */
     vec vpos, vnrm; /* floats x 3: the positions and normals of a batch */
     vec tbuf;       /* uint64_t x 3                                     */
+
+    mem_tally mem; /* what the window and its client hold (mem_tally.h) */
 };
 
 isomend_status stream_window_fail(stream_window *w, isomend_status st)
@@ -159,14 +164,35 @@ const uint32_t *stream_window_held(const stream_window *w, size_t *count)
     return w->held.p;
 }
 
+mem_tally *stream_window_tally(stream_window *w)
+{
+    return &w->mem;
+}
+
+uint64_t stream_window_peak_bytes(const stream_window *w)
+{
+    return w->mem.peak;
+}
+
+uint64_t stream_window_mesh_bytes(const isomend_mesh *m)
+{
+    if (!m)
+        return 0;
+    return sizeof *m + 12 * (uint64_t)m->nv * (m->nrm ? 2 : 1) + 12 * (uint64_t)m->nt +
+           (m->org ? (uint64_t)m->nt : 0) + (m->slice_store ? 24 * (uint64_t)m->slices.n : 0);
+}
+
 /* The slot of stream vertex id, made at position p if it has none. */
 static uint32_t slot_of(stream_window *w, uint64_t id, const float *p)
 {
     uint32_t s = id_table_find(&w->ids, id);
     if (s != NONE)
         return s;
+    const uint64_t ids_before = (uint64_t)w->ids.cap * 12;
     if (!id_table_reserve(&w->ids))
         return NONE;
+    if ((uint64_t)w->ids.cap * 12 != ids_before) /* a new table, filled from the old */
+        mem_tally_grow(&w->mem, ids_before, (uint64_t)w->ids.cap * 12);
     if (w->free_slot != NONE) {
         s = w->free_slot;
         w->free_slot = w->slots[s].local;
@@ -177,10 +203,13 @@ static uint32_t slot_of(stream_window *w, uint64_t id, const float *p)
             if (!n)
                 return NONE;
             w->slots = n;
+            mem_tally_grow(&w->mem, (uint64_t)w->cap_slots * sizeof *n, (uint64_t)cap * sizeof *n);
             unsigned char *b = realloc(w->data, cap * w->c.data_bytes + 1);
             if (!b)
                 return NONE;
             w->data = b;
+            mem_tally_grow(&w->mem, w->cap_slots ? (uint64_t)w->cap_slots * w->c.data_bytes + 1 : 0,
+                           (uint64_t)cap * w->c.data_bytes + 1);
             w->cap_slots = cap;
         }
         s = (uint32_t)w->nslots++;
@@ -308,11 +337,12 @@ static isomend_status deliver(stream_window *w)
 /* Rings from the top plane's vertices over mesh r, whose vertex v is slot
  * out_slot[v] (dist: band or more where farther). */
 static int rings(const isomend_mesh *r, const uint32_t *out_slot, const slot *slots,
-                 uint64_t top_lo, uint64_t top_hi, uint32_t band, uint32_t *dist)
+                 uint64_t top_lo, uint64_t top_hi, uint32_t band, uint32_t *dist, mem_tally *tally)
 {
     const size_t nv = r->nv, nt = r->nt;
     uint32_t *first = calloc(nv + 1, sizeof *first), *tris = malloc((3 * nt + 1) * sizeof *tris);
     uint32_t *queue = malloc((nv + 1) * sizeof *queue);
+    mem_tally_spike(tally, (2 * (uint64_t)nv + 2 + 3 * (uint64_t)nt + 1) * sizeof *queue);
     if (!first || !tris || !queue) {
         free(first);
         free(tris);
@@ -414,8 +444,11 @@ static isomend_status run_window(stream_window *w, int last)
     uint32_t *wt = malloc((3 * nt + 1) * sizeof *wt), *lv = malloc((3 * nt + 1) * sizeof *lv);
     uint32_t *kept = NULL, *out_slot = NULL, *dist = NULL;
     uint8_t *fin = NULL, *age = NULL;
+    uint64_t scratch = 0; /* the bytes this window counts in w->mem until it ends */
     if (!m || !wt || !lv)
         goto oom;
+    scratch = sizeof *m + 2 * (3 * (uint64_t)nt + 1) * sizeof *wt;
+    mem_tally_add(&w->mem, scratch);
     /* the window's triangles as slots: the held ones, then the chunk's */
     if (nheld)
         memcpy(wt, w->held.p, 3 * nheld * sizeof *wt);
@@ -442,6 +475,8 @@ static isomend_status run_window(stream_window *w, int last)
     m->tri = malloc((nt + 1) * 12);
     if (!m->pos || !m->tri)
         goto oom;
+    mem_tally_add(&w->mem, 12 * ((uint64_t)nv + 1 + (uint64_t)nt + 1));
+    scratch += 12 * ((uint64_t)nv + 1 + (uint64_t)nt + 1);
     for (size_t v = 0; v < nv; v++)
         memcpy(m->pos + 3 * v, w->slots[lv[v]].p, 12);
     for (size_t i = 0; i < 3 * nt; i++)
@@ -452,6 +487,12 @@ static isomend_status run_window(stream_window *w, int last)
     st = w->c.process(w->c.user, w, &view, &r, &kept);
     if (st != ISOMEND_OK)
         goto done;
+    {
+        /* the result: the client's work counted its peak (a spike) */
+        const uint64_t rb = stream_window_mesh_bytes(r) + (kept && r ? 4 * (uint64_t)r->nv : 0);
+        mem_tally_add(&w->mem, rb);
+        scratch += rb;
+    }
     /* the window's triangles are consumed; the result's vertices take their place */
     for (size_t i = 0; i < 3 * nt; i++)
         w->slots[wt[i]].held--;
@@ -463,12 +504,15 @@ static isomend_status run_window(stream_window *w, int last)
     age = malloc(rv + 1);
     if (!out_slot || !dist || !fin || !age)
         goto oom;
+    mem_tally_add(&w->mem,
+                  2 * ((uint64_t)rv + 1) * sizeof *dist + (uint64_t)rt + 1 + (uint64_t)rv + 1);
+    scratch += 2 * ((uint64_t)rv + 1) * sizeof *dist + (uint64_t)rt + 1 + (uint64_t)rv + 1;
     for (size_t v = 0; v < rv; v++)
         out_slot[v] = lv[kept ? kept[v] : v];
     uint32_t reach = w->c.band + (last ? 0 : w->c.more);
     if (reach > STREAM_WINDOW_MAX_RINGS)
         reach = w->c.band > STREAM_WINDOW_MAX_RINGS ? w->c.band : STREAM_WINDOW_MAX_RINGS;
-    if (rv && !rings(r, out_slot, w->slots, top_lo, top_hi, reach, dist))
+    if (rv && !rings(r, out_slot, w->slots, top_lo, top_hi, reach, dist, &w->mem))
         goto oom;
     if (rt)
         hold_band(w, r, out_slot, dist, reach, nchunk, age, fin);
@@ -510,6 +554,7 @@ static isomend_status run_window(stream_window *w, int last)
 oom:
     st = ISOMEND_ERR_OUT_OF_MEMORY;
 done:
+    mem_tally_sub(&w->mem, scratch);
     isomend_mesh_destroy(m);
     isomend_mesh_destroy(r);
     free(wt);
@@ -602,6 +647,10 @@ isomend_status stream_window_begin(const stream_window_client *client, const iso
     w->held.size = w->waiting.size = 12;
     w->vpos.size = w->vnrm.size = 12;
     w->tbuf.size = 24;
+    vec *const all[] = {&w->raw, &w->chunk, &w->held, &w->waiting, &w->vpos, &w->vnrm, &w->tbuf};
+    for (size_t i = 0; i < sizeof all / sizeof all[0]; i++)
+        all[i]->tally = &w->mem;
+    mem_tally_add(&w->mem, sizeof *w + (w->floors ? ((uint64_t)client->young + 1) * 8 : 0));
     *sw = w;
     return ISOMEND_OK;
 }

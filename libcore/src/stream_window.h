@@ -10,6 +10,7 @@
 #define ISOMEND_STREAM_WINDOW_H
 
 #include "isomend.h"
+#include "mem_tally.h"
 
 #include <stddef.h>
 #include <stdint.h>
@@ -105,5 +106,14 @@ void *stream_window_data(stream_window *sw, uint32_t s);
 const float *stream_window_raw(const stream_window *sw, uint64_t id);
 /* The held triangles (slots, 3 each) and their count. */
 const uint32_t *stream_window_held(const stream_window *sw, size_t *count);
+/* What the window and its client hold (mem_tally.h): the window counts its
+ * own arrays, its scratch and a window's result (the mesh and `kept`); the
+ * client counts its own bytes in it, and its work on a window (process) as a
+ * spike.  The most held at once so far. */
+mem_tally *stream_window_tally(stream_window *sw);
+uint64_t stream_window_peak_bytes(const stream_window *sw);
+/* The bytes of a mesh's arrays (positions, normals, triangles, origins,
+ * slices) and its struct, as a window's result holds them; 0 for NULL. */
+uint64_t stream_window_mesh_bytes(const isomend_mesh *m);
 
 #endif

@@ -541,7 +541,7 @@ def test_errors(exe, work, samples):
 
 # ------------------------------------------------------------------ larger than memory
 
-def test_large(exe, peak_rss, work, bounds, mpi=None, mpirun=None, nx=192, size_mib=32, period=64):
+def test_large(exe, peak_rss, work, bounds, mpi=None, mpirun=None, nx=128, size_mib=40, period=64):
     """A volume 8 x --max-memory SIZE, decimated streamed within SIZE + overhead."""
     t0 = time.time()
     size = f"{size_mib}M"

@@ -453,10 +453,11 @@ int main(void)
                      ISOMEND_ERR_INVALID_ARGUMENT);
         CHECK_EQ_INT(isomend_decimate_stream_begin(NULL, &o, &d, 0, &out, &ds),
                      ISOMEND_ERR_INVALID_ARGUMENT);
-        CHECK(isomend_decimate_stream_layers(&vol, &o, 0) >= 4);
-        CHECK_EQ_INT(isomend_decimate_stream_layers(NULL, &o, 0), 0);
-        CHECK(isomend_decimate_stream_layers(&vol, &o, 1) == 1);
-        CHECK(isomend_decimate_stream_memory(&vol, &o, 8) > isomend_decimate_stream_memory(&vol, &o, 2));
+        CHECK(isomend_decimate_stream_layers(&vol, &o, NULL, 0) >= 4);
+        CHECK_EQ_INT(isomend_decimate_stream_layers(NULL, &o, NULL, 0), 0);
+        CHECK(isomend_decimate_stream_layers(&vol, &o, NULL, 1) == 1);
+        CHECK(isomend_decimate_stream_memory(&vol, &o, NULL, 8) >
+              isomend_decimate_stream_memory(&vol, &o, NULL, 2));
         isomend_decimate_stream_destroy(NULL);
         /* the out sink stops at its k-th call: the stream stops with ISOMEND_ERR_SINK */
         int stops = 0;
