@@ -527,6 +527,18 @@ isomend_status isomend_check_stream_begin(const double box[6], isomend_check_str
     return begin_box(box, out);
 }
 
+/* The marched grid of a stream of desc with opts (its samples' strides
+ * aside), in c. */
+static isomend_status grid_of(const isomend_volume *desc, const isomend_options *opts, ctx *c)
+{
+    isomend_options defaults;
+    isomend_options_init(&defaults);
+    isomend_volume v = *desc;
+    memset(v.strides, 0, sizeof v.strides);
+    memset(c, 0, sizeof *c);
+    return ctx_setup(c, &v, opts ? opts : &defaults);
+}
+
 isomend_status isomend_check_stream_begin_volume(const isomend_volume *desc,
                                                  const isomend_options *opts,
                                                  isomend_check_stream **out)
@@ -536,13 +548,8 @@ isomend_status isomend_check_stream_begin_volume(const isomend_volume *desc,
     *out = NULL;
     if (!desc)
         return ISOMEND_ERR_INVALID_ARGUMENT;
-    isomend_options defaults;
-    isomend_options_init(&defaults);
-    isomend_volume v = *desc;
-    memset(v.strides, 0, sizeof v.strides);
     ctx c;
-    memset(&c, 0, sizeof c);
-    isomend_status status = ctx_setup(&c, &v, opts ? opts : &defaults);
+    isomend_status status = grid_of(desc, opts, &c);
     if (status != ISOMEND_OK)
         return status;
     const grid *g = &c.g;
@@ -614,15 +621,8 @@ uint64_t isomend_check_stream_peak_bytes(const isomend_check_stream *s)
 
 uint64_t isomend_check_stream_memory(const isomend_volume *desc, const isomend_options *opts)
 {
-    if (!desc)
-        return 0;
-    isomend_options defaults;
-    isomend_options_init(&defaults);
-    isomend_volume v = *desc;
-    memset(v.strides, 0, sizeof v.strides);
     ctx c;
-    memset(&c, 0, sizeof c);
-    if (ctx_setup(&c, &v, opts ? opts : &defaults) != ISOMEND_OK)
+    if (!desc || grid_of(desc, opts, &c) != ISOMEND_OK)
         return 0;
     const grid *g = &c.g;
     /* the window; the ring's last chunk and the spare kept beside it; the

@@ -634,20 +634,28 @@ static double now(void)
     return (double)t.tv_sec + 1e-9 * (double)t.tv_nsec;
 }
 
-/* Both checks on an n^3 gyroid's mesh; the streaming one fed as a stream
- * feeds it (a layer's triangles, then retire), from memory. */
-static void bench(int64_t size)
+/* The padded surface of a gyroid of n samples (*data: its samples, to free). */
+static isomend_mesh *gyroid_mesh(const int64_t n[3], float **data)
 {
-    const int64_t n[3] = {size, size, size};
-    float *data = make_field(GYROID, n);
+    *data = make_field(GYROID, n);
     isomend_volume vol;
-    isomend_volume_init(&vol, data, ISOMEND_F32, n[0], n[1], n[2]);
+    isomend_volume_init(&vol, *data, ISOMEND_F32, n[0], n[1], n[2]);
     isomend_options o;
     isomend_options_init(&o);
     o.iso = 0.5;
     o.flags = ISOMEND_FLAG_PAD | ISOMEND_FLAG_NO_NORMALS;
     isomend_mesh *mesh = NULL;
     CHECK_EQ_INT(isomend_extract(&vol, &o, &mesh, NULL), ISOMEND_OK);
+    return mesh;
+}
+
+/* Both checks on an n^3 gyroid's mesh; the streaming one fed as a stream
+ * feeds it (a layer's triangles, then retire), from memory. */
+static void bench(int64_t size)
+{
+    const int64_t n[3] = {size, size, size};
+    float *data;
+    isomend_mesh *mesh = gyroid_mesh(n, &data);
     const size_t nv = isomend_mesh_vertex_count(mesh), nt = isomend_mesh_triangle_count(mesh);
     const float *pos = isomend_mesh_positions(mesh);
     const uint32_t *tri = isomend_mesh_triangles(mesh);
@@ -673,7 +681,9 @@ static void bench(int64_t size)
         const double t_mem = now() - t0;
         t0 = now();
         isomend_check_stream *c = NULL;
-        CHECK_EQ_INT(isomend_check_stream_begin_volume(&vol, &o, &c), ISOMEND_OK);
+        double box[6];
+        isomend_mesh_grid_box(mesh, box);
+        CHECK_EQ_INT(isomend_check_stream_begin(box, &c), ISOMEND_OK);
         const size_t batch = nt / (size_t)(size + 1) + 1;
         size_t delivered = 0;
         for (size_t t = 0; t < nt; t += batch) {
@@ -693,8 +703,10 @@ static void bench(int64_t size)
         const double t_stream = now() - t0;
         CHECK(same_report(&got, &want, "bench"));
         printf("%lld^3 gyroid, %zu triangles: isomend_mesh_check %.3f s (%.1f M triangles/s, "
-               "%llu bytes), streaming %.3f s (%.1f M triangles/s, peak %llu bytes)\n",
+               "at most %llu bytes; sorted: %llu), streaming %.3f s (%.1f M triangles/s, peak "
+               "%llu bytes)\n",
                (long long)size, nt, t_mem, (double)nt / t_mem * 1e-6,
+               (unsigned long long)isomend_mesh_check_memory(mesh),
                (unsigned long long)isomend_check_memory(nv, nt), t_stream,
                (double)nt / t_stream * 1e-6,
                (unsigned long long)isomend_check_stream_peak_bytes(c));
@@ -720,15 +732,8 @@ static void test_route(void)
     for (int size = 0; size < 3; size++) {
         const int64_t side = size == 0 ? 24 : size == 1 ? 56 : 120;
         const int64_t n[3] = {side, side + 3, side - 2};
-        float *data = make_field(GYROID, n);
-        isomend_volume vol;
-        isomend_volume_init(&vol, data, ISOMEND_F32, n[0], n[1], n[2]);
-        isomend_options o;
-        isomend_options_init(&o);
-        o.iso = 0.5;
-        o.flags = ISOMEND_FLAG_NO_NORMALS | ISOMEND_FLAG_PAD;
-        isomend_mesh *mesh = NULL;
-        CHECK_EQ_INT(isomend_extract(&vol, &o, &mesh, NULL), ISOMEND_OK);
+        float *data;
+        isomend_mesh *mesh = gyroid_mesh(n, &data);
         const float *pos = isomend_mesh_positions(mesh);
         const uint32_t *tri = isomend_mesh_triangles(mesh);
         const size_t nv = isomend_mesh_vertex_count(mesh), nt = isomend_mesh_triangle_count(mesh);
