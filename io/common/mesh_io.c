@@ -14,6 +14,7 @@
 
 #include <ctype.h>
 #include <errno.h>
+#include <limits.h>
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
@@ -459,6 +460,34 @@ static isomend_fileio_status read_ply(FILE *fp, const char *path, isomend_read_m
 
 /* ------------------------------------------------------------------ OBJ */
 
+/* A face corner's vertex index, as strtoll(s, end, 10) reads it after the
+ * spaces: an optional sign and decimal digits; *ok 0 when there are none or
+ * the value is beyond a long long.  (strtoll was a sixth of reading a large
+ * OBJ: its locale and base handling, per corner.) */
+static long long obj_index(char *s, char **end, int *ok)
+{
+    char *p = s;
+    const int neg = *p == '-';
+    if (*p == '-' || *p == '+') p++;
+    if (*p < '0' || *p > '9') {
+        *end = s;
+        *ok = 0;
+        return 0;
+    }
+    unsigned long long v = 0;
+    int over = 0;
+    for (; *p >= '0' && *p <= '9'; p++) {
+        const unsigned d = (unsigned)(*p - '0');
+        if (v > (ULLONG_MAX - d) / 10) over = 1;
+        else v = 10 * v + d;
+    }
+    *end = p;
+    *ok = !over && (v <= (unsigned long long)LLONG_MAX ||
+                    (neg && v == (unsigned long long)LLONG_MAX + 1));
+    if (!*ok) return 0;
+    return neg ? (long long)(0 - v) : (long long)v;
+}
+
 static isomend_fileio_status read_obj(FILE *fp, const char *path, isomend_read_mesh_result *out,
                                       char *msg, size_t msg_size)
 {
@@ -514,9 +543,9 @@ static isomend_fileio_status read_obj(FILE *fp, const char *path, isomend_read_m
                 while (*s == ' ' || *s == '\t') s++;
                 if (!*s || *s == '\n' || *s == '\r' || *s == '#') break;
                 char *end;
-                errno = 0;
-                long long v = strtoll(s, &end, 10);
-                if (end == s || errno) {
+                int ok;
+                long long v = obj_index(s, &end, &ok);
+                if (!ok) {
                     SET_MSG(msg, msg_size, "%s: line %llu: bad face corner '%.20s'", path,
                             (unsigned long long)lineno, s);
                     st = ISOMEND_FILEIO_ERR_FORMAT;
