@@ -6,12 +6,10 @@
  * declared by the files that define them:
  *
  *   extract.h          the context's set-up, the workers, the statistics
- *                      (extract.c); isomend_extract() and its recycling
- *   passes.h           the two passes: chunks of layers on threads, the
- *                      prefix sums between them, the output arrays
- *   one_pass.h         the one pass for one or two threads, its split
- *                      between two threads and the join of a split apart
- *   sign_cache.h       the counting pass's signs kept for the fill pass
+ *                      (extract.c)
+ *   stream.h           the one engine: runs of slices driven through the
+ *                      kernels, their mesh to a sink or in place (stream.c);
+ *                      isomend_extract() schedules its runs in slabs.c
  *   vertices.h         the general vertex path (borders, NaN, padding,
  *                      face diagonals), exact per-type gradients
  *   march_general.h    the per-cube hook of methods.h, tetra's diagonals
@@ -42,20 +40,21 @@
 /* ---------------------------------------------------------- the passes */
 
 /*
- * What a pass does with a slice or a layer (extract.c has the overview).
+ * What a kernel does with a slice or a layer (extract.c has the overview).
  *   PASS_COUNT  counts the intersected edges, the triangles and the
- *               statistics; nothing is written.
- *   PASS_FILL   numbers the edges from the counts' prefix sums, computes
- *               the vertices and writes the triangles.
- *   PASS_SWEEP  the one pass: counts and writes at once, the ids following
- *               the running count.
- * ctx.pass is the pass under way; the sign slices come from the sign cache
- * in PASS_FILL and are classified (counting NaN samples) in the others.
+ *               statistics; nothing is written (a general method's layer
+ *               before it is written; a slice sampled).
+ *   PASS_FILL   writes a general method's layer counted before: its
+ *               cube-private vertices from ctx.private_first, its triangles.
+ *   PASS_SWEEP  counts and writes at once, the ids following the running
+ *               count.
+ * ctx.pass is PASS_SWEEP: the sign slices are classified (counting NaN
+ * samples) as a worker needs them.
  */
 typedef enum pass_kind { PASS_COUNT, PASS_FILL, PASS_SWEEP } pass_kind;
 
 /* Sign slices a worker holds: a layer's three (k, k + 1 and k + 2 for the
- * +z neighbours), and in the one-pass path the next, read ahead. */
+ * +z neighbours), and the next. */
 enum { SIGN_RING = 4 };
 
 /* Sign and case buffers carry SCAN_PAD bytes of slack for the 16-column
@@ -80,17 +79,17 @@ enum {
 };
 
 struct extract_kernels;
-struct split;
 
-/* The schedule isomend_extract() takes: chosen by the grid and the mesh
- * (AUTO), or, for tests only (extract_set_test_schedule), the one pass at
- * every size (ONE_PASS), its two threads always split apart (APART), and
- * the first thread then doing every move (APART_SOLO). */
+/* The schedule isomend_extract() takes (slabs.c): chosen by the grid
+ * (AUTO), or, for tests only (extract_set_test_schedule), staged runs on
+ * the other threads at every size (ANY_SIZE), staged runs of one layer
+ * (THIN), and the caller's run stopping after layer 0, every other layer
+ * staged (STAGED). */
 typedef enum extract_schedule {
     SCHEDULE_AUTO,
-    SCHEDULE_ONE_PASS,
-    SCHEDULE_APART,
-    SCHEDULE_APART_SOLO
+    SCHEDULE_ANY_SIZE,
+    SCHEDULE_THIN,
+    SCHEDULE_STAGED
 } extract_schedule;
 
 /* One extraction: the grid, the options, the counts and the output arrays. */
@@ -102,11 +101,6 @@ typedef struct ctx {
     int want_normals;
     int want_origins;
     int small_pages;       /* ISOMEND_FLAG_SMALL_PAGES: no huge pages asked for */
-    int64_t nchunks;
-    int64_t chunk_layers;
-    uint64_t *slice_first; /* [N2 + 1]: vertex count, then first vertex */
-    uint64_t *layer_first; /* [N2]: triangle count, then first triangle */
-    uint64_t *layer_private; /* [N2]: cube-private vertices (methods.h), then first */
     int general;           /* a method of methods.h: per-cube hook        */
     int tetra;             /* ... with face-diagonal vertices             */
     int id_planes;         /* id-map planes per slice: 3, or 6 for tetra  */
@@ -115,32 +109,17 @@ typedef struct ctx {
      * corners, columns and rows [cube_lo, cube_hi], are the samples whose
      * edges scan_slice numbers. */
     int64_t cube_lo[2], cube_hi[2];
-    /* The sign cache (sign_cache.c): the counting pass's signs, 1 bit a
-     * sample, and the row spans; NULL when it would take too much memory. */
-    uint64_t *cache_bits;
-    row_span *cache_spans;
-    int64_t cache_words;   /* 64-bit words per row */
     float *pos, *nrm;
     uint32_t *tri;
     uint8_t *org;
-    /* Vertex id at pos[0] and nrm[0]: 0, or in a stream the first id of the
-     * slice (or of the layer's cube-private vertices) being computed, whose
-     * vertices are staged from pos[0] on (vertex_at). */
+    /* The first id of the slice (or of the layer's cube-private vertices)
+     * being computed, whose vertices are written from pos[0] on (vertex_at). */
     uint64_t vertex_base;
-    /* The first cube-private vertex of the layer marched when layer_private
-     * is NULL (a stream). */
+    /* The first cube-private vertex of the layer marched (PASS_FILL). */
     uint64_t private_first;
-    atomic_llong next_chunk;
-    atomic_llong done_chunks;
-    atomic_int cancel;
     pass_kind pass;
     isomend_progress_fn progress;
     void *progress_user;
-    struct split *split;   /* the one pass on two threads (one_pass.c)    */
-    /* One pass: the arrays have room past these bases for a split apart
-     * (one_pass.c), or 0. */
-    uint64_t apart_vertex_base, apart_triangle_base;
-    isomend_mesh *recycled; /* isomend_extract_recycle's old mesh, until used */
     extract_schedule schedule;
 } ctx;
 
@@ -159,7 +138,7 @@ typedef struct worker {
     size_t pending_count[3];
     void *block;                    /* the arrays above, in one scratch_alloc block */
     uint64_t private_count; /* cube-private vertices of the layer (methods.h) */
-    uint64_t private_next;  /* next cube-private vertex id (fill pass)       */
+    uint64_t private_next;  /* next cube-private vertex id (PASS_FILL)       */
     isomend_stats stats;
     int is_main;
 } worker;
@@ -169,8 +148,8 @@ typedef struct worker {
 /*
  * The loops that touch every sample or cube, one table per CPU target
  * (kernels_template.h).
- *   signs        slice k's sign bytes and row spans in the worker's ring:
- *                classified, or in the fill pass read from the sign cache.
+ *   signs        slice k's sign bytes and row spans in the worker's ring,
+ *                classified when the slot holds another slice.
  *   scan_slice   the intersected edges whose lower end is in slice m: with
  *                PASS_COUNT their number; otherwise numbers them from
  *                `first` into the worker's id map and, if `write`, computes
@@ -190,7 +169,7 @@ typedef struct extract_kernels {
 } extract_kernels;
 
 /* Where vertex `id` lives in ctx.pos and ctx.nrm (floats): ids are kept
- * modulo 2^32 in the id maps, and a stream stages a slice's vertices from
+ * modulo 2^32 in the id maps, and the engine writes a slice's vertices from
  * its first id, ctx.vertex_base, on. */
 static inline size_t vertex_at(uint64_t base, uint64_t id)
 {

@@ -1,62 +1,49 @@
 /*
  * extract.c - marching cubes, Durst's fix and the thesis's disambiguated
- * marching cubes over a volume read in place: the driver.
+ * marching cubes over a volume: the extraction's set-up, shared by every
+ * path (isomend_extract() in slabs.c, the streams in stream.c and
+ * stream_pool.c, the pieces).
  *
  * The grid is marched layer by layer (a layer is the cubes between sample
  * slices k and k + 1).  Slice k owns the intersected grid edges whose lower
  * end is in it (x and y edges in the slice, z edges to slice k + 1), one
  * vertex each, numbered in a fixed order (slice, row, axis x/y/z, column),
  * so the mesh is the same, vertex order included, for every thread count
- * and every path below.
+ * and every path.
  *
- * Two paths (context.h lists the files):
- *   - the two passes (passes.c): count every slice and layer on all
- *     threads, take prefix sums, allocate the output arrays at their exact
- *     size, fill;
- *   - the one pass (one_pass.c), for one or two threads and the table
- *     methods (MC, Durst, DMC) on grids of ONE_PASS_SAMPLES samples
- *     or more: count and fill in one sweep into address-space reservations,
- *     each slice classified once and its vertices computed while its
- *     samples are in the caches; two threads split the sweep.
+ * One engine (stream.c) drives the kernels slice by slice: it numbers and
+ * computes slice k + 1's vertices and then writes layer k's triangles,
+ * counting as it goes, so each slice is classified once and its vertices
+ * are computed while its samples are in the caches.  Its clients schedule
+ * runs of slices: isomend_extract() (slabs.c: the caller's run from the
+ * bottom, other threads' runs from the top, joined in place), the stream
+ * (slices pushed one at a time), its pool (stream_pool.c: slabs on
+ * threads, handed to the sink in order) and the pieces of isomend-mpi.
  *
- * Both call the same kernels (kernels_template.h), chosen once per
- * extraction for the CPU (cpu_features.c): the classification into signs
- * (sample >= iso, exactly, by a per-type threshold: grid_threshold below),
- * kept 1 bit a sample in a sign cache between the two passes; the numbering
- * of the edges and their vertices (positions, normals from central
+ * The kernels (kernels_template.h), chosen once per extraction for the CPU
+ * (cpu_features.c): the classification into signs (sample >= iso,
+ * exactly, by a per-type threshold: grid_threshold below); the numbering of
+ * the edges and their vertices (positions, normals from central
  * differences); the marching of the cubes with the generated table
  * (mc_tables.inc) and the mending quadrilaterals (march_template.h).
  *
  * Methods of methods.h (facial, gradient, asymptotic, tetra, mc33) replace
- * the table by a per-cube hook (march_general.c) and always take the two
- * passes: face-diagonal vertices (tetra) are numbered with their slice,
- * layer k's cube-private vertices after slice k's vertices (before slice
- * k + 1's: where a stream delivers them, stream.c).
+ * the table by a per-cube hook (march_general.c): each layer is counted
+ * first (its cube-private vertices numbered after slice k's vertices,
+ * before slice k + 1's), then written.
  *
  * Padding and NaN.  With ISOMEND_FLAG_PAD the marched grid is the volume
  * plus one layer of samples on every side; padding samples, like NaN
  * samples, are outside, and an edge with such an endpoint is cut at its
  * midpoint (vertices.c).
  */
-#define _GNU_SOURCE /* _SC_NPROCESSORS_ONLN */
 #include "cpu_features.h"
 #include "context.h"
-#include "sign_cache.h"
 #include "slice_geometry.h"
 #include "extract.h"
-#include "passes.h"
-#include "one_pass.h"
 #include "methods.h"
 
 #include <stdlib.h>
-#include <unistd.h>
-
-/* The smallest grid (samples) for the one-pass path.  Below it the two
- * passes are as fast or faster: the volume stays in the caches between them,
- * and their small arrays come from the heap, where the one-pass reservations
- * cost a huge page each (docs/core-internals.md).  Tests take the one pass
- * at every size (extract_set_test_schedule). */
-#define ONE_PASS_SAMPLES (1 << 21)
 
 static extract_schedule test_schedule; /* tests only */
 
@@ -117,12 +104,6 @@ static void grid_init(grid *g, const isomend_volume *vol, const isomend_options 
             g->st[a] = vol->strides[a];
     }
     grid_threshold(g);
-}
-
-static int default_threads(void)
-{
-    long n = sysconf(_SC_NPROCESSORS_ONLN);
-    return n < 1 ? 1 : n > 64 ? 64 : (int)n;
 }
 
 isomend_status volume_grid_check(const isomend_volume *vol, int pad)
@@ -248,124 +229,4 @@ void gather_stats(const ctx *c, const worker *ws, int nw, uint64_t nv, uint64_t 
     stats->cubes = (uint64_t)(g->N[0] - 1) * (uint64_t)(g->N[1] - 1) * (uint64_t)(g->N[2] - 1);
     stats->vertices = nv;
     stats->triangles = nt;
-}
-
-/* ------------------------------------------------------- the extraction */
-
-/* isomend_extract, recycling *recycled (taken, and set to NULL, once the
- * extraction has begun; the caller destroys it otherwise). */
-static isomend_status extract(const isomend_volume *vol, const isomend_options *opts,
-                              isomend_mesh **out_mesh, isomend_stats *stats,
-                              isomend_mesh **recycled)
-{
-    if (!out_mesh)
-        return ISOMEND_ERR_INVALID_ARGUMENT;
-    *out_mesh = NULL;
-    isomend_options defaults;
-    isomend_options_init(&defaults);
-    const isomend_options *o = opts ? opts : &defaults;
-    if (!vol || !vol->data)
-        return ISOMEND_ERR_INVALID_ARGUMENT;
-    ctx *c = calloc(1, sizeof(*c));
-    if (!c)
-        return ISOMEND_ERR_OUT_OF_MEMORY;
-    isomend_status status = ctx_setup(c, vol, o);
-    if (status != ISOMEND_OK) {
-        free(c);
-        return status;
-    }
-    c->recycled = *recycled; /* this call's now: used or destroyed */
-    *recycled = NULL;
-    grid *g = &c->g;
-
-    const int64_t N0 = g->N[0], N1 = g->N[1], N2 = g->N[2];
-    const int64_t layers = N2 - 1;
-    int nthreads = o->threads > 0 ? (o->threads > 64 ? 64 : o->threads) : default_threads();
-    /* Chunks: enough to balance threads (4 a thread), large enough that the 2
-     * slices a chunk classifies again at its start are a small overhead. */
-    const int64_t want = 4 * (int64_t)nthreads;
-    int64_t chunk = (layers + want - 1) / want; /* rounded up: chunks of equal size, the
-                                                 * last one barely smaller (255 layers on
-                                                 * 2 threads: 8 of 32, not 8 of 31 and 1 of 7) */
-    if (chunk < 4)
-        chunk = 4;
-    c->chunk_layers = chunk;
-    c->nchunks = (layers + chunk - 1) / chunk;
-    if (nthreads > c->nchunks)
-        nthreads = (int)c->nchunks;
-
-    isomend_mesh *mesh = NULL;
-    worker *ws = calloc((size_t)nthreads, sizeof(*ws));
-    c->slice_first = calloc((size_t)N2 + 1, sizeof(uint64_t));
-    c->layer_first = calloc((size_t)N2, sizeof(uint64_t));
-    c->layer_private = calloc((size_t)N2, sizeof(uint64_t));
-    status = ISOMEND_ERR_OUT_OF_MEMORY;
-    if (!ws || !c->slice_first || !c->layer_first || !c->layer_private ||
-        (uint64_t)N0 * (uint64_t)N1 > (uint64_t)SIZE_MAX / 16)
-        goto done;
-    for (int t = 0; t < nthreads; t++)
-        if (!worker_init(&ws[t], c)) {
-            nthreads = t + 1; /* free what was allocated */
-            goto done;
-        }
-    ws[0].is_main = 1;
-
-    uint64_t nv = 0, nt = 0;
-    status = ISOMEND_ERR_UNSUPPORTED;
-    if (nthreads <= 2 && !c->general &&
-        ((uint64_t)N0 * (uint64_t)N1 * (uint64_t)N2 >= ONE_PASS_SAMPLES ||
-         c->schedule != SCHEDULE_AUTO))
-        status = run_one_pass(c, ws, nthreads, &mesh, &nv, &nt);
-    if (status == ISOMEND_ERR_UNSUPPORTED) /* not taken, or refused its reservations */
-        status = run_two_passes(c, ws, nthreads, &mesh, &nv, &nt);
-    if (status != ISOMEND_OK)
-        goto done;
-
-    for (int a = 0; a < 3; a++) {
-        mesh->box[a] = g->o[a];
-        mesh->box[3 + a] = g->o[a] + (double)(g->N[a] - 1) * g->h[a];
-    }
-    if (g->slices.so)
-        sheared_box(g, mesh->box);
-    status = mesh_keep_slices(mesh, g);
-    if (status != ISOMEND_OK)
-        goto done;
-    if (c->progress)
-        (void)c->progress(c->progress_user, 1.0);
-    if (stats)
-        gather_stats(c, ws, nthreads, nv, nt, stats);
-    *out_mesh = mesh;
-    mesh = NULL;
-
-done:
-    isomend_mesh_destroy(mesh);
-    isomend_mesh_destroy(c->recycled);
-    if (ws)
-        for (int t = 0; t < nthreads; t++)
-            free(ws[t].block);
-    free(ws);
-    free(c->slice_first);
-    free(c->layer_first);
-    free(c->layer_private);
-    cache_free(c);
-    free(c);
-    return status;
-}
-
-isomend_status isomend_extract(const isomend_volume *vol, const isomend_options *opts,
-                               isomend_mesh **out_mesh, isomend_stats *stats)
-{
-    isomend_mesh *none = NULL;
-    return extract(vol, opts, out_mesh, stats, &none);
-}
-
-isomend_status isomend_extract_recycle(const isomend_volume *vol, const isomend_options *opts,
-                                       isomend_mesh **mesh, isomend_stats *stats)
-{
-    if (!mesh)
-        return ISOMEND_ERR_INVALID_ARGUMENT;
-    isomend_mesh *old = *mesh;
-    const isomend_status status = extract(vol, opts, mesh, stats, &old);
-    isomend_mesh_destroy(old); /* not taken: the arguments were refused */
-    return status;
 }

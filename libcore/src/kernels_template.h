@@ -24,7 +24,6 @@
 #include "march_general.h" /* method_cube, scan_diagonals: the general methods' hooks */
 #include "methods.h"
 #include "scan_inline.h"
-#include "sign_cache.h"    /* cache_load: the fill pass's signs */
 #include "tables.h"
 #include "vertex_inline.h"
 #include "vertices.h"      /* make_vertex: the general vertex path */

@@ -67,13 +67,11 @@ static ALWAYS_INLINE uint64_t march_layer_as(worker *w, int64_t k, const pass_ki
     uint64_t ntri = 0, busy = 0;
     uint32_t *out = write ? c->tri + 3 * first : NULL;
     uint8_t *org = write && c->org ? c->org + first : NULL;
-    /* The table's triangles' origins at once when the layer's count is known;
-     * in the one pass (PASS_SWEEP) the origins are a fresh reservation, whose zero
-     * bytes already say ISOMEND_ORIGIN_TABLE.  The quadrilaterals' are written
-     * by index (the general methods write theirs as they go). */
+    /* The table's triangles' origins are left as they are: zero bytes (a
+     * fresh reservation, or the stream's cleared staging) already say
+     * ISOMEND_ORIGIN_TABLE.  The quadrilaterals' are written by index (the
+     * general methods write theirs as they go). */
     _Static_assert(ISOMEND_ORIGIN_TABLE == 0, "the sweep leaves table origins as zero bytes");
-    if (org && !general && !count)
-        memset(org, ISOMEND_ORIGIN_TABLE, (size_t)(c->layer_first[k + 1] - first));
     const uint32_t *const out_first = out;
     uint8_t *cases = w->cube_cases;
     uint64_t cfg_count[256]; /* counting pass: cubes per configuration */
@@ -82,7 +80,7 @@ static ALWAYS_INLINE uint64_t march_layer_as(worker *w, int64_t k, const pass_ki
         memset(cfg_count, 0, sizeof cfg_count);
     w->private_count = 0;
     if (write && general)
-        w->private_next = c->layer_private ? c->layer_private[k] : c->private_first;
+        w->private_next = c->private_first;
 
     /* the cubes marched: all, or a box piece's (stream.c) */
     const int64_t col_lo = c->cube_lo[0], col_hi = c->cube_hi[0] - 1;

@@ -6,8 +6,7 @@
  * threshold chosen per voxel type so the comparison is exact and the loop
  * vectorises: grid_threshold in extract.c) and its span (row_span).  A
  * worker keeps the sign slices of the layers it marches in a ring of
- * SIGN_RING slots; the fill pass refills them from the sign cache
- * (sign_cache.c) instead of reading the volume again.
+ * SIGN_RING slots.
  */
 
 #if KERNELS_AVX2
@@ -128,21 +127,16 @@ static void classify_row(const grid *g, int64_t j, int64_t k, uint8_t *s, row_sp
 }
 
 /* Slice k's signs and row spans, from the worker's ring: classified when the
- * slot holds another slice, or in the fill pass read from the sign cache. */
+ * slot holds another slice. */
 static const uint8_t *signs(worker *w, int64_t k, const row_span **spans)
 {
     const grid *g = &w->c->g;
     const int r = (int)(k % SIGN_RING);
     if (w->slice_held[r] != k) {
-        if (w->c->pass == PASS_FILL && w->c->cache_bits) {
-            cache_load(w, k, r);
-        } else {
-            uint64_t nans = 0;
-            for (int64_t j = 0; j < g->N[1]; j++)
-                classify_row(g, j, k, w->sign_bytes[r] + j * g->N[0], &w->spans[r][j],
-                             w->c->pass != PASS_FILL ? &nans : NULL);
-            w->slice_nans[r] = nans;
-        }
+        uint64_t nans = 0;
+        for (int64_t j = 0; j < g->N[1]; j++)
+            classify_row(g, j, k, w->sign_bytes[r] + j * g->N[0], &w->spans[r][j], &nans);
+        w->slice_nans[r] = nans;
         w->slice_held[r] = k;
     }
     *spans = w->spans[r];

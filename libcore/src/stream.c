@@ -101,6 +101,17 @@ struct stream_one {
     uint64_t max_slice_vertices, max_layer_vertices, max_layer_triangles;
     staging pos, nrm, tri, org;
     uint64_t *ids; /* [3 * TRIANGLE_BATCH] */
+    /* A run of isomend_extract() (stream_direct_*): the volume read in place,
+     * the mesh written straight into `out` (vertex id i at out.pos + 3 i,
+     * the run's triangles from out.tri on), no sink; the run's last slice
+     * numbered from last_first (STREAM_NEXT_RUN: the next run's first slice,
+     * numbered from 0 there), or from the running count (UINT64_MAX); tick
+     * asked before each slice past the first. */
+    int direct;
+    stream_out out;
+    uint64_t last_first;
+    stream_tick tick;
+    void *tick_user;
 };
 
 
@@ -179,12 +190,12 @@ static isomend_status stream_init(stream_one *s, const isomend_volume *desc,
     s->w.is_main = 1;
     c->g.data = s->window;
     c->g.z0 = 0;
+    s->last_first = UINT64_MAX;
     s->own_first = 0;
     s->own_end = g->N[2];
     s->push_first = 0;
     s->push_end = g->n[2];
     c->pass = PASS_SWEEP; /* signs are classified (and NaNs counted), never cached */
-    c->layer_private = NULL;
     stream_bounds(c, &s->max_slice_vertices, &s->max_layer_vertices, &s->max_layer_triangles);
     uint64_t size[4];
     stream_sizes(c, size);
@@ -266,6 +277,10 @@ static isomend_status deliver_vertices(stream_one *s, uint64_t n, int keyed)
 {
     if (!n)
         return ISOMEND_OK;
+    if (s->direct) { /* written in place */
+        s->next_id += n;
+        return ISOMEND_OK;
+    }
     const ctx *c = &s->c;
     const isomend_status status =
         sink_status(s, s->sink.vertices(s->sink.user, s->next_id, (size_t)n, c->pos,
@@ -526,6 +541,10 @@ static isomend_status deliver_triangles(stream_one *s, uint64_t n, uint64_t base
 {
     const ctx *c = &s->c;
     const uint32_t low = (uint32_t)base;
+    if (s->direct) { /* written in place, the ids the run's */
+        s->triangles += n;
+        return ISOMEND_OK;
+    }
     if (s->tri32 && n) {
         /* a slab numbers from 0 below 2^31: the staged ids are its local ids;
          * its last layer's ids from `foreign` on become the next slab's */
@@ -585,14 +604,22 @@ static isomend_status step(stream_one *s, int64_t m)
         np = w->private_count;
     }
     c->vertex_base = c->private_first = s->next_id;
-    const uint64_t first = s->next_id + np;
+    if (s->direct) { /* this step's vertices and triangles where they go */
+        c->pos = s->out.pos + 3 * s->next_id;
+        c->nrm = s->out.nrm ? s->out.nrm + 3 * s->next_id : NULL;
+        c->tri = s->out.tri + 3 * s->triangles;
+        c->org = s->out.org ? s->out.org + s->triangles : NULL;
+    }
+    const uint64_t first = last && s->last_first != UINT64_MAX ? s->last_first : s->next_id + np;
     const uint64_t nv = kr->scan_slice(w, m, PASS_SWEEP, first, !last);
     if (!last)
         w->stats.nan_samples += s->box ? box_nans(s, m) : w->slice_nans[m % SIGN_RING];
     const uint64_t below = layer ? s->slice_first[(m - 1) % 2] : first;
     s->slice_first[m % 2] = first;
-    if (first + nv - below > UINT32_MAX)
-        return s->failed = ISOMEND_ERR_TOO_LARGE; /* the id maps' 32 bits */
+    if (s->direct ? !last && first + nv > (s->last_first != UINT64_MAX ? s->last_first
+                                                                        : (uint64_t)UINT32_MAX + 1)
+                  : first + nv - below > UINT32_MAX)
+        return s->failed = ISOMEND_ERR_TOO_LARGE; /* the id maps' (a run's ids') 32 bits */
     if (layer && c->general) /* the private vertices and the triangles */
         (void)kr->march_layer(w, k, PASS_FILL, 0);
     isomend_status status = ISOMEND_OK;
@@ -615,7 +642,7 @@ static isomend_status step(stream_one *s, int64_t m)
     status = deliver_triangles(s, nt, below, last ? first : UINT64_MAX, m);
     if (!s->box)
         floor = last ? s->next_id : first;
-    if (status == ISOMEND_OK)
+    if (status == ISOMEND_OK && !s->direct)
         status = sink_status(s, s->sink.retire(s->sink.user, floor));
     return status;
 }
@@ -624,9 +651,16 @@ static isomend_status step(stream_one *s, int64_t m)
 static isomend_status advance(stream_one *s, int64_t avail)
 {
     const int64_t N2 = s->c.g.N[2];
-    const int64_t end = s->own_end < N2 ? s->own_end + 1 : N2; /* and a piece's next slice */
-    while (s->next_scan < end) {
+    /* and a piece's next slice */
+    while (s->next_scan < (s->own_end < N2 ? s->own_end + 1 : N2)) {
         const int64_t m = s->next_scan;
+        if (s->tick && m > s->own_first && m < s->own_end) {
+            const int go = s->tick(s->tick_user, m);
+            if (go < 0)
+                return s->failed = ISOMEND_ERR_CANCELLED;
+            if (go == 0)
+                s->own_end = m; /* slice m is the run's last: ids only */
+        }
         int64_t need = m + (m == s->own_end ? 1 : 2); /* the next slice: signs of m + 1 */
         if (need > N2 - 1)
             need = N2 - 1;
@@ -880,4 +914,58 @@ uint64_t stream_one_memory(const isomend_volume *desc, const isomend_options *op
         return 0;
     *pad = c.g.pad;
     return single_memory(&c, piece);
+}
+
+/* ------------------------------------------- isomend_extract()'s runs */
+
+isomend_status stream_direct_begin(const isomend_volume *vol, const isomend_options *opts,
+                                   stream_one **out)
+{
+    *out = NULL;
+    stream_one *s = calloc(1, sizeof(*s));
+    if (!s)
+        return ISOMEND_ERR_OUT_OF_MEMORY;
+    ctx *c = &s->c;
+    isomend_status status = ctx_setup(c, vol, opts); /* the volume's own strides */
+    if (status == ISOMEND_OK && !worker_init(&s->w, c))
+        status = ISOMEND_ERR_OUT_OF_MEMORY;
+    if (status != ISOMEND_OK) {
+        stream_one_destroy(s);
+        return status;
+    }
+    s->w.is_main = 1;
+    s->direct = 1;
+    c->g.z0 = 0; /* read in place: c->g.data is the volume's */
+    c->pass = PASS_SWEEP;
+    s->push_first = 0;
+    s->push_end = c->g.n[2];
+    *out = s;
+    return ISOMEND_OK;
+}
+
+isomend_status stream_direct_run(stream_one *s, const stream_run *run, isomend_stats *stats,
+                                 uint64_t *nv, uint64_t *nt)
+{
+    s->own_first = s->next_scan = run->first;
+    s->own_end = run->end;
+    s->pushed = s->push_end;
+    s->failed = ISOMEND_OK;
+    s->finished = 0;
+    s->first_id = s->next_id = run->first_id;
+    s->last_first = run->last_first;
+    s->out = run->out;
+    s->tick = run->tick;
+    s->tick_user = run->tick_user;
+    s->slice_first[0] = s->slice_first[1] = 0;
+    s->triangles = 0;
+    worker *w = &s->w;
+    for (int r = 0; r < SIGN_RING; r++)
+        w->slice_held[r] = -1;
+    memset(&w->stats, 0, sizeof w->stats);
+    memset(w->pending_count, 0, sizeof w->pending_count);
+    w->private_count = w->private_next = 0;
+    const isomend_status status = stream_one_finish(s, stats);
+    *nv = s->next_id - s->first_id;
+    *nt = s->triangles;
+    return status;
 }

@@ -50,4 +50,34 @@ isomend_status stream_slab_reset(stream_one *s, int64_t owned_first, int64_t own
  * contiguous), read in place, and finishes it (statistics: isomend_stream_finish). */
 isomend_status stream_slab_run(stream_one *s, const char *planes, isomend_stats *stats);
 
+/* For isomend_extract() (slabs.c): runs of marched slices over a volume in
+ * memory, read in place (its strides), the mesh written straight into the
+ * arrays of stream_out instead of going to a sink.  A run [first, end) numbers
+ * its vertices from first_id on, vertex id i at out.pos + 3 i (and
+ * out.nrm), and writes its triangles from out.tri (and out.org: zero bytes
+ * where it writes none, as a fresh reservation is) on, with the ids of the
+ * vertices; slice `end`, when it is not the last of the grid, is numbered
+ * but not computed, from last_first on (UINT64_MAX: the running count).
+ * tick (may be NULL) is asked before each slice m, first < m < end: 1 goes
+ * on, 0 makes m the run's end, < 0 cancels (ISOMEND_ERR_CANCELLED). */
+typedef struct stream_out {
+    float *pos, *nrm;
+    uint32_t *tri;
+    uint8_t *org;
+} stream_out;
+typedef int (*stream_tick)(void *user, int64_t m);
+typedef struct stream_run {
+    int64_t first, end;
+    uint64_t first_id, last_first;
+    stream_out out;
+    stream_tick tick;
+    void *tick_user;
+} stream_run;
+isomend_status stream_direct_begin(const isomend_volume *vol, const isomend_options *opts,
+                                   stream_one **out);
+/* One run (statistics as isomend_stream_finish's; *nv, *nt the vertices and
+ * triangles it wrote, those of slice `end` not counted). */
+isomend_status stream_direct_run(stream_one *s, const stream_run *run, isomend_stats *stats,
+                                 uint64_t *nv, uint64_t *nt);
+
 #endif /* ISOMEND_STREAM_H */

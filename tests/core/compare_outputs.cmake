@@ -1,8 +1,16 @@
 # Runs two programs (each with its arguments, a list) and requires their
-# standard output to be identical (core_one_pass_identical and the split
-# schedules: tests/core/test_digest.c as it is and with a schedule).
+# standard output to be identical (the schedules of isomend_extract():
+# tests/core/test_digest.c as it is and with a schedule), or runs one and
+# requires its output to be a file's (core_digest_expected).
 #   cmake -DA=PROGRAM_A [-DA_ARGS=...] -DB=PROGRAM_B [-DB_ARGS=...] -P compare_outputs.cmake
-foreach(p A B)
+#   cmake -DA=PROGRAM_A [-DA_ARGS=...] -DEXPECTED=FILE -P compare_outputs.cmake
+set(programs A B)
+if(DEFINED EXPECTED)
+  set(programs A)
+  file(READ ${EXPECTED} out_B)
+  set(B ${EXPECTED})
+endif()
+foreach(p ${programs})
   execute_process(COMMAND ${${p}} ${${p}_ARGS} OUTPUT_VARIABLE out_${p} RESULT_VARIABLE rc_${p})
   if(NOT rc_${p} EQUAL 0)
     message(FATAL_ERROR "${${p}} exited with ${rc_${p}}:\n${out_${p}}")

@@ -2,13 +2,14 @@
  * schedule.h - the C tests' choice of isomend_extract()'s schedule (tests
  * only).
  *
- * isomend_extract() takes the one pass for one or two threads on grids of
- * 2^21 samples and more, and its two threads split apart on sparse meshes
- * (libcore/src/one_pass.c).  A test run with --schedule=onepass takes the one
- * pass at every size, --schedule=apart also splits apart whatever the
- * density, --schedule=apartsolo also has the first thread do every move
- * (extract_set_test_schedule, linked from the static library), so that one
- * binary reaches every path on the tests' small grids.
+ * isomend_extract() runs the caller's run of slices from the bottom and,
+ * on grids of 2^20 samples and more, other threads' staged runs from the top
+ * down, moved into place at the end (libcore/src/slabs.c).  A test run with
+ * --schedule=anysize takes staged runs at every size, --schedule=thin takes
+ * them one layer at a time, --schedule=staged also stops the caller's run
+ * after layer 0, so that every other layer is staged and moved
+ * (extract_set_test_schedule, linked from the static library): one binary
+ * reaches every path on the tests' small grids.
  */
 #ifndef ISOMEND_TEST_SCHEDULE_H
 #define ISOMEND_TEST_SCHEDULE_H
@@ -26,9 +27,9 @@ static inline int schedule_from_args(int argc, char **argv)
         const char *name;
         extract_schedule schedule;
     } names[] = {{"auto", SCHEDULE_AUTO},
-                 {"onepass", SCHEDULE_ONE_PASS},
-                 {"apart", SCHEDULE_APART},
-                 {"apartsolo", SCHEDULE_APART_SOLO}};
+                 {"anysize", SCHEDULE_ANY_SIZE},
+                 {"thin", SCHEDULE_THIN},
+                 {"staged", SCHEDULE_STAGED}};
     for (int i = 1; i < argc; i++) {
         if (strncmp(argv[i], "--schedule=", 11) != 0)
             continue;
@@ -39,7 +40,7 @@ static inline int schedule_from_args(int argc, char **argv)
                 found = 1;
             }
         if (!found) {
-            fprintf(stderr, "%s: unknown schedule '%s' (auto, onepass, apart, apartsolo)\n",
+            fprintf(stderr, "%s: unknown schedule '%s' (auto, anysize, thin, staged)\n",
                     argv[0], argv[i] + 11);
             return 1;
         }

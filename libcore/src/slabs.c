@@ -1,0 +1,788 @@
+/*
+ * slabs.c - isomend_extract(): a volume in memory extracted by runs of
+ * slices on threads, each run the one engine of stream.c (read in place,
+ * written in place), joined into one mesh in isomend_extract()'s order.
+ *
+ *   caller (the head)                 other threads (staged runs)
+ *   slices 0, 1, 2, ... claimed one   runs of H layers taken from the top
+ *   at a time, written straight into  down ([N2 - H, N2), then below), each
+ *   the mesh's arrays with the final  numbered from 0 in the thread's own
+ *   ids, until it meets the lowest    region; its last slice (the run
+ *   run taken                         above's first) numbered from NEXT_RUN
+ *                  \                  /
+ *                   moves: every staged run, in slice order, after the head's
+ *                   part (vertices copied, ids + the run's base, NEXT_RUN + i
+ *                   the run above's base + i), on all the threads
+ *
+ * The two parts meet wherever the threads' speeds make them meet, so a
+ * thread on a slower virtual CPU takes a smaller share.  The head writes
+ * its part once; a staged run's part is written twice (its region, then the
+ * mesh), which on two threads costs about as much as counting the head's
+ * part first would (docs/core-internals.md, "The one engine").  A run's
+ * slices are numbered and computed as the stream numbers them, so the mesh
+ * is the same bytes, vertex order included, for any number of threads and
+ * any meeting point.
+ *
+ * The output arrays are address-space reservations of the largest mesh the
+ * grid can give (mesh_memory.c), trimmed at the end; where the system
+ * refuses them, the mesh goes through the stream (stream_api.c) into arrays
+ * that grow.
+ */
+#define _GNU_SOURCE /* _SC_NPROCESSORS_ONLN */
+#include "context.h"
+#include "extract.h"
+#include "methods.h"
+#include "slice_geometry.h"
+#include "stream.h"
+#include "tables.h"
+
+#include <pthread.h>
+#include <stdlib.h>
+#include <time.h>
+#include <unistd.h>
+
+/* A staged run's own ids are below NEXT_RUN; from it on, the vertices of
+ * its last slice, the first of the run above. */
+#define NEXT_RUN 0x80000000u
+/* Samples from which other threads take staged runs: below, the head alone
+ * (a thread's start costs more than the work it would take). */
+#define STAGED_SAMPLES ((uint64_t)1 << 20)
+/* Layers of a staged run: about 1/16 of a thread's share, within these. */
+#define RUN_MIN 4
+#define RUN_MAX 64
+/* The head reports progress every PROGRESS_SLICES slices. */
+#define PROGRESS_SLICES 16
+
+static int default_threads(void)
+{
+    long n = sysconf(_SC_NPROCESSORS_ONLN);
+    return n < 1 ? 1 : n > 64 ? 64 : (int)n;
+}
+
+/* Arrays of the largest mesh (or a region's part of it), reserved. */
+typedef struct arrays {
+    stream_out out;
+    size_t mapped[4];
+} arrays;
+
+static void arrays_release(arrays *a)
+{
+    void *p[4] = {a->out.pos, a->out.nrm, a->out.tri, a->out.org};
+    for (int q = 0; q < 4; q++)
+        if (p[q])
+            release_output(p[q], a->mapped[q]);
+    memset(a, 0, sizeof *a);
+}
+
+/* Reserves room for vmax vertices and tmax triangles (normals and origins
+ * as the context wants them); 0 when refused (nothing kept). */
+static int arrays_reserve(arrays *a, const ctx *c, uint64_t vmax, uint64_t tmax)
+{
+    memset(a, 0, sizeof *a);
+    const size_t size[4] = {sizeof(float) * 3 * (size_t)vmax,
+                            c->want_normals ? sizeof(float) * 3 * (size_t)vmax : 0,
+                            sizeof(uint32_t) * 3 * (size_t)tmax,
+                            c->want_origins ? (size_t)tmax : 0};
+    void *p[4] = {NULL, NULL, NULL, NULL};
+    for (int q = 0; q < 4; q++) {
+        if (!size[q])
+            continue;
+        /* The origins (a byte a triangle) are often under 2 MiB: huge pages
+         * from there on only, or a huge page would hold ~2 MiB of nothing. */
+        size_t huge_from = q == 3 ? HUGE_PAGE : 0;
+        if (c->small_pages)
+            huge_from = SIZE_MAX;
+        p[q] = reserve_output(size[q], huge_from);
+        if (!p[q]) {
+            for (int r = 0; r < q; r++)
+                if (p[r])
+                    release_output(p[r], a->mapped[r]);
+            memset(a, 0, sizeof *a);
+            return 0;
+        }
+        a->mapped[q] = huge_round(size[q]);
+    }
+    a->out = (stream_out){p[0], p[1], p[2], p[3]};
+    return 1;
+}
+
+/* The largest counts a grid allows: vertices (at most 3 a sample, one slice
+ * past 2^32 - 1 before the check), triangles (the table's, and two for each
+ * of a cube's +x, +y, +z faces; the general methods' per cube). */
+static void grid_bounds(const ctx *c, uint64_t *vmax, uint64_t *tmax)
+{
+    const grid *g = &c->g;
+    const uint64_t N0 = (uint64_t)g->N[0], N1 = (uint64_t)g->N[1], N2 = (uint64_t)g->N[2];
+    const uint64_t cubes = (N0 - 1) * (N1 - 1) * (N2 - 1);
+    const uint64_t per_sample =
+        (uint64_t)c->id_planes + (c->general ? METHODS_SLOT_COUNT - METHODS_SLOT_CENTRE : 0);
+    uint64_t v = per_sample * N0 * N1 * N2;
+    const uint64_t cap = (uint64_t)UINT32_MAX + 1 + per_sample * N0 * N1;
+    *vmax = v > cap ? cap : v;
+    *tmax = (c->general ? (uint64_t)METHODS_MAX_TRI : (uint64_t)MC_MAX_TRI + 6) * cubes;
+}
+
+/* ------------------------------------------------------- the schedule */
+
+typedef struct staged {
+    int64_t first, end;   /* its slices and layers [first, end) */
+    int thread;           /* whose region holds it                 */
+    uint64_t v_at, nv;    /* its vertices in the region, and count */
+    uint64_t t_at, nt;    /* its triangles                         */
+    uint64_t v_base, t_base; /* where they go in the mesh (moves)  */
+} staged;
+
+typedef struct plan plan;
+
+typedef struct thread_state {
+    plan *p;
+    int index;            /* 0: the caller, the head */
+    stream_one *s;
+    arrays region;        /* a staged thread's runs, one after another */
+    uint64_t v_used, t_used;
+    isomend_stats stats;  /* summed over its runs */
+    isomend_status status;
+} thread_state;
+
+struct plan {
+    ctx *c;
+    const isomend_volume *vol;
+    const isomend_options *opts;
+    arrays mesh;
+    pthread_mutex_t mu;
+    pthread_cond_t cv;
+    int64_t N2;
+    int64_t claimed;      /* the head wrote slices [0, claimed)            */
+    int64_t lowest;       /* the lowest slice a staged run took; N2: none  */
+    int64_t H;            /* a staged run's layers                         */
+    uint64_t vcap;        /* vertices a staged thread's region holds       */
+    uint64_t layer_vmax;  /* the most vertices a layer (and its slice) has */
+    staged *runs;         /* [N2], in the order taken (downwards)          */
+    int64_t nruns;
+    int staging;          /* threads still taking runs                     */
+    int moves_ready;      /* the bases are known (cv)                      */
+    atomic_llong next_move;
+    atomic_llong layers_staged; /* progress */
+    atomic_int cancel;
+    int64_t head_reported;
+    int head_yield_at;    /* tests (SCHEDULE_STAGED): the head stops at 1 */
+};
+
+/* The head's tick: claims slice m unless a staged run has it; progress. */
+static int head_tick(void *user, int64_t m)
+{
+    thread_state *t = user;
+    plan *p = t->p;
+    pthread_mutex_lock(&p->mu);
+    const int mine = m < p->lowest && !(p->head_yield_at && m >= p->head_yield_at);
+    if (mine)
+        p->claimed = m + 1;
+    pthread_mutex_unlock(&p->mu);
+    if (!mine)
+        return 0;
+    const ctx *c = p->c;
+    if (atomic_load(&p->cancel))
+        return -1;
+    if (c->progress && m - p->head_reported >= PROGRESS_SLICES) {
+        p->head_reported = m;
+        const double done = (double)m + (double)atomic_load(&p->layers_staged);
+        if (c->progress(c->progress_user, done / (double)p->N2)) {
+            atomic_store(&p->cancel, 1);
+            return -1;
+        }
+    }
+    return 1;
+}
+
+/* A staged run's tick: only the cancellation. */
+static int staged_tick(void *user, int64_t m)
+{
+    (void)m;
+    const thread_state *t = user;
+    return atomic_load(&t->p->cancel) ? -1 : 1;
+}
+
+static void add_stats(isomend_stats *to, const isomend_stats *s)
+{
+    for (int q = 0; q < 15; q++)
+        to->case_histogram[q] += s->case_histogram[q];
+    for (int q = 0; q < ISOMEND_ORIGIN_COUNT; q++)
+        to->triangles_by_origin[q] += s->triangles_by_origin[q];
+    to->ambiguous_faces += s->ambiguous_faces;
+    to->inverted_combinations += s->inverted_combinations;
+    to->nan_samples += s->nan_samples;
+}
+
+/* A staged thread: runs taken from the top down until they meet the head. */
+static void take_runs(thread_state *t)
+{
+    plan *p = t->p;
+    for (;;) {
+        pthread_mutex_lock(&p->mu);
+        const int64_t end = p->lowest;
+        int64_t first = end - p->H;
+        if (first < p->claimed)
+            first = p->claimed;
+        int go = first < end && !atomic_load(&p->cancel) && t->status == ISOMEND_OK;
+        if (go && t->v_used + (uint64_t)(end - first + 1) * p->layer_vmax > p->vcap) {
+            t->status = ISOMEND_ERR_TOO_LARGE; /* the region is full: the mesh would be */
+            atomic_store(&p->cancel, 1);
+            go = 0;
+        }
+        int64_t r = -1;
+        if (go) {
+            p->lowest = first;
+            r = p->nruns++;
+            p->runs[r] = (staged){first, end, t->index, t->v_used, 0, t->t_used, 0, 0, 0};
+        }
+        pthread_mutex_unlock(&p->mu);
+        if (!go)
+            return;
+        staged *run = &p->runs[r]; /* its slot: written by this thread only */
+        const stream_out *o = &t->region.out;
+        const stream_run sr = {
+            first,
+            end,
+            0,
+            end < p->N2 ? NEXT_RUN : UINT64_MAX,
+            {o->pos + 3 * t->v_used, o->nrm ? o->nrm + 3 * t->v_used : NULL,
+             o->tri + 3 * t->t_used, o->org ? o->org + t->t_used : NULL},
+            staged_tick,
+            t,
+        };
+        isomend_stats st;
+        t->status = stream_direct_run(t->s, &sr, &st, &run->nv, &run->nt);
+        if (t->status != ISOMEND_OK) {
+            atomic_store(&p->cancel, 1);
+            return;
+        }
+        add_stats(&t->stats, &st);
+        t->v_used += run->nv;
+        t->t_used += run->nt;
+        atomic_fetch_add(&p->layers_staged, end - first);
+    }
+}
+
+/* Moves n origins, where the destination reads as zero bytes (a fresh
+ * reservation) as does most of the source (the table's triangles): only the
+ * other bytes are written, so that the destination's pages are not all
+ * touched. */
+static void move_origins(uint8_t *d, const uint8_t *s, uint64_t n)
+{
+    size_t q = 0;
+    for (; q + 8 <= n; q += 8) {
+        uint64_t w;
+        memcpy(&w, s + q, sizeof w);
+        if (w)
+            for (size_t b = 0; b < 8; b++)
+                if (s[q + b])
+                    d[q + b] = s[q + b];
+    }
+    for (; q < n; q++)
+        if (s[q])
+            d[q] = s[q];
+}
+
+/* Releases the whole pages of [p, p + n): a run's part of its region, read. */
+static void release_inside(void *p, size_t n)
+{
+    char *lo = (char *)huge_round((uintptr_t)p), *hi = (char *)((uintptr_t)((char *)p + n) &
+                                                                 ~(uintptr_t)(HUGE_PAGE - 1));
+    if (hi > lo)
+        release_pages(lo, (size_t)(hi - lo));
+}
+
+/* One staged run's part moved into the mesh. */
+static void move_run(plan *p, const thread_state *ts, const staged *run)
+{
+    const stream_out *src = &ts[run->thread].region.out, *dst = &p->mesh.out;
+    memcpy(dst->pos + 3 * run->v_base, src->pos + 3 * run->v_at, 12 * (size_t)run->nv);
+    release_inside(src->pos + 3 * run->v_at, 12 * (size_t)run->nv);
+    if (src->nrm) {
+        memcpy(dst->nrm + 3 * run->v_base, src->nrm + 3 * run->v_at, 12 * (size_t)run->nv);
+        release_inside(src->nrm + 3 * run->v_at, 12 * (size_t)run->nv);
+    }
+    const uint32_t *s = src->tri + 3 * run->t_at;
+    uint32_t *d = dst->tri + 3 * run->t_base;
+    const uint32_t own = (uint32_t)run->v_base, next = (uint32_t)(run->v_base + run->nv) - NEXT_RUN;
+    for (uint64_t q = 0; q < 3 * run->nt; q++)
+        d[q] = s[q] + (s[q] < NEXT_RUN ? own : next);
+    release_inside(src->tri + 3 * run->t_at, 12 * (size_t)run->nt);
+    if (src->org)
+        move_origins(dst->org + run->t_base, src->org + run->t_at, run->nt);
+}
+
+static void take_moves(plan *p, const thread_state *ts)
+{
+    for (;;) {
+        const long long r = atomic_fetch_add(&p->next_move, 1);
+        if (r >= p->nruns)
+            return;
+        move_run(p, ts, &p->runs[r]);
+    }
+}
+
+static void *staged_thread(void *arg)
+{
+    thread_state *t = arg;
+    plan *p = t->p;
+    take_runs(t);
+    pthread_mutex_lock(&p->mu);
+    p->staging--;
+    pthread_cond_broadcast(&p->cv);
+    while (!p->moves_ready)
+        pthread_cond_wait(&p->cv, &p->mu);
+    pthread_mutex_unlock(&p->mu);
+    if (p->moves_ready > 0)
+        take_moves(p, t - t->index);
+    return NULL;
+}
+
+/* The layers of a staged run on `threads` threads (0: no staged runs). */
+static int64_t run_layers(const ctx *c, int threads)
+{
+    const grid *g = &c->g;
+    const int64_t layers = g->N[2] - 1;
+    if (threads < 2 || layers < 2)
+        return 0;
+    const uint64_t samples = (uint64_t)g->N[0] * (uint64_t)g->N[1] * (uint64_t)g->N[2];
+    if (c->schedule == SCHEDULE_THIN || c->schedule == SCHEDULE_STAGED)
+        return 1;
+    if (samples < STAGED_SAMPLES && c->schedule == SCHEDULE_AUTO)
+        return 0;
+    int64_t h = layers / (16 * (int64_t)(threads - 1));
+    h = h < RUN_MIN ? RUN_MIN : h > RUN_MAX ? RUN_MAX : h;
+    /* a run's own ids stay below NEXT_RUN */
+    const uint64_t per_layer = ((uint64_t)c->id_planes +
+                                (c->general ? METHODS_SLOT_COUNT - METHODS_SLOT_CENTRE : 0)) *
+                               (uint64_t)g->N[0] * (uint64_t)g->N[1];
+    const int64_t hmax = (int64_t)((NEXT_RUN - 1) / per_layer) - 1;
+    if (hmax < 1)
+        return 0;
+    return h < hmax ? h : hmax;
+}
+
+/*
+ * The runs on `nthreads` threads into p->mesh: on success *nv, *nt the
+ * mesh's counts and *stats the runs' statistics (cubes, vertices and
+ * triangles not set).
+ */
+static isomend_status run_slabs(plan *p, int nthreads, uint64_t *nv, uint64_t *nt,
+                                isomend_stats *stats)
+{
+    ctx *c = p->c;
+    const int64_t N2 = c->g.N[2];
+    thread_state ts[64];
+    memset(ts, 0, sizeof ts);
+    p->N2 = N2;
+    p->claimed = 1;
+    p->lowest = N2;
+    p->H = run_layers(c, nthreads);
+    if (!p->H)
+        nthreads = 1;
+    isomend_status status = ISOMEND_OK;
+    uint64_t vmax, tmax;
+    grid_bounds(c, &vmax, &tmax);
+    p->vcap = vmax;
+    p->layer_vmax = ((uint64_t)c->id_planes +
+                     (c->general ? METHODS_SLOT_COUNT - METHODS_SLOT_CENTRE : 0)) *
+                    (uint64_t)c->g.N[0] * (uint64_t)c->g.N[1];
+    int nt_threads = 1;
+    for (int t = 0; t < nthreads; t++) {
+        ts[t].p = p;
+        ts[t].index = t;
+        status = stream_direct_begin(p->vol, p->opts, &ts[t].s);
+        if (status != ISOMEND_OK)
+            break;
+        /* a staged thread's region: what the whole grid may give, address
+         * space only; refused, the threads that have one do the staging */
+        if (t > 0 && !arrays_reserve(&ts[t].region, c, vmax, tmax)) {
+            stream_one_destroy(ts[t].s);
+            ts[t].s = NULL;
+            break;
+        }
+        nt_threads = t + 1;
+    }
+    if (status != ISOMEND_OK) {
+        for (int t = 0; t < nthreads; t++) {
+            stream_one_destroy(ts[t].s);
+            arrays_release(&ts[t].region);
+        }
+        return status;
+    }
+    nthreads = nt_threads;
+    pthread_t tid[64];
+    int started = 1;
+    p->runs = nthreads > 1 ? calloc((size_t)N2, sizeof(staged)) : NULL;
+    if (nthreads > 1 && !p->runs)
+        nthreads = 1;
+    p->staging = nthreads - 1;
+    for (int t = 1; t < nthreads; t++) {
+        if (pthread_create(&tid[t], NULL, staged_thread, &ts[t]) != 0) {
+            pthread_mutex_lock(&p->mu);
+            p->staging -= nthreads - t; /* these never start */
+            pthread_mutex_unlock(&p->mu);
+            break;
+        }
+        started = t + 1;
+    }
+    /* tests: the head leaves all but layer 0 to the staged runs */
+    p->head_yield_at = c->schedule == SCHEDULE_STAGED && started > 1 ? 1 : 0;
+
+    /* the head, on this thread */
+    uint64_t head_nv = 0, head_nt = 0;
+    const stream_run head = {0, N2, 0, UINT64_MAX, p->mesh.out, head_tick, &ts[0]};
+    status = stream_direct_run(ts[0].s, &head, &ts[0].stats, &head_nv, &head_nt);
+    if (status != ISOMEND_OK)
+        atomic_store(&p->cancel, 1);
+
+    /* the staged runs done (progress reported now, then every 100 ms): their
+     * bases, in slice order (taken downwards) */
+    pthread_mutex_lock(&p->mu);
+    while (p->staging > 0) {
+        if (!c->progress || status != ISOMEND_OK) {
+            pthread_cond_wait(&p->cv, &p->mu);
+            continue;
+        }
+        const double done = (double)p->claimed + (double)atomic_load(&p->layers_staged);
+        pthread_mutex_unlock(&p->mu);
+        if (c->progress(c->progress_user, done / (double)N2)) {
+            status = ISOMEND_ERR_CANCELLED;
+            atomic_store(&p->cancel, 1);
+        }
+        pthread_mutex_lock(&p->mu);
+        if (p->staging <= 0)
+            break;
+        struct timespec until;
+        clock_gettime(CLOCK_REALTIME, &until);
+        until.tv_nsec += 100 * 1000 * 1000;
+        if (until.tv_nsec >= 1000 * 1000 * 1000) {
+            until.tv_sec++;
+            until.tv_nsec -= 1000 * 1000 * 1000;
+        }
+        pthread_cond_timedwait(&p->cv, &p->mu, &until);
+    }
+    uint64_t v = head_nv, t = head_nt;
+    for (int k = 1; k < started; k++) /* a staged run's failure, not the head's stop */
+        if (ts[k].status != ISOMEND_OK && ts[k].status != ISOMEND_ERR_CANCELLED)
+            status = ts[k].status;
+    for (int k = 1; k < started && status == ISOMEND_OK; k++)
+        if (ts[k].status != ISOMEND_OK)
+            status = ts[k].status;
+    for (int64_t r = p->nruns - 1; r >= 0 && status == ISOMEND_OK; r--) {
+        p->runs[r].v_base = v;
+        p->runs[r].t_base = t;
+        v += p->runs[r].nv;
+        t += p->runs[r].nt;
+    }
+    if (status == ISOMEND_OK && v > UINT32_MAX)
+        status = ISOMEND_ERR_TOO_LARGE;
+    p->moves_ready = status == ISOMEND_OK ? 1 : -1;
+    pthread_cond_broadcast(&p->cv);
+    pthread_mutex_unlock(&p->mu);
+    if (status == ISOMEND_OK)
+        take_moves(p, ts);
+    for (int k = 1; k < started; k++)
+        pthread_join(tid[k], NULL);
+
+    memset(stats, 0, sizeof *stats);
+    for (int k = 0; k < nthreads; k++) {
+        add_stats(stats, &ts[k].stats);
+        stream_one_destroy(ts[k].s);
+        arrays_release(&ts[k].region);
+    }
+    free(p->runs);
+    p->runs = NULL;
+    if (status == ISOMEND_OK && atomic_load(&p->cancel))
+        status = ISOMEND_ERR_CANCELLED;
+    *nv = v;
+    *nt = t;
+    return status;
+}
+
+/* ---------------------------------------- the fallback: arrays that grow */
+
+typedef struct grow_sink {
+    float *pos, *nrm;
+    uint32_t *tri;
+    uint8_t *org;
+    uint64_t nv, vcap, nt, tcap;
+    int normals, origins;
+} grow_sink;
+
+static int grow_to(void **p, uint64_t cap, size_t elem)
+{
+    if (cap > SIZE_MAX / elem)
+        return 0;
+    void *q = realloc(*p, (size_t)cap * elem);
+    if (!q)
+        return 0;
+    *p = q;
+    return 1;
+}
+
+static int sink_vertices(void *user, uint64_t first_id, size_t count, const float *positions,
+                         const float *normals, const uint64_t *keys)
+{
+    (void)keys;
+    grow_sink *g = user;
+    if (first_id + count > g->vcap) {
+        uint64_t cap = g->vcap ? g->vcap : 4096;
+        while (cap < first_id + count)
+            cap *= 2;
+        if (!grow_to((void **)&g->pos, 3 * cap, sizeof(float)) ||
+            (g->normals && !grow_to((void **)&g->nrm, 3 * cap, sizeof(float))))
+            return 1;
+        g->vcap = cap;
+    }
+    memcpy(g->pos + 3 * first_id, positions, 12 * count);
+    if (g->normals)
+        memcpy(g->nrm + 3 * first_id, normals, 12 * count);
+    g->nv = first_id + count;
+    return 0;
+}
+
+static int sink_triangles(void *user, size_t count, const uint64_t *ids, const uint8_t *origins)
+{
+    grow_sink *g = user;
+    if (g->nt + count > g->tcap) {
+        uint64_t cap = g->tcap ? g->tcap : 4096;
+        while (cap < g->nt + count)
+            cap *= 2;
+        if (!grow_to((void **)&g->tri, 3 * cap, sizeof(uint32_t)) ||
+            (g->origins && !grow_to((void **)&g->org, cap, 1)))
+            return 1;
+        g->tcap = cap;
+    }
+    for (size_t q = 0; q < 3 * count; q++) {
+        if (ids[q] > UINT32_MAX)
+            return 1;
+        g->tri[3 * g->nt + q] = (uint32_t)ids[q];
+    }
+    if (g->origins)
+        memcpy(g->org + g->nt, origins, count);
+    g->nt += count;
+    return 0;
+}
+
+static int sink_retire(void *user, uint64_t floor)
+{
+    (void)user;
+    (void)floor;
+    return 0;
+}
+
+/* The mesh through the stream, slice by slice (each gathered from the
+ * volume's strides), into arrays that grow: where the reservations are
+ * refused.  One thread; the same mesh and statistics. */
+static isomend_status through_stream(const ctx *c, const isomend_volume *vol,
+                                     const isomend_options *o, isomend_mesh *mesh,
+                                     isomend_stats *stats)
+{
+    grow_sink g;
+    memset(&g, 0, sizeof g);
+    g.normals = c->want_normals;
+    g.origins = c->want_origins;
+    const isomend_mesh_sink sink = {&g, sink_vertices, sink_triangles, sink_retire, NULL};
+    isomend_options one = *o;
+    one.threads = 1;
+    one.progress = NULL;
+    isomend_volume desc = *vol;
+    desc.data = NULL;
+    memset(desc.strides, 0, sizeof desc.strides);
+    const size_t size = isomend_type_size(vol->type);
+    const int64_t n0 = vol->dims[0], n1 = vol->dims[1], n2 = vol->dims[2];
+    char *plane = malloc((size_t)(n0 * n1) * size);
+    isomend_stream *s = NULL;
+    isomend_status status = plane ? isomend_stream_begin(&desc, &one, &sink, &s)
+                                  : ISOMEND_ERR_OUT_OF_MEMORY;
+    for (int64_t z = 0; z < n2 && status == ISOMEND_OK; z++) {
+        for (int64_t j = 0; j < n1; j++)
+            for (int64_t i = 0; i < n0; i++)
+                memcpy(plane + (size_t)(j * n0 + i) * size,
+                       (const char *)vol->data + i * c->g.st[0] + j * c->g.st[1] + z * c->g.st[2],
+                       size);
+        status = isomend_stream_push(s, plane);
+        if (status == ISOMEND_OK && c->progress &&
+            c->progress(c->progress_user, (double)(z + 1) / (double)(n2 + 1)))
+            status = ISOMEND_ERR_CANCELLED;
+    }
+    if (status == ISOMEND_OK)
+        status = isomend_stream_finish(s, stats);
+    isomend_stream_destroy(s);
+    free(plane);
+    if (status == ISOMEND_ERR_SINK)
+        status = g.nv > UINT32_MAX ? ISOMEND_ERR_TOO_LARGE : ISOMEND_ERR_OUT_OF_MEMORY;
+    if (status != ISOMEND_OK) {
+        free(g.pos);
+        free(g.nrm);
+        free(g.tri);
+        free(g.org);
+        return status;
+    }
+    /* the arrays at their size, as the mesh's own (output_alloc'd) */
+    mesh->nv = (size_t)g.nv;
+    mesh->nt = (size_t)g.nt;
+    mesh->pos = output_alloc(12 * mesh->nv, c->small_pages);
+    mesh->tri = output_alloc(12 * mesh->nt, c->small_pages);
+    if (g.normals)
+        mesh->nrm = output_alloc(12 * mesh->nv, c->small_pages);
+    if (g.origins)
+        mesh->org = output_alloc(mesh->nt, c->small_pages);
+    if (mesh->pos)
+        memcpy(mesh->pos, g.pos, 12 * mesh->nv);
+    if (mesh->nrm)
+        memcpy(mesh->nrm, g.nrm, 12 * mesh->nv);
+    if (mesh->tri)
+        memcpy(mesh->tri, g.tri, 12 * mesh->nt);
+    if (mesh->org)
+        memcpy(mesh->org, g.org, mesh->nt);
+    free(g.pos);
+    free(g.nrm);
+    free(g.tri);
+    free(g.org);
+    if (!mesh->pos || !mesh->tri || (g.normals && !mesh->nrm) || (g.origins && !mesh->org))
+        return ISOMEND_ERR_OUT_OF_MEMORY;
+    return ISOMEND_OK;
+}
+
+/* ------------------------------------------------------- the extraction */
+
+/* isomend_extract, recycling *recycled (taken, and set to NULL, once the
+ * extraction has begun; the caller destroys it otherwise). */
+static isomend_status extract(const isomend_volume *vol, const isomend_options *opts,
+                              isomend_mesh **out_mesh, isomend_stats *stats,
+                              isomend_mesh **recycled)
+{
+    if (!out_mesh)
+        return ISOMEND_ERR_INVALID_ARGUMENT;
+    *out_mesh = NULL;
+    isomend_options defaults;
+    isomend_options_init(&defaults);
+    const isomend_options *o = opts ? opts : &defaults;
+    if (!vol || !vol->data)
+        return ISOMEND_ERR_INVALID_ARGUMENT;
+    plan *p = calloc(1, sizeof(*p));
+    ctx *c = calloc(1, sizeof(*c));
+    if (!p || !c) {
+        free(p);
+        free(c);
+        return ISOMEND_ERR_OUT_OF_MEMORY;
+    }
+    isomend_status status = ctx_setup(c, vol, o);
+    isomend_mesh *old = NULL, *mesh = NULL;
+    if (status != ISOMEND_OK)
+        goto done;
+    old = *recycled; /* this call's now: used or destroyed */
+    *recycled = NULL;
+    p->c = c;
+    p->vol = vol;
+    p->opts = o;
+    atomic_init(&p->next_move, 0);
+    atomic_init(&p->layers_staged, 0);
+    atomic_init(&p->cancel, 0);
+    status = ISOMEND_ERR_THREAD;
+    if (pthread_mutex_init(&p->mu, NULL) != 0)
+        goto done;
+    if (pthread_cond_init(&p->cv, NULL) != 0) {
+        pthread_mutex_destroy(&p->mu);
+        goto done;
+    }
+    status = ISOMEND_ERR_OUT_OF_MEMORY;
+    if (!(mesh = calloc(1, sizeof(*mesh))))
+        goto unlock;
+
+    const grid *g = &c->g;
+    uint64_t vmax, tmax, nv = 0, nt = 0;
+    grid_bounds(c, &vmax, &tmax);
+    isomend_stats st;
+    int nthreads = o->threads > 0 ? (o->threads > 64 ? 64 : o->threads) : default_threads();
+    if (vmax > SIZE_MAX / 32 || tmax > SIZE_MAX / 32 || !arrays_reserve(&p->mesh, c, vmax, tmax)) {
+        status = through_stream(c, vol, o, mesh, &st);
+        nv = mesh->nv;
+        nt = mesh->nt;
+    } else {
+        /* The recycled mesh's positions, normals and triangles become the
+         * start of the new ones.  Not its origins: the runs leave the table's
+         * origins as zero bytes and untouched pages cost nothing; zeroing
+         * recycled ones would touch what the new mesh may never write. */
+        if (old) {
+            void **from[3] = {(void **)&old->pos, (void **)&old->nrm, (void **)&old->tri};
+            void *into[3] = {p->mesh.out.pos, p->mesh.out.nrm, p->mesh.out.tri};
+            for (int q = 0; q < 3; q++) {
+                if (!into[q] || !old->mapped[q])
+                    continue;
+                adopt_output(into[q], p->mesh.mapped[q], *from[q], old->mapped[q]);
+                *from[q] = NULL;
+                old->mapped[q] = 0;
+            }
+        }
+        mesh->pos = p->mesh.out.pos;
+        mesh->nrm = p->mesh.out.nrm;
+        mesh->tri = p->mesh.out.tri;
+        mesh->org = p->mesh.out.org;
+        memcpy(mesh->mapped, p->mesh.mapped, sizeof mesh->mapped); /* the mesh's now */
+        status = run_slabs(p, nthreads, &nv, &nt, &st);
+        if (status == ISOMEND_OK) {
+            mesh->nv = (size_t)nv;
+            mesh->nt = (size_t)nt;
+            const size_t used[4] = {sizeof(float) * 3 * mesh->nv, sizeof(float) * 3 * mesh->nv,
+                                    sizeof(uint32_t) * 3 * mesh->nt, mesh->nt};
+            void *arr[4] = {mesh->pos, mesh->nrm, mesh->tri, mesh->org};
+            for (int q = 0; q < 4; q++)
+                if (arr[q])
+                    mesh->mapped[q] = trim_output(arr[q], mesh->mapped[q], used[q]);
+        }
+    }
+    if (status != ISOMEND_OK)
+        goto unlock;
+
+    for (int a = 0; a < 3; a++) {
+        mesh->box[a] = g->o[a];
+        mesh->box[3 + a] = g->o[a] + (double)(g->N[a] - 1) * g->h[a];
+    }
+    if (g->slices.so)
+        sheared_box(g, mesh->box);
+    status = mesh_keep_slices(mesh, g);
+    if (status != ISOMEND_OK)
+        goto unlock;
+    if (c->progress)
+        (void)c->progress(c->progress_user, 1.0);
+    if (stats) {
+        *stats = st;
+        stats->cubes =
+            (uint64_t)(g->N[0] - 1) * (uint64_t)(g->N[1] - 1) * (uint64_t)(g->N[2] - 1);
+        stats->vertices = nv;
+        stats->triangles = nt;
+    }
+    *out_mesh = mesh;
+    mesh = NULL;
+
+unlock:
+    pthread_cond_destroy(&p->cv);
+    pthread_mutex_destroy(&p->mu);
+done:
+    isomend_mesh_destroy(mesh);
+    isomend_mesh_destroy(old);
+    free(c);
+    free(p);
+    return status;
+}
+
+isomend_status isomend_extract(const isomend_volume *vol, const isomend_options *opts,
+                               isomend_mesh **out_mesh, isomend_stats *stats)
+{
+    isomend_mesh *none = NULL;
+    return extract(vol, opts, out_mesh, stats, &none);
+}
+
+isomend_status isomend_extract_recycle(const isomend_volume *vol, const isomend_options *opts,
+                                       isomend_mesh **mesh, isomend_stats *stats)
+{
+    if (!mesh)
+        return ISOMEND_ERR_INVALID_ARGUMENT;
+    isomend_mesh *old = *mesh;
+    const isomend_status status = extract(vol, opts, mesh, stats, &old);
+    isomend_mesh_destroy(old); /* not taken: the arguments were refused */
+    return status;
+}
