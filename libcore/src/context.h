@@ -83,13 +83,15 @@ struct extract_kernels;
 /* The schedule isomend_extract() takes (slabs.c): chosen by the grid
  * (AUTO), or, for tests only (extract_set_test_schedule), staged runs on
  * the other threads at every size (ANY_SIZE), staged runs of one layer
- * (THIN), and the caller's run stopping after layer 0, every other layer
- * staged (STAGED). */
+ * (THIN), the caller's run stopping after layer 0, every other layer
+ * staged (STAGED), and the counted split of two threads at every size and
+ * density (COUNTED). */
 typedef enum extract_schedule {
     SCHEDULE_AUTO,
     SCHEDULE_ANY_SIZE,
     SCHEDULE_THIN,
-    SCHEDULE_STAGED
+    SCHEDULE_STAGED,
+    SCHEDULE_COUNTED
 } extract_schedule;
 
 /* One extraction: the grid, the options, the counts and the output arrays. */

@@ -17,8 +17,11 @@
  * The two parts meet wherever the threads' speeds make them meet, so a
  * thread on a slower virtual CPU takes a smaller share.  The head writes
  * its part once; a staged run's part is written twice (its region, then the
- * mesh), which on two threads costs about as much as counting the head's
- * part first would (docs/core-internals.md, "The one engine").  A run's
+ * mesh).  On a dense mesh and two threads, the other thread counts instead
+ * (the counted split): the head's vertices and triangles, slice by slice
+ * from the bottom (a fraction of a run's work), until it has counted up to
+ * a slice that halves what is left, and then runs from there to the top,
+ * straight into the mesh (docs/core-internals.md, "The one engine").  A run's
  * slices are numbered and computed as the stream numbers them, so the mesh
  * is the same bytes, vertex order included, for any number of threads and
  * any meeting point.
@@ -44,14 +47,21 @@
 /* A staged run's own ids are below NEXT_RUN; from it on, the vertices of
  * its last slice, the first of the run above. */
 #define NEXT_RUN 0x80000000u
-/* Samples from which other threads take staged runs: below, the head alone
- * (a thread's start costs more than the work it would take). */
+/* Samples from which other threads take staged runs, and from which two
+ * threads take the counted split of a dense mesh: below, the head alone (a
+ * thread's start, and a region's huge pages, cost more than the work they
+ * would take: a 64^3 sphere took 1.9x the time of the head alone). */
 #define STAGED_SAMPLES ((uint64_t)1 << 20)
-/* Layers of a staged run: about 1/16 of a thread's share, within these. */
-#define RUN_MIN 4
+#define COUNTED_SAMPLES ((uint64_t)1 << 16)
+/* Layers of a staged run: a share of what is left, within these. */
+#define RUN_MIN 2
 #define RUN_MAX 64
 /* The head reports progress every PROGRESS_SLICES slices. */
 #define PROGRESS_SLICES 16
+/* Vertices a sample from which two threads take the counted split, for
+ * samples of one byte; times the sample's size (a larger sample: counting
+ * reads more). */
+#define COUNTED_DENSITY 0.02
 
 static int default_threads(void)
 {
@@ -88,7 +98,9 @@ static int arrays_reserve(arrays *a, const ctx *c, uint64_t vmax, uint64_t tmax)
         if (!size[q])
             continue;
         /* The origins (a byte a triangle) are often under 2 MiB: huge pages
-         * from there on only, or a huge page would hold ~2 MiB of nothing. */
+         * from there on only, or a huge page would hold ~2 MiB of nothing.
+         * (The other arrays on small pages below 2 MiB: 1.3x the time of a
+         * 64^3 sphere, faults instead of one zeroed huge page.) */
         size_t huge_from = q == 3 ? HUGE_PAGE : 0;
         if (c->small_pages)
             huge_from = SIZE_MAX;
@@ -154,7 +166,8 @@ struct plan {
     int64_t N2;
     int64_t claimed;      /* the head wrote slices [0, claimed)            */
     int64_t lowest;       /* the lowest slice a staged run took; N2: none  */
-    int64_t H;            /* a staged run's layers                         */
+    int64_t H, H_min;     /* a staged run's layers, at most and at least   */
+    int threads;          /* taking part                                   */
     uint64_t vcap;        /* vertices a staged thread's region holds       */
     uint64_t layer_vmax;  /* the most vertices a layer (and its slice) has */
     staged *runs;         /* [N2], in the order taken (downwards)          */
@@ -166,6 +179,9 @@ struct plan {
     atomic_int cancel;
     int64_t head_reported;
     int head_yield_at;    /* tests (SCHEDULE_STAGED): the head stops at 1 */
+    int counted;          /* thread 1 counts, then runs to the top          */
+    int64_t counted_at;   /* where its run begins (-1: none)                */
+    uint64_t counted_v, counted_t, counted_nv, counted_nt;
 };
 
 /* The head's tick: claims slice m unless a staged run has it; progress. */
@@ -220,7 +236,12 @@ static void take_runs(thread_state *t)
     for (;;) {
         pthread_mutex_lock(&p->mu);
         const int64_t end = p->lowest;
-        int64_t first = end - p->H;
+        /* guided: a share of what is left between the head and here, at
+         * most H layers, so that runs are long (each reads two slices more
+         * than its own) but the last ones short (the head may wait for one) */
+        int64_t h = (end - p->claimed) / (2 * p->threads);
+        h = h < p->H_min ? p->H_min : h > p->H ? p->H : h;
+        int64_t first = end - h;
         if (first < p->claimed)
             first = p->claimed;
         int go = first < end && !atomic_load(&p->cancel) && t->status == ISOMEND_OK;
@@ -322,11 +343,54 @@ static void take_moves(plan *p, const thread_state *ts)
     }
 }
 
+/* The counted split (thread 1 of two): counts the head's slices and layers
+ * from the bottom until it has counted up to a slice s the head has not
+ * claimed with about as far for the head to go to it as from it to the top,
+ * and runs [s, N2) into the mesh from the counts; none when the head is
+ * ahead. */
+static void count_split(thread_state *t)
+{
+    plan *p = t->p;
+    const int64_t layers = p->N2 - 1;
+    uint64_t v = 0, tr = 0;
+    int64_t at = -1;
+    for (int64_t k = 0; k + 1 < layers && at < 0 && !atomic_load(&p->cancel); k++) {
+        uint64_t n;
+        v += stream_direct_count(t->s, k, 1, &n);
+        tr += n;
+        const int64_t s = k + 1;
+        pthread_mutex_lock(&p->mu);
+        if (s >= p->claimed && 2 * s >= layers + p->claimed && v <= UINT32_MAX)
+            p->lowest = at = s;
+        pthread_mutex_unlock(&p->mu);
+    }
+    if (at < 0)
+        return;
+    const stream_out *o = &p->mesh.out;
+    const stream_run sr = {at, p->N2, v, UINT64_MAX,
+                           {o->pos, o->nrm, o->tri + 3 * tr, o->org ? o->org + tr : NULL},
+                           staged_tick, t};
+    isomend_stats st;
+    t->status = stream_direct_run(t->s, &sr, &st, &p->counted_nv, &p->counted_nt);
+    if (t->status != ISOMEND_OK) {
+        atomic_store(&p->cancel, 1);
+        return;
+    }
+    add_stats(&t->stats, &st);
+    p->counted_at = at;
+    p->counted_v = v;
+    p->counted_t = tr;
+    atomic_fetch_add(&p->layers_staged, layers - at);
+}
+
 static void *staged_thread(void *arg)
 {
     thread_state *t = arg;
     plan *p = t->p;
-    take_runs(t);
+    if (p->counted)
+        count_split(t);
+    else
+        take_runs(t);
     pthread_mutex_lock(&p->mu);
     p->staging--;
     pthread_cond_broadcast(&p->cv);
@@ -350,8 +414,7 @@ static int64_t run_layers(const ctx *c, int threads)
         return 1;
     if (samples < STAGED_SAMPLES && c->schedule == SCHEDULE_AUTO)
         return 0;
-    int64_t h = layers / (16 * (int64_t)(threads - 1));
-    h = h < RUN_MIN ? RUN_MIN : h > RUN_MAX ? RUN_MAX : h;
+    int64_t h = RUN_MAX;
     /* a run's own ids stay below NEXT_RUN */
     const uint64_t per_layer = ((uint64_t)c->id_planes +
                                 (c->general ? METHODS_SLOT_COUNT - METHODS_SLOT_CENTRE : 0)) *
@@ -360,6 +423,27 @@ static int64_t run_layers(const ctx *c, int threads)
     if (hmax < 1)
         return 0;
     return h < hmax ? h : hmax;
+}
+
+/* Whether two threads take the counted split: table methods, two threads
+ * (or more, on a grid too small for staged runs: H 0), and a mesh dense in
+ * four sampled slices (counted by the head's engine, s). */
+static int counted_split(const ctx *c, stream_one *s, int nthreads, int64_t H)
+{
+    const grid *g = &c->g;
+    const int64_t N2 = g->N[2];
+    if (nthreads < 2 || c->general || N2 < 8)
+        return 0;
+    if (c->schedule == SCHEDULE_COUNTED)
+        return 1;
+    if (c->schedule != SCHEDULE_AUTO || (nthreads > 2 && H > 0) ||
+        (uint64_t)g->N[0] * (uint64_t)g->N[1] * (uint64_t)N2 < COUNTED_SAMPLES)
+        return 0;
+    uint64_t sampled = 0, n;
+    for (int64_t q = 0; q < 4; q++)
+        sampled += stream_direct_count(s, (2 * q + 1) * N2 / 8, 0, &n);
+    const double density = COUNTED_DENSITY * (double)isomend_type_size(g->type);
+    return (double)sampled > density * 4.0 * (double)(g->N[0] * g->N[1]);
 }
 
 /*
@@ -378,8 +462,8 @@ static isomend_status run_slabs(plan *p, int nthreads, uint64_t *nv, uint64_t *n
     p->claimed = 1;
     p->lowest = N2;
     p->H = run_layers(c, nthreads);
-    if (!p->H)
-        nthreads = 1;
+    p->H_min = p->H < RUN_MIN ? p->H : RUN_MIN;
+    p->counted_at = -1;
     isomend_status status = ISOMEND_OK;
     uint64_t vmax, tmax;
     grid_bounds(c, &vmax, &tmax);
@@ -394,9 +478,16 @@ static isomend_status run_slabs(plan *p, int nthreads, uint64_t *nv, uint64_t *n
         status = stream_direct_begin(p->vol, p->opts, &ts[t].s);
         if (status != ISOMEND_OK)
             break;
+        if (t == 0) {
+            p->counted = counted_split(c, ts[0].s, nthreads, p->H);
+            if (p->counted)
+                nthreads = 2;
+            else if (!p->H)
+                nthreads = 1;
+        }
         /* a staged thread's region: what the whole grid may give, address
          * space only; refused, the threads that have one do the staging */
-        if (t > 0 && !arrays_reserve(&ts[t].region, c, vmax, tmax)) {
+        if (t > 0 && !p->counted && !arrays_reserve(&ts[t].region, c, vmax, tmax)) {
             stream_one_destroy(ts[t].s);
             ts[t].s = NULL;
             break;
@@ -411,6 +502,7 @@ static isomend_status run_slabs(plan *p, int nthreads, uint64_t *nv, uint64_t *n
         return status;
     }
     nthreads = nt_threads;
+    p->threads = nthreads;
     pthread_t tid[64];
     int started = 1;
     p->runs = nthreads > 1 ? calloc((size_t)N2, sizeof(staged)) : NULL;
@@ -463,6 +555,12 @@ static isomend_status run_slabs(plan *p, int nthreads, uint64_t *nv, uint64_t *n
         pthread_cond_timedwait(&p->cv, &p->mu, &until);
     }
     uint64_t v = head_nv, t = head_nt;
+    if (status == ISOMEND_OK && p->counted_at >= 0) { /* the counted split's run follows */
+        if (p->counted_v != head_nv || p->counted_t != head_nt)
+            status = ISOMEND_ERR_INVALID_ARGUMENT; /* not reached: the counts are the head's */
+        v += p->counted_nv;
+        t += p->counted_nt;
+    }
     for (int k = 1; k < started; k++) /* a staged run's failure, not the head's stop */
         if (ts[k].status != ISOMEND_OK && ts[k].status != ISOMEND_ERR_CANCELLED)
             status = ts[k].status;
@@ -500,150 +598,181 @@ static isomend_status run_slabs(plan *p, int nthreads, uint64_t *nv, uint64_t *n
     return status;
 }
 
-/* ---------------------------------------- the fallback: arrays that grow */
+/* ------------------------------------- counted runs: small grids, and
+ * where the reservations are refused */
 
-typedef struct grow_sink {
-    float *pos, *nrm;
-    uint32_t *tri;
-    uint8_t *org;
-    uint64_t nv, vcap, nt, tcap;
-    int normals, origins;
-} grow_sink;
+/* Runs at bases counted first: chunks of layers counted on the threads
+ * (slices and layers, as the runs will number them), the exact arrays
+ * allocated, the same chunks run from their bases.  Two reads of a small
+ * grid, which stays in the caches between them, into arrays from the heap
+ * (a reservation's huge pages cost a small mesh more), on every thread. */
+typedef struct counted_job {
+    plan *p;
+    thread_state *ts;
+    isomend_mesh *mesh;
+    int64_t chunk, nchunks;
+    uint64_t *cv, *ct;     /* [nchunks]: counts, then bases */
+    int phase;             /* 0: count, 1: run */
+    atomic_llong next, done;
+} counted_job;
 
-static int grow_to(void **p, uint64_t cap, size_t elem)
+/* Chunk q's layers [*a, *b) and run end (the grid's end for the last). */
+static void chunk_range(const counted_job *j, int64_t q, int64_t *a, int64_t *b, int64_t *end)
 {
-    if (cap > SIZE_MAX / elem)
-        return 0;
-    void *q = realloc(*p, (size_t)cap * elem);
-    if (!q)
-        return 0;
-    *p = q;
-    return 1;
+    const int64_t layers = j->p->N2 - 1;
+    *a = q * j->chunk;
+    *b = *a + j->chunk < layers ? *a + j->chunk : layers;
+    *end = *b == layers ? j->p->N2 : *b;
 }
 
-static int sink_vertices(void *user, uint64_t first_id, size_t count, const float *positions,
-                         const float *normals, const uint64_t *keys)
+static void counted_chunks(counted_job *j, thread_state *t)
 {
-    (void)keys;
-    grow_sink *g = user;
-    if (first_id + count > g->vcap) {
-        uint64_t cap = g->vcap ? g->vcap : 4096;
-        while (cap < first_id + count)
-            cap *= 2;
-        if (!grow_to((void **)&g->pos, 3 * cap, sizeof(float)) ||
-            (g->normals && !grow_to((void **)&g->nrm, 3 * cap, sizeof(float))))
-            return 1;
-        g->vcap = cap;
+    plan *p = j->p;
+    const ctx *c = p->c;
+    for (;;) {
+        const long long q = atomic_fetch_add(&j->next, 1);
+        if (q >= j->nchunks || atomic_load(&p->cancel) || t->status != ISOMEND_OK)
+            return;
+        int64_t a, b, end;
+        chunk_range(j, q, &a, &b, &end);
+        if (j->phase == 0) {
+            uint64_t v = 0, tr = 0, n;
+            for (int64_t k = a; k < end; k++) {
+                v += stream_direct_count(t->s, k, k < b, &n);
+                tr += n;
+            }
+            j->cv[q] = v;
+            j->ct[q] = tr;
+        } else {
+            const isomend_mesh *m = j->mesh;
+            const stream_run run = {a, end, j->cv[q], UINT64_MAX,
+                                    {m->pos, m->nrm, m->tri + 3 * j->ct[q],
+                                     m->org ? m->org + j->ct[q] : NULL},
+                                    staged_tick, t};
+            isomend_stats st;
+            uint64_t nv, nt;
+            t->status = stream_direct_run(t->s, &run, &st, &nv, &nt);
+            if (t->status != ISOMEND_OK) {
+                atomic_store(&p->cancel, 1);
+                return;
+            }
+            add_stats(&t->stats, &st);
+        }
+        const long long done = atomic_fetch_add(&j->done, 1) + 1;
+        if (t->index == 0 && c->progress &&
+            c->progress(c->progress_user,
+                        (double)(done + j->phase * j->nchunks) / (double)(2 * j->nchunks)))
+            atomic_store(&p->cancel, 1);
     }
-    memcpy(g->pos + 3 * first_id, positions, 12 * count);
-    if (g->normals)
-        memcpy(g->nrm + 3 * first_id, normals, 12 * count);
-    g->nv = first_id + count;
-    return 0;
 }
 
-static int sink_triangles(void *user, size_t count, const uint64_t *ids, const uint8_t *origins)
+static void *counted_thread(void *arg)
 {
-    grow_sink *g = user;
-    if (g->nt + count > g->tcap) {
-        uint64_t cap = g->tcap ? g->tcap : 4096;
-        while (cap < g->nt + count)
-            cap *= 2;
-        if (!grow_to((void **)&g->tri, 3 * cap, sizeof(uint32_t)) ||
-            (g->origins && !grow_to((void **)&g->org, cap, 1)))
-            return 1;
-        g->tcap = cap;
+    counted_job *j = arg;
+    const long long index = atomic_fetch_add(&j->p->next_move, 1) + 1; /* 1, 2, ... */
+    counted_chunks(j, &j->ts[index]);
+    return NULL;
+}
+
+/* Runs one phase on the threads (thread 0: this one). */
+static void counted_phase(counted_job *j, int nthreads)
+{
+    pthread_t tid[64];
+    int started = 1;
+    atomic_store(&j->next, 0);
+    atomic_store(&j->done, 0);
+    atomic_store(&j->p->next_move, 0);
+    for (int t = 1; t < nthreads; t++) {
+        if (pthread_create(&tid[t], NULL, counted_thread, j) != 0)
+            break;
+        started = t + 1;
     }
-    for (size_t q = 0; q < 3 * count; q++) {
-        if (ids[q] > UINT32_MAX)
-            return 1;
-        g->tri[3 * g->nt + q] = (uint32_t)ids[q];
+    counted_chunks(j, &j->ts[0]);
+    for (int t = 1; t < started; t++)
+        pthread_join(tid[t], NULL);
+}
+
+static isomend_status counted_runs(plan *p, int nthreads, isomend_mesh *mesh, uint64_t *nv,
+                                   uint64_t *nt, isomend_stats *stats)
+{
+    ctx *c = p->c;
+    const int64_t N2 = c->g.N[2], layers = N2 - 1;
+    p->N2 = N2;
+    thread_state ts[64];
+    memset(ts, 0, sizeof ts);
+    counted_job j;
+    memset(&j, 0, sizeof j);
+    j.p = p;
+    j.ts = ts;
+    j.mesh = mesh;
+    /* chunks: 4 a thread, of 4 layers at least (each counts and runs a slice
+     * more than its own) */
+    const int64_t want = 4 * (int64_t)nthreads;
+    j.chunk = (layers + want - 1) / want;
+    if (j.chunk < 4)
+        j.chunk = 4;
+    j.nchunks = (layers + j.chunk - 1) / j.chunk;
+    if (nthreads > j.nchunks)
+        nthreads = (int)j.nchunks;
+    j.cv = calloc(2 * (size_t)j.nchunks, sizeof(uint64_t));
+    isomend_status status = j.cv ? ISOMEND_OK : ISOMEND_ERR_OUT_OF_MEMORY;
+    j.ct = j.cv ? j.cv + j.nchunks : NULL;
+    int made = 0;
+    for (int t = 0; t < nthreads && status == ISOMEND_OK; t++) {
+        ts[t].p = p;
+        ts[t].index = t;
+        status = stream_direct_begin(p->vol, p->opts, &ts[t].s);
+        made = t + 1;
     }
-    if (g->origins)
-        memcpy(g->org + g->nt, origins, count);
-    g->nt += count;
-    return 0;
-}
-
-static int sink_retire(void *user, uint64_t floor)
-{
-    (void)user;
-    (void)floor;
-    return 0;
-}
-
-/* The mesh through the stream, slice by slice (each gathered from the
- * volume's strides), into arrays that grow: where the reservations are
- * refused.  One thread; the same mesh and statistics. */
-static isomend_status through_stream(const ctx *c, const isomend_volume *vol,
-                                     const isomend_options *o, isomend_mesh *mesh,
-                                     isomend_stats *stats)
-{
-    grow_sink g;
-    memset(&g, 0, sizeof g);
-    g.normals = c->want_normals;
-    g.origins = c->want_origins;
-    const isomend_mesh_sink sink = {&g, sink_vertices, sink_triangles, sink_retire, NULL};
-    isomend_options one = *o;
-    one.threads = 1;
-    one.progress = NULL;
-    isomend_volume desc = *vol;
-    desc.data = NULL;
-    memset(desc.strides, 0, sizeof desc.strides);
-    const size_t size = isomend_type_size(vol->type);
-    const int64_t n0 = vol->dims[0], n1 = vol->dims[1], n2 = vol->dims[2];
-    char *plane = malloc((size_t)(n0 * n1) * size);
-    isomend_stream *s = NULL;
-    isomend_status status = plane ? isomend_stream_begin(&desc, &one, &sink, &s)
-                                  : ISOMEND_ERR_OUT_OF_MEMORY;
-    for (int64_t z = 0; z < n2 && status == ISOMEND_OK; z++) {
-        for (int64_t j = 0; j < n1; j++)
-            for (int64_t i = 0; i < n0; i++)
-                memcpy(plane + (size_t)(j * n0 + i) * size,
-                       (const char *)vol->data + i * c->g.st[0] + j * c->g.st[1] + z * c->g.st[2],
-                       size);
-        status = isomend_stream_push(s, plane);
-        if (status == ISOMEND_OK && c->progress &&
-            c->progress(c->progress_user, (double)(z + 1) / (double)(n2 + 1)))
+    if (status == ISOMEND_OK) {
+        counted_phase(&j, nthreads);
+        for (int t = 0; t < nthreads; t++)
+            if (ts[t].status != ISOMEND_OK)
+                status = ts[t].status;
+    }
+    uint64_t v = 0, tr = 0;
+    for (int64_t q = 0; q < j.nchunks && status == ISOMEND_OK; q++) { /* the bases */
+        const uint64_t cv = j.cv[q], ct = j.ct[q];
+        j.cv[q] = v;
+        j.ct[q] = tr;
+        v += cv;
+        tr += ct;
+    }
+    if (status == ISOMEND_OK && atomic_load(&p->cancel))
+        status = ISOMEND_ERR_CANCELLED;
+    if (status == ISOMEND_OK && v > UINT32_MAX)
+        status = ISOMEND_ERR_TOO_LARGE;
+    if (status == ISOMEND_OK) {
+        mesh->nv = (size_t)v;
+        mesh->nt = (size_t)tr;
+        mesh->pos = output_alloc(12 * mesh->nv, c->small_pages);
+        mesh->tri = output_alloc(12 * mesh->nt, c->small_pages);
+        if (c->want_normals)
+            mesh->nrm = output_alloc(12 * mesh->nv, c->small_pages);
+        if (c->want_origins && (mesh->org = output_alloc(mesh->nt, c->small_pages)))
+            memset(mesh->org, ISOMEND_ORIGIN_TABLE, mesh->nt); /* the runs write the others */
+        if (!mesh->pos || !mesh->tri || (c->want_normals && !mesh->nrm) ||
+            (c->want_origins && !mesh->org))
+            status = ISOMEND_ERR_OUT_OF_MEMORY;
+    }
+    if (status == ISOMEND_OK) {
+        j.phase = 1;
+        counted_phase(&j, nthreads);
+        for (int t = 0; t < nthreads; t++)
+            if (ts[t].status != ISOMEND_OK)
+                status = ts[t].status;
+        if (status == ISOMEND_OK && atomic_load(&p->cancel))
             status = ISOMEND_ERR_CANCELLED;
     }
-    if (status == ISOMEND_OK)
-        status = isomend_stream_finish(s, stats);
-    isomend_stream_destroy(s);
-    free(plane);
-    if (status == ISOMEND_ERR_SINK)
-        status = g.nv > UINT32_MAX ? ISOMEND_ERR_TOO_LARGE : ISOMEND_ERR_OUT_OF_MEMORY;
-    if (status != ISOMEND_OK) {
-        free(g.pos);
-        free(g.nrm);
-        free(g.tri);
-        free(g.org);
-        return status;
+    memset(stats, 0, sizeof *stats);
+    for (int t = 0; t < made; t++) {
+        add_stats(stats, &ts[t].stats);
+        stream_one_destroy(ts[t].s);
     }
-    /* the arrays at their size, as the mesh's own (output_alloc'd) */
-    mesh->nv = (size_t)g.nv;
-    mesh->nt = (size_t)g.nt;
-    mesh->pos = output_alloc(12 * mesh->nv, c->small_pages);
-    mesh->tri = output_alloc(12 * mesh->nt, c->small_pages);
-    if (g.normals)
-        mesh->nrm = output_alloc(12 * mesh->nv, c->small_pages);
-    if (g.origins)
-        mesh->org = output_alloc(mesh->nt, c->small_pages);
-    if (mesh->pos)
-        memcpy(mesh->pos, g.pos, 12 * mesh->nv);
-    if (mesh->nrm)
-        memcpy(mesh->nrm, g.nrm, 12 * mesh->nv);
-    if (mesh->tri)
-        memcpy(mesh->tri, g.tri, 12 * mesh->nt);
-    if (mesh->org)
-        memcpy(mesh->org, g.org, mesh->nt);
-    free(g.pos);
-    free(g.nrm);
-    free(g.tri);
-    free(g.org);
-    if (!mesh->pos || !mesh->tri || (g.normals && !mesh->nrm) || (g.origins && !mesh->org))
-        return ISOMEND_ERR_OUT_OF_MEMORY;
-    return ISOMEND_OK;
+    free(j.cv);
+    *nv = v;
+    *nt = tr;
+    return status;
 }
 
 /* ------------------------------------------------------- the extraction */
@@ -697,10 +826,13 @@ static isomend_status extract(const isomend_volume *vol, const isomend_options *
     grid_bounds(c, &vmax, &tmax);
     isomend_stats st;
     int nthreads = o->threads > 0 ? (o->threads > 64 ? 64 : o->threads) : default_threads();
-    if (vmax > SIZE_MAX / 32 || tmax > SIZE_MAX / 32 || !arrays_reserve(&p->mesh, c, vmax, tmax)) {
-        status = through_stream(c, vol, o, mesh, &st);
-        nv = mesh->nv;
-        nt = mesh->nt;
+    const uint64_t samples = (uint64_t)g->N[0] * (uint64_t)g->N[1] * (uint64_t)g->N[2];
+    const int small = samples < STAGED_SAMPLES && c->schedule == SCHEDULE_AUTO;
+    if (small || vmax > SIZE_MAX / 32 || tmax > SIZE_MAX / 32 ||
+        !arrays_reserve(&p->mesh, c, vmax, tmax)) {
+        if (samples < COUNTED_SAMPLES) /* a thread's start would cost more */
+            nthreads = 1;
+        status = counted_runs(p, nthreads, mesh, &nv, &nt, &st);
     } else {
         /* The recycled mesh's positions, normals and triangles become the
          * start of the new ones.  Not its origins: the runs leave the table's

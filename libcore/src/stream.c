@@ -610,6 +610,12 @@ static isomend_status step(stream_one *s, int64_t m)
         c->tri = s->out.tri + 3 * s->triangles;
         c->org = s->out.org ? s->out.org + s->triangles : NULL;
     }
+    /* in place, slice m + 2 classified first: the gradients at slice m's z
+     * edges read its samples, which this brings into the caches */
+    if (s->direct && !last && m + 2 < c->g.N[2]) {
+        const row_span *ahead;
+        (void)kr->signs(w, m + 2, &ahead);
+    }
     const uint64_t first = last && s->last_first != UINT64_MAX ? s->last_first : s->next_id + np;
     const uint64_t nv = kr->scan_slice(w, m, PASS_SWEEP, first, !last);
     if (!last)
@@ -968,4 +974,16 @@ isomend_status stream_direct_run(stream_one *s, const stream_run *run, isomend_s
     *nv = s->next_id - s->first_id;
     *nt = s->triangles;
     return status;
+}
+
+uint64_t stream_direct_count(stream_one *s, int64_t k, int layer, uint64_t *nt)
+{
+    worker *w = &s->w;
+    uint64_t nv = s->c.kernels->scan_slice(w, k, PASS_COUNT, 0, 0);
+    *nt = 0;
+    if (layer) {
+        *nt = s->c.kernels->march_layer(w, k, PASS_COUNT, 0);
+        nv += w->private_count;
+    }
+    return nv;
 }

@@ -79,5 +79,9 @@ isomend_status stream_direct_begin(const isomend_volume *vol, const isomend_opti
  * triangles it wrote, those of slice `end` not counted). */
 isomend_status stream_direct_run(stream_one *s, const stream_run *run, isomend_stats *stats,
                                  uint64_t *nv, uint64_t *nt);
+/* Counts, without writing, slice k's vertices (the return) and, with
+ * `layer`, layer k's triangles (*nt) and cube-private vertices (added to
+ * the return); the statistics this adds are cleared by the next run. */
+uint64_t stream_direct_count(stream_one *s, int64_t k, int layer, uint64_t *nt);
 
 #endif /* ISOMEND_STREAM_H */

@@ -7,8 +7,10 @@
  * down, moved into place at the end (libcore/src/slabs.c).  A test run with
  * --schedule=anysize takes staged runs at every size, --schedule=thin takes
  * them one layer at a time, --schedule=staged also stops the caller's run
- * after layer 0, so that every other layer is staged and moved
- * (extract_set_test_schedule, linked from the static library): one binary
+ * after layer 0, so that every other layer is staged and moved, and
+ * --schedule=counted takes the counted split of two threads (a dense mesh)
+ * at every size and density (extract_set_test_schedule, linked from the
+ * static library): one binary
  * reaches every path on the tests' small grids.
  */
 #ifndef ISOMEND_TEST_SCHEDULE_H
@@ -29,7 +31,8 @@ static inline int schedule_from_args(int argc, char **argv)
     } names[] = {{"auto", SCHEDULE_AUTO},
                  {"anysize", SCHEDULE_ANY_SIZE},
                  {"thin", SCHEDULE_THIN},
-                 {"staged", SCHEDULE_STAGED}};
+                 {"staged", SCHEDULE_STAGED},
+                 {"counted", SCHEDULE_COUNTED}};
     for (int i = 1; i < argc; i++) {
         if (strncmp(argv[i], "--schedule=", 11) != 0)
             continue;
@@ -40,7 +43,7 @@ static inline int schedule_from_args(int argc, char **argv)
                 found = 1;
             }
         if (!found) {
-            fprintf(stderr, "%s: unknown schedule '%s' (auto, anysize, thin, staged)\n",
+            fprintf(stderr, "%s: unknown schedule '%s' (auto, anysize, thin, staged, counted)\n",
                     argv[0], argv[i] + 11);
             return 1;
         }
