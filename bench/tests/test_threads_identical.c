@@ -11,9 +11,9 @@
  * must not change.  The volumes are larger and less regular than the core's
  * random tests: odd sizes so chunks end mid-volume, smooth fields with many
  * mending quads, integer ties at the level, NaNs, a negative-stride view, a
- * volume thinner than one chunk, and one above the one-pass threshold (2^21
- * samples: at 1 thread MC, Durst and DMC then sweep the volume once, into
- * reserved arrays, where more threads take the two passes).
+ * volume thinner than one chunk (counted runs), and one above 2^20 samples
+ * (the caller's run into reserved arrays, at 2 threads with the counted
+ * split or staged runs, at more with staged runs).
  */
 #include "isomend.h"
 #include "meshcmp.h"
@@ -81,8 +81,8 @@ static uint64_t check_volume_as(const char *name, const isomend_volume *vol, dou
     static const unsigned flag_sets[] = {0, ISOMEND_FLAG_PAD, ISOMEND_FLAG_NO_NORMALS,
                                          ISOMEND_FLAG_FLIP | ISOMEND_FLAG_PAD,
                                          ISOMEND_FLAG_NO_ORIGINS};
-    /* light: the flag sets that change the one-pass path's output (padding and
-     * flip, no origins) at 1, 2 and 8 threads */
+    /* light: the flag sets that change the runs' output (padding and flip, no
+     * origins) at 1, 2 and 8 threads */
     static const unsigned light_flags[] = {0, ISOMEND_FLAG_FLIP | ISOMEND_FLAG_PAD,
                                            ISOMEND_FLAG_NO_ORIGINS | ISOMEND_FLAG_NO_NORMALS};
     const unsigned *flags = light ? light_flags : flag_sets;
@@ -195,7 +195,7 @@ int main(void)
     }
     free(f);
 
-    /* Above the one-pass threshold: 131 x 127 x 128 = 2 129 536 samples. */
+    /* Reserved arrays and staged runs: 131 x 127 x 128 = 2 129 536 samples. */
     const int bx = 131, by = 127, bz = 128;
     float *big = wave_field(bx, by, bz, 8, 0.5);
     CHECK(big != NULL);

@@ -14,9 +14,10 @@
  *            one triangle (12 bytes + 1 origin byte) for every 4 samples
  *            and a vertex (24 or 12 bytes) for every 8, a surface as busy
  *            as a 256^3 gyroid of period 85 samples or a smoothed CT
- *   working  the sign cache (1 bit per sample), the id maps of two slices
- *            (3 x 4 bytes per slice sample each) and 64 MiB (threads,
- *            tables, the writer's buffers)
+ *   working  1 bit per sample for the extraction beside the mesh (a staged
+ *            run's part is held twice while it is moved, a huge page an
+ *            array), the id maps of two slices (3 x 4 bytes per slice
+ *            sample each) and 64 MiB (threads, tables, the writer's buffers)
  * and streams when their sum exceeds the limit (--max-memory SIZE, or
  * MemAvailable without it), unless a step cannot work on a stream.  The
  * mesh is the same either way, byte for byte.

@@ -243,10 +243,10 @@ enum {
 
 /*
  * Progress: called from the thread that called isomend_extract(), with a
- * fraction in [0, 1], from time to time while it runs (after
- * each chunk of layers, or every 16 slices on the one-pass path, and about
- * every 100 ms while that thread waits for another) and with 1.0 once the
- * mesh is complete.  Return non-zero to cancel: the extraction then returns
+ * fraction in [0, 1], from time to time while it runs (every 16 slices it
+ * extracts, after each chunk of layers on a small grid, and about every
+ * 100 ms while that thread waits for another) and with 1.0 once the mesh is
+ * complete.  Return non-zero to cancel: the extraction then returns
  * ISOMEND_ERR_CANCELLED and no mesh.  The return value of the final 1.0 call
  * is ignored.
  */
@@ -309,9 +309,9 @@ ISOMEND_API isomend_status isomend_extract(const isomend_volume *vol, const isom
  * zeroing by the kernel for that part (docs/core-internals.md has the
  * measured gain).  The new mesh, the same byte for byte as
  * isomend_extract()'s, is stored in *mesh; NULL on failure.  Memory is
- * reused on the one-pass path (methods MC, Durst and DMC, 1 or 2 threads,
- * grids of 2^21 samples or more, Linux); otherwise the old mesh is
- * destroyed before the new one is allocated.
+ * reused where the mesh is written into reservations (grids of 2^20 samples
+ * or more, Linux); otherwise the old mesh is destroyed before the new one
+ * is allocated.
  */
 ISOMEND_API isomend_status isomend_extract_recycle(const isomend_volume *vol,
                                                    const isomend_options *opts,

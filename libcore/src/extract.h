@@ -1,6 +1,6 @@
 /*
- * extract.h - the extraction's set-up, shared by its schedulers (private;
- * extract.c).
+ * extract.h - the extraction's set-up, shared by the engine and its
+ * clients (private; extract.c).
  */
 #ifndef ISOMEND_EXTRACT_H
 #define ISOMEND_EXTRACT_H
@@ -16,8 +16,8 @@ void gather_stats(const ctx *c, const worker *ws, int nw, uint64_t nv, uint64_t 
                   isomend_stats *stats);
 
 /* Tests only (not exported; tests link the static library): the schedule
- * the next extractions take, SCHEDULE_AUTO to choose again.  One library
- * reaches every path of the one pass on the tests' small grids. */
+ * the next extractions take (context.h), SCHEDULE_AUTO to choose again.  One
+ * library reaches every schedule of slabs.c on the tests' small grids. */
 void extract_set_test_schedule(extract_schedule schedule);
 
 #endif /* ISOMEND_EXTRACT_H */

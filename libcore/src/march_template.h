@@ -74,7 +74,7 @@ static ALWAYS_INLINE uint64_t march_layer_as(worker *w, int64_t k, const pass_ki
     _Static_assert(ISOMEND_ORIGIN_TABLE == 0, "the sweep leaves table origins as zero bytes");
     const uint32_t *const out_first = out;
     uint8_t *cases = w->cube_cases;
-    uint64_t cfg_count[256]; /* counting pass: cubes per configuration */
+    uint64_t cfg_count[256]; /* counting: cubes per configuration */
     uint64_t general_tri = 0;
     if (count)
         memset(cfg_count, 0, sizeof cfg_count);
@@ -119,7 +119,7 @@ static ALWAYS_INLINE uint64_t march_layer_as(worker *w, int64_t k, const pass_ki
             /* A narrow span (the rim of a blob) builds its configurations 16 at a
              * time as it goes; cases[] then holds columns word..word + 15 only. */
             const int narrow = i1 - i0 < NARROW_CUBES;
-            /* The fill pass reads the twelve edges' ids; their map lines were
+            /* Writing reads the twelve edges' ids; their map lines were
              * written a slice ago and, on a large grid, the vertices computed
              * since have pushed them out of the near caches. */
             if (write)
@@ -231,21 +231,17 @@ static ALWAYS_INLINE uint64_t march_layer_as(worker *w, int64_t k, const pass_ki
 }
 
 /* march_layer_as compiled for each pass and kind of method, and for the
- * writing passes of the table methods for each winding (per-cube tests fold
- * away).  The general methods never sweep (one pass: table methods only). */
+ * writing passes for each winding (per-cube tests fold away).  The general
+ * methods count a layer and then write it (PASS_FILL); the table methods
+ * count and write at once (PASS_SWEEP), or only count. */
 static uint64_t march_layer(worker *w, int64_t k, pass_kind pass, uint64_t first)
 {
     const ctx *c = w->c;
     if (c->general)
         return pass != PASS_COUNT ? march_layer_as(w, k, PASS_FILL, 1, c->flip, first)
                                   : march_layer_as(w, k, PASS_COUNT, 1, 0, first);
-    switch (pass) {
-    case PASS_COUNT: return march_layer_as(w, k, PASS_COUNT, 0, 0, first);
-    case PASS_SWEEP:
-        return c->flip ? march_layer_as(w, k, PASS_SWEEP, 0, 1, first)
-                       : march_layer_as(w, k, PASS_SWEEP, 0, 0, first);
-    case PASS_FILL: break;
-    }
-    return c->flip ? march_layer_as(w, k, PASS_FILL, 0, 1, first)
-                   : march_layer_as(w, k, PASS_FILL, 0, 0, first);
+    if (pass == PASS_COUNT)
+        return march_layer_as(w, k, PASS_COUNT, 0, 0, first);
+    return c->flip ? march_layer_as(w, k, PASS_SWEEP, 0, 1, first)
+                   : march_layer_as(w, k, PASS_SWEEP, 0, 0, first);
 }

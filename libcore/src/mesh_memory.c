@@ -7,10 +7,10 @@
  * spends much of its time in page faults, one per 4 KiB.
  * ISOMEND_FLAG_SMALL_PAGES asks for none.
  *
- * Reservations.  The one pass (one_pass.c) does not know its mesh's size in
- * advance: it writes into address-space reservations of the largest mesh the
- * grid can give (MAP_NORESERVE: untouched pages cost nothing) and trims them
- * at the end.
+ * Reservations.  isomend_extract()'s runs (slabs.c) do not know the mesh's
+ * size in advance: they write into address-space reservations of the
+ * largest mesh the grid can give (MAP_NORESERVE: untouched pages cost
+ * nothing), trimmed at the end, and a staged run into its thread's own.
  *
  * Recycling.  isomend_extract_recycle() moves an old mesh's pages into the
  * new reservations, so the new mesh is written on memory already faulted in
@@ -50,8 +50,8 @@ void *output_alloc(size_t size, int small_pages)
 }
 
 /*
- * Working arrays of 1 MiB and more (a worker's sign slices and id maps, the
- * sign cache): rounded up to whole 2 MiB pages, aligned to them and offered
+ * Working arrays of 1 MiB and more (a worker's sign slices and id maps):
+ * rounded up to whole 2 MiB pages, aligned to them and offered
  * for transparent huge pages.  malloc would hand these back to the kernel at
  * free() (glibc maps them on their own or trims its heap) and take them again
  * the next call on 4 KiB pages, a page fault each (costly on a virtual
@@ -68,13 +68,14 @@ void *scratch_alloc(size_t size)
 }
 
 /*
- * The one-pass path's output arrays: an anonymous mapping of `size` bytes
+ * Reserved output arrays (slabs.c): an anonymous mapping of `size` bytes
  * (the array's largest possible size) that reserves address space, not
  * memory (MAP_NORESERVE), aligned to 2 MiB and offered for transparent huge
  * pages from byte `huge_from` (a multiple of 2 MiB) on, or never (SIZE_MAX:
  * ISOMEND_FLAG_SMALL_PAGES).  NULL when the system
- * refuses (strict overcommit, an address-space limit): the caller then takes
- * the two passes.  The mapping is huge_round(size) bytes long.
+ * refuses (strict overcommit, an address-space limit): the caller then
+ * counts first and allocates the mesh's size.  The mapping is
+ * huge_round(size) bytes long.
  */
 void *reserve_output(size_t size, size_t huge_from)
 {

@@ -4,15 +4,15 @@
  * written in place), joined into one mesh in isomend_extract()'s order.
  *
  *   caller (the head)                 other threads (staged runs)
- *   slices 0, 1, 2, ... claimed one   runs of H layers taken from the top
- *   at a time, written straight into  down ([N2 - H, N2), then below), each
- *   the mesh's arrays with the final  numbered from 0 in the thread's own
- *   ids, until it meets the lowest    region; its last slice (the run
- *   run taken                         above's first) numbered from NEXT_RUN
+ *   slices 0, 1, 2, ... claimed one   runs of up to 64 layers taken from the
+ *   at a time, written straight into  top down, each numbered from 0 in the
+ *   the mesh's arrays with the final  thread's own region, its last slice
+ *   ids, until it meets the lowest    (the run above's first, in the same
+ *   run taken                         order) numbered on from its own
  *                  \                  /
  *                   moves: every staged run, in slice order, after the head's
- *                   part (vertices copied, ids + the run's base, NEXT_RUN + i
- *                   the run above's base + i), on all the threads
+ *                   part (vertices copied, ids + the run's base: its last
+ *                   slice's land on the run above's), on all the threads
  *
  * The two parts meet wherever the threads' speeds make them meet, so a
  * thread on a slower virtual CPU takes a smaller share.  The head writes
@@ -44,9 +44,6 @@
 #include <time.h>
 #include <unistd.h>
 
-/* A staged run's own ids are below NEXT_RUN; from it on, the vertices of
- * its last slice, the first of the run above. */
-#define NEXT_RUN 0x80000000u
 /* Samples from which other threads take staged runs, and from which two
  * threads take the counted split of a dense mesh: below, the head alone (a
  * thread's start, and a region's huge pages, cost more than the work they
@@ -265,7 +262,6 @@ static void take_runs(thread_state *t)
             first,
             end,
             0,
-            end < p->N2 ? NEXT_RUN : UINT64_MAX,
             {o->pos + 3 * t->v_used, o->nrm ? o->nrm + 3 * t->v_used : NULL,
              o->tri + 3 * t->t_used, o->org ? o->org + t->t_used : NULL},
             staged_tick,
@@ -304,42 +300,61 @@ static void move_origins(uint8_t *d, const uint8_t *s, uint64_t n)
             d[q] = s[q];
 }
 
-/* Releases the whole pages of [p, p + n): a run's part of its region, read. */
-static void release_inside(void *p, size_t n)
+/* Releases the whole pages of a region's array from byte *done up to byte
+ * `to` (rounded down): the part its moves have read, as they go, so that
+ * the moved part is not held twice. */
+static void release_read(void *array, size_t *done, size_t to)
 {
-    char *lo = (char *)huge_round((uintptr_t)p), *hi = (char *)((uintptr_t)((char *)p + n) &
-                                                                 ~(uintptr_t)(HUGE_PAGE - 1));
-    if (hi > lo)
-        release_pages(lo, (size_t)(hi - lo));
-}
-
-/* One staged run's part moved into the mesh. */
-static void move_run(plan *p, const thread_state *ts, const staged *run)
-{
-    const stream_out *src = &ts[run->thread].region.out, *dst = &p->mesh.out;
-    memcpy(dst->pos + 3 * run->v_base, src->pos + 3 * run->v_at, 12 * (size_t)run->nv);
-    release_inside(src->pos + 3 * run->v_at, 12 * (size_t)run->nv);
-    if (src->nrm) {
-        memcpy(dst->nrm + 3 * run->v_base, src->nrm + 3 * run->v_at, 12 * (size_t)run->nv);
-        release_inside(src->nrm + 3 * run->v_at, 12 * (size_t)run->nv);
+    to &= ~(HUGE_PAGE - 1);
+    if (array && to > *done) {
+        release_pages((char *)array + *done, to - *done);
+        *done = to;
     }
-    const uint32_t *s = src->tri + 3 * run->t_at;
-    uint32_t *d = dst->tri + 3 * run->t_base;
-    const uint32_t own = (uint32_t)run->v_base, next = (uint32_t)(run->v_base + run->nv) - NEXT_RUN;
-    for (uint64_t q = 0; q < 3 * run->nt; q++)
-        d[q] = s[q] + (s[q] < NEXT_RUN ? own : next);
-    release_inside(src->tri + 3 * run->t_at, 12 * (size_t)run->nt);
-    if (src->org)
-        move_origins(dst->org + run->t_base, src->org + run->t_at, run->nt);
 }
 
+/* The moves of one region (thread k's staged runs, in its order: the order
+ * taken), of its vertices (kind 0) or its triangles and origins (kind 1):
+ * each run's part copied to its place in the mesh, the triangles' ids plus
+ * the run's base (the ids of its last slice, numbered on from its own
+ * vertices, then land on the run above's first). */
+static void move_region(plan *p, const thread_state *ts, int k, int kind)
+{
+    const stream_out *src = &ts[k].region.out, *dst = &p->mesh.out;
+    size_t done[2] = {0, 0};
+    for (int64_t r = 0; r < p->nruns; r++) {
+        const staged *run = &p->runs[r];
+        if (run->thread != k)
+            continue;
+        if (kind == 0) {
+            const size_t bytes = 12 * (size_t)run->nv, at = 12 * (size_t)run->v_at;
+            memcpy(dst->pos + 3 * run->v_base, src->pos + 3 * run->v_at, bytes);
+            release_read(src->pos, &done[0], at + bytes);
+            if (src->nrm) {
+                memcpy(dst->nrm + 3 * run->v_base, src->nrm + 3 * run->v_at, bytes);
+                release_read(src->nrm, &done[1], at + bytes);
+            }
+            continue;
+        }
+        const uint32_t *s = src->tri + 3 * run->t_at;
+        uint32_t *d = dst->tri + 3 * run->t_base;
+        const uint32_t base = (uint32_t)run->v_base;
+        for (uint64_t q = 0; q < 3 * run->nt; q++)
+            d[q] = s[q] + base;
+        release_read(src->tri, &done[0], 12 * (size_t)(run->t_at + run->nt));
+        if (src->org)
+            move_origins(dst->org + run->t_base, src->org + run->t_at, run->nt);
+    }
+}
+
+/* The moves, a region's vertices or triangles a task, shared by the
+ * threads (tasks 2 (k - 1) + kind for staged thread k). */
 static void take_moves(plan *p, const thread_state *ts)
 {
     for (;;) {
-        const long long r = atomic_fetch_add(&p->next_move, 1);
-        if (r >= p->nruns)
+        const long long task = atomic_fetch_add(&p->next_move, 1);
+        if (task >= 2 * (long long)(p->threads - 1))
             return;
-        move_run(p, ts, &p->runs[r]);
+        move_region(p, ts, (int)(task / 2) + 1, (int)(task % 2));
     }
 }
 
@@ -367,7 +382,7 @@ static void count_split(thread_state *t)
     if (at < 0)
         return;
     const stream_out *o = &p->mesh.out;
-    const stream_run sr = {at, p->N2, v, UINT64_MAX,
+    const stream_run sr = {at, p->N2, v,
                            {o->pos, o->nrm, o->tri + 3 * tr, o->org ? o->org + tr : NULL},
                            staged_tick, t};
     isomend_stats st;
@@ -415,11 +430,11 @@ static int64_t run_layers(const ctx *c, int threads)
     if (samples < STAGED_SAMPLES && c->schedule == SCHEDULE_AUTO)
         return 0;
     int64_t h = RUN_MAX;
-    /* a run's own ids stay below NEXT_RUN */
+    /* a run's ids, its last slice's too, stay within 32 bits */
     const uint64_t per_layer = ((uint64_t)c->id_planes +
                                 (c->general ? METHODS_SLOT_COUNT - METHODS_SLOT_CENTRE : 0)) *
                                (uint64_t)g->N[0] * (uint64_t)g->N[1];
-    const int64_t hmax = (int64_t)((NEXT_RUN - 1) / per_layer) - 1;
+    const int64_t hmax = (int64_t)(UINT32_MAX / per_layer) - 1;
     if (hmax < 1)
         return 0;
     return h < hmax ? h : hmax;
@@ -523,7 +538,7 @@ static isomend_status run_slabs(plan *p, int nthreads, uint64_t *nv, uint64_t *n
 
     /* the head, on this thread */
     uint64_t head_nv = 0, head_nt = 0;
-    const stream_run head = {0, N2, 0, UINT64_MAX, p->mesh.out, head_tick, &ts[0]};
+    const stream_run head = {0, N2, 0, p->mesh.out, head_tick, &ts[0]};
     status = stream_direct_run(ts[0].s, &head, &ts[0].stats, &head_nv, &head_nt);
     if (status != ISOMEND_OK)
         atomic_store(&p->cancel, 1);
@@ -614,6 +629,7 @@ typedef struct counted_job {
     uint64_t *cv, *ct;     /* [nchunks]: counts, then bases */
     int phase;             /* 0: count, 1: run */
     atomic_llong next, done;
+    atomic_int started;    /* threads started in the phase: their index - 1 */
 } counted_job;
 
 /* Chunk q's layers [*a, *b) and run end (the grid's end for the last). */
@@ -645,7 +661,7 @@ static void counted_chunks(counted_job *j, thread_state *t)
             j->ct[q] = tr;
         } else {
             const isomend_mesh *m = j->mesh;
-            const stream_run run = {a, end, j->cv[q], UINT64_MAX,
+            const stream_run run = {a, end, j->cv[q],
                                     {m->pos, m->nrm, m->tri + 3 * j->ct[q],
                                      m->org ? m->org + j->ct[q] : NULL},
                                     staged_tick, t};
@@ -669,7 +685,7 @@ static void counted_chunks(counted_job *j, thread_state *t)
 static void *counted_thread(void *arg)
 {
     counted_job *j = arg;
-    const long long index = atomic_fetch_add(&j->p->next_move, 1) + 1; /* 1, 2, ... */
+    const int index = atomic_fetch_add(&j->started, 1) + 1; /* 1, 2, ... */
     counted_chunks(j, &j->ts[index]);
     return NULL;
 }
@@ -681,7 +697,7 @@ static void counted_phase(counted_job *j, int nthreads)
     int started = 1;
     atomic_store(&j->next, 0);
     atomic_store(&j->done, 0);
-    atomic_store(&j->p->next_move, 0);
+    atomic_store(&j->started, 0);
     for (int t = 1; t < nthreads; t++) {
         if (pthread_create(&tid[t], NULL, counted_thread, j) != 0)
             break;

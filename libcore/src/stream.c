@@ -2,11 +2,14 @@
  * stream.c - streaming extraction: slices pushed one at a time, the mesh
  * handed to a sink as it is made (isomend_stream_*, isomend.h).
  *
- * A stream is the one pass (one_pass.c) driven by the arrival of slices: it
- * calls the same kernels on the same units, scan_slice for slice m and
- * march_layer for layer m - 1, as soon as the samples they read are there,
- * and numbers the vertices from the running count, so the ids, the order
- * and the bytes are isomend_extract()'s.  What it keeps:
+ * The one engine: runs of slices driven through the kernels, scan_slice for
+ * slice m and march_layer for layer m - 1 as soon as the samples they read
+ * are there, the vertices numbered from the running count.  Its clients:
+ * the stream (slices pushed one at a time, the mesh to a sink), the pool's
+ * slabs (stream_pool.c), the pieces of isomend-mpi, and isomend_extract()'s
+ * runs (slabs.c: the volume read in place, the mesh written in place,
+ * stream_direct_*).  The ids, the order and the bytes are the same for all.
+ * What a stream keeps:
  *
  *   the window   WINDOW planes of samples, contiguous: the grid's data
  *                points at its first plane, volume slice g.z0.  Scanning
@@ -32,8 +35,8 @@
  *
  * The table methods sweep (PASS_SWEEP: count and write at once); the
  * general methods (methods.h) march each layer twice, counting its
- * cube-private vertices first, as the two passes do, so that they can be
- * numbered after slice m's vertices, where isomend_extract() puts them.
+ * cube-private vertices first, so that they are numbered after slice m's
+ * vertices.
  */
 #include "context.h"
 #include "vertices.h"
@@ -103,13 +106,10 @@ struct stream_one {
     uint64_t *ids; /* [3 * TRIANGLE_BATCH] */
     /* A run of isomend_extract() (stream_direct_*): the volume read in place,
      * the mesh written straight into `out` (vertex id i at out.pos + 3 i,
-     * the run's triangles from out.tri on), no sink; the run's last slice
-     * numbered from last_first (STREAM_NEXT_RUN: the next run's first slice,
-     * numbered from 0 there), or from the running count (UINT64_MAX); tick
-     * asked before each slice past the first. */
+     * the run's triangles from out.tri on), no sink; tick asked before each
+     * slice past the first. */
     int direct;
     stream_out out;
-    uint64_t last_first;
     stream_tick tick;
     void *tick_user;
 };
@@ -190,7 +190,6 @@ static isomend_status stream_init(stream_one *s, const isomend_volume *desc,
     s->w.is_main = 1;
     c->g.data = s->window;
     c->g.z0 = 0;
-    s->last_first = UINT64_MAX;
     s->own_first = 0;
     s->own_end = g->N[2];
     s->push_first = 0;
@@ -206,7 +205,7 @@ static isomend_status stream_init(stream_one *s, const isomend_volume *desc,
     c->pos = s->pos.p;
     c->nrm = s->nrm.p;
     c->tri = s->tri.p;
-    c->org = s->org.p; /* zero bytes: ISOMEND_ORIGIN_TABLE, as the one pass's */
+    c->org = s->org.p; /* zero bytes: ISOMEND_ORIGIN_TABLE, as in place */
     return ISOMEND_OK;
 }
 
@@ -616,15 +615,13 @@ static isomend_status step(stream_one *s, int64_t m)
         const row_span *ahead;
         (void)kr->signs(w, m + 2, &ahead);
     }
-    const uint64_t first = last && s->last_first != UINT64_MAX ? s->last_first : s->next_id + np;
+    const uint64_t first = s->next_id + np;
     const uint64_t nv = kr->scan_slice(w, m, PASS_SWEEP, first, !last);
     if (!last)
         w->stats.nan_samples += s->box ? box_nans(s, m) : w->slice_nans[m % SIGN_RING];
     const uint64_t below = layer ? s->slice_first[(m - 1) % 2] : first;
     s->slice_first[m % 2] = first;
-    if (s->direct ? !last && first + nv > (s->last_first != UINT64_MAX ? s->last_first
-                                                                        : (uint64_t)UINT32_MAX + 1)
-                  : first + nv - below > UINT32_MAX)
+    if (s->direct ? first + nv > (uint64_t)UINT32_MAX + 1 : first + nv - below > UINT32_MAX)
         return s->failed = ISOMEND_ERR_TOO_LARGE; /* the id maps' (a run's ids') 32 bits */
     if (layer && c->general) /* the private vertices and the triangles */
         (void)kr->march_layer(w, k, PASS_FILL, 0);
@@ -958,7 +955,6 @@ isomend_status stream_direct_run(stream_one *s, const stream_run *run, isomend_s
     s->failed = ISOMEND_OK;
     s->finished = 0;
     s->first_id = s->next_id = run->first_id;
-    s->last_first = run->last_first;
     s->out = run->out;
     s->tick = run->tick;
     s->tick_user = run->tick_user;

@@ -57,7 +57,7 @@ isomend_status stream_slab_run(stream_one *s, const char *planes, isomend_stats 
  * out.nrm), and writes its triangles from out.tri (and out.org: zero bytes
  * where it writes none, as a fresh reservation is) on, with the ids of the
  * vertices; slice `end`, when it is not the last of the grid, is numbered
- * but not computed, from last_first on (UINT64_MAX: the running count).
+ * (on from the run's own) but not computed.
  * tick (may be NULL) is asked before each slice m, first < m < end: 1 goes
  * on, 0 makes m the run's end, < 0 cancels (ISOMEND_ERR_CANCELLED). */
 typedef struct stream_out {
@@ -68,7 +68,7 @@ typedef struct stream_out {
 typedef int (*stream_tick)(void *user, int64_t m);
 typedef struct stream_run {
     int64_t first, end;
-    uint64_t first_id, last_first;
+    uint64_t first_id;
     stream_out out;
     stream_tick tick;
     void *tick_user;

@@ -296,7 +296,7 @@ def test_threads_do_not_change_the_mesh():
 
 
 def test_small_pages_do_not_change_the_mesh(stack):
-    # the one pass (130^3 samples) at 1 thread and split between 2; Source too
+    # reserved arrays (130^3 samples) at 1 thread and 2; Source too
     vol = sphere(130, r=50, centre=(64.3, 65.1, 63.7))
     for t in (1, 2):
         same_mesh(isomend.extract(vol, 0.0, threads=t),

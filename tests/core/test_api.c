@@ -247,12 +247,13 @@ static int same_mesh(const isomend_mesh *a, const isomend_mesh *b)
  * isomend_extract_recycle: the new mesh is isomend_extract()'s byte for byte
  * whatever the recycled mesh held (a larger or smaller one, with or without
  * normals and origins, mended triangles where the new mesh has none), at 1,
- * 2 and 3 threads (one pass, split, two passes); bad arguments destroy the
+ * 2 and 3 threads (the caller's run alone, and with the counted split or
+ * staged runs; counted runs on the 96^3 grid); bad arguments destroy the
  * old mesh and leave NULL.
  */
 static void test_recycle(void)
 {
-    const int sizes[3] = {130, 96, 140}; /* 130^3 and 140^3 reach the one pass */
+    const int sizes[3] = {130, 96, 140}; /* 130^3 and 140^3: reserved arrays */
     float *vols[3];
     for (int q = 0; q < 3; q++)
         vols[q] = noise_volume(sizes[q], 7u + (unsigned)q);
@@ -302,11 +303,10 @@ static void test_recycle(void)
 }
 
 /*
- * Two threads give one thread's mesh on grids that take the one pass (2^21
- * samples and more): a dense field (the split that counts; with
- * --schedule=apart the apart split, whose moves then
- * span several huge pages and release them as they go) and a sphere (sparse:
- * the apart split in every build).
+ * Two threads give one thread's mesh on grids of reserved arrays (2^20
+ * samples and more): a dense field (the counted split; with
+ * --schedule=staged staged runs, whose moves then span several huge pages
+ * and release them as they go) and a sphere (sparse: staged runs).
  */
 static void test_split(void)
 {

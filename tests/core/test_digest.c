@@ -14,11 +14,11 @@
  *                                  the lines at N threads (default 2) with
  *                                  the schedule S (tests/core/schedule.h)
  *
- * Run as it is (two threads, so the two passes on these small grids) and
- * with the one pass taken at every size (--schedule=onepass, apart,
- * apartsolo; --threads=1 and 2, tests/core/CMakeLists.txt): those must print
- * the same lines, i.e. the one pass the two passes' mesh and statistics
- * (core_one_pass_identical and the split variants).
+ * Run as it is (two threads: counted runs on these small grids), the lines
+ * must be tests/core/digest_expected.txt's, printed by the two passes of
+ * 2026-12-05 (core_digest_expected); at 1 thread and with each test schedule
+ * (--schedule=anysize, thin, staged, counted: tests/core/schedule.h) they
+ * must be the same (core_one_run_identical, core_*_runs_identical).
  *
  * The cases: every sample type; a dense field (many crossings per row: the
  * wide-span path) and a sphere (a few per row: the lists); odd sizes with the

@@ -381,7 +381,7 @@ static void test_all_methods_types(void)
             int64_t n[3];
             for (int a = 0; a < 3; a++)
                 n[a] = 2 + (int64_t)(rng() % 17);
-            if (shape == SPHERE && t == 0) { /* the one pass's size, for the table methods */
+            if (shape == SPHERE && t == 0) { /* reserved arrays' size (2^20 samples) */
                 n[0] = n[1] = 140;
                 n[2] = 110;
             }

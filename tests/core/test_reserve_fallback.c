@@ -1,13 +1,13 @@
 /*
- * test_one_pass_fallback.c - the one-pass path (one thread, MC/Durst/DMC, a
- * grid of 2^21 samples or more) reserves its output arrays at the largest
- * size the grid allows, hundreds of MB of address space for this volume.
- * Where the system refuses that (here an address-space limit, RLIMIT_AS, as
- * `ulimit -v` sets it; strict overcommit does the same), the extraction must
- * still succeed, through the two passes, with the same mesh and statistics.
- * At 2 threads the one pass reserves twice that, room for a split apart;
- * under a limit that refuses the room but not the arrays, it reserves them
- * again without it.
+ * test_reserve_fallback.c - isomend_extract() on a grid of 2^20 samples or
+ * more writes its runs into address-space reservations of the largest mesh
+ * the grid allows (hundreds of MB for this volume), and a staged run into
+ * its thread's own region, as large (libcore/src/slabs.c).  Where the system
+ * refuses them (here an address-space limit, RLIMIT_AS, as `ulimit -v` sets
+ * it; strict overcommit does the same), the extraction must still succeed,
+ * with the same mesh and statistics: without the regions, the caller's run
+ * alone; without the mesh's reservations, counted runs (count, allocate the
+ * mesh's size, run).
  *
  * Not under the sanitizers: their shadow memory does not fit an address-space
  * limit.
@@ -80,10 +80,10 @@ int main(void)
         CHECK(ref[q] && isomend_mesh_triangle_count(ref[q]) > 10000);
     }
 
-    /* Room for the one pass's arrays at their largest (positions and normals
-     * 77 MB each, triangles 250 MB, origins 21 MB), not for twice that: at 2
-     * threads the one pass reserves them again without the room for a split
-     * apart, with the same mesh (any thread count gives the same). */
+    /* Room for the mesh's arrays at their largest (positions and normals
+     * 77 MB each, triangles 250 MB, origins 21 MB), not for a staged
+     * thread's region as large: at 2 threads the caller's run goes alone (or
+     * the counted split, which needs no region), with the same mesh. */
     const long long now = vm_size();
     CHECK(now > 0);
     struct rlimit mid = {(rlim_t)(now + (640LL << 20)), RLIM_INFINITY};
@@ -97,8 +97,8 @@ int main(void)
         isomend_mesh_destroy(m);
     }
 
-    /* Room for the two passes (a few MB of mesh and work arrays), not for the
-     * one-pass reservations (the triangles' alone are 10 a cube, 250 MB). */
+    /* Room for counted runs (a few MB of mesh and work arrays), not for the
+     * reservations (the triangles' alone are 10 a cube, 250 MB). */
     struct rlimit lim = {(rlim_t)(now + (96LL << 20)), RLIM_INFINITY};
     CHECK_EQ_INT(setrlimit(RLIMIT_AS, &lim), 0);
     void *probe = mmap(NULL, (size_t)256 << 20, PROT_READ | PROT_WRITE,
