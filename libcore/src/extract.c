@@ -210,22 +210,27 @@ int worker_init(worker *w, ctx *c)
     return 1;
 }
 
+/* The counts of a part of the grid's cubes added to *to (not the cubes,
+ * vertices and triangles). */
+void stats_add(isomend_stats *to, const isomend_stats *s)
+{
+    for (int q = 0; q < 15; q++)
+        to->case_histogram[q] += s->case_histogram[q];
+    for (int q = 0; q < ISOMEND_ORIGIN_COUNT; q++)
+        to->triangles_by_origin[q] += s->triangles_by_origin[q];
+    to->ambiguous_faces += s->ambiguous_faces;
+    to->inverted_combinations += s->inverted_combinations;
+    to->nan_samples += s->nan_samples;
+}
+
 /* The workers' statistics and the mesh's counts, into *stats. */
 void gather_stats(const ctx *c, const worker *ws, int nw, uint64_t nv, uint64_t nt,
                   isomend_stats *stats)
 {
     const grid *g = &c->g;
     memset(stats, 0, sizeof(*stats));
-    for (int t = 0; t < nw; t++) {
-        const isomend_stats *s = &ws[t].stats;
-        for (int q = 0; q < 15; q++)
-            stats->case_histogram[q] += s->case_histogram[q];
-        for (int q = 0; q < ISOMEND_ORIGIN_COUNT; q++)
-            stats->triangles_by_origin[q] += s->triangles_by_origin[q];
-        stats->ambiguous_faces += s->ambiguous_faces;
-        stats->inverted_combinations += s->inverted_combinations;
-        stats->nan_samples += s->nan_samples;
-    }
+    for (int t = 0; t < nw; t++)
+        stats_add(stats, &ws[t].stats);
     stats->cubes = (uint64_t)(g->N[0] - 1) * (uint64_t)(g->N[1] - 1) * (uint64_t)(g->N[2] - 1);
     stats->vertices = nv;
     stats->triangles = nt;

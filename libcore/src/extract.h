@@ -14,6 +14,7 @@ size_t worker_layout(worker *w, const ctx *c, char *block);
 int worker_init(worker *w, ctx *c);
 void gather_stats(const ctx *c, const worker *ws, int nw, uint64_t nv, uint64_t nt,
                   isomend_stats *stats);
+void stats_add(isomend_stats *to, const isomend_stats *s);
 
 /* Tests only (not exported; tests link the static library): the schedule
  * the next extractions take (context.h), SCHEDULE_AUTO to choose again.  One

@@ -885,6 +885,20 @@ isomend_status stream_slab_run(stream_one *s, const char *planes, isomend_stats 
     return stream_one_finish(s, stats);
 }
 
+/* A new run on the same stream: counters and the worker's slices and
+ * statistics cleared, its memory kept. */
+static void run_reset(stream_one *s)
+{
+    s->slice_first[0] = s->slice_first[1] = 0;
+    s->triangles = s->nforeign = 0;
+    worker *w = &s->w;
+    for (int r = 0; r < SIGN_RING; r++)
+        w->slice_held[r] = -1;
+    memset(&w->stats, 0, sizeof w->stats);
+    memset(w->pending_count, 0, sizeof w->pending_count);
+    w->private_count = w->private_next = 0;
+}
+
 isomend_status stream_slab_reset(stream_one *s, int64_t owned_first, int64_t owned_end)
 {
     const isomend_piece piece = {owned_first, owned_end, {0, 0}, {0, 0}};
@@ -898,14 +912,7 @@ isomend_status stream_slab_reset(stream_one *s, int64_t owned_first, int64_t own
     s->failed = ISOMEND_OK;
     s->finished = 0;
     s->first_id = s->next_id = 0;
-    s->slice_first[0] = s->slice_first[1] = 0;
-    s->triangles = s->nforeign = 0;
-    worker *w = &s->w;
-    for (int r = 0; r < SIGN_RING; r++)
-        w->slice_held[r] = -1;
-    memset(&w->stats, 0, sizeof w->stats);
-    memset(w->pending_count, 0, sizeof w->pending_count);
-    w->private_count = w->private_next = 0;
+    run_reset(s);
     return ISOMEND_OK;
 }
 
@@ -958,14 +965,7 @@ isomend_status stream_direct_run(stream_one *s, const stream_run *run, isomend_s
     s->out = run->out;
     s->tick = run->tick;
     s->tick_user = run->tick_user;
-    s->slice_first[0] = s->slice_first[1] = 0;
-    s->triangles = 0;
-    worker *w = &s->w;
-    for (int r = 0; r < SIGN_RING; r++)
-        w->slice_held[r] = -1;
-    memset(&w->stats, 0, sizeof w->stats);
-    memset(w->pending_count, 0, sizeof w->pending_count);
-    w->private_count = w->private_next = 0;
+    run_reset(s);
     const isomend_status status = stream_one_finish(s, stats);
     *nv = s->next_id - s->first_id;
     *nt = s->triangles;
