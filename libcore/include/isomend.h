@@ -244,9 +244,9 @@ enum {
 /*
  * Progress: called from the thread that called isomend_extract(), with a
  * fraction in [0, 1], from time to time while it runs (every 16 slices it
- * extracts, after each chunk of layers on a small grid, and about every
- * 100 ms while that thread waits for another) and with 1.0 once the mesh is
- * complete.  Return non-zero to cancel: the extraction then returns
+ * extracts, after each chunk of layers on a small grid, once its own part
+ * is done and about every 100 ms while it then waits for another thread: at
+ * least once before the end) and with 1.0 once the mesh is complete.  Return non-zero to cancel: the extraction then returns
  * ISOMEND_ERR_CANCELLED and no mesh.  The return value of the final 1.0 call
  * is ignored.
  */

@@ -38,6 +38,8 @@
 #include "slice_geometry.h"
 #include "stream.h"
 #include "tables.h"
+#include "runs_job.h"
+#include "counted_runs.h"
 
 #include <pthread.h>
 #include <stdlib.h>
@@ -65,12 +67,6 @@ static int default_threads(void)
     long n = sysconf(_SC_NPROCESSORS_ONLN);
     return n < 1 ? 1 : n > 64 ? 64 : (int)n;
 }
-
-/* Arrays of the largest mesh (or a region's part of it), reserved. */
-typedef struct arrays {
-    stream_out out;
-    size_t mapped[4];
-} arrays;
 
 static void arrays_release(arrays *a)
 {
@@ -133,54 +129,6 @@ static void grid_bounds(const ctx *c, uint64_t *vmax, uint64_t *tmax)
 
 /* ------------------------------------------------------- the schedule */
 
-typedef struct staged {
-    int64_t first, end;   /* its slices and layers [first, end) */
-    int thread;           /* whose region holds it                 */
-    uint64_t v_at, nv;    /* its vertices in the region, and count */
-    uint64_t t_at, nt;    /* its triangles                         */
-    uint64_t v_base, t_base; /* where they go in the mesh (moves)  */
-} staged;
-
-typedef struct plan plan;
-
-typedef struct thread_state {
-    plan *p;
-    int index;            /* 0: the caller, the head */
-    stream_one *s;
-    arrays region;        /* a staged thread's runs, one after another */
-    uint64_t v_used, t_used;
-    isomend_stats stats;  /* summed over its runs */
-    isomend_status status;
-} thread_state;
-
-struct plan {
-    ctx *c;
-    const isomend_volume *vol;
-    const isomend_options *opts;
-    arrays mesh;
-    pthread_mutex_t mu;
-    pthread_cond_t cv;
-    int64_t N2;
-    int64_t claimed;      /* the head wrote slices [0, claimed)            */
-    int64_t lowest;       /* the lowest slice a staged run took; N2: none  */
-    int64_t H, H_min;     /* a staged run's layers, at most and at least   */
-    int threads;          /* taking part                                   */
-    uint64_t vcap;        /* vertices a staged thread's region holds       */
-    uint64_t layer_vmax;  /* the most vertices a layer (and its slice) has */
-    staged *runs;         /* [N2], in the order taken (downwards)          */
-    int64_t nruns;
-    int staging;          /* threads still taking runs                     */
-    int moves_ready;      /* the bases are known (cv)                      */
-    atomic_llong next_move;
-    atomic_llong layers_staged; /* progress */
-    atomic_int cancel;
-    int64_t head_reported;
-    int head_yield_at;    /* tests (SCHEDULE_STAGED): the head stops at 1 */
-    int counted;          /* thread 1 counts, then runs to the top          */
-    int64_t counted_at;   /* where its run begins (-1: none)                */
-    uint64_t counted_v, counted_t, counted_nv, counted_nt;
-};
-
 /* The head's tick: claims slice m unless a staged run has it; progress. */
 static int head_tick(void *user, int64_t m)
 {
@@ -205,14 +153,6 @@ static int head_tick(void *user, int64_t m)
         }
     }
     return 1;
-}
-
-/* A staged run's tick: only the cancellation. */
-static int staged_tick(void *user, int64_t m)
-{
-    (void)m;
-    const thread_state *t = user;
-    return atomic_load(&t->p->cancel) ? -1 : 1;
 }
 
 /* A staged thread: runs taken from the top down until they meet the head. */
@@ -253,7 +193,7 @@ static void take_runs(thread_state *t)
             0,
             {o->pos + 3 * t->v_used, o->nrm ? o->nrm + 3 * t->v_used : NULL,
              o->tri + 3 * t->t_used, o->org ? o->org + t->t_used : NULL},
-            staged_tick,
+            cancel_tick,
             t,
         };
         isomend_stats st;
@@ -373,7 +313,7 @@ static void count_split(thread_state *t)
     const stream_out *o = &p->mesh.out;
     const stream_run sr = {at, p->N2, v,
                            {o->pos, o->nrm, o->tri + 3 * tr, o->org ? o->org + tr : NULL},
-                           staged_tick, t};
+                           cancel_tick, t};
     isomend_stats st;
     t->status = stream_direct_run(t->s, &sr, &st, &p->counted_nv, &p->counted_nt);
     if (t->status != ISOMEND_OK) {
@@ -540,13 +480,25 @@ static isomend_status run_slabs(plan *p, int nthreads, uint64_t *nv, uint64_t *n
     if (status != ISOMEND_OK)
         atomic_store(&p->cancel, 1);
 
-    /* the staged runs done (progress reported now, then every 100 ms): their
-     * bases, in slice order (taken downwards) */
+    /* the staged runs done (progress reported now, whatever the threads'
+     * order, then every 100 ms while they run): their bases, in slice order
+     * (taken downwards) */
     pthread_mutex_lock(&p->mu);
-    while (p->staging > 0) {
+    for (int first = 1; first || p->staging > 0; first = 0) {
         if (!c->progress || status != ISOMEND_OK) {
-            pthread_cond_wait(&p->cv, &p->mu);
+            if (p->staging > 0)
+                pthread_cond_wait(&p->cv, &p->mu);
             continue;
+        }
+        if (!first) {
+            struct timespec until;
+            clock_gettime(CLOCK_REALTIME, &until);
+            until.tv_nsec += 100 * 1000 * 1000;
+            if (until.tv_nsec >= 1000 * 1000 * 1000) {
+                until.tv_sec++;
+                until.tv_nsec -= 1000 * 1000 * 1000;
+            }
+            pthread_cond_timedwait(&p->cv, &p->mu, &until);
         }
         const double done = (double)p->claimed + (double)atomic_load(&p->layers_staged);
         pthread_mutex_unlock(&p->mu);
@@ -555,16 +507,6 @@ static isomend_status run_slabs(plan *p, int nthreads, uint64_t *nv, uint64_t *n
             atomic_store(&p->cancel, 1);
         }
         pthread_mutex_lock(&p->mu);
-        if (p->staging <= 0)
-            break;
-        struct timespec until;
-        clock_gettime(CLOCK_REALTIME, &until);
-        until.tv_nsec += 100 * 1000 * 1000;
-        if (until.tv_nsec >= 1000 * 1000 * 1000) {
-            until.tv_sec++;
-            until.tv_nsec -= 1000 * 1000 * 1000;
-        }
-        pthread_cond_timedwait(&p->cv, &p->mu, &until);
     }
     uint64_t v = head_nv, t = head_nt;
     if (status == ISOMEND_OK && p->counted_at >= 0) { /* the counted split's run follows */
@@ -607,184 +549,6 @@ static isomend_status run_slabs(plan *p, int nthreads, uint64_t *nv, uint64_t *n
         status = ISOMEND_ERR_CANCELLED;
     *nv = v;
     *nt = t;
-    return status;
-}
-
-/* ------------------------------------- counted runs: small grids, and
- * where the reservations are refused */
-
-/* Runs at bases counted first: chunks of layers counted on the threads
- * (slices and layers, as the runs will number them), the exact arrays
- * allocated, the same chunks run from their bases.  Two reads of a small
- * grid, which stays in the caches between them, into arrays from the heap
- * (a reservation's huge pages cost a small mesh more), on every thread. */
-typedef struct counted_job {
-    plan *p;
-    thread_state *ts;
-    isomend_mesh *mesh;
-    int64_t chunk, nchunks;
-    uint64_t *cv, *ct;     /* [nchunks]: counts, then bases */
-    int phase;             /* 0: count, 1: run */
-    atomic_llong next, done;
-    atomic_int started;    /* threads started in the phase: their index - 1 */
-} counted_job;
-
-/* Chunk q's layers [*a, *b) and run end (the grid's end for the last). */
-static void chunk_range(const counted_job *j, int64_t q, int64_t *a, int64_t *b, int64_t *end)
-{
-    const int64_t layers = j->p->N2 - 1;
-    *a = q * j->chunk;
-    *b = *a + j->chunk < layers ? *a + j->chunk : layers;
-    *end = *b == layers ? j->p->N2 : *b;
-}
-
-static void counted_chunks(counted_job *j, thread_state *t)
-{
-    plan *p = j->p;
-    const ctx *c = p->c;
-    for (;;) {
-        const long long q = atomic_fetch_add(&j->next, 1);
-        if (q >= j->nchunks || atomic_load(&p->cancel) || t->status != ISOMEND_OK)
-            return;
-        int64_t a, b, end;
-        chunk_range(j, q, &a, &b, &end);
-        if (j->phase == 0) {
-            uint64_t v = 0, tr = 0, n;
-            for (int64_t k = a; k < end; k++) {
-                v += stream_direct_count(t->s, k, k < b, &n);
-                tr += n;
-            }
-            j->cv[q] = v;
-            j->ct[q] = tr;
-        } else {
-            const isomend_mesh *m = j->mesh;
-            const stream_run run = {a, end, j->cv[q],
-                                    {m->pos, m->nrm, m->tri + 3 * j->ct[q],
-                                     m->org ? m->org + j->ct[q] : NULL},
-                                    staged_tick, t};
-            isomend_stats st;
-            uint64_t nv, nt;
-            t->status = stream_direct_run(t->s, &run, &st, &nv, &nt);
-            if (t->status != ISOMEND_OK) {
-                atomic_store(&p->cancel, 1);
-                return;
-            }
-            stats_add(&t->stats, &st);
-        }
-        const long long done = atomic_fetch_add(&j->done, 1) + 1;
-        if (t->index == 0 && c->progress &&
-            c->progress(c->progress_user,
-                        (double)(done + j->phase * j->nchunks) / (double)(2 * j->nchunks)))
-            atomic_store(&p->cancel, 1);
-    }
-}
-
-static void *counted_thread(void *arg)
-{
-    counted_job *j = arg;
-    const int index = atomic_fetch_add(&j->started, 1) + 1; /* 1, 2, ... */
-    counted_chunks(j, &j->ts[index]);
-    return NULL;
-}
-
-/* Runs one phase on the threads (thread 0: this one). */
-static void counted_phase(counted_job *j, int nthreads)
-{
-    pthread_t tid[64];
-    int started = 1;
-    atomic_store(&j->next, 0);
-    atomic_store(&j->done, 0);
-    atomic_store(&j->started, 0);
-    for (int t = 1; t < nthreads; t++) {
-        if (pthread_create(&tid[t], NULL, counted_thread, j) != 0)
-            break;
-        started = t + 1;
-    }
-    counted_chunks(j, &j->ts[0]);
-    for (int t = 1; t < started; t++)
-        pthread_join(tid[t], NULL);
-}
-
-static isomend_status counted_runs(plan *p, int nthreads, isomend_mesh *mesh, uint64_t *nv,
-                                   uint64_t *nt, isomend_stats *stats)
-{
-    ctx *c = p->c;
-    const int64_t N2 = c->g.N[2], layers = N2 - 1;
-    p->N2 = N2;
-    thread_state ts[64];
-    memset(ts, 0, sizeof ts);
-    counted_job j;
-    memset(&j, 0, sizeof j);
-    j.p = p;
-    j.ts = ts;
-    j.mesh = mesh;
-    /* chunks: 4 a thread, of 4 layers at least (each counts and runs a slice
-     * more than its own) */
-    const int64_t want = 4 * (int64_t)nthreads;
-    j.chunk = (layers + want - 1) / want;
-    if (j.chunk < 4)
-        j.chunk = 4;
-    j.nchunks = (layers + j.chunk - 1) / j.chunk;
-    if (nthreads > j.nchunks)
-        nthreads = (int)j.nchunks;
-    j.cv = calloc(2 * (size_t)j.nchunks, sizeof(uint64_t));
-    isomend_status status = j.cv ? ISOMEND_OK : ISOMEND_ERR_OUT_OF_MEMORY;
-    j.ct = j.cv ? j.cv + j.nchunks : NULL;
-    int made = 0;
-    for (int t = 0; t < nthreads && status == ISOMEND_OK; t++) {
-        ts[t].p = p;
-        ts[t].index = t;
-        status = stream_direct_begin(p->vol, p->opts, &ts[t].s);
-        made = t + 1;
-    }
-    if (status == ISOMEND_OK) {
-        counted_phase(&j, nthreads);
-        for (int t = 0; t < nthreads; t++)
-            if (ts[t].status != ISOMEND_OK)
-                status = ts[t].status;
-    }
-    uint64_t v = 0, tr = 0;
-    for (int64_t q = 0; q < j.nchunks && status == ISOMEND_OK; q++) { /* the bases */
-        const uint64_t cv = j.cv[q], ct = j.ct[q];
-        j.cv[q] = v;
-        j.ct[q] = tr;
-        v += cv;
-        tr += ct;
-    }
-    if (status == ISOMEND_OK && atomic_load(&p->cancel))
-        status = ISOMEND_ERR_CANCELLED;
-    if (status == ISOMEND_OK && v > UINT32_MAX)
-        status = ISOMEND_ERR_TOO_LARGE;
-    if (status == ISOMEND_OK) {
-        mesh->nv = (size_t)v;
-        mesh->nt = (size_t)tr;
-        mesh->pos = output_alloc(12 * mesh->nv, c->small_pages);
-        mesh->tri = output_alloc(12 * mesh->nt, c->small_pages);
-        if (c->want_normals)
-            mesh->nrm = output_alloc(12 * mesh->nv, c->small_pages);
-        if (c->want_origins && (mesh->org = output_alloc(mesh->nt, c->small_pages)))
-            memset(mesh->org, ISOMEND_ORIGIN_TABLE, mesh->nt); /* the runs write the others */
-        if (!mesh->pos || !mesh->tri || (c->want_normals && !mesh->nrm) ||
-            (c->want_origins && !mesh->org))
-            status = ISOMEND_ERR_OUT_OF_MEMORY;
-    }
-    if (status == ISOMEND_OK) {
-        j.phase = 1;
-        counted_phase(&j, nthreads);
-        for (int t = 0; t < nthreads; t++)
-            if (ts[t].status != ISOMEND_OK)
-                status = ts[t].status;
-        if (status == ISOMEND_OK && atomic_load(&p->cancel))
-            status = ISOMEND_ERR_CANCELLED;
-    }
-    memset(stats, 0, sizeof *stats);
-    for (int t = 0; t < made; t++) {
-        stats_add(stats, &ts[t].stats);
-        stream_one_destroy(ts[t].s);
-    }
-    free(j.cv);
-    *nv = v;
-    *nt = tr;
     return status;
 }
 
