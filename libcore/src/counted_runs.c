@@ -57,10 +57,13 @@ static void counted_chunks(counted_job *j, thread_state *t)
             j->ct[q] = tr;
         } else {
             const isomend_mesh *m = j->mesh;
-            const stream_run run = {a, end, j->cv[q],
-                                    {m->pos, m->nrm, m->tri + 3 * j->ct[q],
-                                     m->org ? m->org + j->ct[q] : NULL},
-                                    cancel_tick, t};
+            const stream_run run = {.first = a,
+                                    .end = end,
+                                    .first_id = j->cv[q],
+                                    .out = {m->pos, m->nrm, m->tri + 3 * j->ct[q],
+                                            m->org ? m->org + j->ct[q] : NULL},
+                                    .tick = cancel_tick,
+                                    .tick_user = t};
             isomend_stats st;
             uint64_t nv, nt;
             t->status = stream_direct_run(t->s, &run, &st, &nv, &nt);

@@ -187,15 +187,13 @@ static void take_runs(thread_state *t)
             return;
         staged *run = &p->runs[r]; /* its slot: written by this thread only */
         const stream_out *o = &t->region.out;
-        const stream_run sr = {
-            first,
-            end,
-            0,
-            {o->pos + 3 * t->v_used, o->nrm ? o->nrm + 3 * t->v_used : NULL,
-             o->tri + 3 * t->t_used, o->org ? o->org + t->t_used : NULL},
-            cancel_tick,
-            t,
-        };
+        const stream_run sr = {.first = first,
+                               .end = end,
+                               .out = {o->pos + 3 * t->v_used,
+                                       o->nrm ? o->nrm + 3 * t->v_used : NULL,
+                                       o->tri + 3 * t->t_used, o->org ? o->org + t->t_used : NULL},
+                               .tick = cancel_tick,
+                               .tick_user = t};
         isomend_stats st;
         t->status = stream_direct_run(t->s, &sr, &st, &run->nv, &run->nt);
         if (t->status != ISOMEND_OK) {
@@ -311,9 +309,12 @@ static void count_split(thread_state *t)
     if (at < 0)
         return;
     const stream_out *o = &p->mesh.out;
-    const stream_run sr = {at, p->N2, v,
-                           {o->pos, o->nrm, o->tri + 3 * tr, o->org ? o->org + tr : NULL},
-                           cancel_tick, t};
+    const stream_run sr = {.first = at,
+                           .end = p->N2,
+                           .first_id = v,
+                           .out = {o->pos, o->nrm, o->tri + 3 * tr, o->org ? o->org + tr : NULL},
+                           .tick = cancel_tick,
+                           .tick_user = t};
     isomend_stats st;
     t->status = stream_direct_run(t->s, &sr, &st, &p->counted_nv, &p->counted_nt);
     if (t->status != ISOMEND_OK) {
@@ -475,7 +476,8 @@ static isomend_status run_slabs(plan *p, int nthreads, uint64_t *nv, uint64_t *n
 
     /* the head, on this thread */
     uint64_t head_nv = 0, head_nt = 0;
-    const stream_run head = {0, N2, 0, p->mesh.out, head_tick, &ts[0]};
+    const stream_run head = {
+        .first = 0, .end = N2, .out = p->mesh.out, .tick = head_tick, .tick_user = &ts[0]};
     status = stream_direct_run(ts[0].s, &head, &ts[0].stats, &head_nv, &head_nt);
     if (status != ISOMEND_OK)
         atomic_store(&p->cancel, 1);

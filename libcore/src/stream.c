@@ -78,8 +78,6 @@ struct stream_one {
      * owns all: 0, N2, 0, n2. */
     int64_t own_first, own_end, push_first, push_end;
     int piece;
-    int lean;        /* a pool's slab: keys of its first and next slice only */
-    stream_slab_triangles tri32; /* a pool's slab: where its 32-bit triangles go */
     uint64_t *keys;  /* a piece's keys of the vertices staged */
     uint32_t *fmap;  /* slice own_end's ids to foreign indices, UINT32_MAX none */
     float *fpos;     /* the foreign vertices' positions */
@@ -112,6 +110,8 @@ struct stream_one {
     stream_out out;
     stream_tick tick;
     void *tick_user;
+    stream_event event;
+    void *event_user;
 };
 
 
@@ -277,6 +277,8 @@ static isomend_status deliver_vertices(stream_one *s, uint64_t n, int keyed)
     if (!n)
         return ISOMEND_OK;
     if (s->direct) { /* written in place */
+        if (s->event && s->event(s->event_user, STREAM_EV_VERTICES, s->next_id - s->first_id, n))
+            return s->failed = ISOMEND_ERR_OUT_OF_MEMORY;
         s->next_id += n;
         return ISOMEND_OK;
     }
@@ -421,10 +423,9 @@ static isomend_status slice_keys(stream_one *s, int64_t m, uint64_t first, uint6
     s->nforeign = nf;
     if (!nf)
         return ISOMEND_OK;
-    for (uint64_t f = 0; f < nf && !s->lean; f++) /* a pool's slab needs the keys only */
+    for (uint64_t f = 0; f < nf; f++)
         plane_position(s, keys[f], m, s->fpos + 3 * f);
-    return sink_status(s, s->sink.foreign(s->sink.user, 0, (size_t)nf, keys,
-                                          s->lean ? NULL : s->fpos));
+    return sink_status(s, s->sink.foreign(s->sink.user, 0, (size_t)nf, keys, s->fpos));
 }
 
 /* ------------------------------------------------------------ box pieces */
@@ -533,30 +534,20 @@ static int box_id(stream_one *s, uint64_t id, int64_t m, uint64_t *out, size_t *
  * first id of slice m - 1: every id of the layer is in [base, base + 2^32));
  * for a piece, ids from `foreign` on (its last layer) are the next piece's;
  * for a box, ids go through box_id(), each batch's new foreign vertices
- * delivered before it.  A pool's slab takes the staged ids as they are
- * (tri32: the pool keeps them in 32 bits and makes them global itself). */
+ * delivered before it.  A run in place (direct) has written them where they
+ * stay. */
 static isomend_status deliver_triangles(stream_one *s, uint64_t n, uint64_t base,
                                         uint64_t foreign, int64_t m)
 {
     const ctx *c = &s->c;
     const uint32_t low = (uint32_t)base;
     if (s->direct) { /* written in place, the ids the run's */
+        if (n && s->event && s->event(s->event_user, STREAM_EV_TRIANGLES, s->triangles, n))
+            return s->failed = ISOMEND_ERR_OUT_OF_MEMORY;
         s->triangles += n;
         return ISOMEND_OK;
     }
-    if (s->tri32 && n) {
-        /* a slab numbers from 0 below 2^31: the staged ids are its local ids;
-         * its last layer's ids from `foreign` on become the next slab's */
-        uint32_t *t = c->tri;
-        if (foreign != UINT64_MAX)
-            for (uint64_t q = 0; q < 3 * n; q++)
-                if (t[q] >= (uint32_t)foreign)
-                    t[q] = STREAM_SLAB_FOREIGN | s->fmap[t[q] - (uint32_t)foreign];
-        const int rc = s->tri32(s->sink.user, (size_t)n, t, c->org);
-        if (rc)
-            return sink_status(s, rc);
-    }
-    for (uint64_t done = 0; done < n && !s->tri32;) {
+    for (uint64_t done = 0; done < n;) {
         const uint64_t b = n - done < TRIANGLE_BATCH ? n - done : TRIANGLE_BATCH;
         const uint32_t *t = c->tri + 3 * done;
         const uint64_t nf = s->nforeign;
@@ -626,9 +617,7 @@ static isomend_status step(stream_one *s, int64_t m)
     if (layer && c->general) /* the private vertices and the triangles */
         (void)kr->march_layer(w, k, PASS_FILL, 0);
     isomend_status status = ISOMEND_OK;
-    /* a pool's slab needs the keys of its first slice (the slab below's
-     * foreign vertices) and the foreign table of its next slice only */
-    const int keyed = s->piece && (!s->lean || last || (m == s->own_first && m > 0));
+    const int keyed = s->piece;
     if (keyed) {
         for (uint64_t q = 0; q < np; q++)
             s->keys[q] = ISOMEND_KEY_NONE;
@@ -647,6 +636,10 @@ static isomend_status step(stream_one *s, int64_t m)
         floor = last ? s->next_id : first;
     if (status == ISOMEND_OK && !s->direct)
         status = sink_status(s, s->sink.retire(s->sink.user, floor));
+    else if (status == ISOMEND_OK && s->event &&
+             (s->event(s->event_user, STREAM_EV_RETIRE, floor - s->first_id, 0) ||
+              (last && s->event(s->event_user, STREAM_EV_NEXT, 0, nv))))
+        status = s->failed = ISOMEND_ERR_OUT_OF_MEMORY;
     return status;
 }
 
@@ -858,33 +851,6 @@ static uint64_t single_memory(const ctx *c, int piece)
     return total;
 }
 
-/* ------------------------------------------------- a pool's slabs */
-
-isomend_status stream_slab_begin(const isomend_volume *desc, const isomend_options *opts,
-                                 const isomend_mesh_sink *sink, stream_slab_triangles triangles,
-                                 stream_one **out)
-{
-    const isomend_piece first = {0, 1, {0, 0}, {0, 0}};
-    const isomend_status status = stream_one_piece_begin(desc, opts, &first, sink, out);
-    if (status == ISOMEND_OK) {
-        (*out)->lean = 1;
-        (*out)->tri32 = triangles;
-    }
-    return status;
-}
-
-isomend_status stream_slab_run(stream_one *s, const char *planes, isomend_stats *stats)
-{
-    grid *g = &s->c.g;
-    g->data = planes; /* read in place: no window */
-    g->z0 = s->push_first;
-    s->pushed = s->push_end;
-    const isomend_status status = advance(s, s->push_end - 1 + g->pad);
-    if (status != ISOMEND_OK)
-        return status;
-    return stream_one_finish(s, stats);
-}
-
 /* A new run on the same stream: counters and the worker's slices and
  * statistics cleared, its memory kept. */
 static void run_reset(stream_one *s)
@@ -897,23 +863,6 @@ static void run_reset(stream_one *s)
     memset(&w->stats, 0, sizeof w->stats);
     memset(w->pending_count, 0, sizeof w->pending_count);
     w->private_count = w->private_next = 0;
-}
-
-isomend_status stream_slab_reset(stream_one *s, int64_t owned_first, int64_t owned_end)
-{
-    const isomend_piece piece = {owned_first, owned_end, {0, 0}, {0, 0}};
-    grid *g = &s->c.g;
-    const isomend_status status = piece_range(g, &piece, &s->push_first, &s->push_end);
-    if (status != ISOMEND_OK)
-        return status;
-    s->own_first = s->next_scan = owned_first;
-    s->own_end = owned_end;
-    s->pushed = g->z0 = s->push_first;
-    s->failed = ISOMEND_OK;
-    s->finished = 0;
-    s->first_id = s->next_id = 0;
-    run_reset(s);
-    return ISOMEND_OK;
 }
 
 uint64_t stream_one_memory(const isomend_volume *desc, const isomend_options *opts, int piece,
@@ -965,6 +914,12 @@ isomend_status stream_direct_run(stream_one *s, const stream_run *run, isomend_s
     s->out = run->out;
     s->tick = run->tick;
     s->tick_user = run->tick_user;
+    s->event = run->event;
+    s->event_user = run->event_user;
+    if (run->planes) { /* a slab's planes, read in place */
+        s->c.g.data = run->planes;
+        s->c.g.z0 = run->z0;
+    }
     run_reset(s);
     const isomend_status status = stream_one_finish(s, stats);
     *nv = s->next_id - s->first_id;
@@ -982,4 +937,17 @@ uint64_t stream_direct_count(stream_one *s, int64_t k, int layer, uint64_t *nt)
         nv += w->private_count;
     }
     return nv;
+}
+
+void stream_run_bounds(const isomend_volume *desc, const isomend_options *opts,
+                       uint64_t *slice_vertices, uint64_t *layer_triangles)
+{
+    ctx c;
+    *slice_vertices = *layer_triangles = 0;
+    if (bound_setup(&c, desc, opts) != ISOMEND_OK)
+        return;
+    uint64_t sv, lv, lt;
+    stream_bounds(&c, &sv, &lv, &lt);
+    *slice_vertices = sv + lv;
+    *layer_triangles = lt;
 }

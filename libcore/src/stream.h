@@ -31,35 +31,25 @@ void stream_one_set_first_id(stream_one *s, uint64_t first);
 uint64_t stream_one_memory(const isomend_volume *desc, const isomend_options *opts, int piece,
                            int64_t *pad);
 
-/* For the pool (stream_pool.c): a piece stream that a worker reuses slab after
- * slab (stream_slab_reset: owned marched slices [first, end), counters
- * cleared, memory kept), with keys only where the pool needs them: its
- * first slice's vertices and the foreign table of its next slice. */
-/* Its triangles go to `triangles` with 32-bit ids, not to the sink's: local
- * ids (the slab's vertices number from 0, below STREAM_SLAB_FOREIGN) as the
- * kernels wrote them, no 64-bit copy made, and STREAM_SLAB_FOREIGN | f for
- * the next slab's vertices (the foreign table's f). */
-#define STREAM_SLAB_FOREIGN 0x80000000u
-typedef int (*stream_slab_triangles)(void *user, size_t count, const uint32_t *ids,
-                                     const uint8_t *org);
-isomend_status stream_slab_begin(const isomend_volume *desc, const isomend_options *opts,
-                                 const isomend_mesh_sink *sink, stream_slab_triangles triangles,
-                                 stream_one **out);
-isomend_status stream_slab_reset(stream_one *s, int64_t owned_first, int64_t owned_end);
-/* Runs the slab on its volume slices, `planes` (isomend_piece_halo()'s,
- * contiguous), read in place, and finishes it (statistics: isomend_stream_finish). */
-isomend_status stream_slab_run(stream_one *s, const char *planes, isomend_stats *stats);
-
-/* For isomend_extract() (slabs.c): runs of marched slices over a volume in
- * memory, read in place (its strides), the mesh written straight into the
- * arrays of stream_out instead of going to a sink.  A run [first, end) numbers
+/* For isomend_extract() (slabs.c) and the pool's slabs (stream_pool.c):
+ * runs of marched slices over a volume in memory (or a slab's planes), read
+ * in place (its strides), the mesh written straight into the arrays of
+ * stream_out instead of going to a sink.  A run [first, end) numbers
  * its vertices from first_id on, vertex id i at out.pos + 3 i (and
  * out.nrm), and writes its triangles from out.tri (and out.org: zero bytes
  * where it writes none, as a fresh reservation is) on, with the ids of the
  * vertices; slice `end`, when it is not the last of the grid, is numbered
  * (on from the run's own) but not computed.
  * tick (may be NULL) is asked before each slice m, first < m < end: 1 goes
- * on, 0 makes m the run's end, < 0 cancels (ISOMEND_ERR_CANCELLED). */
+ * on, 0 makes m the run's end, < 0 cancels (ISOMEND_ERR_CANCELLED).  event
+ * (may be NULL) hears what a sink would have been called with, in ids from
+ * first_id: vertices written (at, count), triangles written (at, count),
+ * retire (at: the floor), and the vertices numbered in slice `end` (count);
+ * non-zero stops the run (ISOMEND_ERR_OUT_OF_MEMORY).  planes (NULL: the
+ * volume given to stream_direct_begin) are volume slices z0, z0 + 1, ...,
+ * contiguous. */
+enum { STREAM_EV_VERTICES, STREAM_EV_TRIANGLES, STREAM_EV_RETIRE, STREAM_EV_NEXT };
+typedef int (*stream_event)(void *user, int kind, uint64_t at, uint64_t count);
 typedef struct stream_out {
     float *pos, *nrm;
     uint32_t *tri;
@@ -72,6 +62,10 @@ typedef struct stream_run {
     stream_out out;
     stream_tick tick;
     void *tick_user;
+    stream_event event;
+    void *event_user;
+    const char *planes;
+    int64_t z0;
 } stream_run;
 isomend_status stream_direct_begin(const isomend_volume *vol, const isomend_options *opts,
                                    stream_one **out);
@@ -79,6 +73,10 @@ isomend_status stream_direct_begin(const isomend_volume *vol, const isomend_opti
  * triangles it wrote, those of slice `end` not counted). */
 isomend_status stream_direct_run(stream_one *s, const stream_run *run, isomend_stats *stats,
                                  uint64_t *nv, uint64_t *nt);
+/* The most vertices a slice (and the layer below) and the most triangles a
+ * layer can have, for a stream of desc with opts; 0 when refused. */
+void stream_run_bounds(const isomend_volume *desc, const isomend_options *opts,
+                       uint64_t *slice_vertices, uint64_t *layer_triangles);
 /* Counts, without writing, slice k's vertices (the return) and, with
  * `layer`, layer k's triangles (*nt) and cube-private vertices (added to
  * the return); the statistics this adds are cleared by the next run. */

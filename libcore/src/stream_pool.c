@@ -3,33 +3,30 @@
  * extracted by a pool of workers and handed to the sink in order.
  *
  *   push (caller)            workers (threads)               sink (caller)
- *   slice z copied into the  slab s: a piece [a, b) run on   slab s's calls replayed
- *   input of each slab whose its input, read in place; its   in order, its ids made
- *   halo holds it (1 or 2:   mesh and calls kept, triangles  global a batch at a time
- *   a slab opened late takes as 32-bit local ids             (local + base, or foreign)
- *   them from the one below);
+ *   slice z copied into the  slab s: a run of the engine     slab s's calls replayed
+ *   input of each slab whose (stream.c) on its input, read   in order, its ids made
+ *   halo holds it (1 or 2:   in place, written in place      global a batch at a time
+ *   a slab opened late takes into its slot's arrays, what    (local + base)
+ *   them from the one below);  a sink would have heard kept
  *   a slab complete: queued
  *
- * A slab is a piece of the grid (isomend.h, "Pieces"): it numbers its
- * vertices from 0, in isomend_extract()'s order, and refers to the next
- * slab's vertices of its last slice b as STREAM_SLAB_FOREIGN | f, f numbering
- * the in-plane vertices of slice b in id order.  The next slab numbers the
- * same vertices first, in the same order (the same scan of the same slice),
- * so f is the f-th in-plane vertex of the next slab's first call (kept as
- * `lead`; the keys are compared, a mismatch is an error, not a mesh).
- * base(s + 1) = base(s) + slab s's vertices: the replay adds it to the
- * slab's local ids (kept in 32 bits, the piece's own: half the bytes of
- * 64-bit ids to copy and keep, and no pass over them on the workers).
- * Slab s is delivered once it and slab s + 1 are done: its calls (vertices,
- * triangles, retire, as the piece made them) replayed, the next slab's first
- * vertices delivered just before the triangles that use them.  The sink
- * sees isomend_stream_push()'s sequence of ids, triangles and floors,
- * whatever the number of threads: the mesh is the same bytes.
+ * A slab is a run of the engine (stream_direct_run, as isomend_extract()'s
+ * staged runs): it numbers its vertices from 0, in isomend_extract()'s
+ * order, and its last slice b, the next slab's first, on from its own
+ * (numbered, not computed): the next slab numbers the same vertices first,
+ * in the same order (the same scan of the same slice), so local id nv + i is
+ * the next slab's vertex i, and base(s + 1) = base(s) + nv: the replay adds
+ * the base to every id.  Slab s is delivered once it and slab s + 1 are
+ * done: its calls (vertices, triangles, retire, as the run heard them)
+ * replayed, the next slab's first vertices delivered just before the
+ * triangles that use them.  The sink sees isomend_stream_push()'s sequence
+ * of ids, triangles and floors, whatever the number of threads: the mesh is
+ * the same bytes.
  *
  * Memory: at most `inflight` slabs at a time (threads + 2), each holding
- * its slices (H + 3 planes) and its mesh, and one piece per worker
- * (isomend_stream_memory() of a piece).  A slot keeps its arrays for the
- * slabs after, in blocks offered for huge pages (grow_mesh).
+ * its slices (H + 3 planes) and its mesh, and one engine per worker.  A
+ * slot's arrays are reserved once at the largest slab's size (address
+ * space: only what the slabs write is touched) and kept for the slabs after.
  */
 #define _GNU_SOURCE /* _SC_NPROCESSORS_ONLN */
 #include "mesh_internal.h"
@@ -41,7 +38,6 @@
 #include <string.h>
 #include <unistd.h>
 
-#define LOCAL_MAX 0x80000000u /* a slab's vertices: fewer (its lead's ids are 32-bit) */
 /* Samples a slab should hold at least (its planes' work amortises a piece's
  * set-up) and the layers a slab has at least and at most. */
 #define SLAB_SAMPLES ((int64_t)1 << 21)
@@ -49,7 +45,7 @@
 #define SLAB_MAX 64
 #define TRIANGLE_BATCH 8192 /* triangles made global per sink call (the batch stays in cache) */
 
-typedef enum { EV_VERTICES, EV_TRIANGLES, EV_RETIRE, EV_FOREIGN } event_kind;
+typedef enum { EV_VERTICES, EV_TRIANGLES, EV_RETIRE } event_kind;
 
 typedef struct event {
     event_kind kind;
@@ -64,17 +60,14 @@ typedef struct slab {
     char *input;                         /* its volume slices, contiguous [H + 3 planes] */
     isomend_status status;
     isomend_stats stats;
-    uint64_t nv, vcap, ncap, nt, tcap, ocap, nev, evcap, nf, fcap, nlead, leadcap, lidcap;
-    isomend_status sink_status; /* why the slab's sink refused, if it did */
+    uint64_t nv, nt, nev, evcap;
+    uint64_t nnext;  /* vertices numbered in slice b: the next slab's first */
     float *pos, *nrm;
-    uint32_t *tri; /* the piece's ids (local, STREAM_SLAB_FOREIGN | f), global when replayed */
-    uint8_t *org;
+    uint32_t *tri;   /* local ids, global when replayed */
+    uint8_t *org;    /* zero bytes but where written (cleared after the replay) */
+    size_t mapped[4]; /* the slot's arrays' reservations (0: heap) */
     event *ev;
-    uint64_t *fkeys;               /* the foreign vertices' keys */
-    uint64_t *lead_keys;           /* slice a's in-plane vertices, in id order */
-    uint32_t *lead_ids;            /* ... their local ids */
     int lead_delivered;            /* the first vertices call went out with the slab below */
-    int saw_vertices;
 } slab;
 
 struct stream_pool {
@@ -151,7 +144,7 @@ uint64_t stream_pool_memory(const isomend_volume *desc, int threads, int pad, ui
      * bytes) every 8 samples, a triangle (13 bytes) every 4, 7 bytes a sample */
     const uint64_t mesh = samples * H * 7;
     /* and the partly used huge page a slot's arrays of 2 MiB and more end in
-     * (output_alloc, grow_mesh): less than one for each array, and less than the
+     * (output_alloc, reserve_output): less than one for each array, and less than the
      * array (the input; positions, normals, triangles and origins) */
     const uint64_t input = (H + 3) * plane, huge = HUGE_PAGE;
     const uint64_t ends = (input < huge ? input : huge) + (mesh < 4 * huge ? mesh : 4 * huge);
@@ -175,35 +168,6 @@ static int grow(void **p, uint64_t *cap, uint64_t need, size_t elem)
     return 1;
 }
 
-/* grow() for a slab's mesh arrays (`used` elements kept): from 2 MiB on in
- * blocks offered for transparent huge pages (output_alloc), copied when they
- * grow.  The slots' arrays are written on fresh memory, and a fault per 4 KiB
- * page (a trap to the host on a virtual machine) cost the pool more than its
- * copies; a slot keeps its arrays, so the copies stop once it has grown. */
-static int grow_mesh(void **p, uint64_t *cap, uint64_t used, uint64_t need, size_t elem,
-                     int small_pages)
-{
-    if (need <= *cap)
-        return 1;
-    uint64_t c = *cap ? *cap : 1024;
-    while (c < need)
-        c *= 2;
-    if (c > SIZE_MAX / elem)
-        return 0;
-    const size_t bytes = (size_t)c * elem;
-    if (bytes < HUGE_PAGE || small_pages)
-        return grow(p, cap, need, elem);
-    void *q = output_alloc(huge_round(bytes), 0);
-    if (!q)
-        return 0;
-    if (used)
-        memcpy(q, *p, (size_t)used * elem);
-    free(*p);
-    *p = q;
-    *cap = huge_round(bytes) / elem;
-    return 1;
-}
-
 /* ------------------------------------------------- a slab's own sink */
 
 static int add_event(slab *s, event_kind kind, uint64_t at, uint64_t count)
@@ -218,117 +182,45 @@ static int add_event(slab *s, event_kind kind, uint64_t at, uint64_t count)
     return 0;
 }
 
-/* The piece's pool, for the keys' geometry. */
-typedef struct slab_user {
-    slab *s;
-    const stream_pool *p;
-} slab_user;
-
-static int slab_vertices(void *user, uint64_t first, size_t count, const float *pos,
-                         const float *nrm, const uint64_t *keys)
+/* What the slab's run would have told a sink (stream_event). */
+static int slab_event(void *user, int kind, uint64_t at, uint64_t count)
 {
-    const slab_user *u = user;
-    slab *s = u->s;
-    const stream_pool *p = u->p;
-    if (first != s->nv || s->nv + count >= LOCAL_MAX) {
-        s->sink_status = ISOMEND_ERR_TOO_LARGE;
-        return 1;
+    slab *s = user;
+    switch (kind) {
+    case STREAM_EV_VERTICES:
+        s->nv = at + count;
+        return add_event(s, EV_VERTICES, at, count);
+    case STREAM_EV_TRIANGLES:
+        s->nt = at + count;
+        return add_event(s, EV_TRIANGLES, at, count);
+    case STREAM_EV_RETIRE:
+        return add_event(s, EV_RETIRE, at, 0);
+    default:
+        s->nnext = count;
+        return 0;
     }
-    const int small = (p->opts.flags & ISOMEND_FLAG_SMALL_PAGES) != 0;
-    if (!grow_mesh((void **)&s->pos, &s->vcap, s->nv, s->nv + count, 3 * sizeof(float), small) ||
-        (nrm &&
-         !grow_mesh((void **)&s->nrm, &s->ncap, s->nv, s->nv + count, 3 * sizeof(float), small)))
-        return 1;
-    if (nrm)
-        memcpy(s->nrm + 3 * s->nv, nrm, 3 * sizeof(float) * count);
-    memcpy(s->pos + 3 * s->nv, pos, 3 * sizeof(float) * count);
-    if (!s->saw_vertices && s->index > 0 && keys) { /* slice a's in-plane vertices: the slab below's foreign */
-        const uint64_t plane = (uint64_t)p->N0 * (uint64_t)p->N1;
-        for (size_t r = 0; r < count; r++) {
-            const uint64_t key = keys[r], kind = key & 7u;
-            if (key == ISOMEND_KEY_NONE || (key >> 3) / plane != (uint64_t)s->a ||
-                !(kind == 0 || kind == 1 || kind == 5))
-                continue;
-            if (!grow((void **)&s->lead_keys, &s->leadcap, s->nlead + 1, sizeof(uint64_t)) ||
-                !grow((void **)&s->lead_ids, &s->lidcap, s->nlead + 1, sizeof(uint32_t)))
-                return 1;
-            s->lead_keys[s->nlead] = key;
-            s->lead_ids[s->nlead++] = (uint32_t)(first + r);
-        }
-    }
-    s->saw_vertices = 1;
-    if (add_event(s, EV_VERTICES, s->nv, count))
-        return 1;
-    s->nv += count;
-    return 0;
-}
-
-/* The piece's triangles come here, in 32 bits (stream_slab_begin), not to
- * slab_triangles: half the bytes to copy and to keep. */
-static int slab_triangles32(void *user, size_t count, const uint32_t *ids, const uint8_t *org)
-{
-    slab *s = ((slab_user *)user)->s;
-    const int small = (((slab_user *)user)->p->opts.flags & ISOMEND_FLAG_SMALL_PAGES) != 0;
-    if (!grow_mesh((void **)&s->tri, &s->tcap, s->nt, s->nt + count, 3 * sizeof(uint32_t), small) ||
-        (org && !grow_mesh((void **)&s->org, &s->ocap, s->nt, s->nt + count, 1, small)))
-        return 1;
-    if (org)
-        memcpy(s->org + s->nt, org, count);
-    memcpy(s->tri + 3 * s->nt, ids, 3 * sizeof(uint32_t) * count);
-    if (add_event(s, EV_TRIANGLES, s->nt, count))
-        return 1;
-    s->nt += count;
-    return 0;
-}
-
-static int slab_triangles(void *user, size_t count, const uint64_t *ids, const uint8_t *org)
-{
-    (void)user, (void)count, (void)ids, (void)org;
-    return 1; /* not reached: a slab's triangles go to slab_triangles32 */
-}
-
-static int slab_retire(void *user, uint64_t floor)
-{
-    return add_event(((slab_user *)user)->s, EV_RETIRE, floor, 0);
-}
-
-static int slab_foreign(void *user, size_t first, size_t count, const uint64_t *keys,
-                        const float *positions)
-{
-    (void)positions;
-    slab *s = ((slab_user *)user)->s;
-    if (first != s->nf || !grow((void **)&s->fkeys, &s->fcap, s->nf + count, sizeof(uint64_t)))
-        return 1;
-    memcpy(s->fkeys + s->nf, keys, sizeof(uint64_t) * count);
-    s->nf += count;
-    return add_event(s, EV_FOREIGN, first, count);
 }
 
 /* ------------------------------------------------------------ workers */
 
-/* The worker's piece stream, made at its first slab and reused after. */
-typedef struct worker_state {
-    slab_user user; /* the sink's user: the slab the piece runs now */
-    stream_one *piece;
-} worker_state;
-
-/* Extracts slab s: its piece, its planes pushed in order. */
-static void run_slab(stream_pool *p, slab *s, worker_state *ws)
+/* Extracts slab s: a run of the worker's engine (made at its first slab and
+ * reused after) on the slab's planes, into the slot's arrays. */
+static void run_slab(stream_pool *p, slab *s, stream_one **engine)
 {
-    ws->user.s = s;
-    ws->user.p = p;
     isomend_status st = ISOMEND_OK;
-    if (!ws->piece) {
-        const isomend_mesh_sink sink = {&ws->user, slab_vertices, slab_triangles, slab_retire,
-                                        slab_foreign};
-        st = stream_slab_begin(&p->desc, &p->opts, &sink, slab_triangles32, &ws->piece);
+    if (!*engine)
+        st = stream_direct_begin(&p->desc, &p->opts, engine);
+    if (st == ISOMEND_OK) {
+        const stream_run run = {.first = s->a,
+                                .end = s->b,
+                                .out = {s->pos, s->nrm, s->tri, s->org},
+                                .event = slab_event,
+                                .event_user = s,
+                                .planes = s->input,
+                                .z0 = s->z_first};
+        uint64_t nv, nt;
+        st = stream_direct_run(*engine, &run, &s->stats, &nv, &nt);
     }
-    if (st == ISOMEND_OK)
-        st = stream_slab_reset(ws->piece, s->a, s->b);
-    if (st == ISOMEND_OK)
-        st = stream_slab_run(ws->piece, s->input, &s->stats);
-    if (st == ISOMEND_ERR_SINK) /* the slab's sink refuses only what it cannot hold */
-        st = s->sink_status != ISOMEND_OK ? s->sink_status : ISOMEND_ERR_OUT_OF_MEMORY;
     pthread_mutex_lock(&p->lock);
     s->status = st;
     s->state = SLAB_DONE;
@@ -339,7 +231,7 @@ static void run_slab(stream_pool *p, slab *s, worker_state *ws)
 static void *worker_main(void *arg)
 {
     stream_pool *p = arg;
-    worker_state ws = {{NULL, NULL}, NULL};
+    stream_one *engine = NULL;
     pthread_mutex_lock(&p->lock);
     for (;;) {
         while (!p->stop && p->qcount == 0)
@@ -352,11 +244,11 @@ static void *worker_main(void *arg)
         slab *s = &p->slabs[index % p->inflight];
         s->state = SLAB_RUNNING;
         pthread_mutex_unlock(&p->lock);
-        run_slab(p, s, &ws);
+        run_slab(p, s, &engine);
         pthread_mutex_lock(&p->lock);
     }
     pthread_mutex_unlock(&p->lock);
-    stream_one_destroy(ws.piece);
+    stream_one_destroy(engine);
     return NULL;
 }
 
@@ -369,15 +261,16 @@ static isomend_status fail(stream_pool *p, isomend_status st)
     return p->failed;
 }
 
-/* Hands the next slab's first vertices call to the sink (ids from base). */
-static isomend_status deliver_lead(stream_pool *p, slab *next, uint64_t base)
+/* Hands the next slab's first vertices call, its first slice's n vertices,
+ * to the sink (ids from base). */
+static isomend_status deliver_lead(stream_pool *p, slab *next, uint64_t base, uint64_t n)
 {
     const event *e = &next->ev[0];
-    if (next->nev == 0 || e->kind != EV_VERTICES)
+    if (next->nev == 0 || e->kind != EV_VERTICES || e->at != 0 || e->count != n)
         return fail(p, ISOMEND_ERR_INVALID_ARGUMENT); /* not reached */
     next->lead_delivered = 1;
-    return p->sink.vertices(p->sink.user, base + e->at, (size_t)e->count, next->pos + 3 * e->at,
-                            next->nrm ? next->nrm + 3 * e->at : NULL, NULL)
+    return p->sink.vertices(p->sink.user, base, (size_t)n, next->pos,
+                            next->nrm ? next->nrm : NULL, NULL)
                ? fail(p, ISOMEND_ERR_SINK)
                : ISOMEND_OK;
 }
@@ -388,14 +281,16 @@ static isomend_status deliver(stream_pool *p, slab *s, slab *next)
     if (s->status != ISOMEND_OK)
         return fail(p, s->status);
     const uint64_t base = p->next_id, next_base = base + s->nv;
-    if (s->nf) { /* the foreign vertices are the next slab's lead, key for key */
-        if (!next || next->status != ISOMEND_OK || s->nf > next->nlead)
-            return fail(p, next && next->status != ISOMEND_OK ? next->status
-                                                              : ISOMEND_ERR_INVALID_ARGUMENT);
-        if (memcmp(s->fkeys, next->lead_keys, sizeof(uint64_t) * (size_t)s->nf) != 0)
-            return fail(p, ISOMEND_ERR_INVALID_ARGUMENT);
+    /* the last layer's triangles (before the last retire) use the next
+     * slab's first vertices, if its first slice has any */
+    uint64_t lead_at = UINT64_MAX;
+    if (s->nnext) {
+        if (!next || next->status != ISOMEND_OK)
+            return fail(p, next ? next->status : ISOMEND_ERR_INVALID_ARGUMENT);
+        if (s->nev >= 2 && s->ev[s->nev - 1].kind == EV_RETIRE &&
+            s->ev[s->nev - 2].kind == EV_TRIANGLES)
+            lead_at = s->nev - 2;
     }
-    int lead_due = 0, after_foreign = 0; /* only the last layer refers to the next slab */
     isomend_status st = ISOMEND_OK;
     for (uint64_t q = s->lead_delivered ? 1 : 0; q < s->nev && st == ISOMEND_OK; q++) {
         const event *e = &s->ev[q];
@@ -405,39 +300,22 @@ static isomend_status deliver(stream_pool *p, slab *s, slab *next)
                                  s->pos + 3 * e->at, s->nrm ? s->nrm + 3 * e->at : NULL, NULL))
                 st = fail(p, ISOMEND_ERR_SINK);
             break;
-        case EV_FOREIGN:
-            lead_due = after_foreign = 1;
-            break;
         case EV_TRIANGLES:
-            if (lead_due) {
-                lead_due = 0;
-                st = deliver_lead(p, next, next_base);
+            if (q == lead_at) {
+                st = deliver_lead(p, next, next_base, s->nnext);
                 if (st != ISOMEND_OK)
                     break;
             }
-            /* the ids made global a batch at a time: local + base, foreign
-             * (only after the foreign table) the next slab's lead */
+            /* the ids made global a batch at a time: local + base (the last
+             * slice's, numbered on from the slab's own, land on the next
+             * slab's first vertices) */
             for (uint64_t done = 0; done < e->count && st == ISOMEND_OK;) {
                 const uint64_t b = e->count - done < TRIANGLE_BATCH ? e->count - done
                                                                     : TRIANGLE_BATCH;
                 const uint32_t *t = s->tri + 3 * (e->at + done);
                 uint64_t *ids = p->ids;
-                uint32_t seen = 0; /* no foreign ids yet: a loop the compiler vectorises */
-                for (uint64_t k = 0; k < 3 * b && !after_foreign; k++) {
+                for (uint64_t k = 0; k < 3 * b; k++)
                     ids[k] = base + t[k];
-                    seen |= t[k];
-                }
-                if (seen & STREAM_SLAB_FOREIGN)
-                    return fail(p, ISOMEND_ERR_INVALID_ARGUMENT); /* not reached */
-                for (uint64_t k = 0; k < 3 * b && after_foreign; k++) {
-                    const uint32_t id = t[k], f = id & ~STREAM_SLAB_FOREIGN;
-                    if (!(id & STREAM_SLAB_FOREIGN))
-                        ids[k] = base + id;
-                    else if (f < s->nf)
-                        ids[k] = next_base + next->lead_ids[f];
-                    else
-                        return fail(p, ISOMEND_ERR_INVALID_ARGUMENT); /* not reached */
-                }
                 if (p->sink.triangles(p->sink.user, (size_t)b, ids,
                                       s->org ? s->org + e->at + done : NULL))
                     st = fail(p, ISOMEND_ERR_SINK);
@@ -452,6 +330,8 @@ static isomend_status deliver(stream_pool *p, slab *s, slab *next)
     }
     if (st != ISOMEND_OK)
         return st;
+    if (s->org) /* the slot's next slab writes only its quadrilaterals' origins */
+        memset(s->org, 0, (size_t)s->nt);
     p->next_id = next_base;
     p->triangles += s->nt;
     uint64_t *sum = (uint64_t *)(void *)&p->stats;
@@ -540,11 +420,33 @@ isomend_status stream_pool_begin(const isomend_volume *desc, const isomend_optio
     if (!p->slabs || !p->queue || !p->workers || !p->ids ||
         (desc->slice_origins && !p->slice_origins))
         st = ISOMEND_ERR_OUT_OF_MEMORY;
+    /* a slot's arrays: the largest slab's mesh (H layers, H + 1 slices) */
+    uint64_t sv, lt;
+    stream_run_bounds(&p->desc, &p->opts, &sv, &lt);
+    const int small = (opts->flags & ISOMEND_FLAG_SMALL_PAGES) != 0;
+    const uint64_t vmax = sv * (uint64_t)(p->H + 1), tmax = lt * (uint64_t)p->H;
+    const int normals = !(opts->flags & ISOMEND_FLAG_NO_NORMALS);
+    const int origins = !(opts->flags & ISOMEND_FLAG_NO_ORIGINS);
+    if (!sv || vmax > SIZE_MAX / 32 || tmax > SIZE_MAX / 32)
+        st = ISOMEND_ERR_OUT_OF_MEMORY;
     for (int k = 0; k < p->inflight && st == ISOMEND_OK; k++) {
-        p->slabs[k].index = -1;
-        if (!(p->slabs[k].input = output_alloc(p->plane_bytes * (size_t)(p->H + 3),
-                                               (opts->flags & ISOMEND_FLAG_SMALL_PAGES) != 0)))
+        slab *x = &p->slabs[k];
+        x->index = -1;
+        if (!(x->input = output_alloc(p->plane_bytes * (size_t)(p->H + 3), small)))
             st = ISOMEND_ERR_OUT_OF_MEMORY;
+        const size_t size[4] = {12 * (size_t)vmax, normals ? 12 * (size_t)vmax : 0,
+                                12 * (size_t)tmax, origins ? (size_t)tmax : 0};
+        void **arr[4] = {(void **)&x->pos, (void **)&x->nrm, (void **)&x->tri, (void **)&x->org};
+        for (int q = 0; q < 4 && st == ISOMEND_OK; q++) {
+            if (!size[q])
+                continue;
+            /* reserved (the origins on huge pages from 2 MiB on), or when
+             * refused from the heap, zeroed (the origins must be) */
+            *arr[q] = reserve_output(size[q], small ? SIZE_MAX : q == 3 ? HUGE_PAGE : 0);
+            x->mapped[q] = *arr[q] ? huge_round(size[q]) : 0;
+            if (!*arr[q] && !(*arr[q] = calloc(1, size[q])))
+                st = ISOMEND_ERR_OUT_OF_MEMORY;
+        }
     }
     if (st == ISOMEND_OK) {
         pthread_mutex_init(&p->lock, NULL);
@@ -591,10 +493,10 @@ static void open_slab(stream_pool *p, int64_t s)
     x->state = SLAB_FILLING;
     x->index = s;
     slab_range(p, s, &x->a, &x->b, &x->z_first, &x->z_end);
-    x->status = x->sink_status = ISOMEND_OK;
+    x->status = ISOMEND_OK;
     memset(&x->stats, 0, sizeof x->stats);
-    x->nv = x->nt = x->nev = x->nf = x->nlead = 0;
-    x->lead_delivered = x->saw_vertices = 0;
+    x->nv = x->nt = x->nev = x->nnext = 0;
+    x->lead_delivered = 0;
 }
 
 isomend_status stream_pool_push(stream_pool *p, const void *slice)
@@ -697,14 +599,11 @@ void stream_pool_destroy(stream_pool *p)
     for (int k = 0; p->slabs && k < p->inflight; k++) {
         slab *x = &p->slabs[k];
         free(x->input);
-        free(x->pos);
-        free(x->nrm);
-        free(x->tri);
-        free(x->org);
+        void *arr[4] = {x->pos, x->nrm, x->tri, x->org};
+        for (int q = 0; q < 4; q++)
+            if (arr[q])
+                release_output(arr[q], x->mapped[q]);
         free(x->ev);
-        free(x->fkeys);
-        free(x->lead_keys);
-        free(x->lead_ids);
     }
     free(p->slabs);
     free(p->queue);
