@@ -144,6 +144,9 @@ isomend_status counted_runs(plan *p, int nthreads, isomend_mesh *mesh, uint64_t 
         for (int t = 0; t < nthreads; t++)
             if (ts[t].status != ISOMEND_OK)
                 status = ts[t].status;
+        /* counted: reported once whichever thread took the chunks */
+        if (status == ISOMEND_OK && c->progress && c->progress(c->progress_user, 0.5))
+            atomic_store(&p->cancel, 1);
     }
     uint64_t v = 0, tr = 0;
     for (int64_t q = 0; q < j.nchunks && status == ISOMEND_OK; q++) { /* the bases */

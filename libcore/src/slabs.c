@@ -27,9 +27,9 @@
  * any meeting point.
  *
  * The output arrays are address-space reservations of the largest mesh the
- * grid can give (mesh_memory.c), trimmed at the end; where the system
- * refuses them, the mesh goes through the stream (stream_api.c) into arrays
- * that grow.
+ * grid can give (mesh_memory.c), trimmed at the end.  A small grid, or one
+ * whose reservations the system refuses, takes counted runs instead
+ * (counted_runs.c: counted first, into arrays of the mesh's size).
  */
 #define _GNU_SOURCE /* _SC_NPROCESSORS_ONLN */
 #include "context.h"
@@ -46,10 +46,11 @@
 #include <time.h>
 #include <unistd.h>
 
-/* Samples from which other threads take staged runs, and from which two
- * threads take the counted split of a dense mesh: below, the head alone (a
- * thread's start, and a region's huge pages, cost more than the work they
- * would take: a 64^3 sphere took 1.9x the time of the head alone). */
+/* Samples from which the runs go into reservations, other threads taking
+ * staged runs (below, counted runs: a thread's start and a region's huge
+ * pages cost a small grid more than the work they take, a 64^3 sphere 1.9x
+ * the head's time alone), and from which more than one thread takes part
+ * (in counted runs, or the counted split of a dense mesh). */
 #define STAGED_SAMPLES ((uint64_t)1 << 20)
 #define COUNTED_SAMPLES ((uint64_t)1 << 16)
 /* Layers of a staged run: a share of what is left, within these. */
@@ -620,6 +621,8 @@ static isomend_status extract(const isomend_volume *vol, const isomend_options *
         !arrays_reserve(&p->mesh, c, vmax, tmax)) {
         if (samples < COUNTED_SAMPLES) /* a thread's start would cost more */
             nthreads = 1;
+        isomend_mesh_destroy(old); /* before the new arrays are allocated */
+        old = NULL;
         status = counted_runs(p, nthreads, mesh, &nv, &nt, &st);
     } else {
         /* The recycled mesh's positions, normals and triangles become the
@@ -636,6 +639,8 @@ static isomend_status extract(const isomend_volume *vol, const isomend_options *
                 *from[q] = NULL;
                 old->mapped[q] = 0;
             }
+            isomend_mesh_destroy(old); /* what is left: arrays the new mesh does not have */
+            old = NULL;
         }
         mesh->pos = p->mesh.out.pos;
         mesh->nrm = p->mesh.out.nrm;
