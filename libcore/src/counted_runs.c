@@ -64,14 +64,9 @@ static void counted_chunks(counted_job *j, thread_state *t)
                                             m->org ? m->org + j->ct[q] : NULL},
                                     .tick = cancel_tick,
                                     .tick_user = t};
-            isomend_stats st;
             uint64_t nv, nt;
-            t->status = stream_direct_run(t->s, &run, &st, &nv, &nt);
-            if (t->status != ISOMEND_OK) {
-                atomic_store(&p->cancel, 1);
+            if (!thread_run(t, &run, &nv, &nt))
                 return;
-            }
-            stats_add(&t->stats, &st);
         }
         const long long done = atomic_fetch_add(&j->done, 1) + 1;
         if (t->index == 0 && c->progress &&

@@ -8,6 +8,7 @@
 #define ISOMEND_RUNS_JOB_H
 
 #include "context.h"
+#include "extract.h"
 #include "stream.h"
 
 #include <pthread.h>
@@ -51,7 +52,7 @@ struct plan {
     int64_t lowest;       /* the lowest slice a staged run took; N2: none  */
     int64_t H, H_min;     /* a staged run's layers, at most and at least   */
     int threads;          /* taking part                                   */
-    uint64_t vcap;        /* vertices a staged thread's region holds       */
+    uint64_t vcap, tcap;  /* the grid's largest mesh: the reservations' room */
     uint64_t layer_vmax;  /* the most vertices a layer (and its slice) has */
     staged *runs;         /* [N2], in the order taken (downwards)          */
     int64_t nruns;
@@ -73,6 +74,21 @@ static inline int cancel_tick(void *user, int64_t m)
     (void)m;
     const thread_state *t = user;
     return atomic_load(&t->p->cancel) ? -1 : 1;
+}
+
+/* One run on thread t (its engine): 1 with its statistics added to the
+ * thread's, 0 with the failure in t->status and the other threads told to
+ * stop. */
+static inline int thread_run(thread_state *t, const stream_run *run, uint64_t *nv, uint64_t *nt)
+{
+    isomend_stats st;
+    t->status = stream_direct_run(t->s, run, &st, nv, nt);
+    if (t->status != ISOMEND_OK) {
+        atomic_store(&t->p->cancel, 1);
+        return 0;
+    }
+    stats_add(&t->stats, &st);
+    return 1;
 }
 
 #endif /* ISOMEND_RUNS_JOB_H */

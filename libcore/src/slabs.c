@@ -112,6 +112,16 @@ static int arrays_reserve(arrays *a, const ctx *c, uint64_t vmax, uint64_t tmax)
     return 1;
 }
 
+/* The most vertices a slice and the layer below it can have: an edge or
+ * diagonal per id-map plane and sample, and the general methods' private
+ * slots. */
+static uint64_t layer_vertex_bound(const ctx *c)
+{
+    const uint64_t per_sample =
+        (uint64_t)c->id_planes + (c->general ? METHODS_SLOT_COUNT - METHODS_SLOT_CENTRE : 0);
+    return per_sample * (uint64_t)c->g.N[0] * (uint64_t)c->g.N[1];
+}
+
 /* The largest counts a grid allows: vertices (at most 3 a sample, one slice
  * past 2^32 - 1 before the check), triangles (the table's, and two for each
  * of a cube's +x, +y, +z faces; the general methods' per cube). */
@@ -120,10 +130,8 @@ static void grid_bounds(const ctx *c, uint64_t *vmax, uint64_t *tmax)
     const grid *g = &c->g;
     const uint64_t N0 = (uint64_t)g->N[0], N1 = (uint64_t)g->N[1], N2 = (uint64_t)g->N[2];
     const uint64_t cubes = (N0 - 1) * (N1 - 1) * (N2 - 1);
-    const uint64_t per_sample =
-        (uint64_t)c->id_planes + (c->general ? METHODS_SLOT_COUNT - METHODS_SLOT_CENTRE : 0);
-    uint64_t v = per_sample * N0 * N1 * N2;
-    const uint64_t cap = (uint64_t)UINT32_MAX + 1 + per_sample * N0 * N1;
+    const uint64_t v = layer_vertex_bound(c) * N2;
+    const uint64_t cap = (uint64_t)UINT32_MAX + 1 + layer_vertex_bound(c);
     *vmax = v > cap ? cap : v;
     *tmax = (c->general ? (uint64_t)METHODS_MAX_TRI : (uint64_t)MC_MAX_TRI + 6) * cubes;
 }
@@ -195,13 +203,8 @@ static void take_runs(thread_state *t)
                                        o->tri + 3 * t->t_used, o->org ? o->org + t->t_used : NULL},
                                .tick = cancel_tick,
                                .tick_user = t};
-        isomend_stats st;
-        t->status = stream_direct_run(t->s, &sr, &st, &run->nv, &run->nt);
-        if (t->status != ISOMEND_OK) {
-            atomic_store(&p->cancel, 1);
+        if (!thread_run(t, &sr, &run->nv, &run->nt))
             return;
-        }
-        stats_add(&t->stats, &st);
         t->v_used += run->nv;
         t->t_used += run->nt;
         atomic_fetch_add(&p->layers_staged, end - first);
@@ -316,13 +319,8 @@ static void count_split(thread_state *t)
                            .out = {o->pos, o->nrm, o->tri + 3 * tr, o->org ? o->org + tr : NULL},
                            .tick = cancel_tick,
                            .tick_user = t};
-    isomend_stats st;
-    t->status = stream_direct_run(t->s, &sr, &st, &p->counted_nv, &p->counted_nt);
-    if (t->status != ISOMEND_OK) {
-        atomic_store(&p->cancel, 1);
+    if (!thread_run(t, &sr, &p->counted_nv, &p->counted_nt))
         return;
-    }
-    stats_add(&t->stats, &st);
     p->counted_at = at;
     p->counted_v = v;
     p->counted_t = tr;
@@ -362,10 +360,7 @@ static int64_t run_layers(const ctx *c, int threads)
         return 0;
     int64_t h = RUN_MAX;
     /* a run's ids, its last slice's too, stay within 32 bits */
-    const uint64_t per_layer = ((uint64_t)c->id_planes +
-                                (c->general ? METHODS_SLOT_COUNT - METHODS_SLOT_CENTRE : 0)) *
-                               (uint64_t)g->N[0] * (uint64_t)g->N[1];
-    const int64_t hmax = (int64_t)(UINT32_MAX / per_layer) - 1;
+    const int64_t hmax = (int64_t)(UINT32_MAX / layer_vertex_bound(c)) - 1;
     if (hmax < 1)
         return 0;
     return h < hmax ? h : hmax;
@@ -419,12 +414,7 @@ static isomend_status run_slabs(plan *p, int nthreads, uint64_t *nv, uint64_t *n
     p->H_min = p->H < RUN_MIN ? p->H : RUN_MIN;
     p->counted_at = -1;
     isomend_status status = ISOMEND_OK;
-    uint64_t vmax, tmax;
-    grid_bounds(c, &vmax, &tmax);
-    p->vcap = vmax;
-    p->layer_vmax = ((uint64_t)c->id_planes +
-                     (c->general ? METHODS_SLOT_COUNT - METHODS_SLOT_CENTRE : 0)) *
-                    (uint64_t)c->g.N[0] * (uint64_t)c->g.N[1];
+    p->layer_vmax = layer_vertex_bound(c);
     int nt_threads = 1;
     for (int t = 0; t < nthreads; t++) {
         ts[t].p = p;
@@ -441,7 +431,7 @@ static isomend_status run_slabs(plan *p, int nthreads, uint64_t *nv, uint64_t *n
         }
         /* a staged thread's region: what the whole grid may give, address
          * space only; refused, the threads that have one do the staging */
-        if (t > 0 && !p->counted && !arrays_reserve(&ts[t].region, c, vmax, tmax)) {
+        if (t > 0 && !p->counted && !arrays_reserve(&ts[t].region, c, p->vcap, p->tcap)) {
             stream_one_destroy(ts[t].s);
             ts[t].s = NULL;
             break;
@@ -604,6 +594,8 @@ static isomend_status extract(const isomend_volume *vol, const isomend_options *
     const grid *g = &c->g;
     uint64_t vmax, tmax, nv = 0, nt = 0;
     grid_bounds(c, &vmax, &tmax);
+    p->vcap = vmax; /* a staged thread's region holds as much */
+    p->tcap = tmax;
     isomend_stats st;
     int nthreads = o->threads > 0 ? (o->threads > 64 ? 64 : o->threads) : default_threads();
     const uint64_t samples = (uint64_t)g->N[0] * (uint64_t)g->N[1] * (uint64_t)g->N[2];
