@@ -35,6 +35,7 @@
  * collapsed into another in the pass lends it its corners (merged), and
  * the corners of triangles that died in the pass are skipped.
  */
+#include "arena.h"
 #include "mem_tally.h"
 #include "mesh_internal.h"
 
@@ -79,6 +80,7 @@ typedef struct dec {
     struct cand *cand, *cand_tmp; /* a pass's candidates: 3 a triangle each */
     uint8_t *vf;     /* V_LOCKED, V_DEAD */
     uint32_t *mark;  /* scratch marks, generation `gen` */
+    uint32_t *hist;  /* sort_candidates()' histogram: 65536 */
     uint32_t gen;
     uint64_t *changed;   /* a bit a vertex: moved or removed in this pass */
     uint64_t *changed_before; /* the same for the pass before (the costs to renew) */
@@ -722,19 +724,17 @@ static inline uint32_t cost_bits(const cand *c)
  * it are kept (in order), and a least significant digit radix sort (three
  * digits of 11 bits, stable) sorts them into c.  tmp has room for n.
  */
-static size_t sort_candidates(cand *c, cand *tmp, size_t n, size_t rank, float *limit)
+static size_t sort_candidates(cand *c, cand *tmp, size_t n, size_t rank, float *limit,
+                              uint32_t *hist)
 {
     uint32_t top = 0xffffu; /* the kept: top 16 bits up to this */
     if (rank < n) {
-        uint32_t *hist = calloc(65536, sizeof(uint32_t));
-        if (hist) {
-            for (size_t i = 0; i < n; i++)
-                hist[cost_bits(c + i) >> 16]++;
-            size_t below = 0;
-            for (top = 0; top < 0xffffu && below + hist[top] <= rank; top++)
-                below += hist[top];
-            free(hist);
-        }
+        memset(hist, 0, 65536 * sizeof(uint32_t));
+        for (size_t i = 0; i < n; i++)
+            hist[cost_bits(c + i) >> 16]++;
+        size_t below = 0;
+        for (top = 0; top < 0xffffu && below + hist[top] <= rank; top++)
+            below += hist[top];
     }
     size_t count[3][2049];
     memset(count, 0, sizeof count);
@@ -1172,42 +1172,56 @@ isomend_status mesh_decimate_to(const isomend_mesh *mesh, uint64_t target, doubl
     if (npts >= (size_t)UINT32_MAX)
         return ISOMEND_ERR_TOO_LARGE;
 
-    const size_t nv = d.nv ? d.nv : 1, nc = 3 * (d.nt ? d.nt : 1);
-    d.p = malloc(3 * sizeof(double) * nv);
-    d.q = malloc(10 * sizeof(double) * nv); /* quadric_range sets every vertex's */
-    d.tv = malloc(nc * sizeof(uint32_t));
-    d.tdead = calloc(d.nt ? d.nt : 1, 1);
-    d.merged = malloc(nv * sizeof(uint32_t));
-    d.fan_first = malloc((nv + 1) * sizeof(uint32_t));
-    d.fan = malloc(nc * sizeof(uint32_t));
-    d.cand = malloc(nc * sizeof(cand));
-    d.cand_tmp = malloc(nc * sizeof(cand));
-    d.vf = calloc(nv, 1);
+    const size_t nv = d.nv ? d.nv : 1, nc = 3 * (d.nt ? d.nt : 1), nt1 = d.nt ? d.nt : 1;
     d.nwords = (nv + 63) / 64;
-    d.changed = calloc(d.nwords, sizeof(uint64_t));
-    d.changed_before = calloc(d.nwords, sizeof(uint64_t));
-    d.live = malloc((d.nt ? d.nt : 1) * sizeof(uint32_t));
-    d.border = malloc(nv);
-    d.cost_of = malloc(nc * sizeof(float));
-    d.mark = calloc(nv, sizeof(uint32_t));
-    if (max_error > 0) { /* only the distance check needs the members */
-        d.members = malloc(nv * sizeof(uint32_t));
-        d.member_next = malloc((npts ? npts : 1) * sizeof(uint32_t));
-        d.member_last = malloc(nv * sizeof(uint32_t));
+    /* the working arrays in one arena (arena.c): faulted in at once, zero */
+    arena ar;
+    const size_t bytes_needed =
+        arena_bytes(3 * sizeof(double) * nv) + arena_bytes(10 * sizeof(double) * nv) +
+        arena_bytes(nc * sizeof(uint32_t)) + arena_bytes(nt1) + arena_bytes(nv * sizeof(uint32_t)) +
+        arena_bytes((nv + 1) * sizeof(uint32_t)) + arena_bytes(nc * sizeof(uint32_t)) +
+        2 * arena_bytes(nc * sizeof(cand)) + arena_bytes(nv) +
+        2 * arena_bytes(d.nwords * sizeof(uint64_t)) + arena_bytes(nt1 * sizeof(uint32_t)) +
+        arena_bytes(nv) + arena_bytes(nc * sizeof(float)) + arena_bytes(nv * sizeof(uint32_t)) +
+        arena_bytes(65536 * sizeof(uint32_t)) +
+        (max_error > 0 ? 2 * arena_bytes(nv * sizeof(uint32_t)) +
+                             arena_bytes((npts ? npts : 1) * sizeof(uint32_t))
+                       : 0);
+    if (!arena_open(&ar, bytes_needed)) {
+        if (report)
+            *report = rep;
+        return ISOMEND_ERR_OUT_OF_MEMORY;
     }
-    mem_tally_add(&d.mem,
-                  (3 + 10) * sizeof(double) * nv + nc * sizeof(uint32_t) + (d.nt ? d.nt : 1) +
-                      nv * sizeof(uint32_t) + (nv + 1) * sizeof(uint32_t) + nc * sizeof(uint32_t) +
-                      2 * nc * sizeof(cand) + nv + 2 * d.nwords * sizeof(uint64_t) +
-                      (d.nt ? d.nt : 1) * sizeof(uint32_t) + nv + nc * sizeof(float) +
-                      nv * sizeof(uint32_t) +
-                      (max_error > 0 ? (2 * nv + (npts ? npts : 1)) * sizeof(uint32_t) : 0));
+    d.p = arena_take(&ar, 3 * sizeof(double) * nv);
+    d.q = arena_take(&ar, 10 * sizeof(double) * nv); /* quadric_range sets every vertex's */
+    d.tv = arena_take(&ar, nc * sizeof(uint32_t));
+    d.tdead = arena_take(&ar, nt1);
+    d.merged = arena_take(&ar, nv * sizeof(uint32_t));
+    d.fan_first = arena_take(&ar, (nv + 1) * sizeof(uint32_t));
+    d.fan = arena_take(&ar, nc * sizeof(uint32_t));
+    d.cand = arena_take(&ar, nc * sizeof(cand));
+    d.cand_tmp = arena_take(&ar, nc * sizeof(cand));
+    d.vf = arena_take(&ar, nv);
+    d.changed = arena_take(&ar, d.nwords * sizeof(uint64_t));
+    d.changed_before = arena_take(&ar, d.nwords * sizeof(uint64_t));
+    d.live = arena_take(&ar, nt1 * sizeof(uint32_t));
+    d.border = arena_take(&ar, nv);
+    d.cost_of = arena_take(&ar, nc * sizeof(float));
+    d.mark = arena_take(&ar, nv * sizeof(uint32_t));
+    d.hist = arena_take(&ar, 65536 * sizeof(uint32_t));
+    if (max_error > 0) { /* only the distance check needs the members */
+        d.members = arena_take(&ar, nv * sizeof(uint32_t));
+        d.member_next = arena_take(&ar, (npts ? npts : 1) * sizeof(uint32_t));
+        d.member_last = arena_take(&ar, nv * sizeof(uint32_t));
+    }
+    mem_tally_add(&d.mem, bytes_needed);
     d.orig = carried_pts ? carry->pts : mesh->pos;
     d.max_dist = max_error;
     isomend_status status = ISOMEND_ERR_OUT_OF_MEMORY;
     if (!d.p || !d.q || !d.tv || !d.tdead || !d.merged || !d.fan_first || !d.fan || !d.cand ||
         !d.cand_tmp || !d.vf || !d.changed || !d.changed_before || !d.live || !d.border ||
-        !d.cost_of || !d.mark || (max_error > 0 && (!d.members || !d.member_next || !d.member_last)))
+        !d.cost_of || !d.mark || !d.hist ||
+        (max_error > 0 && (!d.members || !d.member_next || !d.member_last)))
         goto done;
     if (d.members && !carried_pts)
         for (size_t v = 0; v < d.nv; v++) {
@@ -1230,7 +1244,10 @@ isomend_status mesh_decimate_to(const isomend_mesh *mesh, uint64_t target, doubl
     d.nlive = d.nt;
     begin_pass(&d); /* the first pass's fans */
     mem_tally_spike(&d.mem, (d.nv + 1) * sizeof(uint32_t) + 2 * nc * 4); /* its fans */
-    if (!mesh_free_vertices(mesh, NULL, d.vf, NULL, NULL, NULL))
+    if (4 * ((size_t)d.nv + 1) <= nc * sizeof(cand)) /* the candidates' arrays: scratch yet */
+        mesh_free_vertices_into(mesh, NULL, d.vf, (uint32_t *)d.cand, (uint32_t *)d.cand_tmp,
+                                (uint32_t *)d.cand_tmp + nc);
+    else if (!mesh_free_vertices(mesh, NULL, d.vf, NULL, NULL, NULL))
         goto done;
     for (size_t v = 0; v < d.nv; v++) {
         d.vf[v] = d.vf[v] && !(carry && carry->locked && carry->locked[v])
@@ -1265,9 +1282,7 @@ isomend_status mesh_decimate_to(const isomend_mesh *mesh, uint64_t target, doubl
         const size_t need = (d.alive - target + 1) / 2;
         float limit;
         const size_t rank = unlimited || 2 * need + refused >= n_all ? n_all : 2 * need + refused;
-        if (rank < n_all) /* its histogram */
-            mem_tally_spike(&d.mem, 65536 * sizeof(uint32_t));
-        const size_t n = sort_candidates(d.cand, d.cand_tmp, n_all, rank, &limit);
+        const size_t n = sort_candidates(d.cand, d.cand_tmp, n_all, rank, &limit, d.hist);
         const size_t nfree = mark_borders(&d);
         tally t = {0, 0, 0, 0, 0, 0};
         if (!run_pass(&d, d.cand, d.cand_tmp, n, nfree, target, &t))
@@ -1330,25 +1345,7 @@ isomend_status mesh_decimate_to(const isomend_mesh *mesh, uint64_t target, doubl
         }
     }
 done:
-    free(d.p);
-    free(d.q);
-    free(d.tv);
-    free(d.tdead);
-    free(d.fan_first);
-    free(d.fan);
-    free(d.merged);
-    free(d.cand);
-    free(d.cand_tmp);
-    free(d.vf);
-    free(d.changed);
-    free(d.changed_before);
-    free(d.live);
-    free(d.border);
-    free(d.cost_of);
-    free(d.mark);
-    free(d.members);
-    free(d.member_next);
-    free(d.member_last);
+    arena_close(&ar);
     if (report)
         *report = rep;
     return status;

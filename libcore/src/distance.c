@@ -11,6 +11,7 @@
  * passing over cells and triangles' bounding boxes farther than that.
  * Points outside the grid start from the nearest cell.
  */
+#include "arena.h"
 #include "mesh_internal.h"
 
 #include <math.h>
@@ -283,9 +284,12 @@ int mesh_distances(const float *pts, size_t np, const float *pos, const uint32_t
         g.size *= 1.5;
     }
     const size_t ncell = (size_t)(g.n[0] * g.n[1] * g.n[2]);
-    g.first = calloc(ncell + 1, sizeof(uint32_t));
-    if (!g.first)
+    /* the arrays in two arenas (arena.c: faulted in at once, zero): the
+     * cells' counts, then what their sum sizes */
+    arena cells_ar, ar = {0};
+    if (!arena_open(&cells_ar, arena_bytes((ncell + 1) * sizeof(uint32_t))))
         return 0;
+    g.first = arena_take(&cells_ar, (ncell + 1) * sizeof(uint32_t));
     /* two passes: count, then file */
     uint64_t total = 0;
     for (int pass = 0; pass < 2; pass++) {
@@ -315,11 +319,15 @@ int mesh_distances(const float *pts, size_t np, const float *pos, const uint32_t
             for (size_t c = 0; c < ncell; c++)
                 g.first[c + 1] += g.first[c];
             total = g.first[ncell];
-            g.tris = malloc((total ? total : 1) * sizeof(uint32_t));
-            if (!g.tris) {
-                free(g.first);
+            const size_t nblocks = (np + DIST_BLOCK - 1) / DIST_BLOCK, t1 = total ? total : 1;
+            if (!arena_open(&ar, arena_bytes(t1 * sizeof(uint32_t)) +
+                                     arena_bytes(2 * (nblocks ? nblocks : 1) * sizeof(double)) +
+                                     arena_bytes(9 * (nt ? nt : 1) * sizeof(float)) +
+                                     arena_bytes(6 * t1 * sizeof(float)))) {
+                arena_close(&cells_ar);
                 return 0;
             }
+            g.tris = arena_take(&ar, t1 * sizeof(uint32_t));
         } else {
             for (size_t c = ncell; c > 0; c--)
                 g.first[c] = g.first[c - 1];
@@ -328,32 +336,14 @@ int mesh_distances(const float *pts, size_t np, const float *pos, const uint32_t
     }
     /* the points in blocks, on threads; the blocks' results summed in order */
     const size_t nblocks = (np + DIST_BLOCK - 1) / DIST_BLOCK;
-    double *bmax = malloc(2 * nblocks * sizeof(double));
-    if (!bmax) {
-        free(g.first);
-        free(g.tris);
-        return 0;
-    }
-    float *corners = malloc(9 * nt * sizeof(float));
-    if (!corners) {
-        free(bmax);
-        free(g.first);
-        free(g.tris);
-        return 0;
-    }
+    double *bmax = arena_take(&ar, 2 * (nblocks ? nblocks : 1) * sizeof(double));
+    float *corners = arena_take(&ar, 9 * (nt ? nt : 1) * sizeof(float));
     for (size_t t = 0; t < nt; t++)
         for (int k = 0; k < 3; k++)
             memcpy(corners + 9 * t + 3 * k, pos + 3 * (size_t)tri[3 * t + (size_t)k], 3 * sizeof(float));
     /* each filing's bounding box, where the search reads it: a cell's
      * triangles' boxes side by side */
-    float *boxes = malloc(6 * (total ? total : 1) * sizeof(float));
-    if (!boxes) {
-        free(corners);
-        free(bmax);
-        free(g.first);
-        free(g.tris);
-        return 0;
-    }
+    float *boxes = arena_take(&ar, 6 * (total ? total : 1) * sizeof(float));
     for (uint64_t k = 0; k < total; k++) {
         const float *f = corners + 9 * (size_t)g.tris[k];
         float *bx = boxes + 6 * k;
@@ -374,11 +364,8 @@ int mesh_distances(const float *pts, size_t np, const float *pos, const uint32_t
         worst = bmax[b] > worst ? bmax[b] : worst;
         sum += bmax[nblocks + b];
     }
-    free(bmax);
-    free(corners);
-    free(boxes);
-    free(g.first);
-    free(g.tris);
+    arena_close(&ar);
+    arena_close(&cells_ar);
     *max_out = worst;
     *mean_out = sum / (double)np;
     return 1;

@@ -220,18 +220,10 @@ static void rows_parts(void *arg, size_t p0, size_t p1)
     }
 }
 
-int mesh_free_vertices(const isomend_mesh *m, team *tm, uint8_t *free_flag, uint32_t **first_out,
-                       uint32_t **next_out, uint32_t **prev_out)
+void mesh_free_vertices_into(const isomend_mesh *m, team *tm, uint8_t *free_flag, uint32_t *first,
+                             uint32_t *next, uint32_t *prev)
 {
     const size_t nv = m->nv, nc = 3 * m->nt;
-    uint32_t *first = malloc((nv + 1) * sizeof(uint32_t)), *next = malloc((nc ? nc : 1) * 4),
-             *prev = malloc((nc ? nc : 1) * 4);
-    if (!first || !next || !prev) {
-        free(first);
-        free(next);
-        free(prev);
-        return 0;
-    }
     rows_job rows = {m->tri, m->nt, nv, 1, 0, first, next, prev, {0}};
     if (nv >= 2 * TEAM_MIN_ITEMS)
         rows.parts = (size_t)team_threads(tm);
@@ -244,6 +236,21 @@ int mesh_free_vertices(const isomend_mesh *m, team *tm, uint8_t *free_flag, uint
         team_for(tm, nv, fan_range, &job);
     else
         parallel_for(nv, fan_range, &job);
+}
+
+int mesh_free_vertices(const isomend_mesh *m, team *tm, uint8_t *free_flag, uint32_t **first_out,
+                       uint32_t **next_out, uint32_t **prev_out)
+{
+    const size_t nv = m->nv, nc = 3 * m->nt;
+    uint32_t *first = malloc((nv + 1) * sizeof(uint32_t)), *next = malloc((nc ? nc : 1) * 4),
+             *prev = malloc((nc ? nc : 1) * 4);
+    if (!first || !next || !prev) {
+        free(first);
+        free(next);
+        free(prev);
+        return 0;
+    }
+    mesh_free_vertices_into(m, tm, free_flag, first, next, prev);
     if (first_out)
         *first_out = first;
     else

@@ -56,6 +56,9 @@ isomend_status mesh_copy_frame(isomend_mesh *dst, const isomend_mesh *src);
 void mesh_area_normals(isomend_mesh *m, const float *keep);
 int mesh_free_vertices(const isomend_mesh *m, team *tm, uint8_t *free_flag, uint32_t **first,
                        uint32_t **next, uint32_t **prev);
+/* The same into the caller's arrays: first nv + 1, next and prev 3 nt each. */
+void mesh_free_vertices_into(const isomend_mesh *m, team *tm, uint8_t *free_flag, uint32_t *first,
+                             uint32_t *next, uint32_t *prev);
 /* smooth.c: isomend_mesh_smooth(), and in *bytes (if not NULL) the most it
  * held at once beyond the input, its output included. */
 isomend_status mesh_smooth(const isomend_mesh *mesh, int iterations, isomend_mesh **out,
@@ -64,10 +67,12 @@ isomend_status mesh_smooth(const isomend_mesh *mesh, int iterations, isomend_mes
  * vertices whose neighbours are nb[first[v] .. first[v + 1]) (free_v[v] 0:
  * the vertex stays), from the centred positions x0 into out, on team tm
  * (NULL: this thread); x0, b and out hold 3 n + 4 floats (x0's last 4
- * zero), b and deg (n bytes) scratch.  0 without memory. */
+ * zero), b and deg (n bytes) scratch, and row sinc_row_bytes(n) bytes (NULL:
+ * allocated here).  0 without memory. */
 int sinc_filter(team *tm, size_t n, const uint32_t *first, const uint32_t *nb,
                 const uint8_t *free_v, const float *x0, float *b, uint8_t *deg, float *out,
-                int iterations);
+                int iterations, void *row);
+size_t sinc_row_bytes(size_t n);
 /* smooth_shared.c: meshes that meet (a label map's), their vertices one set
  * (a vertex the same in every mesh where its position is the same, bit for
  * bit).  vertex_set_build() checks the arguments of isomend_meshes_*()

@@ -39,6 +39,7 @@
  * unpadded surface, non-manifold places) never move, and the triangles are
  * the input's, so the surface stays closed and oriented.
  */
+#include "arena.h"
 #include "mesh_internal.h"
 
 #include <float.h>
@@ -320,20 +321,29 @@ static void filter_range(void *arg, size_t lo, size_t hi)
  * whose neighbours are nb[first[v] .. first[v + 1]) (free_v[v] 0: the
  * vertex stays), from the centred positions x0 into out, on team tm; x0,
  * b and out hold 3 n + 4 floats (x0's last 4 zero: the zero vertex), b
- * and deg (n bytes) are scratch.  0 without memory. */
+ * and deg (n bytes) are scratch, row sinc_row_bytes(n) bytes (NULL: allocated
+ * here).  0 without memory. */
+size_t sinc_row_bytes(size_t n)
+{
+    const int near = n >= NEAR_MIN, wide16 = !near && n <= SHORT_MAX;
+    return (near ? NEAR * sizeof(int16_t) : WIDE * (wide16 ? 2 : 4)) * (n ? n : 1);
+}
+
 int sinc_filter(team *tm, size_t n, const uint32_t *first, const uint32_t *nb,
                 const uint8_t *free_v, const float *x0, float *b, uint8_t *deg, float *out,
-                int iterations)
+                int iterations, void *row)
 {
     const size_t nv = n;
     double *c = malloc(8 * ((size_t)iterations + 1));
     const int near = nv >= NEAR_MIN, wide16 = !near && nv <= SHORT_MAX;
-    void *row = malloc((near ? NEAR * sizeof(int16_t) : WIDE * (wide16 ? 2 : 4)) * (nv ? nv : 1));
-    if (!c || !row) {
+    void *own = row ? NULL : malloc(sinc_row_bytes(nv));
+    if (!c || (!row && !own)) {
         free(c);
-        free(row);
+        free(own);
         return 0;
     }
+    if (!row)
+        row = own;
     for (int d = 0; d < 4; d++) /* the zero vertex */
         b[3 * nv + (size_t)d] = out[3 * nv + (size_t)d] = 0;
     sinc_coefficients(iterations, c);
@@ -380,7 +390,7 @@ int sinc_filter(team *tm, size_t n, const uint32_t *first, const uint32_t *nb,
     job.out = out;
     team_for(tm, nv, filter_range, &job);
     free(c);
-    free(row);
+    free(own);
     return 1;
 }
 
@@ -708,19 +718,38 @@ isomend_status mesh_smooth(const isomend_mesh *mesh, int iterations, isomend_mes
         return ISOMEND_ERR_INVALID_ARGUMENT;
     const size_t nv = mesh->nv, nv1 = nv ? nv : 1;
     isomend_status status = ISOMEND_ERR_OUT_OF_MEMORY;
-    /* the working arrays on small pages: huge ones (scratch_alloc) fault
-     * faster, but on a machine whose free memory is fragmented the kernel
-     * compacts it at the fault, which made a 1.5 M-vertex smoothing take
-     * 190 ms or 400-560 ms by turns (malloc: 250-285 ms, steadily) */
-    uint8_t *free_v = malloc(nv1);
-    uint32_t *first = NULL, *next = NULL, *prev = NULL, *label = malloc(nv1 * sizeof(uint32_t));
-    float *xa = malloc(12 * nv1 + 16), *xb = malloc(12 * nv1 + 16), *nrm = malloc(12 * nv1);
-    double *vv = malloc(8 * nv1), *va = malloc(8 * nv1);
+    /* the working arrays and the output's in one arena (arena.c): faulted
+     * in at once, not a page at a time; the output's normals and triangles
+     * are working arrays first (xb, prev), done with by then */
+    const size_t nc3 = 3 * (mesh->nt ? mesh->nt : 1);
+    arena ar;
+    const size_t need = arena_bytes(nv1) + arena_bytes(4 * nv1) + arena_bytes(12 * nv1 + 16) +
+                        (mesh->nrm ? arena_page_bytes(12 * nv1 + 16) : arena_bytes(12 * nv1 + 16)) +
+                        arena_bytes(12 * nv1) + 2 * arena_bytes(8 * nv1) +
+                        arena_bytes(4 * (nv1 + 1)) + arena_bytes(4 * nc3) + arena_page_bytes(4 * nc3) +
+                        arena_page_bytes(12 * nv1 + 16) +
+                        (iterations > 0 ? arena_bytes(sinc_row_bytes(nv)) : 0);
+    isomend_mesh *m = calloc(1, sizeof(*m));
+    if (!m || !arena_open(&ar, need)) {
+        free(m);
+        return ISOMEND_ERR_OUT_OF_MEMORY;
+    }
+    /* the output's first, so that a failure hands them back with m */
+    m->pos = arena_take_pages(&ar, 12 * nv1 + 16, &m->mapped[0]); /* + 16: the filter's zero vertex */
+    uint32_t *prev = m->tri = arena_take_pages(&ar, 4 * nc3, &m->mapped[2]);
+    float *xb = mesh->nrm ? (m->nrm = arena_take_pages(&ar, 12 * nv1 + 16, &m->mapped[1]))
+                          : arena_take(&ar, 12 * nv1 + 16); /* (the pages first: no gaps) */
+    uint8_t *free_v = arena_take(&ar, nv1);
+    uint32_t *label = arena_take(&ar, nv1 * sizeof(uint32_t));
+    uint32_t *first = arena_take(&ar, 4 * (nv1 + 1)), *next = arena_take(&ar, 4 * nc3);
+    float *xa = arena_take(&ar, 12 * nv1 + 16), *nrm = arena_take(&ar, 12 * nv1);
+    double *vv = arena_take(&ar, 8 * nv1), *va = arena_take(&ar, 8 * nv1);
+    void *row = iterations > 0 ? arena_take(&ar, sinc_row_bytes(nv)) : NULL;
     double *v0 = NULL, *v1 = NULL, *area = NULL, *edge = NULL, *delta = NULL, *part = NULL;
     uint8_t *seen = NULL;
-    isomend_mesh *m = calloc(1, sizeof(*m));
     team *tm = NULL;
-    if (!free_v || !label || !xa || !xb || !nrm || !vv || !va || !m)
+    if (!m->pos || !xb || !prev || !free_v || !label || !first || !next || !xa || !nrm || !vv ||
+        !va || (iterations > 0 && !row))
         goto done;
     for (int d = 0; d < 4; d++) /* the zero vertex nv (and its fourth float) */
         xa[3 * nv + (size_t)d] = xb[3 * nv + (size_t)d] = 0;
@@ -734,11 +763,9 @@ isomend_status mesh_smooth(const isomend_mesh *mesh, int iterations, isomend_mes
     const int comp_started = nv >= 8192 && pthread_create(&comp_thread, NULL, comp_main, &cjob) == 0;
     if (!comp_started)
         comp_main(&cjob);
-    const int fans_ok = mesh_free_vertices(mesh, tm, free_v, &first, &next, &prev);
+    mesh_free_vertices_into(mesh, tm, free_v, first, next, prev);
     if (comp_started)
         pthread_join(comp_thread, NULL);
-    if (!fans_ok)
-        goto done;
     const int64_t nc = cjob.count;
     const size_t nc1 = (size_t)nc + 1;
     v0 = malloc(nc1 * sizeof(double));
@@ -748,10 +775,7 @@ isomend_status mesh_smooth(const isomend_mesh *mesh, int iterations, isomend_mes
     delta = calloc(nc1, sizeof(double));
     m->nv = nv;
     m->nt = mesh->nt;
-    /* (the output's normals and triangles go in working arrays that are
-     * done by then, already faulted in: xb, prev) */
-    m->pos = malloc(12 * nv1 + 16); /* + 16: the filter's zero vertex */
-    if (!v0 || !v1 || !area || !edge || !delta || !m->pos)
+    if (!v0 || !v1 || !area || !edge || !delta)
         goto done;
     for (int d = 0; d < 4; d++)
         m->pos[3 * nv + (size_t)d] = 0;
@@ -794,13 +818,11 @@ isomend_status mesh_smooth(const isomend_mesh *mesh, int iterations, isomend_mes
         team_for(tm, nv, centre_range, &cj);
         /* the neighbour counts in nrm while the filter runs (the fans write
          * it before and after) */
-        if (!sinc_filter(tm, nv, first, next, free_v, xa, xb, (uint8_t *)nrm, m->pos, iterations))
+        if (!sinc_filter(tm, nv, first, next, free_v, xa, xb, (uint8_t *)nrm, m->pos, iterations,
+                         row))
             goto done;
     }
-    if (mesh->nrm) { /* the filter is done with its scratch */
-        m->nrm = xb;
-        xb = NULL;
-    }
+    /* (the filter is done with its scratch xb: m->nrm from here on) */
     /* back to the mesh's coordinates; locked vertices exactly where they were */
     out_job oj = {mesh, free_v, nrm, mid, m->pos, NULL, vv, iterations > 0};
     team_for(tm, nv, place_range, &oj);
@@ -843,8 +865,7 @@ isomend_status mesh_smooth(const isomend_mesh *mesh, int iterations, isomend_mes
         memcpy(m->nrm, mesh->nrm, 12 * nv);
     oj.out_nrm = iterations > 0 ? m->nrm : NULL;
     team_for(tm, nv, finish_range, &oj);
-    m->tri = (uint32_t *)prev; /* the fans are done with it: 3 nt too */
-    prev = NULL;
+    /* m->tri: the fans are done with prev */
     copy_job tj = {mesh->tri, m->tri};
     team_for(tm, mesh->nt, copy_range, &tj);
     if (mesh_copy_frame(m, mesh) != ISOMEND_OK)
@@ -881,17 +902,8 @@ isomend_status mesh_smooth(const isomend_mesh *mesh, int iterations, isomend_mes
     status = ISOMEND_OK;
 done:
     team_stop(tm);
-    isomend_mesh_destroy(m);
-    free(free_v);
-    free(first);
-    free(next);
-    free(prev);
-    free(label);
-    free(xa);
-    free(xb);
-    free(nrm);
-    free(vv);
-    free(va);
+    isomend_mesh_destroy(m); /* on failure: the output's arrays back */
+    arena_close(&ar);
     free(v0);
     free(v1);
     free(area);

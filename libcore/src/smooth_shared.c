@@ -226,7 +226,7 @@ isomend_status isomend_meshes_smooth(const isomend_mesh *const *meshes, size_t c
         float *f = malloc(12 * n1 + 16);
         if (!f)
             goto done;
-        if (!sinc_filter(tm, n, first, nb, free_v, x0, b, deg, f, iterations)) {
+        if (!sinc_filter(tm, n, first, nb, free_v, x0, b, deg, f, iterations, NULL)) {
             free(f);
             goto done;
         }
