@@ -256,6 +256,11 @@ class OiioFile final : public ImageFile {
                           slice_name(s) + ": cannot read the header: " + take_oiio_error(in_.get()));
         Sample st = h.channel_types[(size_t)cb];
         TypeDesc t = read_type(st);
+        // The file's own type asked as "native" (UNKNOWN): the same bytes, read
+        // straight into dst.  Asked by name, OIIO 2.4 reads through a 16 MB
+        // buffer allocated and unmapped at every call, whose pages fault in
+        // anew each slice (128 faults a 512 x 512 u16 slice; docs/slices.md).
+        TypeDesc ask = t == spec.format && spec.channelformats.empty() ? TypeDesc::UNKNOWN : t;
         bool ok;
         if (spec.tile_width == 0 && st != Sample::DOUBLE) {
             // Row 0 alone, then the rest: forces OIIO's per-scanline decoding,
@@ -263,9 +268,9 @@ class OiioFile final : public ImageFile {
             // 64-bit samples: OIIO 2.4.7 returns zeros for part of a strip of
             // doubles, without an error.)
             size_t row = (size_t)spec.width * (size_t)(ce - cb) * t.size();
-            ok = in_->read_scanlines(sub, 0, spec.y, spec.y + 1, spec.z, cb, ce, t, dst);
+            ok = in_->read_scanlines(sub, 0, spec.y, spec.y + 1, spec.z, cb, ce, ask, dst);
             if (ok && spec.height > 1)
-                ok = in_->read_scanlines(sub, 0, spec.y + 1, spec.y + spec.height, spec.z, cb, ce, t,
+                ok = in_->read_scanlines(sub, 0, spec.y + 1, spec.y + spec.height, spec.z, cb, ce, ask,
                                          (char *)dst + row);
         } else {
             ok = in_->read_image(sub, 0, cb, ce, t, dst);
