@@ -7,7 +7,10 @@
  * runs on a thread of its own: the tee copies each call's arrays into a
  * queue of blocks (at most the plan's check_queue bytes; the stream waits
  * when it is full) and the thread feeds them to the checker in order, so that checking
- * overlaps reading, extracting and writing instead of adding to them.
+ * overlaps reading, extracting and writing instead of adding to them.  A block
+ * the thread is done with is kept for the next call it fits (the queued and the
+ * kept blocks within the queue's capacity, and one block): freed, a layer's triangles (megabytes) came back from the
+ * system on fresh pages at the next call, a page fault every 4 KiB.
  */
 #define _POSIX_C_SOURCE 200809L
 
@@ -25,6 +28,7 @@ typedef struct call {
     call_kind kind;
     uint64_t first; /* vertices: first id; retire: the floor */
     size_t count, bytes;
+    size_t room;    /* bytes allocated (>= bytes) */
     /* then the positions (3 floats each) or the triangles (3 ids each) */
 } call;
 
@@ -38,6 +42,8 @@ struct cli_checker {
     pthread_cond_t more, room;
     call *head, *tail;
     size_t queued;   /* bytes in the queue */
+    call *spare;     /* blocks done with, for reuse (their room: spare_bytes) */
+    size_t spare_bytes;
     int closed;      /* no more calls */
     isomend_status status; /* the checker's first failure */
     uint64_t peak;   /* isomend_check_stream_peak_bytes() + the queue's peak */
@@ -78,6 +84,14 @@ static void *check_main(void *arg)
             k->status = st;
         k->queued -= c->bytes;
         pthread_cond_signal(&k->room);
+        if (k->queued + k->spare_bytes <= k->capacity) { /* at most a block over */
+            c->next = k->spare;
+            k->spare = c;
+            k->spare_bytes += c->room;
+            c = NULL;
+        }
+        if (k->queued + k->spare_bytes > k->queue_peak)
+            k->queue_peak = k->queued + k->spare_bytes;
         free(c);
     }
     pthread_mutex_unlock(&k->lock);
@@ -88,10 +102,24 @@ static void *check_main(void *arg)
 static int enqueue(cli_checker *k, call_kind kind, uint64_t first, size_t count, const void *data,
                    size_t size)
 {
-    call *c = malloc(sizeof *c + size);
-    if (!c) {
-        cli_error("out of memory (the continuity check's queue)");
-        return 1;
+    call *c = NULL;
+    pthread_mutex_lock(&k->lock); /* a spare block it fits in */
+    for (call **at = &k->spare; *at; at = &(*at)->next)
+        if ((*at)->room >= sizeof *c + size) {
+            c = *at;
+            *at = c->next;
+            k->spare_bytes -= c->room;
+            break;
+        }
+    pthread_mutex_unlock(&k->lock);
+    if (!c) { /* room for a somewhat larger call next time */
+        const size_t room = sizeof *c + size + size / 4;
+        c = malloc(room);
+        if (!c) {
+            cli_error("out of memory (the continuity check's queue)");
+            return 1;
+        }
+        c->room = room;
     }
     c->next = NULL;
     c->kind = kind;
@@ -104,8 +132,8 @@ static int enqueue(cli_checker *k, call_kind kind, uint64_t first, size_t count,
     while (k->queued > 0 && k->queued + c->bytes > k->capacity)
         pthread_cond_wait(&k->room, &k->lock);
     k->queued += c->bytes;
-    if (k->queued > k->queue_peak)
-        k->queue_peak = k->queued;
+    if (k->queued + k->spare_bytes > k->queue_peak)
+        k->queue_peak = k->queued + k->spare_bytes;
     if (k->tail)
         k->tail->next = c;
     else
@@ -218,6 +246,11 @@ void cli_checker_destroy(cli_checker *k)
         k->status = ISOMEND_ERR_CANCELLED;
     pthread_mutex_unlock(&k->lock);
     close_queue(k);
+    while (k->spare) {
+        call *c = k->spare;
+        k->spare = c->next;
+        free(c);
+    }
     isomend_check_stream_destroy(k->check);
     pthread_mutex_destroy(&k->lock);
     pthread_cond_destroy(&k->more);

@@ -52,7 +52,7 @@
  * grandparent.
  *
  * Memory: the ring of live vertices (168 bytes each, in chunks of 4096 made
- * and freed as ids come and retire: position, hole node, a table of 8
+ * as ids come and kept for reuse as they retire: position, hole node, a table of 8
  * neighbours), the tables of vertices with more (16 bytes a neighbour,
  * blocks at most twice the size needed, kept on free lists by size for
  * reuse), the set nodes the live edges name and their parents: all linear in the
@@ -141,7 +141,9 @@ struct isomend_check_stream {
     uint64_t next, floor; /* delivered [.., next); retired below floor        */
     vslot **chunks;  /* the ring of live vertices in chunks of CHUNK slots:   */
     uint64_t cmask;  /* id's chunk at (id >> CHUNK_BITS) & cmask, NULL when  */
-    vslot *spare;    /* none of its ids is live; one retired chunk kept      */
+    vslot *spare;    /* none of its ids is live; the retired chunks kept for  */
+                     /* reuse (never more than were live at once), the next   */
+                     /* one in their first bytes                               */
     void *free_blocks[CLASSES]; /* tables' blocks, by class, for reuse: the
                                  * next free one in their first bytes      */
     ufpool tri, hole; /* components (of edges), hole loops (of vertices)    */
@@ -601,7 +603,12 @@ void isomend_check_stream_destroy(isomend_check_stream *s)
     for (uint64_t c = 0; s->chunks && c <= s->cmask; c++)
         free(s->chunks[c]);
     free(s->chunks);
-    free(s->spare);
+    while (s->spare) {
+        vslot *next;
+        memcpy(&next, s->spare, sizeof next);
+        free(s->spare);
+        s->spare = next;
+    }
     free(s->tri.n);
     free(s->hole.n);
     free(s);
@@ -625,7 +632,7 @@ uint64_t isomend_check_stream_memory(const isomend_volume *desc, const isomend_o
     if (!desc || grid_of(desc, opts, &c) != ISOMEND_OK)
         return 0;
     const grid *g = &c.g;
-    /* the window; the ring's last chunk and the spare kept beside it; the
+    /* the window; the ring's last chunk and a spare beside it; the
      * slices' origins (begin_volume) and the object */
     const double bytes = CHECK_BYTES_PER_SAMPLE * (double)g->N[0] * (double)g->N[1] +
                          2.0 * (double)(sizeof(vslot) * CHUNK) +
@@ -729,7 +736,8 @@ static isomend_status ring_fit(isomend_check_stream *s, uint64_t end)
     const uint64_t first = s->next > s->floor ? ((s->next - 1) >> CHUNK_BITS) + 1 : s->next >> CHUNK_BITS;
     for (uint64_t c = first; c <= hi; c++) {
         vslot *chunk = s->spare;
-        s->spare = NULL;
+        if (chunk)
+            memcpy(&s->spare, chunk, sizeof s->spare);
         if (!chunk) {
             if (!(chunk = malloc(sizeof(vslot) * (size_t)CHUNK)))
                 return ISOMEND_ERR_OUT_OF_MEMORY;
@@ -741,7 +749,8 @@ static isomend_status ring_fit(isomend_check_stream *s, uint64_t end)
 }
 
 /* The chunks whose ids all retired below `floor` (from the old floor) given
- * back: one kept as the spare, the others freed. */
+ * back to the spares: freed and taken again, a chunk's 688 KiB would fault in
+ * anew (glibc gives such blocks back to the system), 168 page faults each. */
 static void ring_release(isomend_check_stream *s, uint64_t old_floor, uint64_t floor)
 {
     if (!s->chunks)
@@ -752,12 +761,8 @@ static void ring_release(isomend_check_stream *s, uint64_t old_floor, uint64_t f
         vslot **at = &s->chunks[c & s->cmask];
         if (!*at)
             continue;
-        if (!s->spare) {
-            s->spare = *at;
-        } else {
-            free(*at);
-            account(s, sizeof(vslot) * (size_t)CHUNK, 0);
-        }
+        memcpy(*at, &s->spare, sizeof s->spare);
+        s->spare = *at;
         *at = NULL;
     }
 }
