@@ -734,11 +734,11 @@ isomend_status mesh_smooth(const isomend_mesh *mesh, int iterations, isomend_mes
         free(m);
         return ISOMEND_ERR_OUT_OF_MEMORY;
     }
-    /* the output's first, so that a failure hands them back with m */
+    /* the output's arrays in m at once, so that a failure hands them back with m */
     m->pos = arena_take_pages(&ar, 12 * nv1 + 16, &m->mapped[0]); /* + 16: the filter's zero vertex */
     uint32_t *prev = m->tri = arena_take_pages(&ar, 4 * nc3, &m->mapped[2]);
     float *xb = mesh->nrm ? (m->nrm = arena_take_pages(&ar, 12 * nv1 + 16, &m->mapped[1]))
-                          : arena_take(&ar, 12 * nv1 + 16); /* (the pages first: no gaps) */
+                          : arena_take(&ar, 12 * nv1 + 16);
     uint8_t *free_v = arena_take(&ar, nv1);
     uint32_t *label = arena_take(&ar, nv1 * sizeof(uint32_t));
     uint32_t *first = arena_take(&ar, 4 * (nv1 + 1)), *next = arena_take(&ar, 4 * nc3);
@@ -872,7 +872,6 @@ isomend_status mesh_smooth(const isomend_mesh *mesh, int iterations, isomend_mes
         goto done;
     if (bytes) { /* everything above is held at once (the filter's rows with it) */
         const uint64_t n1 = nv1, c3 = 3 * (uint64_t)(mesh->nt ? mesh->nt : 1);
-        const int near = nv >= NEAR_MIN, wide16 = !near && nv <= SHORT_MAX;
         *bytes =
             n1 * (1 + 4 + 12 + 16) + 3 * (12 * n1 + 16) + sizeof *m + 4 * (n1 + 1) + 8 * c3 +
             5 * 8 * (uint64_t)nc1 +
@@ -880,9 +879,7 @@ isomend_status mesh_smooth(const isomend_mesh *mesh, int iterations, isomend_mes
                                        (SUM_FIELDS * sizeof(double) + 1) +
                                    2
                              : 0) +
-            (iterations > 0 ? 8 * ((uint64_t)iterations + 1) +
-                                  (near ? NEAR * sizeof(int16_t) : WIDE * (wide16 ? 2 : 4)) * n1
-                            : 0) +
+            (iterations > 0 ? 8 * ((uint64_t)iterations + 1) + sinc_row_bytes(nv) : 0) +
             (m->slice_store ? 24 * (uint64_t)m->slices.n : 0);
     }
     if (report) {
