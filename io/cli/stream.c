@@ -207,8 +207,8 @@ void cli_memory_plan_make(const isomend_volume *desc, const isomend_options *opt
          * the check, 3.35 s with a pool of two; the pool costs 1.3-1.5x the CPU
          * of one stream, docs/streaming.md).  A run the check skips gets one
          * thread below, as every run under a tight limit. */
-        const long cores = sysconf(_SC_NPROCESSORS_ONLN);
-        p->threads = cores < 3 ? 1 : cores > 65 ? 64 : (int)cores - 1;
+        const int cores = isomend_cores(); /* those the process may run on */
+        p->threads = cores < 3 ? 1 : cores > 65 ? 64 : cores - 1;
     }
     /* under a tight limit: first one thread, then no check (said so); the
      * streamed steps count in that choice, so a step's minimal chunk is not

@@ -120,6 +120,11 @@ ISOMEND_API const char *isomend_status_string(isomend_status status);
 /* The library's version string, e.g. "0.1.0". */
 ISOMEND_API const char *isomend_version(void);
 
+/* The cores this process may run on (its affinity mask: taskset, a
+ * container's cpuset; else the machine's online cores), at least 1: the
+ * threads that threads = 0 means, in every call that takes a thread count. */
+ISOMEND_API int isomend_cores(void);
+
 /* ------------------------------------------------------------ voxel types */
 
 typedef enum isomend_type {
@@ -256,8 +261,8 @@ typedef struct isomend_options {
     double iso;                   /* iso level (finite)                          */
     isomend_method method;        /* default ISOMEND_METHOD_DMC                  */
     unsigned flags;               /* ISOMEND_FLAG_*                              */
-    int threads;                  /* 0 = all cores; at most 64; the mesh does not  */
-                                  /* depend on it                                */
+    int threads;                  /* 0 = isomend_cores(); at most 64; the mesh     */
+                                  /* does not depend on it                       */
     isomend_progress_fn progress; /* may be NULL                                 */
     void *progress_user;
 } isomend_options;

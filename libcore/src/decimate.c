@@ -93,6 +93,7 @@ typedef struct dec {
     uint32_t *member_next; /* through these (a point each), from members[v] */
     uint32_t *member_last; /* the list's last                              */
     mem_tally mem;         /* its bytes (decimate_carry.peak_bytes)         */
+    team *team;            /* the call's threads, started once (NULL: this one) */
 } dec;
 
 /* ------------------------------------------------------------- quadrics */
@@ -699,10 +700,10 @@ static size_t gather(dec *d, cand *c, int *ok)
         return 0;
     mem_tally_spike(&d->mem, (nblocks + 1) * sizeof(size_t));
     gather_job job = {d, c, first};
-    parallel_for_from(nblocks, 2, gather_count, &job);
+    team_for_from(d->team, nblocks, 1, gather_count, &job);
     for (size_t blk = 0; blk < nblocks; blk++)
         first[blk + 1] += first[blk];
-    parallel_for_from(nblocks, 2, gather_cost, &job);
+    team_for_from(d->team, nblocks, 1, gather_cost, &job);
     const size_t n = first[nblocks];
     free(first);
     return n;
@@ -966,7 +967,7 @@ static size_t run_regions(dec *d, cand *c, cand *tmp, size_t n, uint32_t offset,
         first[r] = first[r - 1];
     first[0] = 0;
     region_job job = {d, tmp, first, rt};
-    parallel_for_from(nregions, 2, region_range, &job);
+    team_for_from(d->team, nregions, 1, region_range, &job);
     tally sum = {0, 0, 0, 0, 0, 0};
     for (size_t r = 0; r < nregions; r++)
         tally_add(&sum, &rt[r]);
@@ -1255,8 +1256,11 @@ isomend_status mesh_decimate_to(const isomend_mesh *mesh, uint64_t target, doubl
                       : V_LOCKED; /* unused vertices are locked too, and those asked */
         rep.locked_vertices += d.vf[v] && d.fan_first[v + 1] > d.fan_first[v];
     }
+    /* the threads, started once for the call's loops (a thread's start cost
+     * 0.3 ms on a virtual machine: a small mesh's decimation started 16) */
+    d.team = team_start(d.nt);
     quadric_job qj = {&d, carry ? carry->planes_from : 0, carry ? carry->q_in : NULL};
-    parallel_for(d.nv, quadric_range, &qj);
+    team_for(d.team, d.nv, quadric_range, &qj);
     /*
      * Passes.  Each gathers the live edges, costs them (on threads: a pure
      * function of the mesh), sorts them, and collapses them cheapest first,
@@ -1334,7 +1338,7 @@ isomend_status mesh_decimate_to(const isomend_mesh *mesh, uint64_t target, doubl
         rep.vertices_after = (*out)->nv;
         /* how far the input's vertices lie from the result */
         if (measure && !mesh_distances(mesh->pos, mesh->nv, (*out)->pos, (*out)->tri, (*out)->nt,
-                                       &rep.max_error, &rep.mean_error, NULL)) {
+                                       d.team, &rep.max_error, &rep.mean_error, NULL)) {
             isomend_mesh_destroy(*out);
             *out = NULL;
             if (kept) {
@@ -1345,6 +1349,7 @@ isomend_status mesh_decimate_to(const isomend_mesh *mesh, uint64_t target, doubl
         }
     }
 done:
+    team_stop(d.team);
     arena_close(&ar);
     if (report)
         *report = rep;

@@ -195,7 +195,7 @@ static isomend_status measure(isomend_decimate_stream *d, const measured *m)
         tri[i] = (uint32_t)i;
     double mx = 0, mean = 0;
     uint64_t dist_bytes = 0;
-    const int ok = mesh_distances(m->p, m->n, pos, tri, nt, &mx, &mean, &dist_bytes);
+    const int ok = mesh_distances(m->p, m->n, pos, tri, nt, NULL, &mx, &mean, &dist_bytes);
     mem_tally_spike(stream_window_tally(d->w), 48 * (uint64_t)nt + dist_bytes);
     free(pos);
     free(tri);

@@ -240,7 +240,7 @@ static void dist_blocks(void *arg, size_t lo_block, size_t hi_block)
 }
 
 int mesh_distances(const float *pts, size_t np, const float *pos, const uint32_t *tri, size_t nt,
-                   double *max_out, double *mean_out, uint64_t *bytes)
+                   team *tm, double *max_out, double *mean_out, uint64_t *bytes)
 {
     *max_out = *mean_out = 0;
     if (bytes)
@@ -358,7 +358,9 @@ int mesh_distances(const float *pts, size_t np, const float *pos, const uint32_t
                  2 * (uint64_t)nblocks * sizeof(double) + 9 * (uint64_t)nt * sizeof(float) +
                  6 * (uint64_t)(total ? total : 1) * sizeof(float);
     dist_job job = {&g, pts, corners, boxes, np, bmax, bmax + nblocks};
-    parallel_for_from(nblocks, 2, dist_blocks, &job); /* threads from 2 blocks (8192 points) on */
+    team *own = tm || nblocks < 2 ? NULL : team_start(np); /* threads from 2 blocks (8192 points) on */
+    team_for_from(tm ? tm : own, nblocks, 1, dist_blocks, &job);
+    team_stop(own);
     double worst = 0, sum = 0;
     for (size_t b = 0; b < nblocks; b++) {
         worst = bmax[b] > worst ? bmax[b] : worst;

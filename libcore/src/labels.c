@@ -12,6 +12,7 @@
  * the time: every label's mesh is the same byte for byte for any thread
  * count, and is isomend_extract()'s on the label's indicator at level 0.5.
  */
+#include "cores.h"
 #include "labels.h"
 #include "labels_present.h"
 #include "labels_sweep.h"
@@ -20,7 +21,6 @@
 #include <pthread.h>
 #include <stdlib.h>
 #include <string.h>
-#include <unistd.h>
 
 struct isomend_labels {
     size_t count;
@@ -404,9 +404,7 @@ isomend_status isomend_labels_extract(const isomend_volume *vol, const int64_t *
     if (status != ISOMEND_OK)
         return status;
     const int threads = opts ? opts->threads : 0;
-    const long cores = sysconf(_SC_NPROCESSORS_ONLN);
-    const int nthreads = threads > 0 ? threads : cores < 1 ? 1 : (int)cores;
-    status = run_slabs(su.job, nthreads > 64 ? 64 : nthreads, su.result);
+    status = run_slabs(su.job, cores_threads(threads, 64), su.result);
     if (status == ISOMEND_OK) {
         if (opts && opts->progress)
             (void)opts->progress(opts->progress_user, 1.0);

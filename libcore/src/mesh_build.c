@@ -6,13 +6,13 @@
  * a loop split over threads (for work whose result does not depend on the
  * split).
  */
+#include "cores.h"
 #include "mesh_internal.h"
 
 #include <math.h>
 #include <pthread.h>
 #include <stdlib.h>
 #include <string.h>
-#include <unistd.h>
 
 isomend_status mesh_copy_frame(isomend_mesh *dst, const isomend_mesh *src)
 {
@@ -289,8 +289,7 @@ void parallel_for_from(size_t n, size_t min_items, void (*fn)(void *arg, size_t 
 {
     int nthreads = 1;
     if (n >= min_items && n >= 2) {
-        const int cores = team_cores();
-        nthreads = cores > 8 ? 8 : cores;
+        nthreads = cores_threads(0, 8);
     }
     pthread_t th[8];
     parallel_part parts[8];

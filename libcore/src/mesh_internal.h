@@ -129,12 +129,13 @@ isomend_status mesh_decimate_to(const isomend_mesh *mesh, uint64_t target, doubl
                                 decimate_carry *carry, isomend_decimate_report *report);
 
 /* distance.c: the squared distance from p to triangle (a, b, c); the largest
- * and mean distance from np points to a triangle mesh (0 without memory;
- * *bytes, if not NULL: the most it allocated at once). */
+ * and mean distance from np points to a triangle mesh, on the threads of tm
+ * (NULL: a team of its own; 0 without memory; *bytes, if not NULL: the most
+ * it allocated at once). */
 double point_triangle_distance2(const double p[3], const double a[3], const double b[3],
                                 const double c[3]);
 int mesh_distances(const float *pts, size_t np, const float *pos, const uint32_t *tri, size_t nt,
-                   double *max_out, double *mean_out, uint64_t *bytes);
+                   team *tm, double *max_out, double *mean_out, uint64_t *bytes);
 
 /* components.c: each vertex's component (triangles joined through shared
  * vertices), numbered in vertex order; returns their count (isolated

@@ -31,8 +31,9 @@
  * whose reservations the system refuses, takes counted runs instead
  * (counted_runs.c: counted first, into arrays of the mesh's size).
  */
-#define _GNU_SOURCE /* _SC_NPROCESSORS_ONLN */
+#define _POSIX_C_SOURCE 200809L /* clock_gettime */
 #include "context.h"
+#include "cores.h"
 #include "extract.h"
 #include "methods.h"
 #include "slice_geometry.h"
@@ -44,7 +45,6 @@
 #include <pthread.h>
 #include <stdlib.h>
 #include <time.h>
-#include <unistd.h>
 
 /* Samples from which the runs go into reservations, other threads taking
  * staged runs (below, counted runs: a thread's start and a region's huge
@@ -62,12 +62,6 @@
  * samples of one byte; times the sample's size (a larger sample: counting
  * reads more). */
 #define COUNTED_DENSITY 0.02
-
-static int default_threads(void)
-{
-    long n = sysconf(_SC_NPROCESSORS_ONLN);
-    return n < 1 ? 1 : n > 64 ? 64 : (int)n;
-}
 
 static void arrays_release(arrays *a)
 {
@@ -597,7 +591,7 @@ static isomend_status extract(const isomend_volume *vol, const isomend_options *
     p->vcap = vmax; /* a staged thread's region holds as much */
     p->tcap = tmax;
     isomend_stats st;
-    int nthreads = o->threads > 0 ? (o->threads > 64 ? 64 : o->threads) : default_threads();
+    int nthreads = cores_threads(o->threads, 64);
     const uint64_t samples = (uint64_t)g->N[0] * (uint64_t)g->N[1] * (uint64_t)g->N[2];
     int small = samples < STAGED_SAMPLES && c->schedule == SCHEDULE_AUTO;
     if (small && nthreads == 1 && samples >= COUNTED_SAMPLES && g->N[2] >= 8) {

@@ -28,7 +28,7 @@
  * slot's arrays are reserved once at the largest slab's size (address
  * space: only what the slabs write is touched) and kept for the slabs after.
  */
-#define _GNU_SOURCE /* _SC_NPROCESSORS_ONLN */
+#include "cores.h"
 #include "mesh_internal.h"
 #include "stream.h"
 #include "stream_pool.h"
@@ -36,7 +36,6 @@
 #include <pthread.h>
 #include <stdlib.h>
 #include <string.h>
-#include <unistd.h>
 
 /* Samples a slab should hold at least (its planes' work amortises a piece's
  * set-up) and the layers a slab has at least and at most. */
@@ -95,14 +94,6 @@ struct stream_pool {
 
 /* ---------------------------------------------------------------- plan */
 
-static int resolve_threads(int threads)
-{
-    if (threads > 0)
-        return threads > 64 ? 64 : threads;
-    long n = sysconf(_SC_NPROCESSORS_ONLN);
-    return n < 1 ? 1 : n > 64 ? 64 : (int)n;
-}
-
 /* The layers of a slab of `plane` samples, before the spread. */
 static int64_t slab_height(int64_t plane)
 {
@@ -112,7 +103,7 @@ static int64_t slab_height(int64_t plane)
 
 int stream_pool_threads(const isomend_options *opts)
 {
-    return resolve_threads(opts ? opts->threads : 0);
+    return cores_threads(opts ? opts->threads : 0, 64);
 }
 
 int stream_pool_plan(const isomend_volume *desc, const isomend_options *opts, int64_t *slab_layers)

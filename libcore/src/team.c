@@ -9,14 +9,13 @@
  * condition variable under the team's mutex; whoever changes what a sleeper
  * waits for takes the mutex to signal, so no wake-up is lost.
  */
-#define _GNU_SOURCE /* sched_getaffinity, CPU_COUNT */
 #include "team.h"
 
+#include "cores.h"
+
 #include <pthread.h>
-#include <sched.h>
 #include <stdatomic.h>
 #include <stdlib.h>
-#include <unistd.h>
 
 #define SPIN 256 /* rounds of spinning before sleeping (pause: 10-140 cycles) */
 
@@ -104,23 +103,9 @@ static void wait_workers(team *t)
     pthread_mutex_unlock(&t->mu);
 }
 
-int team_cores(void)
-{
-#if defined(__linux__)
-    cpu_set_t set;
-    if (sched_getaffinity(0, sizeof(set), &set) == 0) {
-        const int n = CPU_COUNT(&set);
-        if (n >= 1)
-            return n;
-    }
-#endif
-    const long n = sysconf(_SC_NPROCESSORS_ONLN);
-    return n < 1 ? 1 : n > 4096 ? 4096 : (int)n;
-}
-
 team *team_start(size_t n)
 {
-    const int cores = team_cores();
+    const int cores = cores_available();
     size_t threads = cores > TEAM_MAX_THREADS ? TEAM_MAX_THREADS : (size_t)cores;
     if (n / TEAM_MIN_ITEMS < threads)
         threads = n / TEAM_MIN_ITEMS;

@@ -26,11 +26,7 @@
 
 typedef struct team team;
 
-/* The cores this process may run on (its affinity mask: taskset, a
- * container's cpuset), at least 1. */
-int team_cores(void);
-
-/* A team for loops of up to about n items: as many threads as cores (at
+/* A team for loops of up to about n items: as many threads as cores (cores.h; at
  * most 8), fewer where n gives them less than TEAM_MIN_ITEMS each; NULL
  * (run serially) for one thread or when threads cannot start. */
 team *team_start(size_t n);

@@ -2,13 +2,16 @@
  * test_api.c - the public API's contracts: every bad argument gets its status
  * and no mesh; names round-trip; cancellation from the progress callback;
  * world coordinates from origin and spacing; --flip reverses winding and
- * normals together; isomend_extract_recycle gives isomend_extract's mesh.
+ * normals together; isomend_extract_recycle gives isomend_extract's mesh;
+ * threads = 0 means the cores the process may run on (its affinity mask).
  */
+#define _GNU_SOURCE /* sched_setaffinity, CPU_COUNT */
 #include "isomend.h"
 #include "schedule.h"
 #include "testutil.h"
 
 #include <math.h>
+#include <sched.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -349,6 +352,38 @@ static void test_split(void)
     free(ball);
 }
 
+/* isomend_cores() follows the affinity mask, and threads = 0 means it: a
+ * stream's bound (one engine a worker, the slabs in flight) under a mask of
+ * one core is that of one thread, under two that of two. */
+static void test_cores(void)
+{
+    cpu_set_t all;
+    CHECK_EQ_INT(sched_getaffinity(0, sizeof all, &all), 0);
+    CHECK_EQ_INT(isomend_cores(), CPU_COUNT(&all));
+    isomend_volume v;
+    isomend_volume_init(&v, NULL, ISOMEND_U16, 256, 256, 512);
+    isomend_options o0, o1, o2;
+    isomend_options_init(&o0);
+    o1 = o2 = o0;
+    o1.threads = 1;
+    o2.threads = 2;
+    CHECK(isomend_stream_memory(&v, &o1) < isomend_stream_memory(&v, &o2));
+    for (int want = 1; want <= 2 && want <= CPU_COUNT(&all); want++) {
+        cpu_set_t some;
+        CPU_ZERO(&some);
+        int n = 0;
+        for (int c = 0; c < CPU_SETSIZE && n < want; c++)
+            if (CPU_ISSET(c, &all)) {
+                CPU_SET(c, &some);
+                n++;
+            }
+        CHECK_EQ_INT(sched_setaffinity(0, sizeof some, &some), 0);
+        CHECK_EQ_INT(isomend_cores(), want);
+        CHECK(isomend_stream_memory(&v, &o0) == isomend_stream_memory(&v, want == 1 ? &o1 : &o2));
+        CHECK_EQ_INT(sched_setaffinity(0, sizeof all, &all), 0);
+    }
+}
+
 int main(int argc, char **argv)
 {
     if (schedule_from_args(argc, argv))
@@ -358,5 +393,6 @@ int main(int argc, char **argv)
     test_progress_and_geometry();
     test_recycle();
     test_split();
+    test_cores();
     TEST_EXIT();
 }

@@ -175,8 +175,8 @@ int main(void)
                         double dmax = 0, dmean = 0;
                         CHECK(mesh_distances(c1.pos, c1.nv, isomend_mesh_positions(inmem),
                                              isomend_mesh_triangles(inmem),
-                                             isomend_mesh_triangle_count(inmem), &dmax, &dmean,
-                                             NULL));
+                                             isomend_mesh_triangle_count(inmem), NULL, &dmax,
+                                             &dmean, NULL));
                         if (!(dmean < 0.05 && dmax < 0.5)) {
                             fprintf(stderr, "%s: from the in-memory smoothing: mean %g, max %g\n",
                                     what, dmean, dmax);

@@ -170,9 +170,7 @@ std::string dims_text(const isomend_io_source *s) {
 }
 
 int reader_threads(const isomend_io_source *s) {
-    if (s->opts.threads > 0) return s->opts.threads;
-    unsigned hc = std::thread::hardware_concurrency();
-    return hc ? (int)std::min(hc, 8u) : 2;
+    return s->opts.threads > 0 ? s->opts.threads : default_reader_threads();
 }
 
 // Refuses `need` bytes (described by `what`) beyond the limit, before allocating.

@@ -49,6 +49,10 @@ struct Slice {
 // the IFD chain does not have one IFD per slice.
 void locate_tiff_pages(std::vector<Slice> &slices);
 
+// The threads that read slices when none are asked (threads <= 0): the cores
+// the process may run on (isomend_cores(): its affinity mask), at most 8.
+int default_reader_threads();
+
 // ---- resolve.cpp ----
 // Natural "less than": digit runs compare as numbers, the rest case-insensitively.
 bool natural_less(const std::string &a, const std::string &b);
