@@ -105,8 +105,7 @@ static void wait_workers(team *t)
 
 team *team_start(size_t n)
 {
-    const int cores = cores_available();
-    size_t threads = cores > TEAM_MAX_THREADS ? TEAM_MAX_THREADS : (size_t)cores;
+    size_t threads = (size_t)cores_threads(0, TEAM_MAX_THREADS);
     if (n / TEAM_MIN_ITEMS < threads)
         threads = n / TEAM_MIN_ITEMS;
     if (threads < 2)

@@ -170,7 +170,7 @@ std::string dims_text(const isomend_io_source *s) {
 }
 
 int reader_threads(const isomend_io_source *s) {
-    return s->opts.threads > 0 ? s->opts.threads : default_reader_threads();
+    return reader_threads_for(s->opts.threads);
 }
 
 // Refuses `need` bytes (described by `what`) beyond the limit, before allocating.

@@ -49,9 +49,9 @@ struct Slice {
 // the IFD chain does not have one IFD per slice.
 void locate_tiff_pages(std::vector<Slice> &slices);
 
-// The threads that read slices when none are asked (threads <= 0): the cores
-// the process may run on (isomend_cores(): its affinity mask), at most 8.
-int default_reader_threads();
+// The threads that read slices: `threads` when positive, else the cores the
+// process may run on (isomend_cores(): its affinity mask), at most 8.
+int reader_threads_for(int threads);
 
 // ---- resolve.cpp ----
 // Natural "less than": digit runs compare as numbers, the rest case-insensitively.

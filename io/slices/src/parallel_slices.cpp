@@ -18,13 +18,12 @@
 
 namespace isomend_io {
 
-int default_reader_threads() { return std::min(isomend_cores(), 8); }
+int reader_threads_for(int threads) { return threads > 0 ? threads : std::min(isomend_cores(), 8); }
 
 void read_slices_parallel(int64_t n, int threads,
                           const std::function<void(int64_t k, std::vector<char> &scratch)> &task,
                           const std::function<bool(double)> &progress, const SlicePool &pool) {
-    if (threads <= 0) threads = default_reader_threads();
-    threads = (int)std::max<int64_t>(1, std::min<int64_t>(threads, n));
+    threads = (int)std::max<int64_t>(1, std::min<int64_t>(reader_threads_for(threads), n));
     const std::string what = pool.what;
     std::atomic<int64_t> next{0}, done{0};
     std::atomic<bool> stop{false};

@@ -315,8 +315,7 @@ void scan_stack(const std::vector<Slice> &slices, int channel, int threads, Stac
         info.format = c.file->format();
     }
     const size_t n = slices.size();
-    if (threads <= 0) threads = default_reader_threads();
-    size_t workers = std::min<size_t>((size_t)threads, (n - 1 + 63) / 64); // >= 64 headers each
+    size_t workers = std::min<size_t>((size_t)reader_threads_for(threads), (n - 1 + 63) / 64); // >= 64 headers each
     if (workers <= 1) {
         ScanCursor c;
         for (size_t k = 1; k < n; k++) {
